@@ -1,0 +1,50 @@
+// pendavg/bessel.hpp -- exponentially scaled modified Bessel functions, generic over Real.
+//
+// What for: every Boltzmann weight of the pendulum is a product of I_k(alpha) factors with
+// alpha = beta * (mass) * g * (length), which overflows double beyond alpha ~ 700. Everything
+// here is scaled by exp(-x) so nothing overflows at any beta.
+//
+//  * scaled_bessel_i01(x)       -- e^{-x} I0(x) and e^{-x} I1(x), x >= 0. For double this is
+//                                  GSL (gsl_sf_bessel_I0_scaled / I1_scaled). For MPFR no
+//                                  library offers scaled I (MPFR has none; Boost's cyl_bessel_i
+//                                  on mpfr_float costs 0.1-3 ms a call), so the generic version
+//                                  sums the power series (all terms positive) below
+//                                  asymptotic_threshold(u) and the Hankel asymptotic series
+//                                  above it, where its smallest term is below u.
+//  * scaled_bessel_i_table(a,K) -- e^{-a} I_m(a), m = 0..K-1, by Miller's backward recurrence
+//                                  normalised with the exact sum rule sum_m eps_m e^{-a}I_m(a)=1
+//                                  (eps_0 = 1, eps_m = 2). One table per argument feeds Graf's
+//                                  addition theorem and the paper's series (MATH.md Sec. 5).
+//  * reduced_bessel_table(a,K)  -- f_k(a) = I_k(a)/a^k scaled by e^{-a}, k = 0..K-1, from the
+//                                  backward recurrence f_{k-1} = a^2 f_{k+1} + 2k f_k (all terms
+//                                  positive; exact at a = 0 where f_k = 1/(2^k k!)).
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace pendavg {
+
+template <class Real>
+struct ScaledBesselI01 {
+  Real i0e;  ///< e^{-x} I0(x)
+  Real i1e;  ///< e^{-x} I1(x)
+};
+
+/// e^{-x} I0(x), e^{-x} I1(x) for x >= 0 at the current working precision.
+template <class Real>
+ScaledBesselI01<Real> scaled_bessel_i01(const Real& x);
+
+/// The generic (series + asymptotic) implementation, also for double: a test oracle for GSL.
+template <class Real>
+ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x);
+
+/// e^{-a} I_m(a) for m = 0 .. count-1 (a >= 0). Cost O(count + sqrt(a * digits) + a).
+template <class Real>
+std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count);
+
+/// e^{-a} I_k(a) / a^k for k = 0 .. count-1 (a >= 0).
+template <class Real>
+std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count);
+
+}  // namespace pendavg

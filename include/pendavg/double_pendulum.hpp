@@ -1,0 +1,100 @@
+// pendavg/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2).
+//
+// Four engines, one result type (Averages<Real>):
+//  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (MATH.md Sec. 2).
+//      The default and fastest engine, in double and in MPFR. Nodes are placed by a sinh map
+//      at t = 0, where q(t) = mu1 + mu2 sin^2 t nearly vanishes (distance asinh(sqrt(mu1/mu2))
+//      from the real axis), and the range is cut where the Boltzmann weight has decayed, so
+//      the node count stays bounded as mu1 -> 0 and beta -> infinity. Nested Clenshaw-Curtis
+//      levels give the error estimate from successive refinements. The Bessel weight
+//      I0(R(t)) e^{-(a1+a2)} is summed from Graf's addition theorem when a1, a2 are moderate
+//      and evaluated per node (scaled, asymptotic) when they are large; nothing overflows.
+//  * series_average -- the paper's series, eq. ave-K1-result, with R_n from the closed-form
+//      Bessel derivatives (MATH.md Sec. 5) and a rigorous truncation bound that decides when
+//      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.
+//  * high_temperature_limit -- beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2
+//      (paper eq. aveK1-beta0), via Carlson's R_F, R_D with k'^2 = mu1 given directly.
+//  * low_temperature_limit -- beta -> infinity: beta<K_i> = 1/2 for both particles.
+//
+// Observables: beta<K_i> (K_2 from beta<K1> + beta<K2> = 1), <cos phi_i>, beta^2 Var K_i
+// (MATH.md Sec. 4: for N = 2 X_1 has rank one, so <K1^2|phi> = 3 <K1|phi>^2).
+//
+// `digits` is the number of correct significant decimal digits requested (16..1000). For
+// Real = double it must be 16 (the double path aims at ~2e-15 relative error). For
+// Real = mpfr_real the computation runs at digits + guard_digits.
+#pragma once
+
+#include "pendavg/chain.hpp"
+#include "pendavg/precision.hpp"
+#include "pendavg/result.hpp"
+
+#include <cstddef>
+#include <vector>
+
+namespace pendavg {
+
+/// The double pendulum's dimensionless parameters (paper eqs. alpha-g, alpha-ell).
+template <class Real>
+struct DoublePendulumParameters {
+  Real mu1, mu2;  ///< m1/M and m2/M, each computed directly from the masses
+  Real a1, a2;    ///< alpha_1 = beta M g l1, alpha_2 = beta m2 g l2
+};
+
+/// Validates that the chain has two particles and beta > 0 and finite; throws invalid_input.
+template <class Real>
+DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& chain,
+                                                          const Real& beta);
+
+/// Engine choice for `average`. `automatic` picks the reduced integral (it has no mu1 -> 0
+/// slowdown); the series stays available as the paper's method and as an independent check.
+enum class Engine { automatic, series, integral };
+
+/// How the reduced integral is evaluated. `automatic`: when a1, a2 are moderate (few Graf
+/// terms), exactly, as a finite sum of Graf coefficients times the Fourier moments of q^s
+/// (three-term recurrence from K and E; no nodes at all); otherwise by sinh-mapped nested
+/// Clenshaw-Curtis quadrature with per-node scaled Bessel functions. `quadrature` forces the
+/// nodes everywhere (an independent check of the moment path).
+enum class IntegralEvaluation { automatic, quadrature };
+struct IntegralOptions {
+  IntegralEvaluation evaluation = IntegralEvaluation::automatic;
+};
+
+template <class Real>
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
+                                        int digits = 16);
+template <class Real>
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
+                                        const IntegralOptions& options);
+
+template <class Real>
+Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int digits = 16,
+                              std::size_t max_terms = 0 /* 0: no cap */);
+
+template <class Real>
+Averages<Real> high_temperature_limit(const Chain<Real>& chain, int digits = 16);
+
+template <class Real>
+Averages<Real> low_temperature_limit(const Chain<Real>& chain);
+
+template <class Real>
+Averages<Real> average(const Chain<Real>& chain, const Real& beta, int digits = 16,
+                       Engine engine = Engine::automatic);
+
+/// One row of the series convergence check (paper eq. ave-K1-result, MATH.md Sec. 5).
+template <class Real>
+struct SeriesRow {
+  std::size_t n = 0;
+  Real R_n;            ///< R_n(a1, a2), scaled by exp(-(a1 + a2))
+  Real term;           ///< c_n mu2^n R_n, the n-th numerator term (scaled)
+  Real numerator;      ///< partial sum  sum_{k<=n} c_k mu2^k R_k  (scaled)
+  Real denominator;    ///< partial sum  R_0 - sum_{1<=k<=n} d_k mu2^k R_k  (scaled)
+  Real beta_kinetic1;  ///< (mu1/2) numerator / denominator
+  Real bound;          ///< rigorous bound on |beta<K1> - beta_kinetic1| from the tails
+};
+
+/// The series, term by term, up to `terms` terms (0: until the requested digits are certified).
+template <class Real>
+std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
+                                                int digits = 16, std::size_t terms = 0);
+
+}  // namespace pendavg

@@ -1,0 +1,185 @@
+// Scaled modified Bessel functions: GSL in double, series/asymptotic generic, Miller tables.
+#include "pendavg/bessel.hpp"
+
+#include "pendavg/precision.hpp"
+
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_sf_bessel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace pendavg {
+namespace {
+
+using std::exp;
+using std::log;
+using std::sqrt;
+
+/// -ln(unit roundoff) as a double.
+template <class Real>
+double log_inverse_roundoff() {
+  using std::log;
+  return -static_cast<double>(log(unit_roundoff<Real>()));
+}
+
+/// Above this argument the Hankel series' smallest term (~ e^{-2x}) is below the roundoff.
+template <class Real>
+double asymptotic_threshold() {
+  return 0.5 * log_inverse_roundoff<Real>() + 8.0;
+}
+
+/// Miller start index: beyond `count` by enough that e^{-a} I_m(a) has decayed by roughly
+/// sqrt(roundoff) more (Miller's error at m ~ (I_start/I_m)^2), with a safety margin.
+template <class Real>
+std::size_t miller_start(double a, std::size_t count) {
+  const double lnu = log_inverse_roundoff<Real>();
+  const double extra = 12.0 + std::sqrt((a + 1.0) * (lnu + 10.0));
+  return count + static_cast<std::size_t>(std::min(extra, 1e9));
+}
+
+/// Forward recurrence from I0, I1 is stable while m^2 << a (both solutions ~ e^{+-a}):
+/// use it for large arguments, where Miller's start index would grow like sqrt(a).
+template <class Real>
+bool forward_recurrence_is_stable(double a, std::size_t count) {
+  const double c = static_cast<double>(count);
+  return a > 64.0 * c * c + 4.0 * log_inverse_roundoff<Real>();
+}
+
+}  // namespace
+
+template <class Real>
+ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x) {
+  using std::exp;
+  using std::sqrt;
+  using std::abs;
+  const Real u = unit_roundoff<Real>();
+  if (x < Real(asymptotic_threshold<Real>())) {
+    // Power series, every term positive: I0 = sum h^k/(k!)^2, I1 = (x/2) sum h^k/(k!(k+1)!).
+    const Real h = x * x / 4;
+    Real t0 = 1, s0 = 1, t1 = 1, s1 = 1;
+    for (unsigned long k = 1;; ++k) {
+      t0 *= h;
+      t0 /= k * k;
+      s0 += t0;
+      t1 *= h;
+      t1 /= k * (k + 1);
+      s1 += t1;
+      if (t0 <= u * s0 / 4 && Real(k * k) > h) break;
+    }
+    const Real e = exp(-x);
+    return {s0 * e, x / 2 * s1 * e};
+  }
+  // Hankel asymptotic series: I_nu e^{-x} ~ (2 pi x)^{-1/2} sum_k t_k,
+  // t_k = t_{k-1} ((2k-1)^2 - 4 nu^2) / (8 k x).
+  Real t0 = 1, s0 = 1, t1 = 1, s1 = 1;
+  const Real eight_x = 8 * x;
+  for (unsigned long k = 1; k < 100000; ++k) {
+    const long odd2 = static_cast<long>((2 * k - 1) * (2 * k - 1));
+    t0 *= odd2;
+    t0 /= eight_x;
+    t0 /= k;
+    t1 *= (odd2 - 4);
+    t1 /= eight_x;
+    t1 /= k;
+    s0 += t0;
+    s1 += t1;
+    if (abs(t0) <= u * s0 / 4 && abs(t1) <= u * abs(s1) / 4) break;
+  }
+  const Real pre = 1 / sqrt(2 * boost::math::constants::pi<Real>() * x);
+  return {pre * s0, pre * s1};
+}
+
+template <class Real>
+ScaledBesselI01<Real> scaled_bessel_i01(const Real& x) {
+  if constexpr (std::is_same_v<Real, double>) {
+    // GSL 2.7's gsl_sf_bessel_I1_scaled returns x/2 without the e^{-x} factor for
+    // x < 2 sqrt(eps) (relative error up to 3e-8); the power series is exact and cheap there.
+    if (x < 1e-3) return scaled_bessel_i01_generic(x);
+    gsl_sf_result r0, r1;
+    const int s0 = gsl_sf_bessel_I0_scaled_e(x, &r0);
+    const int s1 = gsl_sf_bessel_I1_scaled_e(x, &r1);
+    if (s0 != GSL_SUCCESS && s0 != GSL_EUNDRFLW) throw std::domain_error("gsl I0_scaled failed");
+    if (s1 != GSL_SUCCESS && s1 != GSL_EUNDRFLW) throw std::domain_error("gsl I1_scaled failed");
+    return {r0.val, r1.val};
+  } else {
+    return scaled_bessel_i01_generic(x);
+  }
+}
+
+namespace {
+
+/// Miller's algorithm in ratio form, overflow-free at any a >= 0 (including a = 0):
+/// r_m = e^{-a}I_m / e^{-a}I_{m-1} = a / (2m + a r_{m+1}), from r_{start+1} = 0.
+/// Returns r_1 .. r_{count-1} (index m) and e^{-a} I_0(a) from the sum rule
+/// sum_m eps_m e^{-a} I_m(a) = 1, i.e. I~_0 = 1 / (1 + 2 sum_{m>=1} r_1 ... r_m).
+template <class Real>
+Real miller_ratios(const Real& a, std::size_t count, std::vector<Real>& r) {
+  const std::size_t start = miller_start<Real>(static_cast<double>(a), count);
+  r.assign(std::max<std::size_t>(count, 1), Real(0));
+  Real next = 0, cur;
+  // The products r_1 ... r_m for m >= count enter only the normalisation; accumulate the
+  // tail sum S_m = r_m (1 + S_{m+1}) on the way down.
+  Real tail = 0;
+  for (std::size_t m = start; m >= 1; --m) {
+    cur = a / (2 * Real(m) + a * next);
+    if (m < count) r[m] = cur;
+    tail = cur * (1 + tail);
+    next = cur;
+  }
+  return 1 / (1 + 2 * tail);
+}
+
+}  // namespace
+
+template <class Real>
+std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count) {
+  std::vector<Real> out(count, Real(0));
+  if (count == 0) return out;
+  if (forward_recurrence_is_stable<Real>(static_cast<double>(a), count)) {
+    const auto b = scaled_bessel_i01(a);
+    out[0] = b.i0e;
+    if (count > 1) out[1] = b.i1e;
+    for (std::size_t m = 1; m + 1 < count; ++m) out[m + 1] = out[m - 1] - 2 * Real(m) / a * out[m];
+    return out;
+  }
+  std::vector<Real> r;
+  out[0] = miller_ratios(a, count, r);
+  for (std::size_t m = 1; m < count; ++m) out[m] = out[m - 1] * r[m];
+  return out;
+}
+
+template <class Real>
+std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
+  std::vector<Real> out(count, Real(0));
+  if (count == 0) return out;
+  if (a > 0 && forward_recurrence_is_stable<Real>(static_cast<double>(a), count)) {
+    const auto I = scaled_bessel_i_table(a, count);
+    Real scale = 1;
+    for (std::size_t k = 0; k < count; ++k) {
+      out[k] = I[k] / scale;
+      scale *= a;
+    }
+    return out;
+  }
+  // f_k / f_{k-1} = r_k / a = 1 / (2k + a r_{k+1}): no division by a, exact at a = 0.
+  std::vector<Real> r;
+  out[0] = miller_ratios(a, count + 1, r);
+  for (std::size_t k = 1; k < count; ++k) {
+    const Real next = (k + 1 < r.size()) ? r[k + 1] : Real(0);
+    out[k] = out[k - 1] / (2 * Real(k) + a * next);
+  }
+  return out;
+}
+
+#define PENDAVG_INSTANTIATE(Real)                                                   \
+  template ScaledBesselI01<Real> scaled_bessel_i01<Real>(const Real&);             \
+  template ScaledBesselI01<Real> scaled_bessel_i01_generic<Real>(const Real&);     \
+  template std::vector<Real> scaled_bessel_i_table<Real>(const Real&, std::size_t); \
+  template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
+PENDAVG_INSTANTIATE(double)
+PENDAVG_INSTANTIATE(mpfr_real)
+#undef PENDAVG_INSTANTIATE
+
+}  // namespace pendavg

@@ -1,0 +1,272 @@
+// src/cli/args.cpp -- strict parsing of the pendavg command line, numbers and cases files.
+#include "args.hpp"
+
+#include "pendavg/precision.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <system_error>
+
+namespace pendavg::cli {
+
+namespace {
+
+std::string in_quotes(std::string_view text) { return "'" + std::string(text) + "'"; }
+
+/// Length of the leading run of decimal digits of `text`.
+std::size_t digit_run(std::string_view text) {
+  return static_cast<std::size_t>(std::find_if(text.begin(), text.end(), [](char c) {
+                                    return c < '0' || c > '9';
+                                  }) -
+                                  text.begin());
+}
+
+/// True for [+-]digits[.digits][(e|E)[+-]digits] with at least one mantissa digit. This one
+/// grammar is applied before both parsers, so double and MPFR accept exactly the same tokens
+/// (no nan, inf, hex floats or whitespace).
+bool is_decimal_literal(std::string_view text) {
+  if (!text.empty() && (text.front() == '+' || text.front() == '-')) text.remove_prefix(1);
+  std::size_t mantissa_digits = digit_run(text);
+  text.remove_prefix(mantissa_digits);
+  if (!text.empty() && text.front() == '.') {
+    text.remove_prefix(1);
+    const std::size_t fraction_digits = digit_run(text);
+    mantissa_digits += fraction_digits;
+    text.remove_prefix(fraction_digits);
+  }
+  if (mantissa_digits == 0) return false;
+  if (text.empty()) return true;
+  if (text.front() != 'e' && text.front() != 'E') return false;
+  text.remove_prefix(1);
+  if (!text.empty() && (text.front() == '+' || text.front() == '-')) text.remove_prefix(1);
+  const std::size_t exponent_digits = digit_run(text);
+  return exponent_digits > 0 && exponent_digits == text.size();
+}
+
+double to_double(std::string_view text, std::string_view what) {
+  if (text.front() == '+') text.remove_prefix(1);  // from_chars takes no '+'
+  double value = 0;
+  const auto [end, status] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (status == std::errc::result_out_of_range)
+    throw usage_error(std::string(what) + ": " + in_quotes(text) +
+                      " is out of the range of double (use --digits > 16)");
+  if (status != std::errc() || end != text.data() + text.size())
+    throw usage_error(std::string(what) + ": malformed number " + in_quotes(text));
+  return value;
+}
+
+mpfr_real to_mpfr(std::string_view text, std::string_view what) {
+  const std::string terminated(text);
+  mpfr_real value;  // at the caller's working precision
+  if (mpfr_set_str(value.backend().data(), terminated.c_str(), 10, MPFR_RNDN) != 0)
+    throw usage_error(std::string(what) + ": malformed number " + in_quotes(text));
+  return value;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- options
+
+Options::Options(std::string_view command, std::span<const std::string_view> args,
+                 std::span<const std::string_view> allowed)
+    : command_(command) {
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    std::string_view arg = args[i];
+    if (!arg.starts_with("--") || arg.size() == 2)
+      throw usage_error(command_ + ": unexpected argument " + in_quotes(arg));
+    arg.remove_prefix(2);
+    std::string_view name = arg, value;
+    if (const auto equals = arg.find('='); equals != std::string_view::npos) {
+      name = arg.substr(0, equals);
+      value = arg.substr(equals + 1);
+    } else if (i + 1 < args.size() && !args[i + 1].starts_with("--")) {
+      value = args[++i];
+    } else if (std::ranges::find(allowed, name) != allowed.end()) {
+      throw usage_error(command_ + ": option --" + std::string(name) + " needs a value");
+    }
+    if (std::ranges::find(allowed, name) == allowed.end())
+      throw usage_error(command_ + ": unknown option --" + std::string(name));
+    if (!values_.emplace(std::string(name), std::string(value)).second)
+      throw usage_error(command_ + ": option --" + std::string(name) + " given twice");
+  }
+}
+
+std::string_view Options::get(std::string_view name, std::string_view fallback) const {
+  const auto found = values_.find(name);
+  return found == values_.end() ? fallback : std::string_view(found->second);
+}
+
+std::string_view Options::required(std::string_view name) const {
+  const auto found = values_.find(name);
+  if (found == values_.end())
+    throw usage_error(command_ + ": missing required option --" + std::string(name));
+  return found->second;
+}
+
+bool asks_for_help(std::span<const std::string_view> args) {
+  return std::ranges::any_of(args, [](std::string_view a) { return a == "--help" || a == "-h"; });
+}
+
+// ---------------------------------------------------------------- numbers
+
+template <class Real>
+Real parse_real(std::string_view text, std::string_view what, Domain domain) {
+  if (text.empty()) throw usage_error(std::string(what) + ": empty number");
+  if (!is_decimal_literal(text))
+    throw usage_error(std::string(what) + ": malformed number " + in_quotes(text) +
+                      " (expected a finite decimal number)");
+  Real value;
+  if constexpr (is_mpfr_v<Real>) {
+    value = to_mpfr(text, what);
+  } else {
+    value = to_double(text, what);
+  }
+  using std::isfinite;
+  if (!isfinite(value))
+    throw usage_error(std::string(what) + ": " + in_quotes(text) + " is not finite");
+  if (domain == Domain::positive && !(value > 0))
+    throw usage_error(std::string(what) + ": " + in_quotes(text) + " must be > 0");
+  if (domain == Domain::nonnegative && value < 0)
+    throw usage_error(std::string(what) + ": " + in_quotes(text) + " must be >= 0");
+  return value;
+}
+
+template <class Real>
+std::vector<Real> parse_real_list(std::string_view text, std::string_view what, Domain domain) {
+  std::vector<Real> values;
+  for (std::size_t begin = 0;;) {
+    const std::size_t comma = std::min(text.find(',', begin), text.size());
+    const std::string_view element = text.substr(begin, comma - begin);
+    if (element.empty())
+      throw usage_error(std::string(what) + ": empty element in list " + in_quotes(text));
+    values.push_back(parse_real<Real>(element, what, domain));
+    if (comma == text.size()) return values;
+    begin = comma + 1;
+  }
+}
+
+template double parse_real<double>(std::string_view, std::string_view, Domain);
+template mpfr_real parse_real<mpfr_real>(std::string_view, std::string_view, Domain);
+template std::vector<double> parse_real_list<double>(std::string_view, std::string_view, Domain);
+template std::vector<mpfr_real> parse_real_list<mpfr_real>(std::string_view, std::string_view,
+                                                           Domain);
+
+long parse_integer(std::string_view text, std::string_view what, long lowest, long highest) {
+  long value = 0;
+  const auto [end, status] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (text.empty() || digit_run(text) != text.size() || status != std::errc() ||
+      end != text.data() + text.size() || value < lowest || value > highest)
+    throw usage_error(std::string(what) + ": " + in_quotes(text) + " is not an integer in " +
+                      std::to_string(lowest) + ".." + std::to_string(highest));
+  return value;
+}
+
+int parse_digits(std::string_view text) {
+  return static_cast<int>(parse_integer(text, "--digits", min_digits, max_digits));
+}
+
+std::size_t parse_choice(std::string_view text, std::string_view what,
+                         std::span<const std::string_view> choices) {
+  const auto found = std::ranges::find(choices, text);
+  if (found != choices.end()) return static_cast<std::size_t>(found - choices.begin());
+  std::string expected;
+  for (const std::string_view choice : choices)
+    (expected += expected.empty() ? "" : "|") += choice;
+  throw usage_error("unknown " + std::string(what) + " " + in_quotes(text) + " (expected " +
+                    expected + ")");
+}
+
+// ---------------------------------------------------------------- cases file
+
+namespace {
+
+std::string_view trimmed(std::string_view text) {
+  constexpr std::string_view space = " \t\r";
+  const auto first = text.find_first_not_of(space);
+  if (first == std::string_view::npos) return {};
+  return text.substr(first, text.find_last_not_of(space) - first + 1);
+}
+
+std::vector<std::string_view> split_fields(std::string_view line) {
+  std::vector<std::string_view> fields;
+  for (std::size_t begin = 0;;) {
+    const std::size_t comma = std::min(line.find(',', begin), line.size());
+    fields.push_back(trimmed(line.substr(begin, comma - begin)));
+    if (comma == line.size()) return fields;
+    begin = comma + 1;
+  }
+}
+
+/// For each header field, the index of its column in case_columns.
+std::vector<std::size_t> column_positions(std::string_view header, const std::string& where) {
+  const auto names = split_fields(header);
+  std::vector<std::size_t> positions;
+  for (const std::string_view name : names) {
+    const auto found = std::ranges::find(case_columns, name);
+    if (found == case_columns.end())
+      throw usage_error(where + ": unknown column " + in_quotes(name));
+    const auto position = static_cast<std::size_t>(found - case_columns.begin());
+    if (std::ranges::find(positions, position) != positions.end())
+      throw usage_error(where + ": column " + in_quotes(name) + " given twice");
+    positions.push_back(position);
+  }
+  for (const std::string_view name : case_columns)
+    if (std::ranges::find(names, name) == names.end())
+      throw usage_error(where + ": missing column " + in_quotes(name));
+  return positions;
+}
+
+}  // namespace
+
+namespace {
+
+std::string read_file(const std::string& path) {
+  const usage_error unreadable("cannot read cases file " + in_quotes(path));
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw unreadable;
+  try {
+    std::string contents{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+    if (file.bad()) throw unreadable;
+    return contents;
+  } catch (const std::ios_base::failure&) {  // e.g. a directory
+    throw unreadable;
+  }
+}
+
+}  // namespace
+
+std::vector<CaseRow> read_cases_file(const std::string& path) {
+  const std::string contents = read_file(path);
+
+  std::optional<std::vector<std::size_t>> positions;  // set by the header line
+  std::vector<CaseRow> rows;
+  std::size_t line_number = 0;
+  for (std::size_t begin = 0; begin < contents.size();) {
+    const std::size_t newline = std::min(contents.find('\n', begin), contents.size());
+    const std::string_view line =
+        trimmed(std::string_view(contents).substr(begin, newline - begin));
+    begin = newline + 1;
+    ++line_number;
+    if (line.empty() || line.front() == '#') continue;
+    const std::string where = path + " line " + std::to_string(line_number);
+    if (!positions) {
+      positions = column_positions(line, where);
+      continue;
+    }
+    const auto fields = split_fields(line);
+    if (fields.size() != positions->size())
+      throw usage_error(where + ": expected " + std::to_string(positions->size()) +
+                        " fields, found " + std::to_string(fields.size()));
+    CaseRow row{line_number, {}};
+    for (std::size_t i = 0; i < fields.size(); ++i) row.fields[(*positions)[i]] = fields[i];
+    rows.push_back(std::move(row));
+  }
+  if (!positions) throw usage_error("cases file " + in_quotes(path) + " has no header line");
+  return rows;
+}
+
+}  // namespace pendavg::cli

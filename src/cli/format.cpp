@@ -1,0 +1,144 @@
+// src/cli/format.cpp -- decimal strings and the JSON, CSV and text writers of the pendavg CLI.
+#include "format.hpp"
+
+#include "pendavg/precision.hpp"
+
+#include <algorithm>
+#include <charconv>
+
+namespace pendavg::cli {
+
+template <class Real>
+void append_decimal(std::string& out, const Real& x, int digits) {
+  if constexpr (is_mpfr_v<Real>) {
+    // Same layout as the double branch (d.ddde-XX), correctly rounded by MPFR.
+    const int length = mpfr_snprintf(nullptr, 0, "%.*Re", digits - 1, x.backend().data());
+    const std::size_t start = out.size();
+    out.resize(start + static_cast<std::size_t>(length) + 1);
+    mpfr_snprintf(out.data() + start, static_cast<std::size_t>(length) + 1, "%.*Re", digits - 1,
+                  x.backend().data());
+    out.resize(start + static_cast<std::size_t>(length));
+  } else {
+    char buffer[64];
+    const auto end = std::to_chars(buffer, buffer + sizeof buffer, x,
+                                   std::chars_format::scientific, digits - 1).ptr;
+    out.append(buffer, end);
+  }
+}
+
+template <class Real>
+AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta) {
+  const auto strings = [](const std::vector<Real>& values, int significant, auto scale) {
+    std::vector<std::string> out;
+    out.reserve(values.size());
+    for (const Real& value : values) out.push_back(decimal<Real>(scale(value), significant));
+    return out;
+  };
+  const auto same = [](const Real& value) { return value; };
+  AveragesText text;
+  text.beta_kinetic = strings(averages.beta_kinetic, digits, same);
+  text.error = strings(averages.beta_kinetic_error, error_digits, same);
+  text.cos_angle = strings(averages.cos_angle, digits, same);
+  text.beta2_variance = strings(averages.beta2_kinetic_variance, digits, same);
+  if (beta) {
+    text.kinetic = strings(averages.beta_kinetic, digits,
+                           [beta](const Real& value) -> Real { return value / *beta; });
+    text.variance = strings(averages.beta2_kinetic_variance, digits,
+                            [beta](const Real& value) -> Real { return value / (*beta * *beta); });
+  }
+  text.ratio = decimal<Real>(averages.ratio, digits);
+  text.method = method_name(averages.method);
+  text.evaluations = averages.evaluations;
+  text.converged = averages.converged;
+  return text;
+}
+
+template void append_decimal<double>(std::string&, const double&, int);
+template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
+template AveragesText averages_text<double>(const Averages<double>&, int, const double*);
+template AveragesText averages_text<mpfr_real>(const Averages<mpfr_real>&, int,
+                                               const mpfr_real*);
+
+// ---------------------------------------------------------------- JSON
+
+namespace {
+
+std::string json_quoted(std::string_view text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+JsonObject& JsonObject::raw(std::string_view key, std::string_view json) {
+  if (!body_.empty()) body_ += ", ";
+  body_ += json_quoted(key) + ": ";
+  body_ += json;
+  return *this;
+}
+
+JsonObject& JsonObject::string(std::string_view key, std::string_view value) {
+  return raw(key, json_quoted(value));
+}
+
+JsonObject& JsonObject::strings(std::string_view key, const std::vector<std::string>& values) {
+  std::string array = "[";
+  for (std::size_t i = 0; i < values.size(); ++i)
+    array += (i ? ", " : "") + json_quoted(values[i]);
+  return raw(key, array + "]");
+}
+
+JsonObject& JsonObject::integer(std::string_view key, long long value) {
+  return raw(key, std::to_string(value));
+}
+
+JsonObject& JsonObject::boolean(std::string_view key, bool value) {
+  return raw(key, value ? "true" : "false");
+}
+
+// ---------------------------------------------------------------- CSV and text
+
+void append_csv_line(std::string& out, std::span<const std::string> fields) {
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    if (i) out += ',';
+    out += fields[i];
+  }
+  out += '\n';
+}
+
+std::string aligned_table(const std::vector<std::vector<std::string>>& rows) {
+  std::vector<std::size_t> widths;
+  for (const auto& row : rows) {
+    widths.resize(std::max(widths.size(), row.size()));
+    for (std::size_t i = 0; i < row.size(); ++i) widths[i] = std::max(widths[i], row[i].size());
+  }
+  std::string out;
+  for (const auto& row : rows) {
+    for (std::size_t i = 0; i < row.size(); ++i) {
+      if (i) out += "  ";
+      out.append(widths[i] - row[i].size(), ' ');
+      out += row[i];
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::vector<std::string> indexed_names(std::string_view stem, std::size_t count) {
+  std::vector<std::string> names;
+  for (std::size_t i = 1; i <= count; ++i) names.push_back(std::string(stem) + std::to_string(i));
+  return names;
+}
+
+std::string seconds_text(double seconds) {
+  char buffer[32];
+  const auto end = std::to_chars(buffer, buffer + sizeof buffer, seconds,
+                                 std::chars_format::general, 6).ptr;
+  return std::string(buffer, end);
+}
+
+}  // namespace pendavg::cli

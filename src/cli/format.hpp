@@ -1,0 +1,77 @@
+// src/cli/format.hpp -- output side of the pendavg CLI: numbers as decimal strings (double and
+// MPFR alike, `digits` significant digits), and small JSON, CSV and aligned-text writers.
+// Everything builds strings; the caller writes them to stdout once, after all work succeeded.
+#pragma once
+
+#include "pendavg/result.hpp"
+
+#include <cstddef>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace pendavg::cli {
+
+enum class Format { json, csv, text };
+
+/// Significant digits of an error estimate.
+inline constexpr int error_digits = 3;
+
+/// Appends x in scientific notation with `digits` significant digits, e.g. 3.43e-01 for 3.
+template <class Real>
+void append_decimal(std::string& out, const Real& x, int digits);
+
+template <class Real>
+std::string decimal(const Real& x, int digits) {
+  std::string out;
+  append_decimal(out, x, digits);
+  return out;
+}
+
+/// The averages of one run as decimal strings, converted once and shared by every format.
+struct AveragesText {
+  std::vector<std::string> beta_kinetic;    ///< beta <K_i>
+  std::vector<std::string> error;           ///< absolute error estimates of beta <K_i>
+  std::vector<std::string> cos_angle;       ///< <cos phi_i>
+  std::vector<std::string> beta2_variance;  ///< beta^2 Var K_i
+  std::vector<std::string> kinetic;         ///< <K_i> = beta<K_i>/beta (empty without beta)
+  std::vector<std::string> variance;        ///< Var K_i (empty without beta)
+  std::string ratio;
+  std::string method;
+  std::size_t evaluations = 0;
+  bool converged = true;
+};
+
+/// Converts `averages` to strings with `digits` significant digits; `beta` (may be null, as for
+/// the limits) adds <K_i> and Var K_i.
+template <class Real>
+AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta);
+
+/// A JSON object written key by key, in insertion order.
+class JsonObject {
+ public:
+  JsonObject& raw(std::string_view key, std::string_view json);  ///< value is already JSON
+  JsonObject& string(std::string_view key, std::string_view value);
+  JsonObject& strings(std::string_view key, const std::vector<std::string>& values);
+  JsonObject& integer(std::string_view key, long long value);
+  JsonObject& boolean(std::string_view key, bool value);
+  std::string str() const { return "{" + body_ + "}"; }
+
+ private:
+  std::string body_;
+};
+
+/// Joins `fields` with commas and ends the line.
+void append_csv_line(std::string& out, std::span<const std::string> fields);
+
+/// Right-aligned columns separated by two spaces, one line per row.
+std::string aligned_table(const std::vector<std::vector<std::string>>& rows);
+
+/// {"stem1", "stem2", ...}: column names for a per-particle array.
+std::vector<std::string> indexed_names(std::string_view stem, std::size_t count);
+
+/// A wall time in seconds as a JSON number with 6 significant digits.
+std::string seconds_text(double seconds);
+
+}  // namespace pendavg::cli

@@ -1,0 +1,557 @@
+// The exact 1-D reduced integral for the double pendulum (MATH.md Sec. 2 and 4), generic over
+// Real, plus the engine dispatcher. See include/pendavg/double_pendulum.hpp for the design.
+//
+// Integrals (t = phi2 - phi1 folded onto [0, pi/2] with t -> pi - t, q(t) = mu1 + mu2 sin^2 t,
+// W(t) = I0(R(t)) e^{-(a1+a2)}, R(t)^2 = a1^2 + a2^2 + 2 a1 a2 cos t):
+//   J_s  = int_0^{pi/2} q^s [W(t) + W(pi - t)] dt,          s = 1/2, -1/2, -3/2
+//   C_j  = int_0^{pi/2} q^{1/2} [dW/da_j (t) + dW/da_j (pi - t)] dt,  j = 1, 2
+// give beta<K1> = (mu1/2) J_{-1/2}/J_{1/2}, <cos phi_j> = C_j / J_{1/2}, and with x = mu1/q
+// (= tr X_1): <x> = mu1 J_{-1/2}/J_{1/2}, <x^2> = mu1^2 J_{-3/2}/J_{1/2},
+//   beta^2 Var K1 = (3/4)<x^2> - <x>^2/4,
+//   beta^2 Var K2 = (1 - <x>) + <x>^2/2 + (3/4)(<x^2> - <x>^2)      (MATH.md Sec. 4).
+#include "pendavg/double_pendulum.hpp"
+
+#include "pendavg/bessel.hpp"
+#include "pendavg/quadrature.hpp"
+
+#include <boost/math/constants/constants.hpp>
+#include "pendavg/detail/elliptic.hpp"
+#include <boost/math/special_functions/fpclassify.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <string>
+
+namespace pendavg {
+
+template <class Real>
+DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& chain,
+                                                          const Real& beta) {
+  if (chain.size() != 2) {
+    throw invalid_input("the double-pendulum engines need 2 masses, got " +
+                        std::to_string(chain.size()));
+  }
+  check_beta(beta);
+  DoublePendulumParameters<Real> p;
+  p.mu1 = chain.mass_fraction(0);
+  p.mu2 = chain.mass_fraction(1);
+  p.a1 = beta * chain.total_mass() * chain.gravity() * chain.length(0);
+  p.a2 = beta * chain.mass(1) * chain.gravity() * chain.length(1);
+  // a1 * a2 must stay representable (the integral forms 4 a1 a2).
+  if (!(boost::math::isfinite)(p.a1 * p.a2) || !(boost::math::isfinite)(p.a1 + p.a2)) {
+    throw invalid_input("beta * M g l is too large for this number type; request more digits");
+  }
+  return p;
+}
+
+namespace {
+
+using std::abs;
+using std::asin;
+using std::asinh;
+using std::cosh;
+using std::exp;
+using std::log;
+using std::pow;
+using std::sin;
+using std::sinh;
+using std::sqrt;
+
+constexpr std::size_t integral_count = 5;  // J_{1/2}, J_{-1/2}, J_{-3/2}, C_1, C_2
+template <class Real>
+using Integrands = std::array<Real, integral_count>;
+
+/// Relative tolerance each integral is driven to.
+template <class Real>
+Real integral_tolerance(int digits) {
+  if constexpr (is_mpfr_v<Real>) {
+    return pow(Real(10), -(digits + 2));
+  } else {
+    (void)digits;
+    return unit_roundoff<Real>();
+  }
+}
+
+template <class Real>
+double to_double_saturated(const Real& x) {
+  const double d = static_cast<double>(x);
+  return (boost::math::isfinite)(d) ? d : std::numeric_limits<double>::max();
+}
+
+/// Node placement: t(x) = eps sinh(sigma x) (clusters nodes at t = 0, where q nearly vanishes
+/// when mu1 is small and where the Boltzmann weight peaks when beta is large), or t = T x.
+template <class Real>
+struct NodeMap {
+  bool use_sinh = false;
+  Real eps = 0, sigma = 0, T = 0;
+  void operator()(const Real& x, Real& t, Real& dtdx) const {
+    if (use_sinh) {
+      const Real sx = sigma * x;
+      const Real e = exp(sx);
+      const Real ie = 1 / e;
+      t = eps * (e - ie) / 2;
+      dtdx = eps * sigma * (e + ie) / 2;
+    } else {
+      t = T * x;
+      dtdx = T;
+    }
+  }
+};
+
+/// Weight W and its a-derivatives from Graf's addition theorem (moderate a1, a2):
+///   W(t) + W(pi - t) = 2 sum_k eps_{2k} I~_{2k}(a1) I~_{2k}(a2) T_k(cos 2t),  I~ = e^{-a} I.
+template <class Real>
+struct GrafWeights {
+  std::vector<Real> c0, c1, c2;  // coefficients of T_k(y), y = cos 2t
+  void operator()(const Real& sin2_t, const Real& /*half-angle sine*/,
+                  std::array<Real, 3>& F) const {
+    const Real y = 1 - 2 * sin2_t;
+    const Real two_y = 2 * y;
+    Real b0 = 0, b0n = 0, b1 = 0, b1n = 0, b2 = 0, b2n = 0, tmp;
+    for (std::size_t k = c0.size(); k-- > 1;) {
+      tmp = b0;
+      b0 = c0[k] + two_y * b0 - b0n;
+      b0n = tmp;
+      tmp = b1;
+      b1 = c1[k] + two_y * b1 - b1n;
+      b1n = tmp;
+      tmp = b2;
+      b2 = c2[k] + two_y * b2 - b2n;
+      b2n = tmp;
+    }
+    F[0] = c0[0] + y * b0 - b0n;
+    F[1] = c1[0] + y * b1 - b1n;
+    F[2] = c2[0] + y * b2 - b2n;
+  }
+};
+
+/// Weight W and its a-derivatives from scaled Bessel functions at each node (large a1 + a2).
+template <class Real>
+struct DirectWeights {
+  Real a1, a2, A, P;  // P = 4 a1 a2
+  bool fold = true;   // add the reflected node pi - t
+  void operator()(const Real& sin2_t, const Real& sh, std::array<Real, 3>& F) const {
+    const Real s2 = sh * sh;                // sin^2(t/2)
+    const Real c2 = 1 - s2;                 // cos^2(t/2) >= 1/2 on [0, pi/2]
+    const Real cos_t = c2 - s2;
+    (void)sin2_t;
+    // R(t)^2 = (a1 + a2)^2 - 4 a1 a2 sin^2(t/2): no cancellation for t <= pi/2.
+    const Real R = sqrt(A * A - P * s2);
+    const Real E = -P * s2 / (R + A);  // R - A without cancellation
+    auto b = scaled_bessel_i01(R);
+    const Real ex = exp(E);
+    F[0] = b.i0e * ex;
+    const Real g = b.i1e * ex / R;  // R >= |a1 - a2| + ... > 0 here
+    F[1] = g * (a1 + a2 * cos_t);
+    F[2] = g * (a2 + a1 * cos_t);
+    if (fold) {
+      // pi - t: R'^2 = (a1 - a2)^2 + 4 a1 a2 sin^2(t/2), R' - A = -4 a1 a2 cos^2(t/2)/(R' + A).
+      const Real d = a1 - a2;
+      const Real Rp = sqrt(d * d + P * s2);
+      const Real Ep = -P * c2 / (Rp + A);
+      auto bp = scaled_bessel_i01(Rp);
+      const Real exp_p = exp(Ep);
+      F[0] += bp.i0e * exp_p;
+      if (Rp > 0) {
+        const Real gp = bp.i1e * exp_p / Rp;
+        F[1] += gp * (a1 - a2 * cos_t);
+        F[2] += gp * (a2 - a1 * cos_t);
+      }
+    }
+  }
+};
+
+template <class Real>
+struct IntegralWorkspace {
+  ClenshawCurtisRule<Real> rule{8};
+  std::vector<std::vector<Integrands<Real>>> values;  // per level, per node
+};
+
+template <class Real>
+IntegralWorkspace<Real>& integral_workspace() {
+  thread_local std::unique_ptr<IntegralWorkspace<Real>> ws;
+  const int digits = is_mpfr_v<Real> ? current_digits10<Real>() : 0;
+  if (!ws || ws->rule.digits() != digits) ws = std::make_unique<IntegralWorkspace<Real>>();
+  return *ws;
+}
+
+template <class Real>
+struct LevelResult {
+  Integrands<Real> value, error;
+  std::size_t nodes = 0;
+  bool converged = false;
+};
+
+/// Nested Clenshaw-Curtis on x in [0, 1]; stops when every integral's estimated relative
+/// error is below `tol`. Error of level L: e_L min(1, e_L / e_{L-1}) (geometric convergence
+/// squares the error per doubling, so this over-estimates) plus a rounding floor.
+template <class Real, class Weights>
+LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, const Real& mu2,
+                                   const Weights& weights, const Real& tol,
+                                   std::size_t max_level) {
+  auto& ws = integral_workspace<Real>();
+  const Real u = unit_roundoff<Real>();
+  LevelResult<Real> out;
+  Integrands<Real> previous{}, previous_diff{};
+  std::array<Real, 3> F;
+  Real t, dtdx;
+  if (ws.values.size() < max_level + 1) ws.values.resize(max_level + 1);
+  for (std::size_t level = 0; level <= max_level; ++level) {
+    ws.rule.ensure_level(level);
+    const auto& x = ws.rule.nodes(level);
+    const auto& w = ws.rule.weights(level);
+    auto& vals = ws.values[level];
+    vals.resize(x.size());
+    for (std::size_t j = 0; j < x.size(); ++j) {
+      if (level > 0 && j % 2 == 0) {
+        vals[j] = ws.values[level - 1][j / 2];
+        continue;
+      }
+      map(x[j], t, dtdx);
+      const Real sh = sin(t / 2);
+      const Real ch2 = 1 - sh * sh;
+      const Real sin2_t = 4 * sh * sh * ch2;  // sin^2 t = 4 sin^2(t/2) cos^2(t/2)
+      const Real q = mu1 + mu2 * sin2_t;
+      const Real sq = sqrt(q);
+      const Real iq = 1 / sq;
+      weights(sin2_t, sh, F);
+      auto& v = vals[j];
+      v[0] = dtdx * sq * F[0];
+      v[1] = dtdx * iq * F[0];
+      v[2] = v[1] / q;
+      v[3] = dtdx * sq * F[1];
+      v[4] = dtdx * sq * F[2];
+      ++out.nodes;
+    }
+    Integrands<Real> sum{}, l1{};
+    for (std::size_t j = 0; j < x.size(); ++j) {
+      for (std::size_t k = 0; k < integral_count; ++k) {
+        sum[k] += w[j] * vals[j][k];
+        l1[k] += abs(w[j] * vals[j][k]);
+      }
+    }
+    bool all_ok = level >= 2;
+    for (std::size_t k = 0; k < integral_count; ++k) {
+      const Real rounding = 4 * u * l1[k];
+      Real est;
+      if (level == 0) {
+        est = abs(sum[k]);
+      } else {
+        const Real diff = abs(sum[k] - previous[k]);
+        est = diff;
+        if (level >= 2 && previous_diff[k] > 0 && diff < previous_diff[k]) est = diff * Real(diff / previous_diff[k]);
+        previous_diff[k] = diff;
+      }
+      out.error[k] = est > rounding ? est : rounding;
+      const Real tol_k = tol * abs(sum[k]);
+      if (!(est <= (tol_k > rounding ? tol_k : rounding) || l1[k] == 0)) all_ok = false;
+    }
+    out.value = sum;
+    previous = sum;
+    if (all_ok) {
+      out.converged = true;
+      break;
+    }
+  }
+  return out;
+}
+
+/// Number of Graf terms m with e^{-a1} I_m(a1) e^{-a2} I_m(a2) above e^{-L}: the product
+/// decays like exp(-m^2 / (2 a1 a2 / (a1 + a2))) and, for small a, like (a/2)^m / m!.
+inline double graf_terms_estimate(double a1, double a2, double L) {
+  const double a_small = std::min(a1, a2), a_large = std::max(a1, a2);
+  if (a_small <= 0) return 1.0;
+  const double harmonic = a1 * a2 / (a1 + a2);
+  const double gaussian = std::sqrt(2.0 * L * (harmonic + 0.5));
+  // (a_small/2)^m / m! < e^{-L}: m (ln(2m/(e a_small))) > L.
+  double m = 1.0;
+  while (m * std::log(2.0 * m / (2.718281828 * a_small)) < L && m < 1e7) m *= 1.25;
+  (void)a_large;
+  return std::min(gaussian + 4.0, m + 2.0);
+}
+
+/// Graf coefficients for the folded weight, trimmed to the terms above exp(-L) of each scale.
+template <class Real>
+GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
+  std::size_t count = 8 + 2 * static_cast<std::size_t>(graf_terms_estimate(
+                              to_double_saturated(a1), to_double_saturated(a2), L));
+  auto derivative = [](const std::vector<Real>& I, std::size_t m) {
+    return m == 0 ? I[1] : (I[m - 1] + I[m + 1]) / 2;
+  };
+  const Real cut = exp(Real(-L));
+  for (;;) {
+    const auto i1 = scaled_bessel_i_table(a1, count + 2);
+    const auto i2 = scaled_bessel_i_table(a2, count + 2);
+    const std::size_t kmax = count / 2;
+    GrafWeights<Real> g;
+    g.c0.resize(kmax + 1);
+    g.c1.resize(kmax + 1);
+    g.c2.resize(kmax + 1);
+    for (std::size_t k = 0; k <= kmax; ++k) {
+      const std::size_t m = 2 * k;
+      const Real eps = (m == 0) ? Real(2) : Real(4);  // 2 (fold) * eps_m
+      g.c0[k] = eps * i1[m] * i2[m];
+      g.c1[k] = eps * derivative(i1, m) * i2[m];
+      g.c2[k] = eps * i1[m] * derivative(i2, m);
+    }
+    // Trim: drop the top terms whose summed magnitude is below exp(-L) times each scale
+    // (the scale of F1, F2 is their leading coefficient, floored at e^{-L} c0[0]).
+    Real t0 = 0, t1 = 0, t2 = 0;
+    std::size_t keep = kmax + 1;
+    while (keep > 1) {
+      const std::size_t k = keep - 1;
+      t0 += abs(g.c0[k]);
+      t1 += abs(g.c1[k]);
+      t2 += abs(g.c2[k]);
+      if (t0 > cut * g.c0[0] || t1 > cut * (g.c1[0] + g.c0[0] * cut) ||
+          t2 > cut * (g.c2[0] + g.c0[0] * cut)) {
+        break;
+      }
+      keep = k;
+    }
+    if (keep + 2 <= kmax) {  // the tail really was negligible: done
+      g.c0.resize(keep);
+      g.c1.resize(keep);
+      g.c2.resize(keep);
+      return g;
+    }
+    count *= 2;
+  }
+}
+
+/// Fourier moments of q^s on [0, pi/2]: Q_k(s) = int_0^{pi/2} q(t)^s cos(2kt) dt for
+/// s = 1/2, -1/2, -3/2 (rows 0, 1, 2), k = 0..count-1. With q = A - B cos 2t
+/// (A = mu1 + mu2/2, B = mu2/2) they obey the three-term recurrence
+///   (k + 1 + s) Q_{k+1} = (2 + 4 mu1/mu2) k Q_k - (k - 1 - s) Q_{k-1},
+/// whose wanted solution is the minimal one (ratio e^{-2d}, d = asinh(sqrt(mu1/mu2))).
+/// Start values are complete elliptic integrals, k^2 = mu2, from Carlson's forms with
+/// mu1 passed directly: Q_0(1/2) = E, Q_0(-1/2) = K, Q_0(-3/2) = E/mu1, Q_0(3/2) =
+/// (2(1+mu1)E - mu1 K)/3, and Q_1(s) = (1 + 2 mu1/mu2) Q_0(s) - (2/mu2) Q_0(s+1).
+/// Forward recurrence amplifies rounding by e^{4dk}; it is used when that stays below 10,
+/// i.e. for small mu1 -- exactly where Miller's backward recurrence would need ~1/d steps.
+/// Otherwise Miller's algorithm runs backward from far enough that e^{-4d(start-k)} < u.
+template <class Real>
+struct QMoments {
+  std::array<std::vector<Real>, 3> Q;
+  Real amplification = 1;  // bound on the rounding amplification of the recurrence
+};
+
+template <class Real>
+QMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_t count) {
+  const auto ell = detail::complete_elliptic_from_complement(mu1);
+  const Real& K = ell.K;
+  const Real& E = ell.E;
+  const std::array<Real, 3> s = {Real(1) / 2, Real(-1) / 2, Real(-3) / 2};
+  const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * E - mu1 * K) / 3, E, K, E / mu1};  // s = 3/2 .. -3/2
+  const Real c = 2 + 4 * mu1 / mu2;
+  const double d = static_cast<double>(asinh(sqrt(mu1 / mu2)));
+  const double growth = 4.0 * d * static_cast<double>(count);
+  QMoments<Real> out;
+  for (auto& row : out.Q) row.assign(count, Real(0));
+  if (growth <= std::log(10.0)) {
+    out.amplification = Real(std::exp(growth));
+    for (std::size_t r = 0; r < 3; ++r) {
+      auto& Q = out.Q[r];
+      Q[0] = Q0[r + 1];
+      if (count > 1) Q[1] = (1 + 2 * mu1 / mu2) * Q0[r + 1] - 2 / mu2 * Q0[r];
+      for (std::size_t k = 1; k + 1 < count; ++k) {
+        Q[k + 1] = (c * Real(k) * Q[k] - (Real(k) - 1 - s[r]) * Q[k - 1]) / (Real(k) + 1 + s[r]);
+      }
+    }
+    return out;
+  }
+  const double lnu = -static_cast<double>(log(unit_roundoff<Real>()));
+  const std::size_t start = count + 8 + static_cast<std::size_t>((lnu + 5.0) / (4.0 * d));
+  out.amplification = 1;
+  for (std::size_t r = 0; r < 3; ++r) {
+    auto& Q = out.Q[r];
+    // Backward: Q_{k-1} = (c k Q_k - (k + 1 + s) Q_{k+1}) / (k - 1 - s).
+    Real next = 0, cur = 1, prev;
+    for (std::size_t k = start; k >= 1; --k) {
+      prev = (c * Real(k) * cur - (Real(k) + 1 + s[r]) * next) / (Real(k) - 1 - s[r]);
+      if (k - 1 < count) Q[k - 1] = prev;
+      if (k < count) Q[k] = cur;
+      next = cur;
+      cur = prev;
+      // Keep magnitudes moderate (the minimal solution grows ~e^{2d} per backward step).
+      const Real big = 1e100;
+      if (abs(cur) > big) {
+        cur /= big;
+        next /= big;
+        for (std::size_t j = k - 1; j < count && j <= start; ++j) Q[j] /= big;
+      }
+    }
+    const Real norm = Q0[r + 1] / Q[0];
+    for (auto& v : Q) v *= norm;
+  }
+  return out;
+}
+
+/// The five integrals from Graf's coefficients and the exact moments: no quadrature at all.
+template <class Real>
+LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
+                                        const GrafWeights<Real>& g, double L) {
+  const std::size_t K = g.c0.size();
+  const auto m = q_power_moments(p.mu1, p.mu2, K);
+  LevelResult<Real> out;
+  Integrands<Real> sum{}, l1{};
+  for (std::size_t k = 0; k < K; ++k) {
+    const Real t0 = g.c0[k] * m.Q[0][k], t1 = g.c0[k] * m.Q[1][k], t2 = g.c0[k] * m.Q[2][k];
+    const Real t3 = g.c1[k] * m.Q[0][k], t4 = g.c2[k] * m.Q[0][k];
+    sum[0] += t0; sum[1] += t1; sum[2] += t2; sum[3] += t3; sum[4] += t4;
+    l1[0] += abs(t0); l1[1] += abs(t1); l1[2] += abs(t2); l1[3] += abs(t3); l1[4] += abs(t4);
+  }
+  const Real u = unit_roundoff<Real>();
+  // Truncated Graf tail <= e^{-L} (times each integral's scale, by construction of L);
+  // rounding: every term carries a few ulps (Bessel tables, elliptic start values),
+  // amplified by the recurrence.
+  const Real tail = exp(Real(-L));
+  for (std::size_t k = 0; k < integral_count; ++k) {
+    out.value[k] = sum[k];
+    out.error[k] = (8 * u * m.amplification + tail) * l1[k];
+  }
+  out.nodes = K;
+  out.converged = true;
+  return out;
+}
+
+template <class Real>
+Averages<Real> finish_averages(const DoublePendulumParameters<Real>& p,
+                               const LevelResult<Real>& r) {
+  const Real u = unit_roundoff<Real>();
+  const auto& I = r.value;
+  const auto& e = r.error;
+  auto rel = [&](std::size_t k) { return e[k] / abs(I[k]); };
+  Averages<Real> out;
+  out.method = Method::reduced_integral;
+  out.evaluations = r.nodes;
+  out.converged = r.converged;
+  const Real k1 = p.mu1 / 2 * I[1] / I[0];
+  const Real k1_err = k1 * (rel(0) + rel(1) + 8 * u);
+  const Real k2 = 1 - k1;
+  const Real k2_err = k1_err + 2 * u * k2;
+  out.beta_kinetic = {k1, k2};
+  out.beta_kinetic_error = {k1_err, k2_err};
+  const Real cos1 = I[3] / I[0], cos2 = I[4] / I[0];
+  out.cos_angle = {cos1, cos2};
+  out.cos_angle_error = {abs(cos1) * (rel(3) + rel(0) + 8 * u),
+                         abs(cos2) * (rel(4) + rel(0) + 8 * u)};
+  const Real x1 = 2 * k1;                           // <x> = <tr X_1>
+  const Real x2 = p.mu1 * p.mu1 * I[2] / I[0];      // <x^2>
+  const Real x2_err = x2 * (rel(2) + rel(0) + 8 * u);
+  const Real x1_err = 2 * k1_err;
+  const Real var1 = Real(3) / 4 * x2 - x1 * x1 / 4;
+  const Real var2 = (1 - x1) + x1 * x1 / 2 + Real(3) / 4 * (x2 - x1 * x1);
+  out.beta2_kinetic_variance = {var1, var2};
+  out.beta2_kinetic_variance_error = {
+      Real(3) / 4 * x2_err + x1 * x1_err / 2 + 8 * u,
+      x1_err * (1 + x1 + Real(3) / 2 * x1) + Real(3) / 4 * x2_err + 8 * u};
+  out.ratio = k1 / k2;
+  out.ratio_error = out.ratio * (k1_err / k1 + k2_err / k2 + 4 * u);
+  return out;
+}
+
+template <class Real>
+int effective_digits(int digits) {
+  if constexpr (is_mpfr_v<Real>) {
+    if (digits < min_digits || digits > max_digits) {
+      throw invalid_input("digits must be in " + std::to_string(min_digits) + ".." +
+                          std::to_string(max_digits) + ", got " + std::to_string(digits));
+    }
+    return digits;
+  } else {
+    if (digits != 16) throw invalid_input("double precision computes 16 digits; use mpfr_real");
+    return 16;
+  }
+}
+
+}  // namespace
+
+template <class Real>
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
+                                        int digits) {
+  return reduced_integral_average(chain, beta, digits, IntegralOptions{});
+}
+
+template <class Real>
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
+                                        int digits, const IntegralOptions& options) {
+  digits = effective_digits<Real>(digits);
+  std::unique_ptr<working_precision> guard;
+  if constexpr (is_mpfr_v<Real>) guard = std::make_unique<working_precision>(digits + guard_digits);
+  const auto p = double_pendulum_parameters(chain, beta);
+  const Real pi = boost::math::constants::pi<Real>();
+  const Real tol = integral_tolerance<Real>(digits);
+  const double ln_inv_tol = -static_cast<double>(log(tol));
+  const std::size_t max_level = is_mpfr_v<Real> ? 10 : 7;
+
+  const Real A = p.a1 + p.a2;
+  const double A_d = to_double_saturated(A);
+  // Graf's sum is cheaper than per-node Bessel functions while it needs few terms; it also
+  // keeps <cos phi_j> free of cancellation when one of a1, a2 is small.
+  const double a1_d = to_double_saturated(p.a1), a2_d = to_double_saturated(p.a2);
+  const double L_graf = ln_inv_tol + 5.0 + (A_d - std::hypot(a1_d, a2_d)) +
+                        0.5 * std::log1p(2 * 3.14159 * A_d);
+  const double graf_cap = is_mpfr_v<Real> ? 400.0 : 48.0;
+  const bool use_graf = graf_terms_estimate(a1_d, a2_d, L_graf) <= graf_cap;
+  const Real d = asinh(sqrt(p.mu1 / p.mu2));  // distance of the zero of q from t = 0
+
+  NodeMap<Real> map;
+  map.T = pi / 2;
+  bool fold = true;
+  if (!use_graf) {
+    // Cut the range where the weight has fallen below tol / (1 + A) of its peak:
+    // R(T) - A = -L  <=>  sin^2(T/2) = L (2A - L) / (4 a1 a2).
+    const double L = ln_inv_tol + 5.0 + std::log1p(A_d);
+    if (L < A_d) {
+      const Real s2 = Real(L) * (2 * A - Real(L)) / (4 * p.a1 * p.a2);
+      if (s2 < Real(0.5)) {
+        map.T = 2 * asin(sqrt(s2));
+        fold = false;  // W(pi - t) <= W(T) on [0, T]: negligible
+      }
+    }
+  }
+  if (d < map.T / 4) {
+    map.use_sinh = true;
+    map.eps = d;
+    map.sigma = asinh(map.T / d);
+  }
+  LevelResult<Real> r;
+  if (use_graf) {
+    const auto g = graf_weights(p.a1, p.a2, L_graf);
+    if (options.evaluation == IntegralEvaluation::quadrature) {
+      r = integrate_levels(map, p.mu1, p.mu2, g, tol, max_level);
+    } else {
+      r = graf_moment_integrals(p, g, L_graf);
+    }
+  } else {
+    DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
+    r = integrate_levels(map, p.mu1, p.mu2, dw, tol, max_level);
+  }
+  return finish_averages(p, r);
+}
+
+template <class Real>
+Averages<Real> average(const Chain<Real>& chain, const Real& beta, int digits, Engine engine) {
+  switch (engine) {
+    case Engine::series: return series_average(chain, beta, digits);
+    case Engine::automatic:
+    case Engine::integral: return reduced_integral_average(chain, beta, digits);
+  }
+  return reduced_integral_average(chain, beta, digits);
+}
+
+#define PENDAVG_INSTANTIATE(Real)                                                           \
+  template DoublePendulumParameters<Real> double_pendulum_parameters<Real>(const Chain<Real>&, \
+                                                                           const Real&);    \
+  template Averages<Real> reduced_integral_average<Real>(const Chain<Real>&, const Real&, int); \
+  template Averages<Real> reduced_integral_average<Real>(const Chain<Real>&, const Real&, int,  \
+                                                         const IntegralOptions&);            \
+  template Averages<Real> average<Real>(const Chain<Real>&, const Real&, int, Engine);
+PENDAVG_INSTANTIATE(double)
+PENDAVG_INSTANTIATE(mpfr_real)
+#undef PENDAVG_INSTANTIATE
+
+}  // namespace pendavg

@@ -1,0 +1,70 @@
+// The chain model, its validation, and the method names.
+#include "pendavg/chain.hpp"
+#include "pendavg/precision.hpp"
+#include "pendavg/result.hpp"
+
+#include <boost/math/special_functions/fpclassify.hpp>
+
+#include <string>
+
+namespace pendavg {
+namespace {
+
+template <class Real>
+bool finite(const Real& x) {
+  return (boost::math::isfinite)(x);
+}
+
+std::string position(const char* what, std::size_t i) {
+  return std::string(what) + " " + std::to_string(i + 1);
+}
+
+}  // namespace
+
+template <class Real>
+Chain<Real>::Chain(std::vector<Real> masses, std::vector<Real> lengths, Real g)
+    : masses_(std::move(masses)), lengths_(std::move(lengths)), g_(std::move(g)) {
+  if (masses_.empty()) throw invalid_input("a chain needs at least one mass");
+  if (masses_.size() != lengths_.size()) {
+    throw invalid_input("got " + std::to_string(masses_.size()) + " masses but " +
+                        std::to_string(lengths_.size()) + " lengths");
+  }
+  for (std::size_t i = 0; i < masses_.size(); ++i) {
+    if (!finite(masses_[i]) || !(masses_[i] > 0)) {
+      throw invalid_input(position("mass", i) + " must be finite and > 0");
+    }
+    if (!finite(lengths_[i]) || !(lengths_[i] > 0)) {
+      throw invalid_input(position("length", i) + " must be finite and > 0");
+    }
+  }
+  if (!finite(g_) || g_ < 0) throw invalid_input("g must be finite and >= 0");
+  tail_masses_.assign(masses_.size(), Real(0));
+  Real sum = 0;
+  for (std::size_t j = masses_.size(); j-- > 0;) {
+    sum += masses_[j];
+    tail_masses_[j] = sum;
+  }
+  if (!finite(sum)) throw invalid_input("the total mass overflows");
+}
+
+template <class Real>
+void check_beta(const Real& beta) {
+  if (!finite(beta) || !(beta > 0)) throw invalid_input("beta must be finite and > 0");
+}
+
+const char* method_name(Method m) {
+  switch (m) {
+    case Method::series: return "series";
+    case Method::reduced_integral: return "integral";
+    case Method::high_temperature_limit: return "limit-beta0";
+    case Method::low_temperature_limit: return "limit-beta-infinity";
+  }
+  return "unknown";
+}
+
+template class Chain<double>;
+template class Chain<mpfr_real>;
+template void check_beta<double>(const double&);
+template void check_beta<mpfr_real>(const mpfr_real&);
+
+}  // namespace pendavg

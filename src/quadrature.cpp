@@ -1,0 +1,58 @@
+// Nested Clenshaw-Curtis rules (Waldvogel's explicit cosine-sum weights, built per level).
+#include "pendavg/quadrature.hpp"
+
+#include "pendavg/precision.hpp"
+
+#include <boost/math/constants/constants.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace pendavg {
+
+template <class Real>
+ClenshawCurtisRule<Real>::ClenshawCurtisRule(std::size_t n0)
+    : n0_(n0), digits_(is_mpfr_v<Real> ? current_digits10<Real>() : 0) {
+  if (n0 < 2 || n0 % 2 != 0) throw std::invalid_argument("Clenshaw-Curtis: n0 must be even");
+}
+
+template <class Real>
+void ClenshawCurtisRule<Real>::ensure_level(std::size_t level) {
+  using std::cos;
+  const Real pi = boost::math::constants::pi<Real>();
+  while (nodes_.size() <= level) {
+    const std::size_t L = nodes_.size();
+    const std::size_t n = n0_ << L;
+    // cos(pi m / n), m = 0..2n-1, from the first quarter by symmetry.
+    std::vector<Real> cosines(2 * n);
+    for (std::size_t m = 0; m <= n / 2; ++m) cosines[m] = cos(pi * Real(m) / Real(n));
+    for (std::size_t m = n / 2 + 1; m <= n; ++m) cosines[m] = -cosines[n - m];
+    for (std::size_t m = n + 1; m < 2 * n; ++m) cosines[m] = cosines[2 * n - m];
+    std::vector<Real> x(n + 1), w(n + 1);
+    for (std::size_t j = 0; j <= n; ++j) x[j] = (1 - cosines[j]) / 2;
+    x.front() = 0;
+    x.back() = 1;
+    // On [-1, 1]: w_j = (c_j / n) [1 - sum_{k=1}^{n/2} b_k / (4k^2 - 1) cos(2 k j pi / n)],
+    // c_0 = c_n = 1, c_j = 2 otherwise; b_{n/2} = 1, b_k = 2 otherwise. Halved for [0, 1].
+    for (std::size_t j = 0; j <= n / 2; ++j) {
+      Real s = 0;
+      for (std::size_t k = 1; k <= n / 2; ++k) {
+        const unsigned long b = (k == n / 2) ? 1 : 2;
+        Real term = cosines[(2 * k * j) % (2 * n)];
+        term *= b;
+        term /= static_cast<unsigned long>(4 * k * k - 1);
+        s += term;
+      }
+      const unsigned long c = (j == 0 || j == n) ? 1 : 2;
+      w[j] = (1 - s) * c / (2 * n);
+      w[n - j] = w[j];
+    }
+    nodes_.push_back(std::move(x));
+    weights_.push_back(std::move(w));
+  }
+}
+
+template class ClenshawCurtisRule<double>;
+template class ClenshawCurtisRule<mpfr_real>;
+
+}  // namespace pendavg

@@ -1,0 +1,108 @@
+// Building blocks: scaled Bessel functions (GSL vs the generic series/asymptotic code vs
+// Boost.Math at high precision), Miller tables vs direct values and the sum rule, and the
+// nested Clenshaw-Curtis rule on integrals known in closed form.
+#include <catch2/catch.hpp>
+
+#include "pendavg/bessel.hpp"
+#include "pendavg/precision.hpp"
+#include "pendavg/quadrature.hpp"
+
+#include <boost/math/special_functions/bessel.hpp>
+#include <gsl/gsl_sf_bessel.h>
+
+#include <cmath>
+
+using pendavg::mpfr_real;
+
+TEST_CASE("generic scaled Bessel I0, I1 agree with GSL in double", "[bessel]") {
+  for (double x : {1e-3, 0.3, 1.0, 7.5, 25.0, 26.0, 27.0, 40.0, 700.0, 1e4, 1e8}) {
+    gsl_sf_result g0, g1;
+    gsl_sf_bessel_I0_scaled_e(x, &g0);
+    gsl_sf_bessel_I1_scaled_e(x, &g1);
+    const auto m = pendavg::scaled_bessel_i01_generic(x);  // series / Hankel
+    INFO("x = " << x);
+    CHECK(m.i0e == Approx(g0.val).epsilon(4e-15));
+    CHECK(m.i1e == Approx(g1.val).epsilon(4e-15));
+  }
+}
+
+TEST_CASE("small arguments: the double path avoids GSL's unscaled I1 below 2 sqrt(eps)",
+          "[bessel]") {
+  // e^{-x} I1(x) = (x/2)(1 - x + ...): GSL 2.7 returns x/2 here (relative error x).
+  for (double x : {0.0, 1e-300, 1e-12, 1e-8, 2e-8}) {
+    const auto p = pendavg::scaled_bessel_i01(x);
+    const double i0e = boost::math::cyl_bessel_i(0, x) * std::exp(-x);
+    const double i1e = boost::math::cyl_bessel_i(1, x) * std::exp(-x);
+    INFO("x = " << x);
+    CHECK(p.i0e == Approx(i0e).epsilon(2e-16));
+    CHECK(p.i1e == Approx(i1e).epsilon(2e-16).margin(1e-320));
+  }
+}
+
+TEST_CASE("generic scaled Bessel I0, I1 agree with Boost.Math at 60 digits", "[bessel]") {
+  pendavg::working_precision guard(60);
+  const mpfr_real tol = pow(mpfr_real(10), -57);
+  for (const char* xs : {"0.001", "0.7", "3", "19.5", "44", "45", "80", "1000"}) {
+    const mpfr_real x(xs);
+    const auto m = pendavg::scaled_bessel_i01_generic(x);
+    const mpfr_real e = exp(-x);
+    const mpfr_real i0 = boost::math::cyl_bessel_i(0, x) * e;
+    const mpfr_real i1 = boost::math::cyl_bessel_i(1, x) * e;
+    INFO("x = " << xs);
+    CHECK(abs(m.i0e / i0 - 1) < tol);
+    CHECK(abs(m.i1e / i1 - 1) < tol);
+  }
+}
+
+TEST_CASE("Miller tables match direct Bessel values and the sum rule", "[bessel]") {
+  for (double a : {1e-6, 0.5, 3.0, 30.0, 300.0}) {
+    const auto t = pendavg::scaled_bessel_i_table(a, 40);
+    for (int m : {0, 1, 2, 5, 13}) {
+      const double direct = boost::math::cyl_bessel_i(m, a) * std::exp(-a);
+      INFO("a = " << a << " m = " << m);
+      CHECK(t[m] == Approx(direct).epsilon(1e-13).margin(1e-300));
+    }
+    const auto f = pendavg::reduced_bessel_table(a, 30);
+    for (int k : {0, 1, 4, 9}) {
+      INFO("a = " << a << " k = " << k);
+      CHECK(f[k] == Approx(t[k] / std::pow(a, k)).epsilon(1e-12));
+    }
+  }
+  // a = 0: f_k = 1 / (2^k k!)
+  const auto f0 = pendavg::reduced_bessel_table(0.0, 6);
+  CHECK(f0[3] == Approx(1.0 / 48.0).epsilon(1e-15));
+}
+
+TEST_CASE("Clenshaw-Curtis levels integrate known integrals and nest", "[quadrature]") {
+  pendavg::ClenshawCurtisRule<double> rule(8);
+  rule.ensure_level(5);
+  for (std::size_t L = 0; L <= 5; ++L) {
+    const auto& x = rule.nodes(L);
+    const auto& w = rule.weights(L);
+    double s1 = 0, s2 = 0;
+    for (std::size_t j = 0; j < x.size(); ++j) {
+      s1 += w[j];
+      s2 += w[j] * std::exp(x[j]);
+    }
+    CHECK(s1 == Approx(1.0).epsilon(1e-15));
+    if (L >= 1) CHECK(s2 == Approx(std::exp(1.0) - 1).epsilon(1e-15));
+    if (L >= 1) {
+      for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j) {
+        CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
+      }
+    }
+  }
+  // 1 / (1 + 25 x^2) on [0, 1] (Runge): converges geometrically.
+  const double exact = std::atan(5.0) / 5.0;
+  double err_prev = 1;
+  for (std::size_t L = 1; L <= 5; ++L) {
+    const auto& x = rule.nodes(L);
+    const auto& w = rule.weights(L);
+    double s = 0;
+    for (std::size_t j = 0; j < x.size(); ++j) s += w[j] / (1 + 25 * x[j] * x[j]);
+    const double err = std::abs(s - exact);
+    CHECK((err < 1e-15 || err < err_prev));
+    err_prev = err;
+  }
+  CHECK(err_prev < 1e-14);
+}
