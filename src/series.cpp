@@ -179,6 +179,23 @@ int checked_digits(int digits) {
 template <class Real>
 std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
                                                 int digits, std::size_t terms) {
+  if constexpr (!is_mpfr_v<Real>) {
+    // The series' coefficients (2n)!/(2j)! and derivatives f_k leave double's range after a
+    // hundred terms: evaluate in MPFR at 16 digits and round the rows to double.
+    working_precision precision(16 + guard_digits);
+    const auto rows = series_convergence(chain.template cast<mpfr_real>(), mpfr_real(beta), 16, terms);
+    std::vector<SeriesRow<Real>> out(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      out[i] = {rows[i].n,
+                static_cast<Real>(rows[i].R_n),
+                static_cast<Real>(rows[i].term),
+                static_cast<Real>(rows[i].numerator),
+                static_cast<Real>(rows[i].denominator),
+                static_cast<Real>(rows[i].beta_kinetic1),
+                static_cast<Real>(rows[i].bound)};
+    }
+    return out;
+  }
   checked_digits<Real>(digits);
   double_pendulum_parameters(chain, beta);  // validates N = 2 and beta
   const double log_tol = is_mpfr_v<Real> ? -(digits + 1) * std::log(10.0)
@@ -238,6 +255,32 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
 template <class Real>
 Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int digits,
                               std::size_t max_terms) {
+  if constexpr (!is_mpfr_v<Real>) {
+    // As series_convergence: evaluate in MPFR at 16 digits, round to double.
+    working_precision precision(16 + guard_digits);
+    const auto m = series_average(chain.template cast<mpfr_real>(), mpfr_real(beta), 16, max_terms);
+    const Real u = unit_roundoff<Real>();
+    auto convert = [u](const std::vector<mpfr_real>& values, const std::vector<mpfr_real>& errors,
+                       std::vector<Real>& v, std::vector<Real>& e) {
+      v.resize(values.size());
+      e.resize(values.size());
+      for (std::size_t i = 0; i < values.size(); ++i) {
+        v[i] = static_cast<Real>(values[i]);
+        e[i] = static_cast<Real>(errors[i]) + u * std::abs(v[i]);
+      }
+    };
+    Averages<Real> out;
+    convert(m.beta_kinetic, m.beta_kinetic_error, out.beta_kinetic, out.beta_kinetic_error);
+    convert(m.cos_angle, m.cos_angle_error, out.cos_angle, out.cos_angle_error);
+    convert(m.beta2_kinetic_variance, m.beta2_kinetic_variance_error, out.beta2_kinetic_variance,
+            out.beta2_kinetic_variance_error);
+    out.ratio = static_cast<Real>(m.ratio);
+    out.ratio_error = static_cast<Real>(m.ratio_error) + u * std::abs(out.ratio);
+    out.method = m.method;
+    out.evaluations = m.evaluations;
+    out.converged = m.converged;
+    return out;
+  }
   checked_digits<Real>(digits);
   std::unique_ptr<working_precision> guard;
   if constexpr (is_mpfr_v<Real>) guard = std::make_unique<working_precision>(digits + guard_digits);

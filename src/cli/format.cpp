@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <type_traits>
 
 namespace pendavg::cli {
 
@@ -31,9 +32,12 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   const auto strings = [](const std::vector<Real>& values, int significant, auto scale) {
     std::vector<std::string> out;
     out.reserve(values.size());
-    for (const Real& value : values) out.push_back(decimal<Real>(scale(value), significant));
+    for (const Real& value : values) out.push_back(decimal(scale(value), significant));
     return out;
   };
+  // <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i / beta^2 leave double's range for
+  // beta < 1e-154 (the library returns the beta-scaled values); divide in long double.
+  using Wide = std::conditional_t<is_mpfr_v<Real>, Real, long double>;
   const auto same = [](const Real& value) { return value; };
   AveragesText text;
   text.beta_kinetic = strings(averages.beta_kinetic, digits, same);
@@ -41,10 +45,11 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   text.cos_angle = strings(averages.cos_angle, digits, same);
   text.beta2_variance = strings(averages.beta2_kinetic_variance, digits, same);
   if (beta) {
+    const Wide b = Wide(*beta);
     text.kinetic = strings(averages.beta_kinetic, digits,
-                           [beta](const Real& value) -> Real { return value / *beta; });
+                           [b](const Real& value) -> Wide { return Wide(value) / b; });
     text.variance = strings(averages.beta2_kinetic_variance, digits,
-                            [beta](const Real& value) -> Real { return value / (*beta * *beta); });
+                            [b](const Real& value) -> Wide { return Wide(value) / (b * b); });
   }
   text.ratio = decimal<Real>(averages.ratio, digits);
   text.method = method_name(averages.method);
@@ -54,6 +59,7 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
 }
 
 template void append_decimal<double>(std::string&, const double&, int);
+template void append_decimal<long double>(std::string&, const long double&, int);
 template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
 template AveragesText averages_text<double>(const Averages<double>&, int, const double*);
 template AveragesText averages_text<mpfr_real>(const Averages<mpfr_real>&, int,
