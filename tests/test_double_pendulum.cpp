@@ -1,0 +1,198 @@
+// tests/test_double_pendulum.cpp -- the N = 2 engines on their hard cases, by name, and the
+// library's own cross-checks: exact Graf-moment sums against sinh-mapped quadrature, the
+// beta -> 0 limit in Boost.Math (Carlson) against GSL's Legendre-form elliptic integrals, and
+// validation of the model.
+#include <catch2/catch.hpp>
+
+#include "pendavg/chain.hpp"
+#include "pendavg/double_pendulum.hpp"
+#include "pendavg/precision.hpp"
+
+#include <gsl/gsl_mode.h>
+#include <gsl/gsl_sf_ellint.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+using pendavg::Chain;
+using pendavg::mpfr_real;
+
+namespace {
+
+Chain<double> chain2(double m1, double m2, double l1, double l2, double g = 1) {
+  return Chain<double>({m1, m2}, {l1, l2}, g);
+}
+
+Chain<mpfr_real> chain2_mpfr(double m1, double m2, double l1, double l2, double g = 1) {
+  return Chain<mpfr_real>({mpfr_real(m1), mpfr_real(m2)}, {mpfr_real(l1), mpfr_real(l2)},
+                          mpfr_real(g));
+}
+
+/// Double result against a 40-digit MPFR result of the identical (double-valued) problem:
+/// beta<K_i> to 2e-15 relative and inside the reported error.
+void check_double_against_mpfr(double m1, double m2, double l2, double beta) {
+  const auto d = pendavg::reduced_integral_average(chain2(m1, m2, 1, l2), beta, 16);
+  pendavg::working_precision guard(40 + pendavg::guard_digits);
+  const auto m = pendavg::reduced_integral_average(chain2_mpfr(m1, m2, 1, l2), mpfr_real(beta), 40);
+  INFO("m1 = " << m1 << " m2 = " << m2 << " l2 = " << l2 << " beta = " << beta);
+  REQUIRE(d.converged);
+  REQUIRE(m.converged);
+  for (int i = 0; i < 2; ++i) {
+    const double ref = static_cast<double>(m.beta_kinetic[i]);
+    const double err = std::abs(d.beta_kinetic[i] - ref);
+    CHECK(std::isfinite(d.beta_kinetic[i]));
+    CHECK(err <= 2e-15 * ref);
+    CHECK(err <= d.beta_kinetic_error[i]);
+    CHECK(std::isfinite(d.cos_angle[i]));
+    CHECK(std::isfinite(d.beta2_kinetic_variance[i]));
+  }
+}
+
+}  // namespace
+
+TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pendulum]") {
+  for (double mu1 : {1e-6, 1e-9, 1e-12}) {
+    for (double beta : {1e-3, 1.0, 30.0}) check_double_against_mpfr(mu1, 1 - mu1, 1.0, beta);
+  }
+  // The limit value is approached: beta<K1> ~ (mu1/2) K/E -> 0 like mu1 log(1/mu1).
+  const auto r = pendavg::reduced_integral_average(chain2(1e-12, 1, 1, 1), 1e-6, 16);
+  CHECK(r.beta_kinetic[0] > 0);
+  CHECK(r.beta_kinetic[0] < 1e-10);
+}
+
+TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]") {
+  for (double beta : {1e-2, 1.0, 1e3, 1e6}) check_double_against_mpfr(1.0, 1e-10, 1.0, beta);
+}
+
+TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow", "[double_pendulum]") {
+  for (double beta : {1e3, 1e6, 1e8}) check_double_against_mpfr(0.5, 0.5, 1.0, beta);
+  // Far beyond double's exp range in MPFR: beta = 1e300 gives 1/2 - O(1/beta).
+  pendavg::working_precision guard(30 + pendavg::guard_digits);
+  const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
+  CHECK(r.converged);
+  CHECK(abs(r.beta_kinetic[0] - mpfr_real(0.5)) < mpfr_real("1e-290"));
+  CHECK(abs(r.beta_kinetic[1] - mpfr_real(0.5)) < mpfr_real("1e-290"));
+}
+
+TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow", "[double_pendulum]") {
+  const auto limit = pendavg::high_temperature_limit(chain2(0.5, 0.5, 1, 1), 16);
+  for (double beta : {1e-8, 1e-100, 1e-300}) {
+    const auto r = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), beta, 16);
+    INFO("beta = " << beta);
+    CHECK(r.beta_kinetic[0] == Approx(limit.beta_kinetic[0]).epsilon(1e-14));
+    CHECK(std::isfinite(r.cos_angle[0]));
+    CHECK(r.cos_angle[0] == Approx(beta / 2).epsilon(1e-6));  // <cos phi1> ~ a1/2, a1 = beta M g l1
+  }
+}
+
+TEST_CASE("hard case extreme length ratios", "[double_pendulum]") {
+  for (double l2 : {1e-4, 1e4}) {
+    for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_double_against_mpfr(0.3, 0.7, l2, beta);
+  }
+}
+
+TEST_CASE("g = 0 is the beta -> 0 limit exactly, with <cos phi> = 0", "[double_pendulum]") {
+  const auto r = pendavg::reduced_integral_average(chain2(0.2, 0.8, 1, 3, 0.0), 7.0, 16);
+  const auto limit = pendavg::high_temperature_limit(chain2(0.2, 0.8, 1, 3), 16);
+  CHECK(r.beta_kinetic[0] == Approx(limit.beta_kinetic[0]).epsilon(1e-15));
+  CHECK(r.cos_angle[0] == 0.0);
+  CHECK(r.cos_angle_error[0] >= 0.0);
+  CHECK(r.beta2_kinetic_variance[0] == Approx(limit.beta2_kinetic_variance[0]).epsilon(1e-14));
+}
+
+TEST_CASE("exact Graf-moment sums agree with sinh-mapped quadrature at 30 digits", "[double_pendulum]") {
+  pendavg::working_precision guard(30 + pendavg::guard_digits);
+  pendavg::IntegralOptions nodes;
+  nodes.evaluation = pendavg::IntegralEvaluation::quadrature;
+  struct P {
+    double m1, m2, l2, beta;
+  };
+  for (const P& p : {P{0.5, 0.5, 1, 1}, P{0.05, 0.95, 2, 5}, P{1e-6, 1, 1, 3}, P{0.9, 0.1, 0.5, 0.2},
+                     P{1e-10, 1, 0.3, 20}}) {
+    const auto chain = chain2_mpfr(p.m1, p.m2, 1, p.l2);
+    const auto exact = pendavg::reduced_integral_average(chain, mpfr_real(p.beta), 30);
+    const auto quad = pendavg::reduced_integral_average(chain, mpfr_real(p.beta), 30, nodes);
+    INFO("m1 = " << p.m1 << " l2 = " << p.l2 << " beta = " << p.beta << ", terms " << exact.evaluations
+                 << ", nodes " << quad.evaluations);
+    for (int i = 0; i < 2; ++i) {
+      const mpfr_real tol = pow(mpfr_real(10), -29);
+      CHECK(abs(exact.beta_kinetic[i] - quad.beta_kinetic[i]) <= tol * exact.beta_kinetic[i]);
+      CHECK(abs(exact.cos_angle[i] - quad.cos_angle[i]) <= tol * (abs(exact.cos_angle[i]) + 1e-20));
+      CHECK(abs(exact.beta2_kinetic_variance[i] - quad.beta2_kinetic_variance[i]) <=
+            tol * exact.beta2_kinetic_variance[i]);
+    }
+  }
+}
+
+TEST_CASE("beta -> 0 limit: Boost's Carlson forms agree with GSL's Legendre forms", "[double_pendulum]") {
+  for (double mu1 : {0.5, 0.25, 0.05, 1e-3, 0.9}) {
+    const auto r = pendavg::high_temperature_limit(chain2(mu1, 1 - mu1, 1, 1), 16);
+    const double mu2 = (1 - mu1) / (mu1 + (1 - mu1));
+    const double k = std::sqrt(mu2);
+    const double K = gsl_sf_ellint_Kcomp(k, GSL_PREC_DOUBLE);
+    const double E = gsl_sf_ellint_Ecomp(k, GSL_PREC_DOUBLE);
+    INFO("mu1 = " << mu1);
+    // GSL takes k, which carries mu1 only to ~eps/mu1 relative: compare at that level.
+    const double tol = 8e-16 + 4e-16 / mu1;
+    CHECK(r.beta_kinetic[0] == Approx(mu1 / 2 * K / E).epsilon(tol));
+  }
+}
+
+TEST_CASE("the beta -> infinity limit is equipartition for both particles", "[double_pendulum]") {
+  const auto r = pendavg::low_temperature_limit(chain2(0.1, 0.9, 2, 0.5));
+  CHECK(r.beta_kinetic == std::vector<double>{0.5, 0.5});
+  CHECK(r.cos_angle == std::vector<double>{1.0, 1.0});
+  CHECK(r.beta2_kinetic_variance == std::vector<double>{0.5, 0.5});
+  // The integral approaches it: beta = 1e8 with mu1 = 0.5.
+  const auto big = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), 1e8, 16);
+  CHECK(big.beta2_kinetic_variance[0] == Approx(0.5).epsilon(1e-6));
+  CHECK(big.beta2_kinetic_variance[1] == Approx(0.5).epsilon(1e-6));
+}
+
+TEST_CASE("the model rejects invalid parameters with one-line messages", "[double_pendulum]") {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_AS(Chain<double>({1, 0}, {1, 1}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, -1}, {1, 1}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, nan}, {1, 1}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, 1}, {1, inf}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, 1}, {1, 0}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, 1}, {1}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({}, {}), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, 1}, {1, 1}, -1.0), pendavg::invalid_input);
+  CHECK_THROWS_AS(Chain<double>({1, 1}, {1, 1}, nan), pendavg::invalid_input);
+  const auto c = chain2(1, 1, 1, 1);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(c, 0.0, 16), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(c, -1.0, 16), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(c, nan, 16), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(c, 1e300, 16), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, 16),
+                  pendavg::invalid_input);
+  try {
+    Chain<double>({1, -2}, {1, 1});
+  } catch (const pendavg::invalid_input& e) {
+    const std::string what = e.what();
+    CHECK(what.find('\n') == std::string::npos);
+    CHECK(what.find("mass 2") != std::string::npos);
+  }
+  pendavg::working_precision guard(30);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(chain2_mpfr(1, 1, 1, 1), mpfr_real(1), 15),
+                  pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::reduced_integral_average(chain2_mpfr(1, 1, 1, 1), mpfr_real(1), 1001),
+                  pendavg::invalid_input);
+}
+
+TEST_CASE("the series stops at its certified bound and reports non-convergence honestly",
+          "[double_pendulum]") {
+  pendavg::working_precision guard(30 + pendavg::guard_digits);
+  const auto chain = chain2_mpfr(0.5, 0.5, 1, 1);
+  const auto certified = pendavg::series_average(chain, mpfr_real(1), 30);
+  CHECK(certified.converged);
+  CHECK(certified.beta_kinetic_error[0] <= pow(mpfr_real(10), -30) * certified.beta_kinetic[0]);
+  // Capped at 10 terms: the value is still bracketed by the bound, and flagged.
+  const auto capped = pendavg::series_average(chain, mpfr_real(1), 30, 10);
+  CHECK_FALSE(capped.converged);
+  CHECK(abs(capped.beta_kinetic[0] - certified.beta_kinetic[0]) <= capped.beta_kinetic_error[0]);
+}
