@@ -184,9 +184,10 @@ struct LevelResult {
   bool converged = false;
 };
 
-/// Nested Clenshaw-Curtis on x in [0, 1]; stops when every integral's estimated relative
-/// error is below `tol`. Error of level L: e_L min(1, e_L / e_{L-1}) (geometric convergence
-/// squares the error per doubling, so this over-estimates) plus a rounding floor.
+/// Nested Clenshaw-Curtis on x in [0, 1] (levels n = 8 .. 8 2^max_level); stops when the
+/// estimated error of J_{1/2}, J_{-1/2} is below tol |J| (16 tol for the others) or at the
+/// rounding floor. The estimate of level L is the larger of 64 max(|a_n|, |a_{n-1}|)/n^2
+/// (top Chebyshev coefficients) and e_L r^2 (level difference e_L, ratio r = e_L/e_{L-1}).
 template <class Real, class Weights>
 LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, const Real& mu2,
                                    const Weights& weights, const Real& tol,

@@ -1,19 +1,26 @@
 // pendavg/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2).
 //
 // Four engines, one result type (Averages<Real>):
-//  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (MATH.md Sec. 2).
-//      The default and fastest engine, in double and in MPFR. Nodes are placed by a sinh map
-//      at t = 0, where q(t) = mu1 + mu2 sin^2 t nearly vanishes (distance asinh(sqrt(mu1/mu2))
-//      from the real axis), and the range is cut where the Boltzmann weight has decayed, so
-//      the node count stays bounded as mu1 -> 0 and beta -> infinity. Nested Clenshaw-Curtis
-//      levels give the error estimate from successive refinements. The Bessel weight
-//      I0(R(t)) e^{-(a1+a2)} is summed from Graf's addition theorem when a1, a2 are moderate
-//      and evaluated per node (scaled, asymptotic) when they are large; nothing overflows.
+//  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (MATH.md Sec. 2),
+//      folded onto [0, pi/2]. The default engine, in double and in MPFR. Two evaluations:
+//      - exact finite sums: Graf's addition theorem expands the Boltzmann weight
+//        I0(R(t)) e^{-(a1+a2)} in cos(2kt) with coefficients from one Miller table of
+//        e^{-a} I_m(a) per argument, and the Fourier moments of q(t)^s = (mu1 + mu2 sin^2 t)^s
+//        follow from K(k), E(k) by a three-term recurrence. No nodes; O(terms) work. The
+//        double engine runs these sums in long double. Used when the terms are few and the
+//        recurrence and cancellation leave the requested accuracy (checked, not assumed);
+//      - otherwise nested Clenshaw-Curtis quadrature with nodes placed by a sinh map at t = 0,
+//        where q nearly vanishes (distance asinh(sqrt(mu1/mu2)) from the real axis) and the
+//        Boltzmann weight peaks, on a range cut where the weight has decayed; per-node weights
+//        from Graf sums or scaled Bessel functions (nothing overflows at any beta). The error
+//        estimate combines the top Chebyshev coefficients with successive levels.
 //  * series_average -- the paper's series, eq. ave-K1-result, with R_n from the closed-form
 //      Bessel derivatives (MATH.md Sec. 5) and a rigorous truncation bound that decides when
 //      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.
+//      Evaluated in MPFR (its coefficients leave double's range); gives beta<K_i> only, and
+//      takes <cos phi_i>, Var K_i from the integral. O(M^2) work for M terms.
 //  * high_temperature_limit -- beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2
-//      (paper eq. aveK1-beta0), via Carlson's R_F, R_D with k'^2 = mu1 given directly.
+//      (paper eq. aveK1-beta0), via Carlson's R_F, R_G with k'^2 = mu1 given directly.
 //  * low_temperature_limit -- beta -> infinity: beta<K_i> = 1/2 for both particles.
 //
 // Observables: beta<K_i> (K_2 from beta<K1> + beta<K2> = 1), <cos phi_i>, beta^2 Var K_i
