@@ -31,12 +31,18 @@ double asymptotic_threshold() {
 }
 
 /// Miller start index: beyond `count` by enough that e^{-a} I_m(a) has decayed by roughly
-/// sqrt(roundoff) more (Miller's error at m ~ (I_start/I_m)^2), with a safety margin.
+/// sqrt(roundoff) more (Miller's error at m ~ (I_start/I_m)^2), with a safety margin. The
+/// ratio I_m/I_{m-1} is about e^{-asinh(m/a)}, so past `count` each step gains at least
+/// asinh(count/a); for large a the Gaussian decay exp(-m^2/(2a)) bounds it instead.
 template <class Real>
 std::size_t miller_start(double a, std::size_t count) {
   const double lnu = log_inverse_roundoff<Real>();
-  const double extra = 12.0 + std::sqrt((a + 1.0) * (lnu + 10.0));
-  return count + static_cast<std::size_t>(std::min(extra, 1e9));
+  const double target = 0.5 * lnu + 8.0;
+  const double gaussian = 12.0 + std::sqrt((a + 1.0) * (lnu + 10.0));
+  const double c = static_cast<double>(std::max<std::size_t>(count, 1));
+  const double per_step = (a > 0) ? std::asinh(c / a) : 1e9;
+  const double geometric = 4.0 + target / per_step;
+  return count + static_cast<std::size_t>(std::min({gaussian, geometric, 1e9}));
 }
 
 /// Forward recurrence from I0, I1 is stable while m^2 << a (both solutions ~ e^{+-a}):

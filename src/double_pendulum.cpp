@@ -287,23 +287,23 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
 }
 
 /// Number of Graf terms m with e^{-a1} I_m(a1) e^{-a2} I_m(a2) above e^{-L}: the product
-/// decays like exp(-m^2 / (2 a1 a2 / (a1 + a2))) and, for small a, like (a/2)^m / m!.
+/// decays like exp(-m^2 / (2 a1 a2 / (a1 + a2))) and, for small a, like ((g/2)^m / m!)^2 with
+/// g = sqrt(a1 a2). An estimate: graf_weights checks the actual tail and grows if needed.
 inline double graf_terms_estimate(double a1, double a2, double L) {
-  const double a_small = std::min(a1, a2), a_large = std::max(a1, a2);
-  if (a_small <= 0) return 1.0;
+  const double geometric_mean = std::sqrt(a1 * a2);
+  if (!(geometric_mean > 0)) return 1.0;
   const double harmonic = a1 * a2 / (a1 + a2);
-  const double gaussian = std::sqrt(2.0 * L * (harmonic + 0.5));
-  // (a_small/2)^m / m! < e^{-L}: m (ln(2m/(e a_small))) > L.
+  const double gaussian = std::sqrt(2.0 * L * (harmonic + 0.5)) + 4.0;
+  // 2 m ln(2m / (e g)) >= L
   double m = 1.0;
-  while (m * std::log(2.0 * m / (2.718281828 * a_small)) < L && m < 1e7) m *= 1.25;
-  (void)a_large;
-  return std::min(gaussian + 4.0, m + 2.0);
+  while (2.0 * m * std::log(2.0 * m / (2.718281828 * geometric_mean)) < L && m < 1e7) m *= 1.25;
+  return std::min(gaussian, m + 2.0);
 }
 
 /// Graf coefficients for the folded weight, trimmed to the terms above exp(-L) of each scale.
 template <class Real>
 GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
-  std::size_t count = 8 + 2 * static_cast<std::size_t>(graf_terms_estimate(
+  std::size_t count = 8 + static_cast<std::size_t>(graf_terms_estimate(
                               to_double_saturated(a1), to_double_saturated(a2), L));
   auto derivative = [](const std::vector<Real>& I, std::size_t m) {
     return m == 0 ? I[1] : (I[m - 1] + I[m + 1]) / 2;

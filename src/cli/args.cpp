@@ -252,14 +252,14 @@ std::vector<CaseRow> read_cases_file(const std::string& path) {
     begin = newline + 1;
     ++line_number;
     if (line.empty() || line.front() == '#') continue;
-    const std::string where = path + " line " + std::to_string(line_number);
+    const auto where = [&] { return path + " line " + std::to_string(line_number); };
     if (!positions) {
-      positions = column_positions(line, where);
+      positions = column_positions(line, where());
       continue;
     }
     const auto fields = split_fields(line);
     if (fields.size() != positions->size())
-      throw usage_error(where + ": expected " + std::to_string(positions->size()) +
+      throw usage_error(where() + ": expected " + std::to_string(positions->size()) +
                         " fields, found " + std::to_string(fields.size()));
     CaseRow row{line_number, {}};
     for (std::size_t i = 0; i < fields.size(); ++i) row.fields[(*positions)[i]] = fields[i];
