@@ -45,12 +45,15 @@ std::size_t miller_start(double a, std::size_t count) {
   return count + static_cast<std::size_t>(std::min({gaussian, geometric, 1e9}));
 }
 
-/// Forward recurrence from I0, I1 is stable while m^2 << a (both solutions ~ e^{+-a}):
-/// use it for large arguments, where Miller's start index would grow like sqrt(a).
+/// Forward recurrence from I0, I1 amplifies rounding by about exp(m^2/a) (for m << a both
+/// solutions behave like e^{+-a}): use it for large arguments, where Miller's start index
+/// would grow like sqrt(a), while the amplification stays below e^2 (double, long double)
+/// or e^14 (MPFR, whose guard digits absorb it).
 template <class Real>
 bool forward_recurrence_is_stable(double a, std::size_t count) {
   const double c = static_cast<double>(count);
-  return a > 64.0 * c * c + 4.0 * log_inverse_roundoff<Real>();
+  const double max_exponent = is_mpfr_v<Real> ? 14.0 : 2.0;
+  return c * c <= max_exponent * a && a > 4.0 * log_inverse_roundoff<Real>();
 }
 
 }  // namespace
@@ -125,20 +128,34 @@ template <class Real>
 Real miller_ratios(const Real& a, std::size_t count, std::vector<Real>& r) {
   const std::size_t start = miller_start<Real>(static_cast<double>(a), count);
   r.assign(std::max<std::size_t>(count, 1), Real(0));
-  Real next = 0, cur;
+  Real next = 0, cur = 0, denominator = 0;
   // The products r_1 ... r_m for m >= count enter only the normalisation; accumulate the
-  // tail sum S_m = r_m (1 + S_{m+1}) on the way down.
+  // tail sum S_m = r_m (1 + S_{m+1}) on the way down. In-place operations: no temporaries.
   Real tail = 0;
   for (std::size_t m = start; m >= 1; --m) {
-    cur = a / (2 * Real(m) + a * next);
+    denominator = next;
+    denominator *= a;
+    denominator += static_cast<unsigned long>(2 * m);
+    cur = a;
+    cur /= denominator;
     if (m < count) r[m] = cur;
-    tail = cur * (1 + tail);
+    tail += 1;
+    tail *= cur;
     next = cur;
   }
-  return 1 / (1 + 2 * tail);
+  tail *= 2;
+  tail += 1;
+  return 1 / tail;
 }
 
 }  // namespace
+
+template <class Real>
+double scaled_bessel_table_amplification(double a, std::size_t count) {
+  const double c = static_cast<double>(count);
+  if (forward_recurrence_is_stable<Real>(a, count)) return std::exp(c * c / a);
+  return 1.0 + c;  // products of up to `count` Miller ratios
+}
 
 template <class Real>
 std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count) {
@@ -148,7 +165,15 @@ std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count) {
     const auto b = scaled_bessel_i01(a);
     out[0] = b.i0e;
     if (count > 1) out[1] = b.i1e;
-    for (std::size_t m = 1; m + 1 < count; ++m) out[m + 1] = out[m - 1] - 2 * Real(m) / a * out[m];
+    const Real two_over_a = 2 / a;
+    Real step = 0;
+    for (std::size_t m = 1; m + 1 < count; ++m) {
+      step = out[m];
+      step *= two_over_a;
+      step *= static_cast<unsigned long>(m);
+      out[m + 1] = out[m - 1];
+      out[m + 1] -= step;
+    }
     return out;
   }
   std::vector<Real> r;
@@ -184,6 +209,7 @@ std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
   template ScaledBesselI01<Real> scaled_bessel_i01<Real>(const Real&);             \
   template ScaledBesselI01<Real> scaled_bessel_i01_generic<Real>(const Real&);     \
   template std::vector<Real> scaled_bessel_i_table<Real>(const Real&, std::size_t); \
+  template double scaled_bessel_table_amplification<Real>(double, std::size_t);     \
   template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
 PENDAVG_INSTANTIATE(double)
 PENDAVG_INSTANTIATE(long double)

@@ -105,6 +105,7 @@ struct NodeMap {
 template <class Real>
 struct GrafWeights {
   std::vector<Real> c0, c1, c2;  // coefficients of T_k(y), y = cos 2t
+  double rounding_amplification = 1;  // of the coefficients, in units of the roundoff
   void operator()(const Real& sin2_t, const Real& /*half-angle sine*/,
                   std::array<Real, 3>& F) const {
     const Real y = 1 - 2 * sin2_t;
@@ -340,6 +341,9 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
       keep = k;
     }
     if (keep + 2 <= kmax) {  // the tail really was negligible: done
+      g.rounding_amplification =
+          scaled_bessel_table_amplification<Real>(to_double_saturated(a1), count + 2) +
+          scaled_bessel_table_amplification<Real>(to_double_saturated(a2), count + 2);
       g.c0.resize(keep);
       g.c1.resize(keep);
       g.c2.resize(keep);
@@ -374,22 +378,36 @@ QMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_t cou
   const auto ell = detail::complete_elliptic_from_complement(mu1);
   const Real& K = ell.K;
   const Real& E = ell.E;
-  const std::array<Real, 3> s = {Real(1) / 2, Real(-1) / 2, Real(-3) / 2};
-  const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * E - mu1 * K) / 3, E, K, E / mu1};  // s = 3/2 .. -3/2
-  const Real c = 2 + 4 * mu1 / mu2;
+  // Rows s = 1/2, -1/2, -3/2 as sigma = 2s; Q0 holds Q_0(s) for s = 3/2 .. -3/2.
+  constexpr std::array<long, 3> sigma = {1, -1, -3};
+  const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * E - mu1 * K) / 3, E, K, E / mu1};
+  const Real two_c = 4 + 8 * mu1 / mu2;  // 2 (2 + 4 mu1/mu2)
   const double d = static_cast<double>(asinh(sqrt(mu1 / mu2)));
   const double growth = 4.0 * d * static_cast<double>(count);
+  const double kmax = static_cast<double>(count);
+  const double forward_amplification = std::exp(growth) * (1.0 + kmax * kmax);
   QMoments<Real> out;
   for (auto& row : out.Q) row.assign(count, Real(0));
-  if (growth <= std::log(10.0)) {
-    const double kmax = static_cast<double>(count);
-    out.amplification = Real(std::exp(growth) * (1.0 + kmax * kmax));
+  Real t1 = 0, t2 = 0;
+  // MPFR's guard digits absorb up to ~1e8; in (long) double only e^{4dk} <= 10 is taken,
+  // since Miller's start ~1/d would cost more than the quadrature it replaces.
+  if (is_mpfr_v<Real> ? forward_amplification <= 1e8 : growth <= std::log(10.0)) {
+    out.amplification = Real(forward_amplification);
     for (std::size_t r = 0; r < 3; ++r) {
       auto& Q = out.Q[r];
       Q[0] = Q0[r + 1];
       if (count > 1) Q[1] = (1 + 2 * mu1 / mu2) * Q0[r + 1] - 2 / mu2 * Q0[r];
+      // Q_{k+1} = (2c k Q_k - (2k - 2 - sigma) Q_{k-1}) / (2k + 2 + sigma)
       for (std::size_t k = 1; k + 1 < count; ++k) {
-        Q[k + 1] = (c * Real(k) * Q[k] - (Real(k) - 1 - s[r]) * Q[k - 1]) / (Real(k) + 1 + s[r]);
+        const long kk = static_cast<long>(k);
+        t1 = Q[k];
+        t1 *= two_c;
+        t1 *= kk;
+        t2 = Q[k - 1];
+        t2 *= 2 * kk - 2 - sigma[r];
+        t1 -= t2;
+        t1 /= 2 * kk + 2 + sigma[r];
+        Q[k + 1] = t1;
       }
     }
     return out;
@@ -397,22 +415,31 @@ QMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_t cou
   const double lnu = -static_cast<double>(log(unit_roundoff<Real>()));
   const std::size_t start = count + 8 + static_cast<std::size_t>((lnu + 5.0) / (4.0 * d));
   out.amplification = 1;
+  // The backward solution grows like e^{2d} per step: rescale (rarely) in (long) double;
+  // MPFR's exponent range needs none.
+  const Real big = is_mpfr_v<Real> ? Real(0) : Real(1e300);
+  const Real inverse_big = is_mpfr_v<Real> ? Real(0) : Real(1e-300);
   for (std::size_t r = 0; r < 3; ++r) {
     auto& Q = out.Q[r];
-    // Backward: Q_{k-1} = (c k Q_k - (k + 1 + s) Q_{k+1}) / (k - 1 - s).
-    Real next = 0, cur = 1, prev;
+    // Q_{k-1} = (2c k Q_k - (2k + 2 + sigma) Q_{k+1}) / (2k - 2 - sigma), Miller's start.
+    Real next = 0, cur = 1, prev = 0;
     for (std::size_t k = start; k >= 1; --k) {
-      prev = (c * Real(k) * cur - (Real(k) + 1 + s[r]) * next) / (Real(k) - 1 - s[r]);
+      const long kk = static_cast<long>(k);
+      prev = cur;
+      prev *= two_c;
+      prev *= kk;
+      t2 = next;
+      t2 *= 2 * kk + 2 + sigma[r];
+      prev -= t2;
+      prev /= 2 * kk - 2 - sigma[r];
       if (k - 1 < count) Q[k - 1] = prev;
       if (k < count) Q[k] = cur;
       next = cur;
       cur = prev;
-      // Keep magnitudes moderate (the minimal solution grows ~e^{2d} per backward step).
-      const Real big = 1e100;
-      if (abs(cur) > big) {
-        cur /= big;
-        next /= big;
-        for (std::size_t j = k - 1; j < count && j <= start; ++j) Q[j] /= big;
+      if (!is_mpfr_v<Real> && abs(cur) > big) {
+        cur *= inverse_big;
+        next *= inverse_big;
+        for (std::size_t j = k - 1; j < count; ++j) Q[j] *= inverse_big;
       }
     }
     const Real norm = Q0[r + 1] / Q[0];
@@ -437,12 +464,12 @@ LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
   }
   const Real u = unit_roundoff<Real>();
   // Truncated Graf tail <= e^{-L} (times each integral's scale, by construction of L);
-  // rounding: term k carries up to ~k ulps from the products of Miller ratios in the Bessel
-  // tables, and the moments' rounding amplified by their recurrence.
+  // rounding: the Bessel tables' (Miller ratio products or forward recurrence) and the
+  // moments' rounding amplified by their recurrence.
   const Real tail = exp(Real(-L));
   for (std::size_t k = 0; k < integral_count; ++k) {
     out.value[k] = sum[k];
-    out.error[k] = (8 * u * (m.amplification + Real(K)) + tail) * l1[k];
+    out.error[k] = (8 * u * (m.amplification + Real(g.rounding_amplification)) + tail) * l1[k];
   }
   out.nodes = K;
   out.converged = true;
@@ -546,7 +573,12 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // Graf's sum is cheaper than per-node Bessel functions while it needs few terms; it also
   // keeps <cos phi_j> free of cancellation when one of a1, a2 is small.
   const double a1_d = to_double_saturated(p.a1), a2_d = to_double_saturated(p.a2);
-  const double L_graf = ln_inv_tol + 5.0 + (A_d - std::hypot(a1_d, a2_d)) +
+  // Graf's cosine series is cut where its tail is below e^{-L_graf} of its leading term. The
+  // cut changes every integral by at most e^{-L_graf} times its L1 norm (reported, so the
+  // bound is rigorous); L_graf adds to the tolerance the expected cancellation l1/|J| ~ 1/w,
+  // w = (1/a1 + 1/a2)^{1/2} the width of the weight's peak, and the Bessel prefactor.
+  const double harmonic = (a1_d > 0 && a2_d > 0) ? a1_d * a2_d / (a1_d + a2_d) : 0.0;
+  const double L_graf = ln_inv_tol + 5.0 + 0.5 * std::log1p(harmonic) +
                         0.5 * std::log1p(2 * 3.14159 * A_d);
   // Per-node Graf sums beat per-node Bessel functions while they are short.
   const double graf_terms = graf_terms_estimate(a1_d, a2_d, L_graf);

@@ -43,6 +43,11 @@ ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x);
 template <class Real>
 std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count);
 
+/// Bound on the relative rounding error of scaled_bessel_i_table(a, count) in units of the
+/// roundoff (Miller's ratio products, or exp(count^2/a) for the forward recurrence).
+template <class Real>
+double scaled_bessel_table_amplification(double a, std::size_t count);
+
 /// e^{-a} I_k(a) / a^k for k = 0 .. count-1 (a >= 0).
 template <class Real>
 std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count);
