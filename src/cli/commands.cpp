@@ -3,8 +3,6 @@
 // guard that is installed before any number is parsed.
 #include "commands.hpp"
 
-#include <exception>
-
 #include "args.hpp"
 #include "format.hpp"
 
@@ -13,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <exception>
 #include <utility>
 #include <vector>
 
