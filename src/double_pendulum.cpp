@@ -534,20 +534,6 @@ Averages<Real> finish_averages(const DoublePendulumParameters<Real>& p,
   return out;
 }
 
-template <class Real>
-int effective_digits(int digits) {
-  if constexpr (is_mpfr_v<Real>) {
-    if (digits < min_digits || digits > max_digits) {
-      throw invalid_input("digits must be in " + std::to_string(min_digits) + ".." +
-                          std::to_string(max_digits) + ", got " + std::to_string(digits));
-    }
-    return digits;
-  } else {
-    if (digits != 16) throw invalid_input("double precision computes 16 digits; use mpfr_real");
-    return 16;
-  }
-}
-
 }  // namespace
 
 template <class Real>
@@ -559,9 +545,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
 template <class Real>
 Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
                                         int digits, const IntegralOptions& options) {
-  digits = effective_digits<Real>(digits);
-  std::unique_ptr<working_precision> guard;
-  if constexpr (is_mpfr_v<Real>) guard = std::make_unique<working_precision>(digits + guard_digits);
+  check_digits<Real>(digits);
+  const precision_guard<Real> precision(digits + guard_digits);
   const auto p = double_pendulum_parameters(chain, beta);
   const Real pi = boost::math::constants::pi<Real>();
   const Real tol = integral_tolerance<Real>(digits);

@@ -12,7 +12,6 @@
 
 #include "pendavg/detail/elliptic.hpp"
 
-#include <memory>
 
 namespace pendavg {
 
@@ -22,14 +21,8 @@ Averages<Real> high_temperature_limit(const Chain<Real>& chain, int digits) {
     throw invalid_input("the beta -> 0 limit is implemented for N = 2 only, got N = " +
                         std::to_string(chain.size()));
   }
-  std::unique_ptr<working_precision> guard;
-  if constexpr (is_mpfr_v<Real>) {
-    if (digits < min_digits || digits > max_digits) {
-      throw invalid_input("digits must be in " + std::to_string(min_digits) + ".." +
-                          std::to_string(max_digits));
-    }
-    guard = std::make_unique<working_precision>(digits + guard_digits);
-  }
+  check_digits<Real>(digits);
+  const precision_guard<Real> precision(digits + guard_digits);
   const Real mu1 = chain.mass_fraction(0);
   const auto ell = detail::complete_elliptic_from_complement(mu1);
   const Real& K = ell.K;

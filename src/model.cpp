@@ -52,6 +52,19 @@ void check_beta(const Real& beta) {
   if (!finite(beta) || !(beta > 0)) throw invalid_input("beta must be finite and > 0");
 }
 
+template <class Real>
+void check_digits(int digits) {
+  if constexpr (is_mpfr_v<Real>) {
+    if (digits < min_digits || digits > max_digits) {
+      throw invalid_input("digits must be in " + std::to_string(min_digits) + ".." +
+                          std::to_string(max_digits) + ", got " + std::to_string(digits));
+    }
+  } else if (digits != min_digits) {
+    throw invalid_input("double precision gives " + std::to_string(min_digits) +
+                        " digits; more need the MPFR type");
+  }
+}
+
 const char* method_name(Method m) {
   switch (m) {
     case Method::series: return "series";
@@ -66,5 +79,7 @@ template class Chain<double>;
 template class Chain<mpfr_real>;
 template void check_beta<double>(const double&);
 template void check_beta<mpfr_real>(const mpfr_real&);
+template void check_digits<double>(int);
+template void check_digits<mpfr_real>(int);
 
 }  // namespace pendavg

@@ -26,7 +26,6 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <memory>
 
 namespace pendavg {
 namespace {
@@ -165,15 +164,6 @@ inline std::size_t a_priori_terms(double log_mu1, double log_mu2, double log_tol
 /// comes back with converged = false and its rigorous bound. An explicit `terms` may exceed it.
 constexpr std::size_t max_automatic_terms = 6000;
 
-template <class Real>
-int checked_digits(int digits) {
-  if (digits < min_digits || digits > max_digits) {
-    throw invalid_input("digits must be in " + std::to_string(min_digits) + ".." +
-                        std::to_string(max_digits) + ", got " + std::to_string(digits));
-  }
-  return digits;
-}
-
 }  // namespace
 
 template <class Real>
@@ -196,7 +186,7 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
     }
     return out;
   }
-  checked_digits<Real>(digits);
+  check_digits<Real>(digits);
   double_pendulum_parameters(chain, beta);  // validates N = 2 and beta
   const double log_tol = is_mpfr_v<Real> ? -(digits + 1) * std::log(10.0)
                                          : std::log(4 * std::numeric_limits<double>::epsilon());
@@ -208,11 +198,8 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
   // Every term of the series and of R_n is positive, so rounding errors only add up along the
   // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
   // limbs make this O(M^2) loop faster).
-  std::unique_ptr<working_precision> guard;
-  if constexpr (is_mpfr_v<Real>) {
-    const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
-    guard = std::make_unique<working_precision>(digits + series_guard);
-  }
+  const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
+  const precision_guard<Real> precision(digits + series_guard);
   const auto p = double_pendulum_parameters(chain, beta);
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());
@@ -281,9 +268,8 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
     out.converged = m.converged;
     return out;
   }
-  checked_digits<Real>(digits);
-  std::unique_ptr<working_precision> guard;
-  if constexpr (is_mpfr_v<Real>) guard = std::make_unique<working_precision>(digits + guard_digits);
+  check_digits<Real>(digits);
+  const precision_guard<Real> precision(digits + guard_digits);
   const auto rows = series_convergence(chain, beta, digits, max_terms);
   const auto& last = rows.back();
   // The series gives beta<K1>; <cos phi_i> and Var K_i come from the reduced integral.

@@ -59,4 +59,9 @@ class Chain {
 template <class Real>
 void check_beta(const Real& beta);
 
+/// Validates a requested number of significant digits: exactly 16 for double (its one
+/// precision), min_digits..max_digits for MPFR. Throws invalid_input otherwise.
+template <class Real>
+void check_digits(int digits);
+
 }  // namespace pendavg

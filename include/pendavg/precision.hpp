@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <type_traits>
 
 namespace pendavg {
@@ -44,6 +45,18 @@ class working_precision {
 
  private:
   unsigned previous_;
+};
+
+/// The entry points' guard: a working_precision for MPFR, nothing for other number types.
+template <class Real>
+class precision_guard {
+ public:
+  explicit precision_guard(int digits10) {
+    if constexpr (is_mpfr_v<Real>) guard_.emplace(digits10);
+  }
+
+ private:
+  std::optional<working_precision> guard_;
 };
 
 /// Unit roundoff of `Real` at the current working precision.
