@@ -76,8 +76,10 @@ const char* method_name(Method m) {
 }
 
 template class Chain<double>;
+template class Chain<long double>;
 template class Chain<mpfr_real>;
 template void check_beta<double>(const double&);
+template void check_beta<long double>(const long double&);
 template void check_beta<mpfr_real>(const mpfr_real&);
 template void check_digits<double>(int);
 template void check_digits<mpfr_real>(int);
