@@ -151,10 +151,13 @@ Real miller_ratios(const Real& a, std::size_t count, std::vector<Real>& r) {
 }  // namespace
 
 template <class Real>
-double scaled_bessel_table_amplification(double a, std::size_t count) {
-  const double c = static_cast<double>(count);
-  if (forward_recurrence_is_stable<Real>(a, count)) return std::exp(c * c / a);
-  return 1.0 + c;  // products of up to `count` Miller ratios
+double scaled_bessel_table_error_ulps(double a, std::size_t count, std::size_t m) {
+  const double mm = static_cast<double>(m);
+  // Forward recurrence: I0e(a), I1e(a) to a few ulps, amplified by exp(m^2/a).
+  if (forward_recurrence_is_stable<Real>(a, count)) return 4.0 * std::exp(mm * mm / a) + 2.0;
+  // Miller: each ratio r_j = a/(2j + a r_{j+1}) carries <= ~4 ulps (errors of r_{j+1} are
+  // damped by a r_{j+1}/(2j + a r_{j+1}) < 1), and I~_m / I~_0 is a product of m of them.
+  return 4.0 * mm + 2.0;
 }
 
 template <class Real>
@@ -209,7 +212,7 @@ std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
   template ScaledBesselI01<Real> scaled_bessel_i01<Real>(const Real&);             \
   template ScaledBesselI01<Real> scaled_bessel_i01_generic<Real>(const Real&);     \
   template std::vector<Real> scaled_bessel_i_table<Real>(const Real&, std::size_t); \
-  template double scaled_bessel_table_amplification<Real>(double, std::size_t);     \
+  template double scaled_bessel_table_error_ulps<Real>(double, std::size_t, std::size_t); \
   template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
 PENDAVG_INSTANTIATE(double)
 PENDAVG_INSTANTIATE(long double)

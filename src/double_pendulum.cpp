@@ -15,7 +15,7 @@
 #include "pendavg/quadrature.hpp"
 
 #include <boost/math/constants/constants.hpp>
-#include "pendavg/detail/elliptic.hpp"
+#include "pendavg/detail/fourier_moments.hpp"
 #include <boost/math/special_functions/fpclassify.hpp>
 
 #include <algorithm>
@@ -105,7 +105,7 @@ struct NodeMap {
 template <class Real>
 struct GrafWeights {
   std::vector<Real> c0, c1, c2;  // coefficients of T_k(y), y = cos 2t
-  double rounding_amplification = 1;  // of the coefficients, in units of the roundoff
+  std::vector<double> error_ulps;  // rounding bound of c0[k], c1[k], c2[k], in roundoffs
   void operator()(const Real& sin2_t, const Real& /*half-angle sine*/,
                   std::array<Real, 3>& F) const {
     const Real y = 1 - 2 * sin2_t;
@@ -341,9 +341,12 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
       keep = k;
     }
     if (keep + 2 <= kmax) {  // the tail really was negligible: done
-      g.rounding_amplification =
-          scaled_bessel_table_amplification<Real>(to_double_saturated(a1), count + 2) +
-          scaled_bessel_table_amplification<Real>(to_double_saturated(a2), count + 2);
+      g.error_ulps.resize(keep);
+      for (std::size_t k = 0; k < keep; ++k) {
+        g.error_ulps[k] =
+            scaled_bessel_table_error_ulps<Real>(to_double_saturated(a1), count + 2, 2 * k + 1) +
+            scaled_bessel_table_error_ulps<Real>(to_double_saturated(a2), count + 2, 2 * k + 1) + 4;
+      }
       g.c0.resize(keep);
       g.c1.resize(keep);
       g.c2.resize(keep);
@@ -353,123 +356,36 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
   }
 }
 
-/// Fourier moments of q^s on [0, pi/2]: Q_k(s) = int_0^{pi/2} q(t)^s cos(2kt) dt for
-/// s = 1/2, -1/2, -3/2 (rows 0, 1, 2), k = 0..count-1. With q = A - B cos 2t
-/// (A = mu1 + mu2/2, B = mu2/2) they obey the three-term recurrence
-///   (k + 1 + s) Q_{k+1} = (2 + 4 mu1/mu2) k Q_k - (k - 1 - s) Q_{k-1},
-/// whose wanted solution is the minimal one (ratio e^{-2d}, d = asinh(sqrt(mu1/mu2))).
-/// Start values are complete elliptic integrals, k^2 = mu2, from Carlson's forms with
-/// mu1 passed directly: Q_0(1/2) = E, Q_0(-1/2) = K, Q_0(-3/2) = E/mu1, Q_0(3/2) =
-/// (2(1+mu1)E - mu1 K)/3, and Q_1(s) = (1 + 2 mu1/mu2) Q_0(s) - (2/mu2) Q_0(s+1).
-/// Forward recurrence amplifies rounding by about (1 + k^2) e^{4dk}: as mu1 -> 0 the two
-/// solutions separate only algebraically (Q_k(1/2) ~ k^-2 against k^0, Q_k(-3/2) ~ k^0
-/// against k^2). It is used when e^{4dk} stays below 10, i.e. for small mu1 -- exactly where
-/// Miller's backward recurrence would need ~1/d steps -- and the amplification is reported
-/// so that the caller can reject the sums. Otherwise Miller's algorithm runs backward from
-/// far enough that e^{-4d(start-k)} < u.
-template <class Real>
-struct QMoments {
-  std::array<std::vector<Real>, 3> Q;
-  Real amplification = 1;  // bound on the rounding amplification of the recurrence
-};
-
-template <class Real>
-QMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_t count) {
-  const auto ell = detail::complete_elliptic_from_complement(mu1);
-  const Real& K = ell.K;
-  const Real& E = ell.E;
-  // Rows s = 1/2, -1/2, -3/2 as sigma = 2s; Q0 holds Q_0(s) for s = 3/2 .. -3/2.
-  constexpr std::array<long, 3> sigma = {1, -1, -3};
-  const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * E - mu1 * K) / 3, E, K, E / mu1};
-  const Real two_c = 4 + 8 * mu1 / mu2;  // 2 (2 + 4 mu1/mu2)
-  const double d = static_cast<double>(asinh(sqrt(mu1 / mu2)));
-  const double growth = 4.0 * d * static_cast<double>(count);
-  const double kmax = static_cast<double>(count);
-  const double forward_amplification = std::exp(growth) * (1.0 + kmax * kmax);
-  QMoments<Real> out;
-  for (auto& row : out.Q) row.assign(count, Real(0));
-  Real t1 = 0, t2 = 0;
-  // MPFR's guard digits absorb up to ~1e8; in (long) double only e^{4dk} <= 10 is taken,
-  // since Miller's start ~1/d would cost more than the quadrature it replaces.
-  if (is_mpfr_v<Real> ? forward_amplification <= 1e8 : growth <= std::log(10.0)) {
-    out.amplification = Real(forward_amplification);
-    for (std::size_t r = 0; r < 3; ++r) {
-      auto& Q = out.Q[r];
-      Q[0] = Q0[r + 1];
-      if (count > 1) Q[1] = (1 + 2 * mu1 / mu2) * Q0[r + 1] - 2 / mu2 * Q0[r];
-      // Q_{k+1} = (2c k Q_k - (2k - 2 - sigma) Q_{k-1}) / (2k + 2 + sigma)
-      for (std::size_t k = 1; k + 1 < count; ++k) {
-        const long kk = static_cast<long>(k);
-        t1 = Q[k];
-        t1 *= two_c;
-        t1 *= kk;
-        t2 = Q[k - 1];
-        t2 *= 2 * kk - 2 - sigma[r];
-        t1 -= t2;
-        t1 /= 2 * kk + 2 + sigma[r];
-        Q[k + 1] = t1;
-      }
-    }
-    return out;
-  }
-  const double lnu = -static_cast<double>(log(unit_roundoff<Real>()));
-  const std::size_t start = count + 8 + static_cast<std::size_t>((lnu + 5.0) / (4.0 * d));
-  out.amplification = 1;
-  // The backward solution grows like e^{2d} per step: rescale (rarely) in (long) double;
-  // MPFR's exponent range needs none.
-  const Real big = is_mpfr_v<Real> ? Real(0) : Real(1e300);
-  const Real inverse_big = is_mpfr_v<Real> ? Real(0) : Real(1e-300);
-  for (std::size_t r = 0; r < 3; ++r) {
-    auto& Q = out.Q[r];
-    // Q_{k-1} = (2c k Q_k - (2k + 2 + sigma) Q_{k+1}) / (2k - 2 - sigma), Miller's start.
-    Real next = 0, cur = 1, prev = 0;
-    for (std::size_t k = start; k >= 1; --k) {
-      const long kk = static_cast<long>(k);
-      prev = cur;
-      prev *= two_c;
-      prev *= kk;
-      t2 = next;
-      t2 *= 2 * kk + 2 + sigma[r];
-      prev -= t2;
-      prev /= 2 * kk - 2 - sigma[r];
-      if (k - 1 < count) Q[k - 1] = prev;
-      if (k < count) Q[k] = cur;
-      next = cur;
-      cur = prev;
-      if (!is_mpfr_v<Real> && abs(cur) > big) {
-        cur *= inverse_big;
-        next *= inverse_big;
-        for (std::size_t j = k - 1; j < count; ++j) Q[j] *= inverse_big;
-      }
-    }
-    const Real norm = Q0[r + 1] / Q[0];
-    for (auto& v : Q) v *= norm;
-  }
-  return out;
-}
-
-/// The five integrals from Graf's coefficients and the exact moments: no quadrature at all.
+/// The five integrals from Graf's coefficients and the exact Fourier moments of q^s
+/// (detail/fourier_moments.hpp): no quadrature at all.
 template <class Real>
 LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
                                         const GrafWeights<Real>& g, double L) {
   const std::size_t K = g.c0.size();
-  const auto m = q_power_moments(p.mu1, p.mu2, K);
+  const auto m = detail::q_power_moments(p.mu1, p.mu2, K);
+  // Rows of m.Q: s = 1/2, -1/2, -3/2. J_s uses c0 with its row; C_j uses c_j with s = 1/2.
+  const std::array<const std::vector<Real>*, integral_count> coefficient = {&g.c0, &g.c0, &g.c0,
+                                                                            &g.c1, &g.c2};
+  constexpr std::array<std::size_t, integral_count> row = {0, 1, 2, 0, 0};
   LevelResult<Real> out;
-  Integrands<Real> sum{}, l1{};
-  for (std::size_t k = 0; k < K; ++k) {
-    const Real t0 = g.c0[k] * m.Q[0][k], t1 = g.c0[k] * m.Q[1][k], t2 = g.c0[k] * m.Q[2][k];
-    const Real t3 = g.c1[k] * m.Q[0][k], t4 = g.c2[k] * m.Q[0][k];
-    sum[0] += t0; sum[1] += t1; sum[2] += t2; sum[3] += t3; sum[4] += t4;
-    l1[0] += abs(t0); l1[1] += abs(t1); l1[2] += abs(t2); l1[3] += abs(t3); l1[4] += abs(t4);
-  }
   const Real u = unit_roundoff<Real>();
-  // Truncated Graf tail <= e^{-L} (times each integral's scale, by construction of L);
-  // rounding: the Bessel tables' (Miller ratio products or forward recurrence) and the
-  // moments' rounding amplified by their recurrence.
   const Real tail = exp(Real(-L));
   for (std::size_t k = 0; k < integral_count; ++k) {
-    out.value[k] = sum[k];
-    out.error[k] = (8 * u * (m.amplification + Real(g.rounding_amplification)) + tail) * l1[k];
+    const auto& c = *coefficient[k];
+    const auto& Q = m.Q[row[k]];
+    Real sum = 0, l1 = 0, c_l1 = 0, weighted = 0, term;
+    for (std::size_t j = 0; j < K; ++j) {
+      term = c[j] * Q[j];
+      sum += term;
+      l1 += abs(term);
+      c_l1 += abs(c[j]);
+      weighted += Real(g.error_ulps[j] + double(K)) * abs(term);
+    }
+    out.value[k] = sum;
+    // Moments: |dQ_j| <= relative_error max_j |Q_j| = relative_error |Q_0|. Coefficients:
+    // the Bessel tables' rounding, term by term; summation: K ulps per term. The cut Graf
+    // tail is below e^{-L} of the leading coefficient, hence of the L1 norm (|Q_j| <= Q_0).
+    out.error[k] = c_l1 * m.relative_error * abs(Q[0]) + u * weighted + tail * l1;
   }
   out.nodes = K;
   out.converged = true;
@@ -481,7 +397,7 @@ LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
 /// Accept them when that amplification leaves the requested accuracy; else use nodes.
 template <class Real>
 bool moment_sum_accepted(const LevelResult<Real>& r, const Real& tol) {
-  // double: at most a factor ~4 of cancellation (error estimate <= 32 ulp of the value);
+  // double: error bound <= 32 ulp of the value (the bounds run ~10x above actual errors);
   // MPFR: the guard digits absorb cancellation, so compare with the tolerance directly.
   const Real limit = is_mpfr_v<Real> ? tol : Real(32) * unit_roundoff<Real>();
   for (std::size_t k = 0; k < 3; ++k) {
@@ -573,11 +489,10 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   LevelResult<Real> r;
   bool done = false;
   // First choice: the exact finite sum of Graf coefficients times Fourier moments, O(terms)
-  // work. The double engine runs it in long double, whose 3 extra digits absorb the
-  // alternating-sum cancellation of the q^{1/2} moments when the weight is peaked.
-  if (options.evaluation != IntegralEvaluation::quadrature &&
-      graf_terms <= (is_mpfr_v<Real> ? 4000.0 : 400.0)) {
-    using Work = std::conditional_t<is_mpfr_v<Real>, Real, long double>;
+  // work. The double engine runs it in double when the weight has no peak, else in long
+  // double: its 3 extra digits absorb the cancellation of the alternating q^{1/2} sums,
+  // ~(1 + a1 a2 / (a1 + a2)) when the weight is peaked where q is small.
+  const auto exact_sums = [&]<class Work>() {
     const DoublePendulumParameters<Work> pw{Work(p.mu1), Work(p.mu2), Work(p.a1), Work(p.a2)};
     const auto rw = graf_moment_integrals(pw, graf_weights(pw.a1, pw.a2, L_graf), L_graf);
     for (std::size_t k = 0; k < integral_count; ++k) {
@@ -586,6 +501,25 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     }
     r.nodes = rw.nodes;
     r.converged = rw.converged;
+  };
+  // In double, skip the sums where they would be rejected (cancellation ~ a1 a2/(a1 + a2)
+  // beyond long double's 3 extra digits) or are slow (long double moments with K d ~ 1 need a
+  // long Miller run or an x87 series: up to ~0.1 ms, while the nodes take ~10 us).
+  const double Kd = graf_terms * static_cast<double>(d);
+  const bool sums_worthwhile =
+      is_mpfr_v<Real> ? graf_terms <= 4000.0
+                      : graf_terms <= 400.0 && harmonic <= 300.0 &&
+                            (graf_terms <= 24.0 || Kd < 0.25 || Kd > 3.0);
+  if (options.evaluation != IntegralEvaluation::quadrature && sums_worthwhile) {
+    if constexpr (is_mpfr_v<Real>) {
+      exact_sums.template operator()<Real>();
+    } else {
+      if (harmonic <= 1.0) {  // no peak, little cancellation: double suffices, ~4x faster
+        exact_sums.template operator()<double>();
+        done = moment_sum_accepted(r, tol);
+      }
+      if (!done) exact_sums.template operator()<long double>();
+    }
     done = moment_sum_accepted(r, tol);
   }
   if (!done) {

@@ -82,6 +82,7 @@ template void check_beta<double>(const double&);
 template void check_beta<long double>(const long double&);
 template void check_beta<mpfr_real>(const mpfr_real&);
 template void check_digits<double>(int);
+template void check_digits<long double>(int);
 template void check_digits<mpfr_real>(int);
 
 }  // namespace pendavg

@@ -43,10 +43,11 @@ ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x);
 template <class Real>
 std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count);
 
-/// Bound on the relative rounding error of scaled_bessel_i_table(a, count) in units of the
-/// roundoff (Miller's ratio products, or exp(count^2/a) for the forward recurrence).
+/// Bound, in units of the roundoff, on the rounding error of entry m of
+/// scaled_bessel_i_table(a, count) relative to the table's common scale: a common factor
+/// error (the normalisation) is excluded, since it cancels in every ratio of Graf sums.
 template <class Real>
-double scaled_bessel_table_amplification(double a, std::size_t count);
+double scaled_bessel_table_error_ulps(double a, std::size_t count, std::size_t m);
 
 /// e^{-a} I_k(a) / a^k for k = 0 .. count-1 (a >= 0).
 template <class Real>
