@@ -502,14 +502,16 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     r.nodes = rw.nodes;
     r.converged = rw.converged;
   };
-  // In double, skip the sums where they would be rejected (cancellation ~ a1 a2/(a1 + a2)
-  // beyond long double's 3 extra digits) or are slow (long double moments with K d ~ 1 need a
-  // long Miller run or an x87 series: up to ~0.1 ms, while the nodes take ~10 us).
-  const double Kd = graf_terms * static_cast<double>(d);
+  // In double, skip the sums where they would likely be rejected (cancellation ~ a1 a2/(a1 +
+  // a2) together with the bounds on the Bessel tables' rounding, measured to exceed 32 ulps
+  // beyond a1 a2/(a1 + a2) ~ 30) or are slow: long double moments are cheap for short
+  // rows, for K d < 1/4 (convergent series) and for d > 1/2 (short Miller run); in between
+  // they take up to ~0.1 ms, while the nodes take ~10 us.
+  const double d_d = static_cast<double>(d);
   const bool sums_worthwhile =
       is_mpfr_v<Real> ? graf_terms <= 4000.0
-                      : graf_terms <= 400.0 && harmonic <= 300.0 &&
-                            (graf_terms <= 24.0 || Kd < 0.25 || Kd > 3.0);
+                      : graf_terms <= 400.0 && harmonic <= 30.0 &&
+                            (graf_terms <= 24.0 || graf_terms * d_d < 0.25 || d_d > 0.5);
   if (options.evaluation != IntegralEvaluation::quadrature && sums_worthwhile) {
     if constexpr (is_mpfr_v<Real>) {
       exact_sums.template operator()<Real>();
