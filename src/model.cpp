@@ -71,6 +71,9 @@ const char* method_name(Method m) {
     case Method::reduced_integral: return "integral";
     case Method::high_temperature_limit: return "limit-beta0";
     case Method::low_temperature_limit: return "limit-beta-infinity";
+    case Method::torus_trapezoid: return "torus-trapezoid";
+    case Method::torus_gauss_legendre: return "torus-gauss";
+    case Method::qmc: return "qmc";
   }
   return "unknown";
 }

@@ -16,6 +16,9 @@ enum class Method {
   reduced_integral,         ///< the exact 1-D reduced integral, MATH.md Sec. 2 (N = 2)
   high_temperature_limit,   ///< beta -> 0 (elliptic K/E for N = 2)
   low_temperature_limit,    ///< beta -> infinity (1/2 each)
+  torus_trapezoid,          ///< any N: periodic trapezoid on the reduced (N-1)-torus
+  torus_gauss_legendre,     ///< any N: Gauss-Legendre tensor rule on the reduced torus
+  qmc,                      ///< any N: randomized lattice QMC over the von Mises law
 };
 
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).

@@ -1,0 +1,559 @@
+// tests/test_torus.cpp -- the any-N torus quadrature (include/pendavg/torus.hpp, MATH.md Secs. 1-4,
+// 6, 8) against independent methods and exact identities:
+//  * N = 2 against the library's 1-D reduced integral (double_pendulum.hpp), which shares none of
+//    the torus code (Graf sums or sinh-mapped Clenshaw-Curtis over t = phi2 - phi1), over betas,
+//    masses and lengths; and g = 0 against the public beta -> 0 limit (elliptic K/E);
+//  * N = 3 against the public reference row of tests/data/public_values.csv, to the digits given;
+//  * the psi reduction of MATH.md Sec. 2 against a brute-force trapezoid over all N angles with
+//    the plain Boltzmann factor exp(sum_j alpha_j cos phi_j) and plain cos phi_j;
+//  * trapezoid against Gauss-Legendre, double against MPFR and long double;
+//  * identities: sum_i beta<K_i> = N/2, beta<K_i^(c)> = 1/2, N = 1 in closed form;
+//  * the reported errors against true errors, including a run stopped before the peak at
+//    large beta is resolved (converged = false must come with an error bar that covers);
+//  * MATH.md Sec. 8: N = 3, beta = 0.1, beta<K_1> = 0.3114096682 against the diagonal 1/6;
+//  * the work: mirror-halved node counts, determinism across thread counts, the n^(N-1) guard.
+//  * qmc_average (randomized lattice QMC over the Best-Fisher-mapped von Mises law): its 3-sigma
+//    error bars cover the exact N = 3 values for >= 95 of 100 seeds; determinism; the CBC table.
+// Tags: [torus] (default, ~2 s in Release), [torus][.slow] for the longer variants.
+#include <catch2/catch.hpp>
+
+#include "pendavg/chain.hpp"
+#include "pendavg/double_pendulum.hpp"
+#include "pendavg/precision.hpp"
+#include "pendavg/result.hpp"
+#include "pendavg/torus.hpp"
+#include "pendavg/trace_formula.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#ifndef PENDAVG_TEST_DATA_DIR
+#error "PENDAVG_TEST_DATA_DIR must name the tests/data directory"
+#endif
+
+namespace {
+
+using pendavg::Chain;
+using pendavg::mpfr_real;
+using pendavg::torus_average;
+using pendavg::torus_average_full;
+using pendavg::TorusOptions;
+using pendavg::TorusRule;
+
+Chain<double> uniform_chain(std::size_t n, double mass = 1, double length = 1, double g = 1) {
+  return Chain<double>(std::vector<double>(n, mass), std::vector<double>(n, length), g);
+}
+
+/// |a - b| <= both reported errors (each method's estimate must cover the difference) and
+/// <= rel * scale (the target accuracy).
+void check_close(double a, double a_err, double b, double b_err, double scale, double rel,
+                 const std::string& what) {
+  INFO(what << ": " << a << " +- " << a_err << " vs " << b << " +- " << b_err);
+  CHECK(std::abs(a - b) <= a_err + b_err);
+  CHECK(std::abs(a - b) <= rel * scale);
+}
+
+/// The N = 3 row of the public reference file: three beta<K_i> as text.
+std::vector<std::string> public_n3_values() {
+  std::ifstream in(std::string(PENDAVG_TEST_DATA_DIR) + "/public_values.csv");
+  REQUIRE(in.good());
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("3,1 1 1,1 1 1,1,1,", 0) != 0) continue;
+    const std::string values = line.substr(line.rfind(',') + 1);
+    std::istringstream words(values);
+    std::vector<std::string> out;
+    for (std::string w; words >> w;) out.push_back(w);
+    return out;
+  }
+  FAIL("no N = 3 row in public_values.csv");
+  return {};
+}
+
+/// Brute force over all N angles (no psi reduction): an n-point trapezoid per angle on the
+/// plain weight sqrt(det A) exp(sum_j alpha_j cos phi_j), with node_traces at absolute angles.
+struct BruteForce {
+  std::vector<double> beta_kinetic, cos_angle;
+};
+BruteForce brute_force_torus(const Chain<double>& chain, double beta, std::size_t n) {
+  const std::size_t np = chain.size();
+  pendavg::TraceWorkspace<double> ws(chain);
+  std::vector<double> phi(np), alpha(np);
+  for (std::size_t j = 0; j < np; ++j) alpha[j] = beta * chain.potential_coefficient(j);
+  double alpha_sum = 0;
+  for (double a : alpha) alpha_sum += a;
+  std::vector<double> sum_trace(np, 0), sum_cos(np, 0);
+  double sum_w = 0;
+  std::vector<std::size_t> index(np, 0);
+  const double h = 2 * M_PI / static_cast<double>(n);
+  for (;;) {
+    double exponent = -alpha_sum;
+    for (std::size_t j = 0; j < np; ++j) {
+      phi[j] = h * static_cast<double>(index[j]);
+      exponent += alpha[j] * std::cos(phi[j]);
+    }
+    const auto& t = pendavg::node_traces(chain, phi.data(), ws);
+    const double w = std::exp(t.log_sqrt_det_A + exponent);
+    sum_w += w;
+    for (std::size_t j = 0; j < np; ++j) {
+      sum_trace[j] += w * t.trace_X[j];
+      sum_cos[j] += w * std::cos(phi[j]);
+    }
+    std::size_t d = 0;
+    while (d < np && ++index[d] == n) index[d++] = 0;
+    if (d == np) break;
+  }
+  BruteForce out;
+  for (std::size_t j = 0; j < np; ++j) {
+    out.beta_kinetic.push_back(sum_trace[j] / (2 * sum_w));
+    out.cos_angle.push_back(sum_cos[j] / sum_w);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("torus N = 2 agrees with the 1-D reduced integral", "[torus]") {
+  struct Params {
+    double m1, m2, l1, l2, g;
+  };
+  const std::vector<Params> chains = {
+      {1, 1, 1, 1, 1},      {0.3, 2, 0.5, 2, 1},   {5, 0.7, 2, 0.3, 9.81},
+      {0.05, 0.95, 1, 1, 1}, {1, 1e-3, 2, 0.3, 1}, {2, 3, 1.5, 0.25, 2},
+  };
+  for (const auto& p : chains) {
+    for (double beta : {0.01, 0.3, 1.0, 3.0, 10.0, 30.0}) {
+      const Chain<double> chain({p.m1, p.m2}, {p.l1, p.l2}, p.g);
+      const auto torus = torus_average(chain, beta);
+      const auto ref = pendavg::reduced_integral_average(chain, beta);
+      INFO("m = (" << p.m1 << ", " << p.m2 << "), l = (" << p.l1 << ", " << p.l2 << "), g = " << p.g
+                   << ", beta = " << beta);
+      REQUIRE(torus.converged);
+      for (std::size_t i = 0; i < 2; ++i) {
+        check_close(torus.beta_kinetic[i], torus.beta_kinetic_error[i], ref.beta_kinetic[i],
+                    ref.beta_kinetic_error[i], ref.beta_kinetic[i], 1e-13, "beta<K>");
+        check_close(torus.beta2_kinetic_variance[i], torus.beta2_kinetic_variance_error[i],
+                    ref.beta2_kinetic_variance[i], ref.beta2_kinetic_variance_error[i],
+                    ref.beta2_kinetic_variance[i], 1e-13, "beta^2 Var K");
+        // <cos phi> -> alpha/2 as beta -> 0: compare relative to its size, floor 1e-3.
+        check_close(torus.cos_angle[i], torus.cos_angle_error[i], ref.cos_angle[i],
+                    ref.cos_angle_error[i], std::max(std::abs(ref.cos_angle[i]), 1e-3), 1e-13,
+                    "<cos phi>");
+      }
+      check_close(torus.ratio, torus.ratio_error, ref.ratio, ref.ratio_error, ref.ratio, 1e-13,
+                  "<K1>/<K2>");
+      // The error bars are honest but not wildly loose.
+      CHECK(torus.beta_kinetic_error[0] < 2e-14);
+    }
+  }
+}
+
+TEST_CASE("torus N = 2 with g = 0 is the public beta -> 0 limit", "[torus]") {
+  // tests/data/public_values.csv: beta*K1 (beta->0 limit) for masses 0.5 0.5 = (mu1/2) K(k)/E(k).
+  const Chain<double> chain({0.5, 0.5}, {1, 1}, 0.0);
+  const auto r = torus_average(chain, 1.0);
+  CHECK(std::abs(r.beta_kinetic[0] - 0.3431834814709248549) <= 4e-16);
+  CHECK(std::abs(r.beta_kinetic[1] - 0.6568165185290751451) <= 4e-16);
+  CHECK(r.cos_angle[0] == 0.0);
+  CHECK(r.cos_angle[1] == 0.0);
+}
+
+TEST_CASE("torus N = 3 reproduces the public reference value", "[torus]") {
+  const std::vector<std::string> values = public_n3_values();
+  REQUIRE(values.size() == 3);
+  const auto r = torus_average_full(uniform_chain(3), 1.0);
+  REQUIRE(r.averages.converged);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::string& text = values[i];
+    const std::size_t decimals = text.size() - text.find('.') - 1;
+    const double half_unit = 0.5 * std::pow(10.0, -static_cast<double>(decimals));
+    INFO("particle " << i + 1 << ": " << r.averages.beta_kinetic[i] << " vs " << text);
+    CHECK(std::abs(r.averages.beta_kinetic[i] - std::stod(text)) <=
+          half_unit + r.averages.beta_kinetic_error[i]);
+    CHECK(r.averages.beta_kinetic_error[i] < 1e-14);
+  }
+}
+
+TEST_CASE("torus identities: equipartition sum, canonical energies, N = 1", "[torus]") {
+  for (std::size_t n : {2u, 3u, 4u}) {
+    const std::vector<double> masses = {0.7, 1.9, 0.4, 1.1};
+    const Chain<double> chain(std::vector<double>(masses.begin(), masses.begin() + n),
+                              std::vector<double>(n, 1.3), 1.0);
+    TorusOptions options;
+    options.tolerance = 1e-10;
+    const auto r = torus_average_full(chain, 0.8, options);
+    INFO("N = " << n);
+    REQUIRE(r.averages.converged);
+    double sum = 0;
+    for (double k : r.averages.beta_kinetic) sum += k;
+    CHECK(std::abs(sum - 0.5 * static_cast<double>(n)) <= 1e-14 * static_cast<double>(n));
+    CHECK(r.equipartition_residual <= 1e-14 * static_cast<double>(n));
+    REQUIRE(r.beta_kinetic_canonical.size() == n);
+    for (double kc : r.beta_kinetic_canonical) CHECK(kc == 0.5);
+    const auto diagonal = pendavg::diagonal_approximation(chain);
+    CHECK(r.diagonal_approximation == diagonal);
+  }
+  // N = 1: the simple pendulum. beta<K> = 1/2, beta^2 Var K = 1/2, <cos phi> = I1(a)/I0(a).
+  const Chain<double> single({2.0}, {0.75}, 1.0);
+  const double beta = 1.7, a = beta * 2.0 * 0.75;
+  const auto r = torus_average_full(single, beta);
+  REQUIRE(r.averages.converged);
+  CHECK(r.averages.evaluations == 1);
+  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.5) <= 1e-16);
+  CHECK(std::abs(r.averages.beta2_kinetic_variance[0] - 0.5) <= 1e-15);
+  CHECK(std::abs(r.averages.cos_angle[0] - std::cyl_bessel_i(1.0, a) / std::cyl_bessel_i(0.0, a)) <=
+        1e-15);
+}
+
+TEST_CASE("torus psi reduction agrees with brute force over all N angles", "[torus]") {
+  // MATH.md Sec. 2: the closed-form psi integral (I0 weight, I1/I0 cos factor) against the plain
+  // Boltzmann factor and plain cos phi_j on an N-dimensional trapezoid grid.
+  const Chain<double> chain({1.0, 0.6, 1.4}, {0.9, 1.2, 0.7}, 1.0);
+  const double beta = 1.3;
+  const auto r = torus_average(chain, beta);
+  const BruteForce brute = brute_force_torus(chain, beta, 48);
+  for (std::size_t i = 0; i < 3; ++i) {
+    INFO("particle " << i + 1);
+    CHECK(std::abs(r.beta_kinetic[i] - brute.beta_kinetic[i]) <= 1e-13);
+    CHECK(std::abs(r.cos_angle[i] - brute.cos_angle[i]) <= 1e-13);
+  }
+}
+
+TEST_CASE("torus trapezoid and Gauss-Legendre agree", "[torus]") {
+  const Chain<double> chain({1.5, 0.5, 1.0}, {1.0, 0.6, 1.4}, 1.0);
+  for (double beta : {0.2, 1.0, 4.0}) {
+    TorusOptions gl;
+    gl.rule = TorusRule::gauss_legendre;
+    const auto t = torus_average_full(chain, beta);
+    const auto g = torus_average_full(chain, beta, gl);
+    INFO("beta = " << beta);
+    REQUIRE(t.averages.converged);
+    REQUIRE(g.averages.converged);
+    CHECK(g.rule == TorusRule::gauss_legendre);
+    // Gauss-Legendre is the weaker rule on the circle: it needs at least as many nodes.
+    CHECK(g.points_per_dim >= t.points_per_dim);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const auto& x = t.averages;
+      const auto& y = g.averages;
+      check_close(x.beta_kinetic[i], x.beta_kinetic_error[i], y.beta_kinetic[i],
+                  y.beta_kinetic_error[i], x.beta_kinetic[i], 1e-13, "beta<K>");
+      check_close(x.beta2_kinetic_variance[i], x.beta2_kinetic_variance_error[i],
+                  y.beta2_kinetic_variance[i], y.beta2_kinetic_variance_error[i],
+                  x.beta2_kinetic_variance[i], 1e-13, "beta^2 Var K");
+      check_close(x.cos_angle[i], x.cos_angle_error[i], y.cos_angle[i], y.cos_angle_error[i],
+                  std::abs(x.cos_angle[i]), 1e-13, "<cos phi>");
+    }
+  }
+}
+
+TEST_CASE("torus N = 3 at beta = 0.1 against the paper's diagonal approximation", "[torus]") {
+  // MATH.md Sec. 8: the diagonal approximation gives 1/6 where the exact value is ~0.311.
+  const auto r = torus_average_full(uniform_chain(3), 0.1);
+  REQUIRE(r.averages.converged);
+  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.3114096682) <= 5e-11);
+  CHECK(std::abs(r.diagonal_approximation[0] - 1.0 / 6.0) <= 1e-16);
+  CHECK(r.averages.beta_kinetic[0] > 1.8 * r.diagonal_approximation[0]);
+}
+
+TEST_CASE("torus N = 4 reaches 1e-11 within seconds", "[torus]") {
+  TorusOptions options;
+  options.tolerance = 1e-11;
+  const auto start = std::chrono::steady_clock::now();
+  const auto r = torus_average_full(uniform_chain(4), 1.0, options);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  REQUIRE(r.averages.converged);
+  CHECK(seconds < 5.0);
+  CHECK(r.points_per_dim <= 64);
+  double sum = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    CHECK(r.averages.beta_kinetic_error[i] <= 1e-11 * r.averages.beta_kinetic[i]);
+    sum += r.averages.beta_kinetic[i];
+  }
+  CHECK(std::abs(sum - 2.0) <= 1e-14);
+  // Pinned by this engine at 1e-13 (trapezoid 128^3 and Gauss-Legendre agree to 1e-16).
+  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.3361049374507111) <= 1e-13);
+  CHECK(std::abs(r.averages.beta_kinetic[3] - 0.6960178678347102) <= 1e-13);
+}
+
+TEST_CASE("torus work: mirror halving, nesting, determinism, the node guard", "[torus]") {
+  // Every node of the final n^D grid is evaluated once per mirror orbit: (n^D + 2^D) / 2
+  // (the 2^D fixed points have every delta_i in {0, pi}), summed over the nested levels.
+  const auto r = torus_average_full(uniform_chain(3), 1.0);
+  const std::size_t n = r.points_per_dim;
+  CHECK(r.averages.evaluations == (n * n + 4) / 2);
+  CHECK(r.grid_points == static_cast<double>(n * n));
+
+  // Bitwise identical results for any thread count (partials combined in a fixed order).
+  TorusOptions two;
+  two.threads = 2;
+  const auto s = torus_average_full(uniform_chain(3), 1.0, two);
+  CHECK(s.averages.beta_kinetic == r.averages.beta_kinetic);
+  CHECK(s.averages.cos_angle == r.averages.cos_angle);
+  CHECK(s.averages.beta2_kinetic_variance == r.averages.beta2_kinetic_variance);
+
+  // n^(N-1) > 1e9 at the first level is refused; so are bad inputs.
+  CHECK_THROWS_AS(torus_average(uniform_chain(12), 1.0), pendavg::invalid_input);
+  CHECK_THROWS_AS(torus_average(uniform_chain(3), -1.0), pendavg::invalid_input);
+  TorusOptions bad;
+  bad.min_points_per_dim = 1;
+  CHECK_THROWS_AS(torus_average(uniform_chain(3), 1.0, bad), pendavg::invalid_input);
+  bad = TorusOptions{};
+  bad.tolerance = 0;
+  CHECK_THROWS_AS(torus_average(uniform_chain(3), 1.0, bad), pendavg::invalid_input);
+}
+
+TEST_CASE("torus stopped before the large-beta peak is resolved reports it honestly", "[torus]") {
+  // At beta = 1e4 the weight is a peak of width ~1e-2 at delta = 0, a node of every grid: with
+  // n <= 64 the ratios freeze at that node's values (1/2) while Z does not converge. The run must
+  // say converged = false, and its error bars must still cover the resolved value.
+  // Equispaced nodes (node_map = none) make the peak a one-node affair; the automatic map
+  // resolves it with n = 256.
+  const Chain<double> chain = uniform_chain(3);
+  TorusOptions coarse;
+  coarse.max_points_per_dim = 64;
+  coarse.node_map = pendavg::TorusNodeMap::none;
+  const auto c = torus_average_full(chain, 1e4, coarse);
+  CHECK_FALSE(c.averages.converged);
+  const auto f = torus_average_full(chain, 1e4);
+  CHECK(f.points_per_dim <= 256);
+  REQUIRE(f.averages.converged);
+  for (std::size_t i = 0; i < 3; ++i) {
+    INFO("particle " << i + 1);
+    CHECK(std::abs(c.averages.beta_kinetic[i] - f.averages.beta_kinetic[i]) <=
+          c.averages.beta_kinetic_error[i]);
+    CHECK(std::abs(c.averages.cos_angle[i] - f.averages.cos_angle[i]) <=
+          c.averages.cos_angle_error[i]);
+    // Still above its true value's distance from 1/2: the peak was seen, not resolved.
+    CHECK(std::abs(f.averages.beta_kinetic[i] - 0.5) > 1e-6);
+  }
+}
+
+TEST_CASE("torus hard cases: light particles and large beta, mapped nodes", "[torus]") {
+  // MATH.md Sec. 6: a light particle puts singularities of sqrt(det A) at distance ~sqrt(m_i/S_i)
+  // from the real axis, and large beta makes the weight a peak of width ~alpha^{-1/2}; equispaced
+  // nodes then need O(1/distance) per dimension. The automatic periodic map keeps n bounded.
+  struct Hard {
+    std::vector<double> masses;
+    double beta;
+    std::size_t max_n;  // nodes per dimension the mapped rule needs (observed, with margin 1x)
+  };
+  const std::vector<Hard> n2 = {{{1e-4, 1}, 1, 512}, {{1e-6, 1}, 0.1, 512}, {{1e-4, 1}, 100, 512},
+                                {{1, 1}, 1e3, 128},    {{1, 1}, 1e5, 512}};
+  for (const auto& h : n2) {
+    const Chain<double> chain(h.masses, {1.0, 1.0}, 1.0);
+    const auto t = torus_average_full(chain, h.beta);
+    const auto ref = pendavg::reduced_integral_average(chain, h.beta);
+    INFO("m1 = " << h.masses[0] << ", beta = " << h.beta);
+    REQUIRE(t.averages.converged);
+    CHECK(t.points_per_dim <= h.max_n);
+    for (std::size_t i = 0; i < 2; ++i) {
+      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
+                  ref.beta_kinetic[i], ref.beta_kinetic_error[i], ref.beta_kinetic[i], 1e-13,
+                  "beta<K>");
+      check_close(t.averages.cos_angle[i], t.averages.cos_angle_error[i], ref.cos_angle[i],
+                  ref.cos_angle_error[i], std::abs(ref.cos_angle[i]), 1e-13, "<cos phi>");
+    }
+  }
+  // N = 3, light particle first or in the middle: mapped trapezoid, mapped Gauss-Legendre and the
+  // plain trapezoid (which needs 4x the nodes per dimension) agree.
+  for (const auto& masses : {std::vector<double>{1e-3, 1, 1}, std::vector<double>{1, 1e-3, 1}}) {
+    const Chain<double> chain(masses, {1.0, 1.0, 1.0}, 1.0);
+    const auto t = torus_average_full(chain, 1.0);
+    TorusOptions gl;
+    gl.rule = TorusRule::gauss_legendre;
+    const auto g = torus_average_full(chain, 1.0, gl);
+    TorusOptions plain;
+    plain.node_map = pendavg::TorusNodeMap::none;
+    plain.tolerance = 1e-11;
+    const auto p = torus_average_full(chain, 1.0, plain);
+    INFO("masses " << masses[0] << " " << masses[1] << " " << masses[2]);
+    REQUIRE(t.averages.converged);
+    REQUIRE(g.averages.converged);
+    REQUIRE(p.averages.converged);
+    CHECK(t.points_per_dim <= 256);
+    CHECK(p.points_per_dim >= 2 * t.points_per_dim);
+    for (std::size_t i = 0; i < 3; ++i) {
+      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
+                  g.averages.beta_kinetic[i], g.averages.beta_kinetic_error[i],
+                  t.averages.beta_kinetic[i], 1e-13, "trapezoid vs Gauss-Legendre");
+      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
+                  p.averages.beta_kinetic[i], p.averages.beta_kinetic_error[i],
+                  t.averages.beta_kinetic[i], 1e-11, "mapped vs plain");
+    }
+  }
+}
+
+TEST_CASE("torus in long double and MPFR agrees with double within the error bars", "[torus]") {
+  const Chain<double> chain({1.2, 0.8, 0.5}, {1.0, 0.7, 1.3}, 1.0);
+  const double beta = 0.9;
+  const auto d = torus_average(chain, beta);
+  const auto ld = torus_average(chain.cast<long double>(), static_cast<long double>(beta));
+  pendavg::working_precision wp(24 + pendavg::guard_digits);
+  TorusOptions mp_options;
+  mp_options.digits = 24;
+  const auto mp = torus_average(chain.cast<mpfr_real>(), mpfr_real(beta), mp_options);
+  REQUIRE(mp.converged);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double exact = static_cast<double>(mp.beta_kinetic[i]);
+    INFO("particle " << i + 1);
+    CHECK(mp.beta_kinetic_error[i] < 1e-24);
+    CHECK(std::abs(d.beta_kinetic[i] - exact) <= d.beta_kinetic_error[i]);
+    CHECK(std::abs(d.beta_kinetic[i] - exact) <= 1e-15);
+    CHECK(std::abs(static_cast<double>(ld.beta_kinetic[i]) - exact) <= 1e-16);
+    CHECK(std::abs(d.cos_angle[i] - static_cast<double>(mp.cos_angle[i])) <= d.cos_angle_error[i]);
+    CHECK(std::abs(d.beta2_kinetic_variance[i] - static_cast<double>(mp.beta2_kinetic_variance[i])) <=
+          d.beta2_kinetic_variance_error[i]);
+  }
+}
+
+TEST_CASE("torus N = 3 at 30 digits: trapezoid, Gauss-Legendre and the public value", "[torus][.slow]") {
+  pendavg::working_precision wp(30 + pendavg::guard_digits);
+  const Chain<mpfr_real> chain = uniform_chain(3).cast<mpfr_real>();
+  TorusOptions options;
+  options.digits = 30;
+  const auto t = torus_average(chain, mpfr_real(1), options);
+  options.rule = TorusRule::gauss_legendre;
+  const auto g = torus_average(chain, mpfr_real(1), options);
+  REQUIRE(t.converged);
+  REQUIRE(g.converged);
+  const std::vector<std::string> values = public_n3_values();
+  for (std::size_t i = 0; i < 3; ++i) {
+    CHECK(abs(t.beta_kinetic[i] - g.beta_kinetic[i]) <= t.beta_kinetic_error[i] + g.beta_kinetic_error[i]);
+    CHECK(abs(t.beta_kinetic[i] - g.beta_kinetic[i]) <= mpfr_real("1e-30"));
+    CHECK(abs(t.beta_kinetic[i] - mpfr_real(values[i])) <= mpfr_real("5e-15"));
+  }
+}
+
+TEST_CASE("torus N = 5 reaches 1e-10", "[torus][.slow]") {
+  TorusOptions options;
+  options.tolerance = 1e-10;
+  options.threads = 2;
+  const auto r = torus_average_full(uniform_chain(5), 1.0, options);
+  REQUIRE(r.averages.converged);
+  double sum = 0;
+  for (double k : r.averages.beta_kinetic) sum += k;
+  CHECK(std::abs(sum - 2.5) <= 1e-14);
+  // beta<K_i> increases down the chain for equal masses (as for N = 2, 3, 4).
+  for (std::size_t i = 0; i + 1 < 5; ++i) {
+    CHECK(r.averages.beta_kinetic[i] < r.averages.beta_kinetic[i + 1]);
+  }
+}
+
+// ------------------------------------------------------------------------------ randomized QMC
+
+TEST_CASE("qmc error bars cover the exact N = 3 values for >= 95 of 100 seeds", "[torus][qmc]") {
+  const Chain<double> chain = uniform_chain(3);
+  const auto exact = torus_average(chain, 1.0);
+  std::vector<int> kinetic(3, 0), cosine(3, 0), variance(3, 0);
+  double largest_error = 0;
+  for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+    pendavg::QmcOptions options;
+    options.points = 1024;
+    options.shifts = 16;
+    options.seed = seed;
+    const auto q = pendavg::qmc_average(chain, 1.0, options).averages;
+    REQUIRE(q.evaluations == 1024 * 16);
+    for (std::size_t i = 0; i < 3; ++i) {
+      kinetic[i] += std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]) <= q.beta_kinetic_error[i];
+      cosine[i] += std::abs(q.cos_angle[i] - exact.cos_angle[i]) <= q.cos_angle_error[i];
+      variance[i] += std::abs(q.beta2_kinetic_variance[i] - exact.beta2_kinetic_variance[i]) <=
+                     q.beta2_kinetic_variance_error[i];
+      largest_error = std::max(largest_error, std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]));
+    }
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    INFO("particle " << i + 1);
+    CHECK(kinetic[i] >= 95);
+    CHECK(cosine[i] >= 95);
+    CHECK(variance[i] >= 95);
+  }
+  // Tight as well as right: 16 x 1024 lattice points, far below Monte Carlo's ~2e-3.
+  CHECK(largest_error < 3e-5);
+}
+
+TEST_CASE("qmc is deterministic per seed and honours the identities", "[torus][qmc]") {
+  const Chain<double> chain({1.0, 0.5, 2.0, 0.8, 1.2}, {1.0, 1.5, 0.7, 1.0, 0.9}, 1.0);
+  pendavg::QmcOptions options;
+  options.points = 2048;
+  options.shifts = 8;
+  options.seed = 42;
+  const auto a = pendavg::qmc_average(chain, 2.0, options);
+  const auto b = pendavg::qmc_average(chain, 2.0, options);
+  options.threads = 2;
+  const auto c = pendavg::qmc_average(chain, 2.0, options);
+  CHECK(a.averages.beta_kinetic == b.averages.beta_kinetic);
+  CHECK(a.averages.beta_kinetic == c.averages.beta_kinetic);
+  CHECK(a.averages.beta_kinetic_error == c.averages.beta_kinetic_error);
+  options.seed = 43;
+  const auto d = pendavg::qmc_average(chain, 2.0, options);
+  CHECK(a.averages.beta_kinetic != d.averages.beta_kinetic);
+  double sum = 0;
+  for (double k : a.averages.beta_kinetic) sum += k;
+  CHECK(std::abs(sum - 2.5) <= 1e-14);
+  CHECK(a.equipartition_residual <= 1e-14);
+  for (double kc : a.beta_kinetic_canonical) CHECK(kc == 0.5);
+  CHECK(a.diagonal_approximation == pendavg::diagonal_approximation(chain));
+  // The Best-Fisher acceptance ratio and sqrt(det A) keep the weights even.
+  CHECK(a.effective_sample_fraction > 0.3);
+  CHECK(a.effective_sample_fraction <= 1.0);
+}
+
+TEST_CASE("qmc built-in lattices are the CBC construction; options are checked", "[torus][qmc]") {
+  std::vector<double> gamma;
+  for (int j = 1; j <= 32; ++j) gamma.push_back(1.0 / j);
+  for (unsigned m : {10u, 11u}) {
+    const auto z = pendavg::detail::qmc::cbc_generating_vector(m, 32, gamma, 2);
+    const auto& row = pendavg::detail::qmc::lattice_table[m - 10];
+    CHECK(z == std::vector<std::uint32_t>(row, row + 32));
+  }
+  const Chain<double> chain = uniform_chain(3);
+  pendavg::QmcOptions bad;
+  bad.points = 1000;
+  CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
+  bad = pendavg::QmcOptions{};
+  bad.points = std::size_t(1) << 17;  // beyond the table, no vector given
+  CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
+  bad = pendavg::QmcOptions{};
+  bad.shifts = 2;
+  CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
+  bad = pendavg::QmcOptions{};
+  bad.generating_vector = {1, 4, 7};
+  CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::qmc_average(uniform_chain(40), 1.0), pendavg::invalid_input);
+  // A user vector lifts both limits.
+  pendavg::QmcOptions own;
+  own.points = 1024;
+  own.shifts = 4;
+  own.generating_vector = pendavg::detail::qmc::cbc_generating_vector(10, 40, gamma, 2);
+  const auto long_chain = pendavg::qmc_average(uniform_chain(40), 1.0, own);
+  double sum = 0;
+  for (double k : long_chain.averages.beta_kinetic) sum += k;
+  CHECK(std::abs(sum - 20.0) <= 1e-12);
+}
+
+TEST_CASE("qmc N = 5 agrees with the exact torus value", "[torus][qmc][.slow]") {
+  TorusOptions exact_options;
+  exact_options.tolerance = 1e-10;
+  exact_options.threads = 2;
+  const Chain<double> chain({1.0, 0.7, 1.3, 0.9, 1.1}, {1.0, 0.8, 1.2, 1.0, 0.6}, 1.0);
+  const auto exact = torus_average(chain, 1.5, exact_options);
+  REQUIRE(exact.converged);
+  pendavg::QmcOptions options;
+  options.points = std::size_t(1) << 16;
+  options.threads = 2;
+  const auto q = pendavg::qmc_average(chain, 1.5, options).averages;
+  for (std::size_t i = 0; i < 5; ++i) {
+    INFO("particle " << i + 1);
+    CHECK(std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]) <= q.beta_kinetic_error[i]);
+    CHECK(std::abs(q.cos_angle[i] - exact.cos_angle[i]) <= q.cos_angle_error[i]);
+    CHECK(q.beta_kinetic_error[i] < 1e-5);
+  }
+}
