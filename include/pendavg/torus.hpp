@@ -1238,4 +1238,17 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   return out;
 }
 
+// Explicit instantiations live in src/torus.cpp (double, long double, mpfr_real).
+#define PENDAVG_TORUS_EXTERN(Real)                                                          \
+  extern template TorusAverages<Real> torus_average_full<Real>(const Chain<Real>&, const Real&, \
+                                                               const TorusOptions&);        \
+  extern template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,        \
+                                                     const TorusOptions&);                  \
+  extern template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,       \
+                                                      const QmcOptions&);
+PENDAVG_TORUS_EXTERN(double)
+PENDAVG_TORUS_EXTERN(long double)
+PENDAVG_TORUS_EXTERN(mpfr_real)
+#undef PENDAVG_TORUS_EXTERN
+
 }  // namespace pendavg

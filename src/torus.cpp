@@ -1,0 +1,18 @@
+// Explicit instantiations of the any-N torus and QMC engines (include/pendavg/torus.hpp).
+#include "pendavg/torus.hpp"
+
+namespace pendavg {
+
+#define PENDAVG_TORUS_INSTANTIATE(Real)                                                  \
+  template TorusAverages<Real> torus_average_full<Real>(const Chain<Real>&, const Real&, \
+                                                        const TorusOptions&);            \
+  template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,           \
+                                              const TorusOptions&);                      \
+  template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,          \
+                                               const QmcOptions&);
+PENDAVG_TORUS_INSTANTIATE(double)
+PENDAVG_TORUS_INSTANTIATE(long double)
+PENDAVG_TORUS_INSTANTIATE(mpfr_real)
+#undef PENDAVG_TORUS_INSTANTIATE
+
+}  // namespace pendavg
