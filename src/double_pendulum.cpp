@@ -471,8 +471,6 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
 
   const Real A = p.a1 + p.a2;
   const double A_d = to_double_saturated(A);
-  // Graf's sum is cheaper than per-node Bessel functions while it needs few terms; it also
-  // keeps <cos phi_j> free of cancellation when one of a1, a2 is small.
   const double a1_d = to_double_saturated(p.a1), a2_d = to_double_saturated(p.a2);
   // Graf's cosine series is cut where its tail is below e^{-L_graf} of its leading term. The
   // cut changes every integral by at most e^{-L_graf} times its L1 norm (reported, so the
@@ -481,7 +479,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   const double harmonic = (a1_d > 0 && a2_d > 0) ? a1_d * a2_d / (a1_d + a2_d) : 0.0;
   const double L_graf = ln_inv_tol + 5.0 + 0.5 * std::log1p(harmonic) +
                         0.5 * std::log1p(2 * 3.14159 * A_d);
-  // Per-node Graf sums beat per-node Bessel functions while they are short.
+  // Per-node Graf sums beat per-node Bessel functions while they are short; they also keep
+  // <cos phi_j> free of the cancellation between t and pi - t when one of a1, a2 is small.
   const double graf_terms = graf_terms_estimate(a1_d, a2_d, L_graf);
   const bool graf_nodes = graf_terms <= (is_mpfr_v<Real> ? 400.0 : 48.0);
   const Real d = asinh(sqrt(p.mu1 / p.mu2));  // distance of the zero of q from t = 0
