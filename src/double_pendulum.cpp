@@ -180,7 +180,7 @@ IntegralWorkspace<Real>& integral_workspace() {
 
 template <class Real>
 struct LevelResult {
-  Integrands<Real> value, error;
+  Integrands<Real> value{}, error{};
   std::size_t nodes = 0;
   bool converged = false;
 };
