@@ -15,7 +15,14 @@ namespace pendavg::cli {
 
 namespace {
 
-std::string in_quotes(std::string_view text) { return "'" + std::string(text) + "'"; }
+std::string in_quotes(std::string_view text) {
+  std::string quoted;  // appended piecewise: "'" + std::string(text) trips GCC 12's -Wrestrict
+  quoted.reserve(text.size() + 2);
+  quoted += '\'';
+  quoted += text;
+  quoted += '\'';
+  return quoted;
+}
 
 /// Length of the leading run of decimal digits of `text`.
 std::size_t digit_run(std::string_view text) {
@@ -51,9 +58,10 @@ double to_double(std::string_view text, std::string_view what) {
   if (text.front() == '+') text.remove_prefix(1);  // from_chars takes no '+'
   double value = 0;
   const auto [end, status] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (status == std::errc::result_out_of_range)
+  if (status == std::errc::result_out_of_range)  // MPFR helps physical inputs, not a tolerance
     throw usage_error(std::string(what) + ": " + in_quotes(text) +
-                      " is out of the range of double (use --digits > 16)");
+                      " is out of the range of double" +
+                      (what == "--tol" ? "" : " (use --digits > 16)"));
   if (status != std::errc() || end != text.data() + text.size())
     throw usage_error(std::string(what) + ": malformed number " + in_quotes(text));
   return value;
@@ -165,6 +173,16 @@ long parse_integer(std::string_view text, std::string_view what, long lowest, lo
   return value;
 }
 
+std::uint64_t parse_unsigned(std::string_view text, std::string_view what) {
+  std::uint64_t value = 0;
+  const auto [end, status] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (text.empty() || digit_run(text) != text.size() || status != std::errc() ||
+      end != text.data() + text.size())
+    throw usage_error(std::string(what) + ": " + in_quotes(text) +
+                      " is not an unsigned integer in 0..18446744073709551615");
+  return value;
+}
+
 int parse_digits(std::string_view text) {
   return static_cast<int>(parse_integer(text, "--digits", min_digits, max_digits));
 }
@@ -201,23 +219,61 @@ std::vector<std::string_view> split_fields(std::string_view line) {
   }
 }
 
-/// For each header field, the index of its column in case_columns.
-std::vector<std::size_t> column_positions(std::string_view header, const std::string& where) {
-  const auto names = split_fields(header);
-  std::vector<std::size_t> positions;
+/// Largest particle index accepted in a column name (m<k>, l<k>).
+constexpr std::size_t max_column_index = 100000;
+
+/// A header name: beta, g, or m<k> / l<k> with k = 1..max_column_index (no leading zeros).
+struct ColumnName {
+  char kind = 0;        ///< 'b' (beta), 'g', 'm' or 'l'
+  std::size_t index = 0;  ///< k for m<k> and l<k>
+};
+
+std::optional<ColumnName> column_name(std::string_view name) {
+  if (name == "beta") return ColumnName{'b', 0};
+  if (name == "g") return ColumnName{'g', 0};
+  if (name.size() < 2 || (name.front() != 'm' && name.front() != 'l')) return std::nullopt;
+  const std::string_view digits = name.substr(1);
+  if (digits.front() == '0' || digits.size() > 6 || digit_run(digits) != digits.size())
+    return std::nullopt;
+  std::size_t index = 0;
+  std::from_chars(digits.data(), digits.data() + digits.size(), index);
+  if (index > max_column_index) return std::nullopt;
+  return ColumnName{name.front(), index};
+}
+
+struct Header {
+  std::size_t particles = 0;
+  std::vector<std::size_t> positions;  ///< for each header field, its canonical column
+};
+
+/// N and, for each header field, the index of its column in case_columns(N).
+Header parse_header(std::string_view line, const std::string& where) {
+  const auto names = split_fields(line);
+  std::vector<ColumnName> columns;
+  std::size_t particles = 0;
   for (const std::string_view name : names) {
-    const auto found = std::ranges::find(case_columns, name);
-    if (found == case_columns.end())
-      throw usage_error(where + ": unknown column " + in_quotes(name));
-    const auto position = static_cast<std::size_t>(found - case_columns.begin());
-    if (std::ranges::find(positions, position) != positions.end())
+    const auto column = column_name(name);
+    if (!column) throw usage_error(where + ": unknown column " + in_quotes(name));
+    if (std::ranges::count(names, name) > 1)
       throw usage_error(where + ": column " + in_quotes(name) + " given twice");
-    positions.push_back(position);
+    columns.push_back(*column);
+    particles = std::max(particles, column->index);
   }
-  for (const std::string_view name : case_columns)
+  particles = std::max<std::size_t>(particles, 1);
+  const std::vector<std::string> canonical = case_columns(particles);
+  for (const std::string& name : canonical)
     if (std::ranges::find(names, name) == names.end())
       throw usage_error(where + ": missing column " + in_quotes(name));
-  return positions;
+  Header header{particles, {}};
+  for (const ColumnName& column : columns) {
+    switch (column.kind) {
+      case 'b': header.positions.push_back(0); break;
+      case 'g': header.positions.push_back(1); break;
+      case 'm': header.positions.push_back(1 + column.index); break;
+      default: header.positions.push_back(1 + particles + column.index); break;
+    }
+  }
+  return header;
 }
 
 }  // namespace
@@ -239,11 +295,18 @@ std::string read_file(const std::string& path) {
 
 }  // namespace
 
-std::vector<CaseRow> read_cases_file(const std::string& path) {
+std::vector<std::string> case_columns(std::size_t particles) {
+  std::vector<std::string> columns{"beta", "g"};
+  for (const char kind : {'m', 'l'})
+    for (std::size_t i = 1; i <= particles; ++i) columns.push_back(kind + std::to_string(i));
+  return columns;
+}
+
+CasesFile read_cases_file(const std::string& path) {
   const std::string contents = read_file(path);
 
-  std::optional<std::vector<std::size_t>> positions;  // set by the header line
-  std::vector<CaseRow> rows;
+  std::optional<Header> header;  // set by the header line
+  CasesFile file;
   std::size_t line_number = 0;
   for (std::size_t begin = 0; begin < contents.size();) {
     const std::size_t newline = std::min(contents.find('\n', begin), contents.size());
@@ -253,20 +316,21 @@ std::vector<CaseRow> read_cases_file(const std::string& path) {
     ++line_number;
     if (line.empty() || line.front() == '#') continue;
     const auto where = [&] { return path + " line " + std::to_string(line_number); };
-    if (!positions) {
-      positions = column_positions(line, where());
+    if (!header) {
+      header = parse_header(line, where());
+      file.particles = header->particles;
       continue;
     }
     const auto fields = split_fields(line);
-    if (fields.size() != positions->size())
-      throw usage_error(where() + ": expected " + std::to_string(positions->size()) +
+    if (fields.size() != header->positions.size())
+      throw usage_error(where() + ": expected " + std::to_string(header->positions.size()) +
                         " fields, found " + std::to_string(fields.size()));
-    CaseRow row{line_number, {}};
-    for (std::size_t i = 0; i < fields.size(); ++i) row.fields[(*positions)[i]] = fields[i];
-    rows.push_back(std::move(row));
+    CaseRow row{line_number, std::vector<std::string>(fields.size())};
+    for (std::size_t i = 0; i < fields.size(); ++i) row.fields[header->positions[i]] = fields[i];
+    file.rows.push_back(std::move(row));
   }
-  if (!positions) throw usage_error("cases file " + in_quotes(path) + " has no header line");
-  return rows;
+  if (!header) throw usage_error("cases file " + in_quotes(path) + " has no header line");
+  return file;
 }
 
 }  // namespace pendavg::cli

@@ -5,8 +5,8 @@
 
 #include "pendavg/chain.hpp"
 
-#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <span>
@@ -62,6 +62,9 @@ std::vector<Real> parse_real_list(std::string_view text, std::string_view what, 
 /// A non-negative decimal integer in [lowest, highest], digits only.
 long parse_integer(std::string_view text, std::string_view what, long lowest, long highest);
 
+/// An unsigned 64-bit decimal integer, digits only (e.g. a seed).
+std::uint64_t parse_unsigned(std::string_view text, std::string_view what);
+
 /// --digits: an integer in pendavg::min_digits..pendavg::max_digits.
 int parse_digits(std::string_view text);
 
@@ -69,19 +72,26 @@ int parse_digits(std::string_view text);
 std::size_t parse_choice(std::string_view text, std::string_view what,
                          std::span<const std::string_view> choices);
 
-/// Columns of a cases file, in their canonical (output) order.
-inline constexpr std::array<std::string_view, 6> case_columns{"beta", "g",  "m1",
-                                                              "m2",   "l1", "l2"};
+/// Columns of a cases file for N particles, in their canonical (output) order:
+/// beta, g, m1..mN, l1..lN.
+std::vector<std::string> case_columns(std::size_t particles);
 
 /// One data row of a cases file: its 1-based line number and its fields as written, in the
 /// canonical column order.
 struct CaseRow {
   std::size_t line = 0;
-  std::array<std::string, case_columns.size()> fields;
+  std::vector<std::string> fields;
 };
 
-/// Reads a cases CSV. The header names exactly the columns of case_columns, in any order.
-/// Blank lines and lines starting with '#' are skipped. Fields are not parsed as numbers here.
-std::vector<CaseRow> read_cases_file(const std::string& path);
+/// A cases file: N (from the header) and its rows.
+struct CasesFile {
+  std::size_t particles = 0;
+  std::vector<CaseRow> rows;
+};
+
+/// Reads a cases CSV. The header names the columns beta, g, m1..mN and l1..lN (N >= 1, decided
+/// by the header), each exactly once, in any order. Blank lines and lines starting with '#' are
+/// skipped. Fields are not parsed as numbers here.
+CasesFile read_cases_file(const std::string& path);
 
 }  // namespace pendavg::cli

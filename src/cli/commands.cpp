@@ -7,13 +7,22 @@
 #include "format.hpp"
 
 #include "pendavg/double_pendulum.hpp"
+#include "pendavg/torus.hpp"
+#include "pendavg/trace_formula.hpp"
 
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <exception>
+#include <optional>
 #include <utility>
 #include <vector>
+
+#if defined(_OPENMP)
+#include <omp.h>
+#endif
 
 #ifndef PENDAVG_VERSION
 #define PENDAVG_VERSION "unknown"
@@ -30,8 +39,8 @@ constexpr std::string_view general_usage =
     "(Konishi & Yanagita): beta<K_i>, <cos phi_i>, Var K_i, with error estimates.\n"
     "\n"
     "usage:\n"
-    "  pendavg average --masses M1,M2 --lengths L1,L2 [--g G] --beta B [options]\n"
-    "  pendavg average --cases FILE.csv [--digits D] [--method M]\n"
+    "  pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [options]\n"
+    "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
@@ -40,16 +49,31 @@ constexpr std::string_view general_usage =
     "significant digits requested: 16 runs in double, more in MPFR. Bad input exits with 2.\n";
 
 constexpr std::string_view average_usage =
-    "usage: pendavg average --masses M1,M2 --lengths L1,L2 [--g G] --beta B\n"
-    "                       [--digits D] [--method auto|series|integral] [--format json|csv|text]\n"
-    "       pendavg average --cases FILE.csv [--digits D] [--method auto|series|integral]\n"
+    "usage: pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [--digits D]\n"
+    "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
+    "                       [--format json|csv|text]\n"
+    "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "\n"
-    "Thermal averages of the double pendulum (N = 2) at inverse temperature B, gravity G\n"
-    "(default 1). Output (default json): N, beta, digits, method, beta_K, K, error, ratio,\n"
-    "cos_phi, var_K, evaluations, seconds, converged.\n"
-    "--cases reads a CSV with the columns beta,g,m1,m2,l1,l2 (any order; blank lines and lines\n"
-    "starting with # are skipped) and writes one CSV row per case: the input columns, then\n"
-    "beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations.\n";
+    "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
+    "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
+    "  auto             N = 2: the double-pendulum engine; N = 1 or 3..4: torus-trapezoid;\n"
+    "                   N >= 5: qmc\n"
+    "  series, integral the double-pendulum engines (N = 2 only)\n"
+    "  torus-trapezoid  exact quadrature on the reduced (N-1)-torus, any N (cost n^(N-1)), also\n"
+    "                   in MPFR; --tol T: relative tolerance in double (default 1e-13; with\n"
+    "                   --digits D > 16 it is 1e-D)\n"
+    "  torus-gauss      the same with Gauss-Legendre nodes (a check)\n"
+    "  qmc              randomized lattice QMC, double only, N <= 32, 3-sigma statistical error\n"
+    "                   bars; --samples S points per shift (a power of two, 1024..65536, default\n"
+    "                   65536), --shifts R (4..1024, default 16), --seed K (default 1)\n"
+    "Options of a method that is not run are rejected.\n"
+    "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
+    "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
+    "eq. ke-linear-tave-1) and beta_Kc (beta<K_i^(c)> = 1/2).\n"
+    "--cases reads a CSV with the columns beta,g,m1..mN,l1..lN (any order, N from the header;\n"
+    "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
+    "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
+    "evaluations.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D]\n"
@@ -85,12 +109,6 @@ Format format_option(const Options& options, std::string_view fallback,
   parse_choice(name, "format", allowed);
   constexpr std::array<std::string_view, 3> names{"json", "csv", "text"};
   return static_cast<Format>(std::ranges::find(names, name) - names.begin());
-}
-
-Engine method_option(const Options& options) {
-  constexpr std::array<std::string_view, 3> names{"auto", "series", "integral"};
-  constexpr std::array<Engine, 3> engines{Engine::automatic, Engine::series, Engine::integral};
-  return engines[parse_choice(options.get("method", "auto"), "method", names)];
 }
 
 template <class Real>
@@ -132,31 +150,220 @@ void append_csv_values(std::string& out, const std::vector<Real>& values, int di
   }
 }
 
-// ---------------------------------------------------------------- average
+// ---------------------------------------------------------------- average: methods and options
+
+enum class AverageMethod { automatic, series, integral, torus_trapezoid, torus_gauss, qmc };
+constexpr std::array<std::string_view, 6> average_method_names{
+    "auto", "series", "integral", "torus-trapezoid", "torus-gauss", "qmc"};
+
+/// --method auto runs the torus trapezoid up to this N (n^(N-1) nodes: milliseconds for N <= 4,
+/// seconds for N = 5 at the default tolerance) and qmc beyond.
+constexpr std::size_t auto_torus_max_particles = 4;
+
+/// --tol: the torus rules' relative tolerance in double.
+constexpr double default_tolerance = 1e-13;
+/// --samples: QMC lattice points per shift, powers of two covered by the built-in lattices.
+constexpr std::size_t min_samples = std::size_t(1) << detail::qmc::lattice_table_min_log2;
+constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
+constexpr std::size_t default_samples = max_samples;
+/// --shifts: independent random shifts of the QMC lattice.
+constexpr long min_shifts = 4, max_shifts = 1024;
+
+/// What runs: the double-pendulum engine (N = 2), a torus rule or QMC.
+enum class Solver { pendulum, torus, qmc };
+
+/// The options of `average` that do not depend on N, parsed and range-checked.
+struct AverageSettings {
+  AverageMethod method = AverageMethod::automatic;
+  int digits = min_digits;
+  std::optional<double> tolerance;            ///< --tol, when given
+  std::vector<std::string_view> qmc_options;  ///< which of --samples, --shifts, --seed were given
+  QmcOptions qmc;                             ///< points, shifts, seed
+};
+
+/// The settings resolved for N particles: which solver and its options.
+struct AveragePlan {
+  Solver solver = Solver::pendulum;
+  Engine engine = Engine::automatic;  ///< for Solver::pendulum
+  TorusOptions torus;
+  QmcOptions qmc;
+};
+
+int hardware_threads() {
+#if defined(_OPENMP)
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
+AverageSettings average_settings(const Options& options) {
+  AverageSettings s;
+  s.digits = digits_option(options);
+  s.method = static_cast<AverageMethod>(
+      parse_choice(options.get("method", "auto"), "method", average_method_names));
+  if (options.has("tol")) {
+    const std::string_view text = options.required("tol");
+    s.tolerance = parse_real<double>(text, "--tol", Domain::positive);
+    if (!(*s.tolerance < 1)) throw usage_error("--tol: '" + std::string(text) + "' must be < 1");
+  }
+  s.qmc.points = default_samples;
+  if (options.has("samples")) {
+    const std::string_view text = options.required("samples");
+    s.qmc.points = static_cast<std::size_t>(parse_integer(
+        text, "--samples", static_cast<long>(min_samples), static_cast<long>(max_samples)));
+    if ((s.qmc.points & (s.qmc.points - 1)) != 0)
+      throw usage_error("--samples: '" + std::string(text) + "' is not a power of two (" +
+                        std::to_string(min_samples) + ", " + std::to_string(2 * min_samples) +
+                        ", ..., " + std::to_string(max_samples) + ")");
+    s.qmc_options.push_back("samples");
+  }
+  if (options.has("shifts")) {
+    s.qmc.shifts = static_cast<std::size_t>(
+        parse_integer(options.required("shifts"), "--shifts", min_shifts, max_shifts));
+    s.qmc_options.push_back("shifts");
+  }
+  if (options.has("seed")) {
+    s.qmc.seed = parse_unsigned(options.required("seed"), "--seed");
+    s.qmc_options.push_back("seed");
+  }
+  return s;
+}
+
+/// Resolves --method for N particles and rejects options the chosen solver does not use.
+/// `threads`: OpenMP threads for the torus and QMC engines (double only).
+AveragePlan average_plan(const AverageSettings& s, std::size_t n, int threads) {
+  AveragePlan plan;
+  const std::string particles = "N = " + std::to_string(n);
+  const std::string name(average_method_names[static_cast<std::size_t>(s.method)]);
+  std::string chosen = "--method " + name;  // names the solver in error messages
+  switch (s.method) {
+    case AverageMethod::automatic:
+      plan.solver = n == 2                           ? Solver::pendulum
+                    : n <= auto_torus_max_particles ? Solver::torus
+                                                     : Solver::qmc;
+      chosen += std::string(", which runs ") +
+                (plan.solver == Solver::pendulum ? "the double-pendulum engine"
+                 : plan.solver == Solver::torus  ? "torus-trapezoid"
+                                                 : "qmc") +
+                " for " + particles;
+      break;
+    case AverageMethod::series:
+    case AverageMethod::integral:
+      if (n != 2)
+        throw usage_error("average: --method " + name + " is a double-pendulum engine (N = 2), "
+                          "not for " + particles + " (use auto, torus-trapezoid, torus-gauss "
+                          "or qmc)");
+      plan.solver = Solver::pendulum;
+      plan.engine = s.method == AverageMethod::series ? Engine::series : Engine::integral;
+      break;
+    case AverageMethod::torus_trapezoid:
+    case AverageMethod::torus_gauss:
+      plan.solver = Solver::torus;
+      plan.torus.rule = s.method == AverageMethod::torus_gauss ? TorusRule::gauss_legendre
+                                                               : TorusRule::trapezoid;
+      break;
+    case AverageMethod::qmc: plan.solver = Solver::qmc; break;
+  }
+
+  if (s.tolerance && plan.solver != Solver::torus)
+    throw usage_error("average: --tol is used by the torus methods only, not by " + chosen);
+  for (const std::string_view option : s.qmc_options)
+    if (plan.solver != Solver::qmc)
+      throw usage_error("average: --" + std::string(option) + " is used by qmc only, not by " +
+                        chosen);
+  if (plan.solver == Solver::torus) {
+    if (s.tolerance && s.digits != min_digits)
+      throw usage_error("average: --tol is for double runs (--digits 16); with --digits " +
+                        std::to_string(s.digits) + " the torus tolerance is 1e-" +
+                        std::to_string(s.digits));
+    const double nodes = std::pow(static_cast<double>(plan.torus.min_points_per_dim),
+                                  static_cast<double>(n - 1));
+    if (nodes > plan.torus.max_grid_points)
+      throw usage_error("average: " + particles + " is too long for a torus grid (" +
+                        std::to_string(plan.torus.min_points_per_dim) + "^" +
+                        std::to_string(n - 1) + " = " + decimal(nodes, 2) +
+                        " nodes at the first level, over the cap of " +
+                        decimal(plan.torus.max_grid_points, 1) + "); use --method qmc");
+    plan.torus.tolerance = s.tolerance.value_or(default_tolerance);
+    plan.torus.digits = s.digits == min_digits ? 0 : s.digits;
+    plan.torus.threads = threads;
+  }
+  if (plan.solver == Solver::qmc) {
+    if (s.digits != min_digits)
+      throw usage_error("average: --digits " + std::to_string(s.digits) +
+                        " is not available with " + chosen + " (qmc runs in double only)");
+    if (n > detail::qmc::lattice_max_dimension)
+      throw usage_error("average: qmc's built-in lattices cover N <= " +
+                        std::to_string(detail::qmc::lattice_max_dimension) + ", not " +
+                        particles + " (" + chosen + ")");
+    plan.qmc = s.qmc;
+    plan.qmc.threads = threads;
+  }
+  return plan;
+}
+
+/// The averages of one case and the any-N extras every solver reports.
+template <class Real>
+struct AverageResult {
+  Averages<Real> averages;
+  std::vector<Real> diagonal_approximation;  ///< eq. ke-linear-tave-1
+  std::vector<Real> beta_kinetic_canonical;  ///< beta<K_i^(c)> = 1/2
+};
+
+template <class Real>
+AverageResult<Real> compute_average(const Chain<Real>& chain, const Real& beta, int digits,
+                                    const AveragePlan& plan) {
+  switch (plan.solver) {
+    case Solver::torus: {
+      TorusAverages<Real> r = torus_average_full(chain, beta, plan.torus);
+      return {std::move(r.averages), std::move(r.diagonal_approximation),
+              std::move(r.beta_kinetic_canonical)};
+    }
+    case Solver::qmc: {
+      QmcAverages<Real> r = qmc_average(chain, beta, plan.qmc);
+      return {std::move(r.averages), std::move(r.diagonal_approximation),
+              std::move(r.beta_kinetic_canonical)};
+    }
+    case Solver::pendulum: break;
+  }
+  // The double-pendulum engines: beta<K_i^(c)> = 1/2 holds exactly for every chain.
+  return {pendavg::average(chain, beta, digits, plan.engine), diagonal_approximation(chain),
+          std::vector<Real>(chain.size(), Real(1) / 2)};
+}
+
+// ---------------------------------------------------------------- average: output
 
 struct AverageReport {
   std::size_t particles;
   std::string_view beta;
   int digits;
   AveragesText values;
+  std::vector<std::string> diagonal_approx, beta_kinetic_canonical;
   double seconds;
 };
 
 std::string average_json(const AverageReport& r) {
-  return JsonObject()
-             .integer("N", static_cast<long long>(r.particles))
-             .string("beta", r.beta)
-             .integer("digits", r.digits)
-             .string("method", r.values.method)
-             .strings("beta_K", r.values.beta_kinetic)
-             .strings("K", r.values.kinetic)
-             .strings("error", r.values.error)
-             .string("ratio", r.values.ratio)
-             .strings("cos_phi", r.values.cos_angle)
+  JsonObject json;
+  json.integer("N", static_cast<long long>(r.particles))
+      .string("beta", r.beta)
+      .integer("digits", r.digits)
+      .string("method", r.values.method)
+      .strings("beta_K", r.values.beta_kinetic)
+      .strings("K", r.values.kinetic)
+      .strings("error", r.values.error);
+  if (r.particles >= 2) {
+    json.string("ratio", r.values.ratio);
+  } else {
+    json.raw("ratio", "null");  // <K1>/<K2> needs a second particle
+  }
+  return json.strings("cos_phi", r.values.cos_angle)
              .strings("var_K", r.values.variance)
              .integer("evaluations", static_cast<long long>(r.values.evaluations))
              .raw("seconds", seconds_text(r.seconds))
              .boolean("converged", r.values.converged)
+             .strings("diagonal_approx", r.diagonal_approx)
+             .strings("beta_Kc", r.beta_kinetic_canonical)
              .str() +
          "\n";
 }
@@ -177,12 +384,14 @@ std::string average_csv(const AverageReport& r) {
   add_array("beta_K", r.values.beta_kinetic);
   add_array("K", r.values.kinetic);
   add_array("error_K", r.values.error);
-  add("ratio", r.values.ratio);
+  add("ratio", n >= 2 ? r.values.ratio : "");
   add_array("cos_phi", r.values.cos_angle);
   add_array("var_K", r.values.variance);
   add("evaluations", std::to_string(r.values.evaluations));
   add("seconds", seconds_text(r.seconds));
   add("converged", r.values.converged ? "true" : "false");
+  add_array("diagonal_approx", r.diagonal_approx);
+  add_array("beta_Kc", r.beta_kinetic_canonical);
   std::string out;
   append_csv_line(out, header);
   append_csv_line(out, row);
@@ -190,30 +399,46 @@ std::string average_csv(const AverageReport& r) {
 }
 
 std::string average_text(const AverageReport& r) {
-  std::vector<std::vector<std::string>> table{
-      {"i", "beta<K_i>", "error", "<K_i>", "<cos phi_i>", "Var K_i"}};
+  std::vector<std::vector<std::string>> table{{"i", "beta<K_i>", "error", "<K_i>", "<cos phi_i>",
+                                               "Var K_i", "diagonal approx", "beta<K_i^c>"}};
   for (std::size_t i = 0; i < r.values.beta_kinetic.size(); ++i)
     table.push_back({std::to_string(i + 1), r.values.beta_kinetic[i], r.values.error[i],
-                     r.values.kinetic[i], r.values.cos_angle[i], r.values.variance[i]});
+                     r.values.kinetic[i], r.values.cos_angle[i], r.values.variance[i],
+                     r.diagonal_approx[i], r.beta_kinetic_canonical[i]});
   return "N = " + std::to_string(r.particles) + ", beta = " + std::string(r.beta) +
          ", digits = " + std::to_string(r.digits) + ", method = " + r.values.method + "\n" +
-         aligned_table(table) + "<K1>/<K2> = " + r.values.ratio + "\n" +
+         aligned_table(table) +
+         (r.particles >= 2 ? "<K1>/<K2> = " + r.values.ratio + "\n" : std::string()) +
          "evaluations = " + std::to_string(r.values.evaluations) +
          ", seconds = " + seconds_text(r.seconds) +
          ", converged = " + (r.values.converged ? "yes" : "no") + "\n";
 }
 
 template <class Real>
-std::string average_one(const Options& options, int digits, Engine engine, Format format) {
+std::vector<std::string> decimals(const std::vector<Real>& values, int digits) {
+  std::vector<std::string> out;
+  out.reserve(values.size());
+  for (const Real& value : values) out.push_back(decimal(value, digits));
+  return out;
+}
+
+template <class Real>
+std::string average_one(const Options& options, const AverageSettings& settings, Format format) {
   const std::string_view beta_text = options.required("beta");
   const Chain<Real> chain = chain_option<Real>(options, true);
-  if (chain.size() != 2) throw usage_error("average: only N = 2 is supported so far");
+  const AveragePlan plan = average_plan(settings, chain.size(), hardware_threads());
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
+  const int digits = settings.digits;
   const Stopwatch stopwatch;
-  const Averages<Real> averages = pendavg::average(chain, beta, digits, engine);
+  const AverageResult<Real> result = compute_average(chain, beta, digits, plan);
   const double seconds = stopwatch.seconds();
-  const AverageReport report{chain.size(), beta_text, digits,
-                             averages_text(averages, digits, &beta), seconds};
+  const AverageReport report{chain.size(),
+                             beta_text,
+                             digits,
+                             averages_text(result.averages, digits, &beta),
+                             decimals(result.diagonal_approximation, digits),
+                             decimals(result.beta_kinetic_canonical, digits),
+                             seconds};
   switch (format) {
     case Format::csv: return average_csv(report);
     case Format::text: return average_text(report);
@@ -223,19 +448,28 @@ std::string average_one(const Options& options, int digits, Engine engine, Forma
 }
 
 /// One output row of `average --cases`: the input fields as written, then the averages.
+/// `columns` are the canonical column names (beta, g, m1..mN, l1..lN).
 template <class Real>
-void append_case(std::string& out, const CaseRow& row, int digits, Engine engine) {
-  const auto& [beta_text, g, m1, m2, l1, l2] = row.fields;
-  const Real beta = parse_real<Real>(beta_text, "beta", Domain::positive);
+void append_case(std::string& out, const CaseRow& row, const std::vector<std::string>& columns,
+                 int digits, const AveragePlan& plan) {
+  const std::size_t n = (row.fields.size() - 2) / 2;
+  const Real beta = parse_real<Real>(row.fields[0], columns[0], Domain::positive);
+  std::vector<Real> masses, lengths;
+  masses.reserve(n);
+  lengths.reserve(n);
+  for (std::size_t i = 0; i < n; ++i)
+    masses.push_back(parse_real<Real>(row.fields[2 + i], columns[2 + i], Domain::positive));
+  for (std::size_t i = 0; i < n; ++i)
+    lengths.push_back(
+        parse_real<Real>(row.fields[2 + n + i], columns[2 + n + i], Domain::positive));
   const Chain<Real> chain = make_chain<Real>(
-      {parse_real<Real>(m1, "m1", Domain::positive), parse_real<Real>(m2, "m2", Domain::positive)},
-      {parse_real<Real>(l1, "l1", Domain::positive), parse_real<Real>(l2, "l2", Domain::positive)},
-      parse_real<Real>(g, "g", Domain::nonnegative));
-  const Averages<Real> averages = pendavg::average(chain, beta, digits, engine);
+      std::move(masses), std::move(lengths),
+      parse_real<Real>(row.fields[1], columns[1], Domain::nonnegative));
+  const Averages<Real> averages = compute_average(chain, beta, digits, plan).averages;
   for (const std::string& field : row.fields) (out += field) += ',';
   append_csv_values(out, averages.beta_kinetic, digits);
   append_csv_values(out, averages.beta_kinetic_error, error_digits);
-  append_decimal(out, averages.ratio, digits);
+  if (n >= 2) append_decimal(out, averages.ratio, digits);
   out += ',';
   append_csv_values(out, averages.cos_angle, digits);
   ((out += method_name(averages.method)) += ',') += std::to_string(averages.evaluations);
@@ -243,27 +477,45 @@ void append_case(std::string& out, const CaseRow& row, int digits, Engine engine
 }
 
 /// Rows are independent: they are evaluated on all cores in blocks, each block into its own
-/// string, and joined in file order. The first bad row (in file order) is reported.
+/// string, and joined in file order. The first bad row (in file order) is reported. Blocks hold
+/// 256 rows for the fast double-pendulum engines and one row for the torus and QMC engines; a
+/// single block runs on one thread and lets those engines use every core instead.
 template <class Real>
-std::string average_cases(const std::vector<CaseRow>& rows, const std::string& path, int digits,
-                          Engine engine) {
-  std::string out;
-  for (const std::string_view column : case_columns) (out += column) += ',';
-  out += "beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations\n";
-  constexpr std::size_t block = 256;
+std::string average_cases(const CasesFile& file, const std::string& path,
+                          const AverageSettings& settings) {
+  const std::vector<CaseRow>& rows = file.rows;
+  const std::size_t n = file.particles;
+  const std::vector<std::string> columns = case_columns(n);
+  const int digits = settings.digits;
+  AveragePlan plan = average_plan(settings, n, 1);
+  const std::size_t block = plan.solver == Solver::pendulum ? 256 : 1;
   const std::size_t blocks = (rows.size() + block - 1) / block;
+  if (blocks == 1) plan.torus.threads = plan.qmc.threads = hardware_threads();
+
+  std::string out;
+  append_csv_line(out, columns);
+  out.pop_back();
+  const auto add_names = [&](std::string_view stem) {
+    for (const std::string& name : indexed_names(stem, n)) (out += ',') += name;
+  };
+  add_names("beta_K");
+  add_names("error_K");
+  out += ",ratio";
+  add_names("cos_phi");
+  out += ",method,evaluations\n";
+
   std::vector<std::string> texts(blocks);
   std::vector<std::exception_ptr> errors(blocks);  // exceptions must not leave the region
   std::vector<std::size_t> error_row(blocks, rows.size());
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (blocks > 1)
   for (long b = 0; b < static_cast<long>(blocks); ++b) {
     const std::size_t first = static_cast<std::size_t>(b) * block;
     const std::size_t last = std::min(rows.size(), first + block);
     std::string& text = texts[static_cast<std::size_t>(b)];
-    text.reserve((last - first) * (8 * static_cast<std::size_t>(digits) + 120));
+    text.reserve((last - first) * (4 * n * static_cast<std::size_t>(digits) + 120));
     for (std::size_t i = first; i < last; ++i) {
       try {
-        append_case<Real>(text, rows[i], digits, engine);
+        append_case<Real>(text, rows[i], columns, digits, plan);
       } catch (...) {
         errors[static_cast<std::size_t>(b)] = std::current_exception();
         error_row[static_cast<std::size_t>(b)] = i;
@@ -289,13 +541,12 @@ std::string average_cases(const std::vector<CaseRow>& rows, const std::string& p
 }
 
 std::string average_command(const Options& options) {
-  const int digits = digits_option(options);
-  const Engine engine = method_option(options);
+  const AverageSettings settings = average_settings(options);
   if (!options.has("cases")) {
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
-    return with_number_type(digits, [&]<class Real>() {
-      return average_one<Real>(options, digits, engine, format);
+    return with_number_type(settings.digits, [&]<class Real>() {
+      return average_one<Real>(options, settings, format);
     });
   }
   for (const std::string_view single : {"masses", "lengths", "g", "beta"})
@@ -304,9 +555,9 @@ std::string average_command(const Options& options) {
   constexpr std::array<std::string_view, 1> formats{"csv"};
   format_option(options, "csv", formats);
   const std::string path(options.required("cases"));
-  const std::vector<CaseRow> rows = read_cases_file(path);
-  return with_number_type(digits, [&]<class Real>() {
-    return average_cases<Real>(rows, path, digits, engine);
+  const CasesFile file = read_cases_file(path);
+  return with_number_type(settings.digits, [&]<class Real>() {
+    return average_cases<Real>(file, path, settings);
   });
 }
 
@@ -434,8 +685,9 @@ struct Command {
   std::string (*run)(const Options&);
 };
 
-constexpr std::array<std::string_view, 8> average_options{
-    "masses", "lengths", "g", "beta", "digits", "method", "format", "cases"};
+constexpr std::array<std::string_view, 12> average_options{
+    "masses", "lengths", "g",   "beta",    "digits", "method",
+    "format", "cases",   "tol", "samples", "shifts", "seed"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",

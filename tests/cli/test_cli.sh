@@ -93,12 +93,44 @@ bad "unknown option"    average "${pendulum[@]}" --beta 1 --temperature 1
 bad "missing --beta"    average "${pendulum[@]}"
 bad "missing --masses"  average --lengths 1,1 --beta 1
 bad "option repeated"   average "${pendulum[@]}" --beta 1 --beta 2
-bad "N = 3 average"     average --masses 1,1,1 --lengths 1,1,1 --beta 1
+bad "N = 3 series"      average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method series
+bad "N = 3 integral"    average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method integral
+bad "N = 0"             average --masses "" --lengths "" --beta 1
 bad "limit mass 0"      limit --masses 0,1
 bad "limit csv"         limit --masses 1,1 --format csv
 bad "series beta 0"     series "${pendulum[@]}" --beta 0 --terms 3
 bad "series terms -1"   series "${pendulum[@]}" --beta 1 --terms -1
 bad "help unknown"      help nothing
+
+# the any-N options: malformed values, and options of a method that does not run
+unit3=(--masses 1,1,1 --lengths 1,1,1 --g 1)
+bad "tol 0"                  average "${unit3[@]}" --beta 1 --tol 0
+bad "tol -1e-10"             average "${unit3[@]}" --beta 1 --tol -1e-10
+bad "tol nan"                average "${unit3[@]}" --beta 1 --tol nan
+bad "tol 1"                  average "${unit3[@]}" --beta 1 --tol 1
+bad "tol 1e-400"             average "${unit3[@]}" --beta 1 --tol 1e-400
+bad "tol 1e-10x"             average "${unit3[@]}" --beta 1 --tol 1e-10x
+bad "tol with qmc"           average "${unit3[@]}" --beta 1 --method qmc --tol 1e-10
+bad "tol with N = 2 auto"    average "${pendulum[@]}" --beta 1 --tol 1e-10
+bad "tol with digits 30"     average "${unit3[@]}" --beta 1 --tol 1e-10 --digits 30
+bad "samples 1000"           average "${unit3[@]}" --beta 1 --method qmc --samples 1000
+bad "samples 3072"           average "${unit3[@]}" --beta 1 --method qmc --samples 3072
+bad "samples 2^17"           average "${unit3[@]}" --beta 1 --method qmc --samples 131072
+bad "samples 4096.0"         average "${unit3[@]}" --beta 1 --method qmc --samples 4096.0
+bad "samples with torus"     average "${unit3[@]}" --beta 1 --method torus-trapezoid --samples 4096
+bad "seed -1"                average "${unit3[@]}" --beta 1 --method qmc --seed -1
+bad "seed 2^64"              average "${unit3[@]}" --beta 1 --method qmc --seed 18446744073709551616
+bad "seed 1e3"               average "${unit3[@]}" --beta 1 --method qmc --seed 1e3
+bad "seed empty"             average "${unit3[@]}" --beta 1 --method qmc --seed=
+bad "seed with auto, N = 3"  average "${unit3[@]}" --beta 1 --seed 2
+bad "seed with integral"     average "${pendulum[@]}" --beta 1 --method integral --seed 2
+bad "shifts 3"               average "${unit3[@]}" --beta 1 --method qmc --shifts 3
+bad "qmc digits 20"          average "${unit3[@]}" --beta 1 --method qmc --digits 20
+bad "auto N = 6 digits 20"   average --masses 1,1,1,1,1,1 --lengths 1,1,1,1,1,1 --beta 1 --digits 20
+bad "torus N = 12"           average --masses 1,1,1,1,1,1,1,1,1,1,1,1 --lengths 1,1,1,1,1,1,1,1,1,1,1,1 --beta 1 --method torus-trapezoid
+bad "method torus"           average "${unit3[@]}" --beta 1 --method torus
+bad "N = 3 counts mismatch"  average --masses 1,1,1 --lengths 1,1 --beta 1
+bad "N = 3 length 0"         average --masses 1,1,1 --lengths 1,0,1 --beta 1 --method qmc
 
 printf 'beta,g,m1,m2,l1\n1,1,0.5,0.5,1\n' >"$work/missing_column.csv"
 printf 'beta,g,m1,m2,l1,l2,T\n1,1,0.5,0.5,1,1,3\n' >"$work/extra_column.csv"
@@ -147,6 +179,124 @@ good "cases shuffled" \
   average --cases "$work/cases.csv"
 good "cases shuffled, digits 20" '[ "$(wc -l <"$work/out")" -eq 4 ]' \
   average --cases "$work/cases.csv" --digits 20
+
+# ---------------------------------------------------------------- any N
+check_any_n_json() { # N
+  "$python" -c '
+import json, sys
+keys = sys.argv[1].split() + ["diagonal_approx", "beta_Kc"]
+n = int(sys.argv[2])
+o = json.loads(open(sys.argv[3]).read())
+assert list(o) == keys, list(o)
+assert o["N"] == n and o["converged"] is True
+for k in ("beta_K", "K", "error", "cos_phi", "var_K", "diagonal_approx", "beta_Kc"):
+    assert isinstance(o[k], list) and len(o[k]) == n, k
+assert all(v == "5.000000000000000e-01" for v in o["beta_Kc"]), o["beta_Kc"]
+assert abs(sum(map(float, o["beta_K"])) - n / 2) < 1e-12, "sum_i beta<K_i> = N/2"
+' "$json_keys" "$1" "$work/out"
+}
+# beta<K_i> of the unit 3-link chain at g = beta = 1 (published reference values)
+check_unit3() {
+  check_any_n_json 3 && "$python" -c '
+import json, sys
+o = json.loads(open(sys.argv[1]).read())
+assert o["method"] == "torus-trapezoid", o["method"]
+for value, prefix in zip(o["beta_K"], ("3.2908723613784", "4.8318092191398", "6.877318419481")):
+    assert value.startswith(prefix), (value, prefix)
+assert o["ratio"].startswith("6.81084912943"), o["ratio"]
+' "$work/out"
+}
+good "N = 3 unit chain"      check_unit3 average "${unit3[@]}" --beta 1
+cp "$work/out" "$work/unit3.json"
+good "N = 3 diagonal approx" \
+  'check_any_n_json 3 && "$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"diagonal_approx\"][0] == \"1.666666666666667e-01\", o" "$work/out"' \
+  average "${unit3[@]}" --beta 0.1
+good "N = 3 torus-gauss, digits 20" \
+  '"$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"method\"] == \"torus-gauss\" and o[\"beta_K\"][0].startswith(\"3.29087236137842418\"), o" "$work/out"' \
+  average "${unit3[@]}" --beta 1 --method torus-gauss --digits 20
+good "N = 1"                 \
+  'check_any_n_json 1 && "$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"ratio\"] is None and o[\"beta_K\"] == [\"5.000000000000000e-01\"], o" "$work/out"' \
+  average --masses 2 --lengths 3 --beta 0.7
+good "N = 4 csv"             '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",beta_Kc4$"' \
+  average --masses 1,2,3,4 --lengths 1,1,1,1 --beta 1 --format csv
+good "N = 3 text"            'grep -q "diagonal approx" "$work/out" && [ "$(grep -c "^ *[123]  " "$work/out")" -eq 3 ]' \
+  average "${unit3[@]}" --beta 1 --format text
+good "N = 2 json extras"     'check_any_n_json 2' average "${pendulum[@]}" --beta 1
+
+# The any-N engines against the N = 2 engine: torus rules to 1e-12 relative, qmc within its bar.
+check_agree() { # REFERENCE CANDIDATE TOLERANCE ("bar": within the candidate's error bars)
+  "$python" -c '
+import json, sys
+a, b = (json.load(open(path)) for path in sys.argv[1:3])
+tolerance = sys.argv[3]
+assert a["N"] == b["N"] == 2 and a["method"] != b["method"], (a["method"], b["method"])
+for key in ("beta_K", "cos_phi", "var_K"):
+    for i, (x, y) in enumerate(zip(map(float, a[key]), map(float, b[key]))):
+        if tolerance == "bar" and key == "beta_K":
+            assert abs(x - y) <= float(b["error"][i]), (key, x, y, b["error"][i])
+        elif tolerance != "bar":
+            assert abs(x - y) <= float(tolerance) * abs(x), (key, x, y)
+' "$1" "$work/out" "$2"
+}
+for params in "0.5,0.5 1,1 1 1" "0.2,0.8 1,2 10 9.81" "3,0.01 2,0.5 0.05 1"; do
+  read -r m l b g <<<"$params"
+  run average --masses "$m" --lengths "$l" --beta "$b" --g "$g"
+  cp "$work/out" "$work/reference.json"
+  for method in torus-trapezoid torus-gauss; do
+    good "N = 2 $method vs default ($params)" 'check_agree "$work/reference.json" 1e-12' \
+      average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method "$method"
+  done
+  good "N = 2 qmc vs default ($params)" 'check_agree "$work/reference.json" bar' \
+    average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method qmc --samples 4096
+done
+
+# qmc: deterministic for a seed (all but the wall time), and its bars cover the exact values.
+strip_seconds() { sed 's/"seconds": [^,]*,//' "$1"; }
+run average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
+cp "$work/out" "$work/qmc1.json"
+good "qmc N = 3 deterministic" '[ "$(strip_seconds "$work/out")" = "$(strip_seconds "$work/qmc1.json")" ]' \
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
+good "qmc N = 3 covers exact" '"$python" -c "
+import json, sys
+q, exact = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert q[\"method\"] == \"qmc\" and q[\"evaluations\"] == 4096 * 16, q
+for x, y, e in zip(map(float, q[\"beta_K\"]), map(float, exact[\"beta_K\"]), map(float, q[\"error\"])):
+    assert abs(x - y) <= e and e < 1e-5, (x, y, e)
+" "$work/out" "$work/unit3.json"' \
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
+good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(strip_seconds "$work/qmc1.json")" ]' \
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12346 --samples 4096 --shifts 8
+
+# --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
+# match the single-case command.
+printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
+cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations'
+check_cases3() {
+  [ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(head -1 "$work/out")" = "$cases3_header" ] &&
+    [ "$(sed -n 3p "$work/out" | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
+    "$python" -c '
+import csv, json, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+exact = json.load(open(sys.argv[2]))
+assert rows[0]["method"] == "torus-trapezoid", rows[0]
+assert [rows[0]["beta_K%d" % i] for i in (1, 2, 3)] == exact["beta_K"], rows[0]
+assert rows[0]["ratio"] == exact["ratio"]
+' "$work/out" "$work/unit3.json"
+}
+good "cases N = 3 shuffled"  check_cases3 average --cases "$work/cases3.csv"
+good "cases N = 3 qmc"       '[ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(sed -n 2p "$work/out" | cut -d, -f19)" = qmc ]' \
+  average --cases "$work/cases3.csv" --method qmc --samples 1024 --seed 3
+printf 'beta,g,m1,m2,m3,l1,l2\n1,1,1,1,1,1,1\n' >"$work/cases3_missing.csv"
+printf 'beta,g,m1,m3,l1,l2,l3\n1,1,1,1,1,1,1\n' >"$work/cases3_gap.csv"
+printf 'beta,g,m1,m02,l1,l2\n1,1,1,1,1,1\n' >"$work/cases3_m02.csv"
+printf 'beta,g,m1,m2,m3,l1,l2,l3\n1,1,1,1,1,1,1,1\n1,1,1,1,0,1,1,1\n' >"$work/cases3_bad_row.csv"
+bad "cases N = 3 missing l3"    average --cases "$work/cases3_missing.csv"
+bad "cases N = 3 missing m2"    average --cases "$work/cases3_gap.csv"
+bad "cases column m02"          average --cases "$work/cases3_m02.csv"
+bad "cases N = 3 series"        average --cases "$work/cases3.csv" --method series
+bad "cases N = 3 seed, torus"   average --cases "$work/cases3.csv" --seed 4
+bad "cases N = 3 bad row"       average --cases "$work/cases3_bad_row.csv"
+grep -q 'line 3: m3' "$work/err" && pass || fail "cases N = 3 bad row: stderr does not name line 3, m3"
 
 check_limit() {
   "$python" -c '
