@@ -318,6 +318,71 @@ good "series 5 terms text" \
 good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
+# table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
+table_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,method,evaluations,converged'
+check_table() {
+  "$python" -c '
+import csv, sys
+lines = open(sys.argv[1]).read().splitlines()
+comments = [l for l in lines if l.startswith("#")]
+data = [l for l in lines if not l.startswith("#")]
+assert lines[0].startswith("# pendavg table"), lines[0]
+assert all(not l.startswith("#") for l in lines[len(comments):]), "comments after data"
+text = "\n".join(comments)
+for needle in ("beta = log:1e-3:1e3:7", "mu1 = 0.05,0.95", "l2 = 0.5,2", "method = auto", "digits = 16", "pendavg 0.1", "UTC"):
+    assert needle in text, needle
+assert data[0] == sys.argv[2], data[0]
+rows = list(csv.DictReader(data))
+assert len(rows) == 28, len(rows)
+assert [r["beta"] for r in rows[:7]] == ["1e-3", "0.01", "0.1", "1", "10", "100", "1e3"], [r["beta"] for r in rows[:7]]
+assert [(r["m1"], r["m2"], r["l2"]) for r in rows[::7]] == [("0.05", "0.95", "0.5"), ("0.05", "0.95", "2"), ("0.95", "0.05", "0.5"), ("0.95", "0.05", "2")]
+for r in rows:
+    k1, k2 = float(r["beta_K1"]), float(r["beta_K2"])
+    assert 0 <= k1 <= 0.5 <= k2 <= 1 and abs(k1 + k2 - 1) < 1e-14, r
+' "$1" "$table_header"
+}
+good "table sweep to stdout"  'check_table "$work/out"' \
+  table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2
+good "table sweep to file"    '[ ! -s "$work/out" ] && check_table "$work/table.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
+  table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 --output "$work/table.csv"
+good "table l2 range innermost" \
+  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f1,6 | tr "\n" " ")" = "1,0.1 1,1 1,10 2,0.1 2,1 2,10 " ]' \
+  table --beta 1,2 --l2 log:0.1:10:3
+good "table same with 1 thread" \
+  'OMP_NUM_THREADS=1 "$pendavg" table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 | grep -v generated >"$work/t1" &&
+   grep -v generated "$work/out" | cmp -s - "$work/t1"' \
+  table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2
+good "table digits 30"        '[ "$(grep -v "^#" "$work/out" | sed -n 2p | cut -d, -f7 | wc -c)" -eq 36 ]' \
+  table --beta 1 --mu1 1e-4 --digits 30
+good "table chain 3"          '[ "$(grep -v "^#" "$work/out" | wc -l)" -eq 3 ] && grep -q "diagonal_approx3" "$work/out"' \
+  table --chain 3 --beta 0.1,1
+touch "$work/plain_file"
+bad "table unwritable dir"    table --beta 1 --output "$work/plain_file/t.csv"
+[ -f "$work/plain_file" ] && [ -z "$(ls "$work" | grep tmp)" ] && pass || fail "table unwritable dir left a file"
+bad "table missing dir"       table --beta 1 --output "$work/no/such/dir/t.csv"
+bad "table output is a dir"   table --beta 1 --output "$work"
+bad "table bad point"         table --beta 1 --l2 0 --output "$work/bad.csv"
+[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep 'bad.csv')" ] && pass || fail "table bad point left a file"
+bad "table no beta"           table --mu1 0.5
+bad "table log reversed"      table --beta log:10:1:5
+bad "table log from 0"        table --beta log:0:1:5
+bad "table log 1 point"       table --beta log:1:10:1
+bad "table log missing N"     table --beta log:1:10
+bad "table log N not integer" table --beta log:1:10:2.5
+bad "table lin negative"      table --beta lin:-1:1:3
+bad "table empty list"        table --beta list:
+bad "table empty element"     table --beta 1,,2
+bad "table malformed value"   table --beta 1,two
+bad "table mu1 = 1"           table --beta 1 --mu1 1
+bad "table mu1 > 1"           table --beta 1 --mu1 0.5,1.5
+bad "table mu1 = 0"           table --beta 1 --mu1 0
+bad "table chain too long"    table --chain 9 --beta 1
+bad "table chain with l2"     table --chain 3 --beta 1 --l2 2
+bad "table chain series"      table --chain 3 --beta 1 --method series
+bad "table chain qmc digits"  table --chain 5 --beta 1 --digits 20
+bad "table unknown option"    table --beta 1 --masses 1,1
+good "table --help"           'grep -q "usage" "$work/out"' table --help
+
 for command in average limit series; do
   good "$command --help"     'grep -q "usage" "$work/out"' "$command" --help
 done

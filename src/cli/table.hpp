@@ -1,0 +1,25 @@
+// src/cli/table.hpp -- `pendavg table`: parameter sweeps written as one CSV (atomically).
+#pragma once
+
+#include "args.hpp"
+
+#include <array>
+#include <string>
+#include <string_view>
+
+namespace pendavg::cli {
+
+extern const std::string_view table_usage;
+
+inline constexpr std::array<std::string_view, 9> table_options{
+    "beta", "mu1", "l1", "l2", "g", "chain", "digits", "method", "output"};
+
+/// Runs `pendavg table`: returns the CSV (for stdout) when --output is absent, otherwise
+/// writes it to --output through a temporary file in the same directory and returns "".
+std::string table_command(const Options& options);
+
+/// 1 - x for a strict positive decimal x < 1, exactly, as a plain decimal string ("0.95" for
+/// "0.05", "0.9999" for "1e-4"). Throws usage_error naming `what` when x >= 1.
+std::string one_minus_decimal(std::string_view x, std::string_view what);
+
+}  // namespace pendavg::cli

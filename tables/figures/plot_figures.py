@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""Figures of pendavg's tables (paper Figs. 5-8 and the chains), from the CSVs in TABLES_DIR.
+
+usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each atomically
+"""
+import csv
+import os
+import sys
+import tempfile
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
+FIGURES = os.path.join(TABLES, "figures")
+
+
+def read(name):
+    with open(os.path.join(TABLES, name)) as f:
+        return list(csv.DictReader(line for line in f if not line.startswith("#")))
+
+
+def save(fig, name):
+    """Writes the figure to a temporary file in FIGURES and renames it into place."""
+    fd, tmp = tempfile.mkstemp(prefix=name + ".tmp.", suffix=".png", dir=FIGURES)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=130, bbox_inches="tight")
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, os.path.join(FIGURES, name))
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    plt.close(fig)
+
+
+def f(rows, key):
+    return [float(r[key]) for r in rows]
+
+
+def select(rows, **where):
+    return [r for r in rows if all(float(r[k]) == float(v) for k, v in where.items())]
+
+
+beta_rows = read("beta_sweep.csv")
+l2_rows = read("l2_sweep.csv")
+cos_rows = read("cos_phi.csv")
+limits = {r["mu1"]: r for r in read("high_temperature_limit.csv")}
+chains = read("chains.csv")
+MU1 = ["0.05", "0.5", "0.95"]
+
+# Fig. 5: beta<K_i> vs beta, mu1 = 0.5, l = 1, 1, with the beta -> 0 limits.
+rows = select(beta_rows, m1=0.5, l2=1)
+fig, ax = plt.subplots(figsize=(6.4, 4.4))
+ax.plot(f(rows, "beta"), f(rows, "beta_K2"), "-", color="tab:red", label=r"$\beta\langle K_2\rangle$")
+ax.plot(f(rows, "beta"), f(rows, "beta_K1"), "-", color="tab:blue", label=r"$\beta\langle K_1\rangle$")
+lim = limits["0.5"]
+for key, color, name in (("beta_K2", "tab:red", "2"), ("beta_K1", "tab:blue", "1")):
+    ax.axhline(float(lim[key]), ls="--", lw=1, color=color,
+               label=rf"$\beta\to0$: $\beta\langle K_{name}\rangle$ = {float(lim[key]):.10f}")
+ax.axhline(0.5, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1/2")
+ax.set_xscale("log")
+ax.set_xlabel(r"inverse temperature $\beta$  ($1/(m g \ell)$ units, $g = 1$)")
+ax.set_ylabel(r"$\beta\langle K_i\rangle$ (dimensionless)")
+ax.set_title(r"Double pendulum, $m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 5, exact)")
+ax.set_ylim(0.3, 0.7)
+ax.legend(fontsize=8, loc="center right")
+ax.grid(True, which="both", alpha=0.3)
+save(fig, "fig5_beta_K.png")
+
+# Fig. 6: <K1>/<K2> vs l2, three panels mu1, colors beta.
+fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=False)
+colors = plt.cm.coolwarm([0.0, 0.33, 0.67, 1.0])
+for ax, mu in zip(axes, MU1):
+    for beta, color in zip(("1", "2", "5", "10"), colors):
+        rows = select(l2_rows, m1=mu, beta=beta)
+        ax.plot(f(rows, "l2"), f(rows, "ratio"), color=color, label=rf"$\beta$ = {beta}")
+    ax.set_xscale("log")
+    ax.set_xlabel(r"$\ell_2$  ($\ell_1 = 1$)")
+    ax.set_title(rf"$\mu_1$ = {mu}")
+    ax.grid(True, which="both", alpha=0.3)
+axes[0].set_ylabel(r"$\langle K_1\rangle / \langle K_2\rangle$")
+axes[-1].legend(fontsize=8)
+fig.suptitle(r"$\ell_2$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 6, exact; $g = 1$)")
+save(fig, "fig6_ratio_vs_l2.png")
+
+# Fig. 7: <K1>/<K2> vs beta, panels mu1, colors l2.
+fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+for ax, mu in zip(axes, MU1):
+    for l2, color in zip(("0.5", "1", "2"), ("tab:green", "tab:blue", "tab:purple")):
+        rows = select(beta_rows, m1=mu, l2=l2)
+        ax.plot(f(rows, "beta"), f(rows, "ratio"), color=color, label=rf"$\ell_2$ = {l2}")
+    lim = limits[mu] if mu in limits else None
+    if lim:
+        ax.axhline(float(lim["ratio"]), ls="--", lw=1, color="gray", label=r"$\beta\to0$ limit")
+    ax.axhline(1, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1")
+    ax.set_xscale("log")
+    ax.set_xlabel(r"$\beta$  ($\ell_1 = 1$, $g = 1$)")
+    ax.set_title(rf"$\mu_1$ = {mu}")
+    ax.grid(True, which="both", alpha=0.3)
+axes[0].set_ylabel(r"$\langle K_1\rangle / \langle K_2\rangle$")
+axes[0].legend(fontsize=8)
+fig.suptitle(r"$\beta$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 7, exact)")
+save(fig, "fig7_ratio_vs_beta.png")
+
+# Fig. 8: <cos phi_i> vs beta, mu1 = 0.5, l = 1, 1.
+fig, ax = plt.subplots(figsize=(6.4, 4.4))
+ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi1"), color="tab:blue", label=r"$\langle\cos\varphi_1\rangle$")
+ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi2"), color="tab:red", label=r"$\langle\cos\varphi_2\rangle$")
+ax.set_xscale("log")
+ax.set_xlabel(r"$\beta$  ($g = 1$)")
+ax.set_ylabel(r"$\langle\cos\varphi_i\rangle$")
+ax.set_title(r"$m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 8, exact instead of MCMC)")
+ax.legend()
+ax.grid(True, which="both", alpha=0.3)
+save(fig, "fig8_cos_phi.png")
+
+# Chains: beta<K_i> vs i, one panel per beta, diagonal approximation dashed.
+fig, axes = plt.subplots(1, 3, figsize=(13, 4.4), sharey=True)
+colors = plt.cm.viridis([k / 6 for k in range(6)])
+for ax, beta in zip(axes, ("0.1", "1", "10")):
+    for n, color in zip(range(3, 9), colors):
+        rows = [r for r in chains if r["N"] == str(n) and float(r["beta"]) == float(beta)]
+        i = [int(r["i"]) for r in rows]
+        ax.errorbar(i, f(rows, "beta_K"), yerr=f(rows, "error_K"), marker="o", ms=4, color=color,
+                    label=f"N = {n}" + (" (qmc)" if rows[0]["method"] == "qmc" else ""))
+        ax.plot(i, f(rows, "diagonal_approx"), ls="--", lw=1, color=color)
+    ax.axhline(0.5, ls=":", color="gray", lw=1)
+    ax.set_xlabel("particle index $i$ (1 = next to the pivot)")
+    ax.set_title(rf"$\beta$ = {beta}")
+    ax.grid(True, alpha=0.3)
+axes[0].set_ylabel(r"$\beta\langle K_i\rangle$")
+axes[0].plot([], [], "k--", lw=1, label="diagonal approx. (dashed)")
+axes[0].legend(fontsize=7)
+fig.suptitle(r"Chains of unit masses and links: $\beta\langle K_i\rangle$ (solid) vs the diagonal approximation (dashed)")
+save(fig, "chains.png")
