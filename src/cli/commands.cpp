@@ -470,7 +470,8 @@ void append_case(std::string& out, const CaseRow& row, const std::vector<std::st
   const Averages<Real> averages = compute_average(chain, beta, digits, plan).averages;
   for (const std::string& field : row.fields) (out += field) += ',';
   append_csv_values(out, averages.beta_kinetic, digits);
-  append_csv_values(out, averages.beta_kinetic_error, error_digits);
+  append_csv_values(out, printed_errors(averages.beta_kinetic, averages.beta_kinetic_error, digits),
+                    error_digits);
   if (n >= 2) append_decimal(out, averages.ratio, digits);
   out += ',';
   append_csv_values(out, averages.cos_angle, digits);

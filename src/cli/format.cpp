@@ -28,6 +28,24 @@ void append_decimal(std::string& out, const Real& x, int digits) {
 }
 
 template <class Real>
+std::vector<Real> printed_errors(const std::vector<Real>& values, const std::vector<Real>& errors,
+                                 int digits) {
+  using std::abs;
+  using std::floor;
+  using std::log10;
+  using std::pow;
+  std::vector<Real> out(errors);
+  for (std::size_t i = 0; i < values.size() && i < out.size(); ++i) {
+    if (values[i] == 0) continue;
+    // scientific notation with `digits` significant digits: the last place is
+    // 10^(floor(log10 |v|) - digits + 1); rounding to it moves the value by at most half.
+    const Real exponent = floor(log10(abs(values[i]))) - Real(digits - 1);
+    out[i] += pow(Real(10), exponent) / 2;
+  }
+  return out;
+}
+
+template <class Real>
 AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta) {
   const auto strings = [](const std::vector<Real>& values, int significant, auto scale) {
     std::vector<std::string> out;
@@ -41,7 +59,8 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   const auto same = [](const Real& value) { return value; };
   AveragesText text;
   text.beta_kinetic = strings(averages.beta_kinetic, digits, same);
-  text.error = strings(averages.beta_kinetic_error, error_digits, same);
+  text.error = strings(printed_errors(averages.beta_kinetic, averages.beta_kinetic_error, digits),
+                       error_digits, same);
   text.cos_angle = strings(averages.cos_angle, digits, same);
   text.beta2_variance = strings(averages.beta2_kinetic_variance, digits, same);
   if (beta) {
@@ -60,6 +79,10 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
 
 template void append_decimal<double>(std::string&, const double&, int);
 template void append_decimal<long double>(std::string&, const long double&, int);
+template std::vector<double> printed_errors<double>(const std::vector<double>&,
+                                                    const std::vector<double>&, int);
+template std::vector<mpfr_real> printed_errors<mpfr_real>(const std::vector<mpfr_real>&,
+                                                          const std::vector<mpfr_real>&, int);
 template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
 template AveragesText averages_text<double>(const Averages<double>&, int, const double*);
 template AveragesText averages_text<mpfr_real>(const Averages<mpfr_real>&, int,

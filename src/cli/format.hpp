@@ -22,6 +22,12 @@ inline constexpr int error_digits = 3;
 template <class Real>
 void append_decimal(std::string& out, const Real& x, int digits);
 
+/// The errors of values printed with `digits` significant digits: each computed error plus
+/// half a unit in the last printed place, so that the printed error covers the printed value.
+template <class Real>
+std::vector<Real> printed_errors(const std::vector<Real>& values, const std::vector<Real>& errors,
+                                 int digits);
+
 template <class Real>
 std::string decimal(const Real& x, int digits) {
   std::string out;
