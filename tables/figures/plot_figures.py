@@ -6,12 +6,14 @@ usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each ato
 import csv
 import os
 import sys
-import tempfile
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from figure_io import save_png  # noqa: E402
 
 TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
 FIGURES = os.path.join(TABLES, "figures")
@@ -23,17 +25,8 @@ def read(name):
 
 
 def save(fig, name):
-    """Writes the figure to a temporary file in FIGURES and renames it into place."""
-    fd, tmp = tempfile.mkstemp(prefix=name + ".tmp.", suffix=".png", dir=FIGURES)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=130, bbox_inches="tight")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, os.path.join(FIGURES, name))
-    except BaseException:
-        os.unlink(tmp)
-        raise
-    plt.close(fig)
+    """Writes the figure atomically to FIGURES/name."""
+    save_png(fig, FIGURES, name)
 
 
 def f(rows, key):

@@ -7,13 +7,15 @@ usage: plot_work_precision.py TABLES_DIR      writes TABLES_DIR/figures/work_pre
 import csv
 import os
 import sys
-import tempfile
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from figure_io import save_png  # noqa: E402
 
 TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
 FIGURES = os.path.join(TABLES, "figures")
@@ -61,12 +63,4 @@ fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=9, frameon=Fals
 fig.suptitle("pendavg work precision: speed against error (true error vs 100-digit / 30-digit reference)")
 fig.tight_layout(rect=(0, 0.07, 1, 0.97))
 
-fd, tmp = tempfile.mkstemp(prefix=NAME + ".tmp.", suffix=".png", dir=FIGURES)
-os.close(fd)
-try:
-    fig.savefig(tmp, dpi=130, bbox_inches="tight")
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, os.path.join(FIGURES, NAME))
-except BaseException:
-    os.unlink(tmp)
-    raise
+save_png(fig, FIGURES, NAME)
