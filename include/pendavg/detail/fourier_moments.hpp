@@ -256,24 +256,16 @@ TopValues<W> series_top(const W& mu1, std::size_t K) {
     // towards y), and |B| grows by at most 2j/(n+1) over j further terms, so
     // tail <= t_{n+1} (|B_{n+1}|/(1-rb) + 2/((n+1)(1-rb)^2)), rb = max(rho_n, y).
     const M np1 = static_cast<M>(nn) + 1;
-    if (!done_h) {
-      const M rho = static_cast<M>(rho_h);
+    const auto tail_negligible = [&](const auto& rho_x, const auto& t, const auto& B, const auto& S) {
+      const M rho = static_cast<M>(rho_x);
       const M rb = rho > ym ? rho : ym;
-      if (rb < 1) {
-        const M omr = 1 - rb;
-        const M tail = static_cast<M>(th) * (abs(static_cast<M>(Bh)) / omr + 2 / (np1 * omr * omr));
-        if (tail <= um * abs(static_cast<M>(Sh)) / 4) done_h = true;
-      }
-    }
-    if (!done_m) {
-      const M rho = static_cast<M>(rho_m);
-      const M rb = rho > ym ? rho : ym;
-      if (rb < 1) {
-        const M omr = 1 - rb;
-        const M tail = static_cast<M>(tm) * (abs(static_cast<M>(Bm)) / omr + 2 / (np1 * omr * omr));
-        if (tail <= um * abs(static_cast<M>(Sm)) / 4) done_m = true;
-      }
-    }
+      if (!(rb < 1)) return false;
+      const M omr = 1 - rb;
+      const M tail = static_cast<M>(t) * (abs(static_cast<M>(B)) / omr + 2 / (np1 * omr * omr));
+      return tail <= um * abs(static_cast<M>(S)) / 4;
+    };
+    if (!done_h && tail_negligible(rho_h, th, Bh, Sh)) done_h = true;
+    if (!done_m && tail_negligible(rho_m, tm, Bm, Sm)) done_m = true;
     if (done_h && done_m) break;
     // rotate carried reciprocals
     inv_nh = inv_n3h;
