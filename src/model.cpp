@@ -74,6 +74,9 @@ const char* method_name(Method m) {
     case Method::torus_trapezoid: return "torus-trapezoid";
     case Method::torus_gauss_legendre: return "torus-gauss";
     case Method::qmc: return "qmc";
+    case Method::microcanonical: return "microcanonical";
+    case Method::dynamics_nve: return "dynamics-nve";
+    case Method::dynamics_langevin: return "dynamics-langevin";
   }
   return "unknown";
 }

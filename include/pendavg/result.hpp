@@ -19,6 +19,9 @@ enum class Method {
   torus_trapezoid,          ///< any N: periodic trapezoid on the reduced (N-1)-torus
   torus_gauss_legendre,     ///< any N: Gauss-Legendre tensor rule on the reduced torus
   qmc,                      ///< any N: randomized lattice QMC over the von Mises law
+  microcanonical,           ///< exact microcanonical averages at fixed energy (MATH.md Sec. 7)
+  dynamics_nve,             ///< time averages along a RATTLE + Yoshida-4 trajectory (fixed energy)
+  dynamics_langevin,        ///< time averages along constrained Langevin (BAOAB + RATTLE)
 };
 
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).

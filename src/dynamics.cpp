@@ -1,0 +1,1 @@
+// Explicit instantiations of pendavg/dynamics.hpp (filled in by the dynamics work).

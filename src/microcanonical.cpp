@@ -1,0 +1,1 @@
+// Explicit instantiations of pendavg/microcanonical.hpp (filled in by the microcanonical work).
