@@ -46,7 +46,7 @@ class Options {
 bool asks_for_help(std::span<const std::string_view> args);
 
 /// Which values a physical parameter may take.
-enum class Domain { positive, nonnegative };
+enum class Domain { positive, nonnegative, any };
 
 /// Parses one decimal number strictly: [+-]digits[.digits][e[+-]digits], the whole token, finite,
 /// inside `domain`. `what` names the quantity in the error message (e.g. "--beta").

@@ -5,6 +5,7 @@
 
 #include "args.hpp"
 #include "format.hpp"
+#include "simulate.hpp"
 #include "table.hpp"
 
 #include "pendavg/double_pendulum.hpp"
@@ -45,6 +46,8 @@ constexpr std::string_view general_usage =
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] ... [--chain N] [--output FILE.csv]\n"
+    "  pendavg simulate --masses ... --lengths ... (--theta A | --phi ...) --time T [options]\n"
+    "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
     "\n"
     "Numbers are plain decimals (0.5, 1e-3). --digits D (16..1000, default 16) is the number of\n"
@@ -696,11 +699,13 @@ constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g"
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",
                                                          "digits", "terms",   "format"};
 
-const std::array<Command, 4> commands{{
+const std::array<Command, 6> commands{{
     {"average", average_usage, average_options, average_command},
     {"limit", limit_usage, limit_options, limit_command},
     {"series", series_usage, series_options, series_command},
     {"table", table_usage, table_options, table_command},
+    {"simulate", simulate_usage, simulate_options, simulate_command},
+    {"poincare", poincare_usage, poincare_options, poincare_command},
 }};
 
 const Command& find_command(std::string_view name) {

@@ -3,6 +3,7 @@
 // thread count), rows in a fixed order, written atomically (temporary file + rename).
 #include "table.hpp"
 
+#include "files.hpp"
 #include "format.hpp"
 
 #include "pendavg/double_pendulum.hpp"
@@ -246,55 +247,6 @@ std::string utc_now() {
   return buffer;
 }
 
-std::string cannot_write(const std::string& path, int error) {
-  return "table: cannot write '" + path + "': " + std::strerror(error);
-}
-
-/// A temporary file next to `path`; throws usage_error when the directory is not writable.
-int make_temporary(const std::string& path, std::string& temporary) {
-  temporary = path + ".tmp.XXXXXX";
-  const int fd = mkstemp(temporary.data());
-  if (fd < 0) throw usage_error(cannot_write(path, errno));
-  return fd;
-}
-
-/// Fails early (before a long sweep) when `path` cannot be written; leaves nothing behind.
-void probe_output(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    throw usage_error("table: cannot write '" + path + "': is a directory");
-  std::string temporary;
-  const int fd = make_temporary(path, temporary);
-  close(fd);
-  unlink(temporary.c_str());
-}
-
-/// Writes `content` to a temporary file in the directory of `path` and renames it onto `path`.
-/// On any failure the temporary file is removed and usage_error is thrown.
-void write_atomically(const std::string& path, const std::string& content) {
-  std::string temporary;
-  const int fd = make_temporary(path, temporary);
-  int error = 0;
-  const mode_t mask = umask(0);
-  umask(mask);
-  if (fchmod(fd, 0666 & ~mask) != 0) error = errno;
-  for (std::size_t written = 0; error == 0 && written < content.size();) {
-    const ssize_t n = write(fd, content.data() + written, content.size() - written);
-    if (n < 0) {
-      if (errno != EINTR) error = errno;
-    } else {
-      written += static_cast<std::size_t>(n);
-    }
-  }
-  if (error == 0 && fsync(fd) != 0) error = errno;
-  if (close(fd) != 0 && error == 0) error = errno;
-  if (error == 0 && std::rename(temporary.c_str(), path.c_str()) != 0) error = errno;
-  if (error != 0) {
-    unlink(temporary.c_str());
-    throw usage_error(cannot_write(path, error));
-  }
-}
-
 }  // namespace
 
 std::string one_minus_decimal(std::string_view x, std::string_view what) {
@@ -388,7 +340,7 @@ std::string table_command(const Options& options) {
   const std::string output(options.get("output", ""));
   if (options.has("output")) {
     if (output.empty()) throw usage_error("table: --output needs a file name");
-    probe_output(output);
+    probe_output(output, "table");
   }
 
   // Points in row order: the last sweep varies fastest.
@@ -465,7 +417,7 @@ std::string table_command(const Options& options) {
     compute.template operator()<mpfr_real>();
   }
   if (output.empty()) return out;
-  write_atomically(output, out);
+  write_atomically(output, out, "table");
   return {};
 }
 

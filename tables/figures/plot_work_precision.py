@@ -26,6 +26,7 @@ STYLE = {  # method: (color, marker)
     "torus-trapezoid": ("tab:green", "^"),
     "torus-gauss": ("tab:red", "v"),
     "qmc": ("tab:purple", "D"),
+    "dynamics": ("tab:brown", "P"),
 }
 FLOOR = 1e-110  # true errors of exactly 0 (never seen so far) are drawn here
 

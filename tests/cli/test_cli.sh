@@ -383,7 +383,85 @@ bad "table chain qmc digits"  table --chain 5 --beta 1 --digits 20
 bad "table unknown option"    table --beta 1 --masses 1,1
 good "table --help"           'grep -q "usage" "$work/out"' table --help
 
-for command in average limit series; do
+# ---------------------------------------------------------------- simulate and poincare
+check_simulate_json() { # ENSEMBLE N
+  "$python" - "$work/out" "$1" "$2" <<'PY'
+import json, math, sys
+d = json.load(open(sys.argv[1]))
+n = int(sys.argv[3])
+for key in ("K", "K_error", "Kc", "Kc_error", "exact_K", "ensemble", "energy_drift",
+            "constraint_residual", "steps", "seconds"):
+    assert key in d, key
+assert d["ensemble"] == sys.argv[2]
+for key in ("K", "K_error", "Kc", "Kc_error", "exact_K"):
+    assert len(d[key]) == n and all(math.isfinite(x) for x in d[key]), key
+assert d["constraint_residual"] <= 1e-12 and not d["interrupted"]
+# The time averages agree with the exact values within 4 combined error bars.
+for i in range(n):
+    assert abs(d["K"][i] - d["exact_K"][i]) <= 4 * math.hypot(d["K_error"][i], d["exact_K_error"][i]), i
+PY
+}
+good "simulate nve json"    'check_simulate_json microcanonical 2' \
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300
+good "simulate langevin"    'check_simulate_json canonical 2' \
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3
+good "simulate csv"         'grep -q "^i,K,K_error,Kc,Kc_error,exact_K" "$work/out" && [ "$(grep -c "^[0-9]" "$work/out")" -eq 3 ]' \
+  simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 20 --format csv --exact no
+run simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work/traj.csv" --every 100 --exact no
+if [ "$rc" -eq 0 ] && [ "$(grep -c . "$work/traj.csv")" -eq 12 ] && head -1 "$work/traj.csv" | grep -q '^t,E,phi1,phi2,phidot1,phidot2$' \
+   && [ -z "$(ls "$work" | grep 'traj.csv.tmp')" ]; then pass; else fail "simulate trajectory file"; fi
+bad "simulate no time"         simulate --masses 1,1 --lengths 1,1 --theta 1
+bad "simulate theta and phi"   simulate --masses 1,1 --lengths 1,1 --theta 1 --phi 1,1 --time 1
+bad "simulate no angles"       simulate --masses 1,1 --lengths 1,1 --time 1
+bad "simulate phi count"       simulate --masses 1,1 --lengths 1,1 --phi 1 --time 1
+bad "simulate phidot count"    simulate --masses 1,1 --lengths 1,1 --phi 1,1 --phidot 1 --time 1
+bad "simulate bad theta"       simulate --masses 1,1 --lengths 1,1 --theta 90degrees --time 1
+bad "simulate nan theta"       simulate --masses 1,1 --lengths 1,1 --theta nan --time 1
+bad "simulate negative dt"     simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --dt -1e-3
+bad "simulate zero time"       simulate --masses 1,1 --lengths 1,1 --theta 1 --time 0
+bad "simulate time < dt"       simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1e-4
+bad "simulate zero mass"       simulate --masses 0,1 --lengths 1,1 --theta 1 --time 1
+bad "simulate count mismatch"  simulate --masses 1,1,1 --lengths 1,1 --theta 1 --time 1
+bad "simulate langevin beta"   simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --thermostat langevin
+bad "simulate beta without"    simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --beta 1
+bad "simulate bad friction"    simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --thermostat langevin --beta 1 --friction 0
+bad "simulate bad integrator"  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --integrator euler
+bad "simulate every alone"     simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --every 10
+bad "simulate unwritable traj" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory /nonexistent/t.csv --every 1
+bad "simulate traj directory"  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work" --every 1
+# SIGINT ends a run cleanly: exit 0, the averages so far, "interrupted": true.
+"$pendavg" simulate --masses 1,1,1,1 --lengths 1,1,1,1 --theta 90deg --time 1e6 --exact no >"$work/out" 2>"$work/err" &
+pid=$!
+sleep 1
+kill -INT "$pid"
+wait "$pid"
+rc=$?
+if [ "$rc" -eq 0 ] && "$python" -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['interrupted'] and 0 < d['steps'] < 10**9 and len(d['K']) == 4" "$work/out" \
+   && grep -q "interrupted" "$work/err"; then pass; else fail "simulate SIGINT"; fi
+
+check_poincare() { # POINTS
+  "$python" - "$work/out" "$1" <<'PY'
+import math, sys
+rows = [l.strip().split(",") for l in open(sys.argv[1]) if l.strip() and not l.startswith("#")]
+assert rows[0] == ["orbit", "phi2", "p2", "time"], rows[0]
+data = [[float(x) for x in r] for r in rows[1:]]
+assert len(data) == int(sys.argv[2]), len(data)
+assert all(-math.pi <= r[1] <= math.pi for r in data)
+# Inside the allowed region on the section: p2^2 <= 2 m2 l2^2 (E - U(0, phi2)), E = -2.5.
+assert all(r[2] ** 2 <= 2 * (-2.5 + 2 + math.cos(r[1])) + 1e-9 for r in data)
+PY
+}
+good "poincare csv"            'check_poincare 40' poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 4 --points 10
+run poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 2 --points 5 --output "$work/section.csv"
+if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && [ "$(grep -c '^[0-9]' "$work/section.csv")" -eq 10 ]; then pass; else fail "poincare --output"; fi
+bad "poincare N = 3"           poincare --masses 1,1,1 --lengths 1,1,1 --energy 0
+bad "poincare below minimum"   poincare --masses 1,1 --lengths 1,1 --energy -3
+bad "poincare no energy"       poincare --masses 1,1 --lengths 1,1
+bad "poincare zero orbits"     poincare --masses 1,1 --lengths 1,1 --energy 0 --orbits 0
+bad "poincare g = 0"           poincare --masses 1,1 --lengths 1,1 --energy 1 --g 0
+bad "poincare unwritable"      poincare --masses 1,1 --lengths 1,1 --energy 0 --output /nonexistent/p.csv
+
+for command in average limit series simulate poincare; do
   good "$command --help"     'grep -q "usage" "$work/out"' "$command" --help
 done
 good "--help"                'grep -q "usage" "$work/out"' --help
