@@ -12,8 +12,12 @@
 //    large beta is resolved (converged = false must come with an error bar that covers);
 //  * MATH.md Sec. 8: N = 3, beta = 0.1, beta<K_1> = 0.3114096682 against the diagonal 1/6;
 //  * the work: mirror-halved node counts, determinism across thread counts, the n^(N-1) guard.
-//  * qmc_average (randomized lattice QMC over the Best-Fisher-mapped von Mises law): its 3-sigma
-//    error bars cover the exact N = 3 values for >= 95 of 100 seeds; determinism; the CBC table.
+//  * qmc_average (randomized lattice QMC; both proposals, the root-to-tail pivot law and the plain
+//    von Mises law): its 3-sigma error bars cover the exact N = 3 values (unit chain) and N = 4
+//    values (unequal masses and lengths, beta = 2) for >= 95 of 100 seeds, against the tensor
+//    torus; the two proposals agree within their bars at N = 8; sum_i beta<K_i> = N/2 at N = 64
+//    and N = 300; determinism across thread counts; the CBC table against the fast and the
+//    plain CBC constructions.
 // Tags: [torus] (default, ~2 s in Release), [torus][.slow] for the longer variants.
 #include <catch2/catch.hpp>
 
@@ -449,19 +453,25 @@ TEST_CASE("torus N = 5 reaches 1e-10", "[torus][.slow]") {
 
 // ------------------------------------------------------------------------------ randomized QMC
 
-TEST_CASE("qmc error bars cover the exact N = 3 values for >= 95 of 100 seeds", "[torus][qmc]") {
-  const Chain<double> chain = uniform_chain(3);
-  const auto exact = torus_average(chain, 1.0);
-  std::vector<int> kinetic(3, 0), cosine(3, 0), variance(3, 0);
+/// Counts, over seeds 1..100, how often the 3-sigma bars of qmc_average (1024 x 16 points) cover
+/// the exact torus values, per quantity and particle; returns the largest |error| of beta<K_i>.
+double check_qmc_coverage(const Chain<double>& chain, double beta, pendavg::QmcProposal proposal) {
+  const std::size_t n = chain.size();
+  TorusOptions exact_options;
+  exact_options.tolerance = 1e-12;
+  const auto exact = torus_average(chain, beta, exact_options);
+  REQUIRE(exact.converged);
+  std::vector<int> kinetic(n, 0), cosine(n, 0), variance(n, 0);
   double largest_error = 0;
   for (std::uint64_t seed = 1; seed <= 100; ++seed) {
     pendavg::QmcOptions options;
     options.points = 1024;
     options.shifts = 16;
     options.seed = seed;
-    const auto q = pendavg::qmc_average(chain, 1.0, options).averages;
+    options.proposal = proposal;
+    const auto q = pendavg::qmc_average(chain, beta, options).averages;
     REQUIRE(q.evaluations == 1024 * 16);
-    for (std::size_t i = 0; i < 3; ++i) {
+    for (std::size_t i = 0; i < n; ++i) {
       kinetic[i] += std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]) <= q.beta_kinetic_error[i];
       cosine[i] += std::abs(q.cos_angle[i] - exact.cos_angle[i]) <= q.cos_angle_error[i];
       variance[i] += std::abs(q.beta2_kinetic_variance[i] - exact.beta2_kinetic_variance[i]) <=
@@ -469,14 +479,67 @@ TEST_CASE("qmc error bars cover the exact N = 3 values for >= 95 of 100 seeds", 
       largest_error = std::max(largest_error, std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]));
     }
   }
-  for (std::size_t i = 0; i < 3; ++i) {
-    INFO("particle " << i + 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    INFO("particle " << i + 1 << ", proposal " << static_cast<int>(proposal));
     CHECK(kinetic[i] >= 95);
     CHECK(cosine[i] >= 95);
     CHECK(variance[i] >= 95);
   }
-  // Tight as well as right: 16 x 1024 lattice points, far below Monte Carlo's ~2e-3.
-  CHECK(largest_error < 3e-5);
+  return largest_error;
+}
+
+TEST_CASE("qmc error bars cover the exact N = 3 values for >= 95 of 100 seeds", "[torus][qmc]") {
+  const Chain<double> chain = uniform_chain(3);
+  // Tight as well as right: 16 x 1024 lattice points, far below Monte Carlo's ~2e-3 (the
+  // smooth von Mises law, what automatic picks for N <= 4). The pivot law's piecewise-linear
+  // tables make the integrand only continuous: its errors are Monte Carlo-like at this N.
+  CHECK(check_qmc_coverage(chain, 1.0, pendavg::QmcProposal::automatic) < 3e-5);
+  CHECK(check_qmc_coverage(chain, 1.0, pendavg::QmcProposal::pivot_sequential) < 2e-3);
+}
+
+TEST_CASE("qmc error bars cover the exact N = 4 values, unequal masses", "[torus][qmc]") {
+  const Chain<double> chain({1.0, 0.3, 2.0, 0.7}, {1.0, 1.4, 0.6, 1.1}, 1.0);
+  CHECK(check_qmc_coverage(chain, 2.0, pendavg::QmcProposal::pivot_sequential) < 1e-3);
+}
+
+TEST_CASE("qmc: the pivot and von Mises proposals agree at N = 8; identities at N = 64",
+          "[torus][qmc]") {
+  const Chain<double> chain({1.0, 0.5, 2.0, 0.8, 1.2, 1.0, 0.6, 1.5},
+                            {1.0, 1.5, 0.7, 1.0, 0.9, 1.2, 1.0, 0.8}, 1.0);
+  pendavg::QmcOptions options;
+  options.points = std::size_t(1) << 13;
+  options.threads = 2;
+  const auto pivot = pendavg::qmc_average(chain, 1.0, options);  // automatic: the pivot law
+  options.proposal = pendavg::QmcProposal::von_mises;
+  const auto plain = pendavg::qmc_average(chain, 1.0, options);
+  // The pivot law keeps the weights even; the von Mises law leaves all of sqrt(det A) to them.
+  CHECK(pivot.effective_sample_fraction > 0.8);
+  CHECK(pivot.effective_sample_fraction > 2 * plain.effective_sample_fraction);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const auto& a = pivot.averages;
+    const auto& b = plain.averages;
+    INFO("particle " << i + 1);
+    CHECK(std::abs(a.beta_kinetic[i] - b.beta_kinetic[i]) <=
+          a.beta_kinetic_error[i] + b.beta_kinetic_error[i]);
+    CHECK(std::abs(a.cos_angle[i] - b.cos_angle[i]) <= a.cos_angle_error[i] + b.cos_angle_error[i]);
+    CHECK(std::abs(a.beta2_kinetic_variance[i] - b.beta2_kinetic_variance[i]) <=
+          a.beta2_kinetic_variance_error[i] + b.beta2_kinetic_variance_error[i]);
+    CHECK(a.beta_kinetic_error[i] < 2e-4);
+  }
+
+  // N = 64, beta = 1 (the issue's case) on the built-in table: the identity, even weights, and
+  // equipartition's direction (beta<K_i> rises down a uniform chain, MATH.md Sec. 2).
+  pendavg::QmcOptions long_options;
+  long_options.points = 1024;
+  long_options.shifts = 8;
+  const auto r = pendavg::qmc_average(uniform_chain(64), 1.0, long_options);
+  CHECK(r.equipartition_residual <= 1e-12);
+  CHECK(r.effective_sample_fraction > 0.6);
+  CHECK(r.averages.beta_kinetic.front() < r.averages.beta_kinetic.back());
+  for (std::size_t i = 0; i < 64; ++i) {
+    CHECK(r.averages.beta_kinetic[i] > 0);
+    CHECK(r.averages.beta_kinetic_error[i] < 0.05);
+  }
 }
 
 TEST_CASE("qmc is deterministic per seed and honours the identities", "[torus][qmc]") {
@@ -507,19 +570,39 @@ TEST_CASE("qmc is deterministic per seed and honours the identities", "[torus][q
 }
 
 TEST_CASE("qmc built-in lattices are the CBC construction; options are checked", "[torus][qmc]") {
-  std::vector<double> gamma;
-  for (int j = 1; j <= 32; ++j) gamma.push_back(1.0 / j);
-  for (unsigned m : {10u, 11u}) {
-    const auto z = pendavg::detail::qmc::cbc_generating_vector(m, 32, gamma, 2);
-    const auto& row = pendavg::detail::qmc::lattice_table[m - 10];
-    CHECK(z == std::vector<std::uint32_t>(row, row + 32));
+  namespace q = pendavg::detail::qmc;
+  const std::vector<double> gamma(256, 0.01);
+  // The table rows are fast_cbc_generating_vector(m, 256, 0.01); recompute two of them.
+  for (unsigned m : {10u, 12u}) {
+    const auto z = q::fast_cbc_generating_vector(m, 256, gamma, 2);
+    const auto& row = q::lattice_table[m - q::lattice_table_min_log2];
+    CHECK(z == std::vector<std::uint32_t>(row, row + 256));
   }
+  // The fast construction is the plain one (no ties here).
+  CHECK(q::fast_cbc_generating_vector(11, 24, gamma, 2) == q::cbc_generating_vector(11, 24, gamma, 2));
+  // With weights 1/j the first choice is an exact tie (283 and 275 give the same criterion to
+  // 1e-15 relative); fast breaks it to the smaller z, plain by rounding. Both criteria agree.
+  std::vector<double> harmonic;
+  for (int j = 1; j <= 4; ++j) harmonic.push_back(1.0 / j);
+  const auto fast = q::fast_cbc_generating_vector(10, 2, harmonic, 2);
+  const auto plain = q::cbc_generating_vector(10, 2, harmonic, 2);
+  const auto criterion = [](std::uint32_t c) {
+    double sum = 0;
+    for (std::uint64_t k = 1; k < 1024; ++k) {
+      const double x = static_cast<double>(k) / 1024, y = static_cast<double>((k * c) & 1023) / 1024;
+      const double two_pi2 = 2 * M_PI * M_PI;
+      sum += (1 + two_pi2 * (x * x - x + 1.0 / 6)) * (1 + 0.5 * two_pi2 * (y * y - y + 1.0 / 6));
+    }
+    return sum;
+  };
+  CHECK(std::abs(criterion(fast[1]) - criterion(plain[1])) <= 1e-12 * criterion(plain[1]));
+
   const Chain<double> chain = uniform_chain(3);
   pendavg::QmcOptions bad;
   bad.points = 1000;
   CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
   bad = pendavg::QmcOptions{};
-  bad.points = std::size_t(1) << 17;  // beyond the table, no vector given
+  bad.points = std::size_t(1) << 21;
   CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
   bad = pendavg::QmcOptions{};
   bad.shifts = 2;
@@ -527,16 +610,20 @@ TEST_CASE("qmc built-in lattices are the CBC construction; options are checked",
   bad = pendavg::QmcOptions{};
   bad.generating_vector = {1, 4, 7};
   CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
-  CHECK_THROWS_AS(pendavg::qmc_average(uniform_chain(40), 1.0), pendavg::invalid_input);
-  // A user vector lifts both limits.
+  bad = pendavg::QmcOptions{};
+  bad.proposal_grid = 30;
+  CHECK_THROWS_AS(pendavg::qmc_average(chain, 1.0, bad), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::qmc_average(uniform_chain(300), 1.0), pendavg::invalid_input);
+  // A user vector lifts the dimension limit.
   pendavg::QmcOptions own;
   own.points = 1024;
   own.shifts = 4;
-  own.generating_vector = pendavg::detail::qmc::cbc_generating_vector(10, 40, gamma, 2);
-  const auto long_chain = pendavg::qmc_average(uniform_chain(40), 1.0, own);
+  own.generating_vector = q::fast_cbc_generating_vector(10, 300, gamma, 2);
+  const auto long_chain = pendavg::qmc_average(uniform_chain(300), 1.0, own);
   double sum = 0;
   for (double k : long_chain.averages.beta_kinetic) sum += k;
-  CHECK(std::abs(sum - 20.0) <= 1e-12);
+  CHECK(std::abs(sum - 150.0) <= 1e-11);
+  CHECK(long_chain.effective_sample_fraction > 0.1);
 }
 
 TEST_CASE("qmc N = 5 agrees with the exact torus value", "[torus][qmc][.slow]") {

@@ -61,7 +61,8 @@
 // When to prefer something else. N = 2: reduced_integral_average (double_pendulum.hpp) is
 // faster (and it is the reference the tests hold this engine to). Large N: n^{N-1} nodes (the
 // guard refuses more than max_grid_points, default 1e9; N = 5 at 1e-10 takes ~2 s)
-// -- use qmc_average, also in this header (randomized lattice QMC over the von Mises law,
+// -- use qmc_average, also in this header (randomized lattice QMC over a law that includes the
+// pivot factors of det A,
 // MATH.md Sec. 6; see the comment above QmcOptions).
 //
 // Result type. Averages<Real> carries the common fields (method torus_trapezoid,
@@ -76,6 +77,7 @@
 
 #include "pendavg/bessel.hpp"
 #include "pendavg/chain.hpp"
+#include "pendavg/detail/qmc_lattices.hpp"
 #include "pendavg/precision.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/trace_formula.hpp"
@@ -85,6 +87,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -824,38 +827,77 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // ============================================================================ randomized QMC
 //
 // qmc_average: the same averages for chains too long for a tensor grid (MATH.md Sec. 6).
-// Method. The N absolute angles are drawn from the product of the laws exp(alpha_j cos phi_j)
-// and each draw is weighted by sqrt(det A); the ratio estimators are the same as on the torus,
-// with <cos phi_j> Rao-Blackwellized over psi to (I1/I0)(R) cos(phi_j - arg z) (MATH.md Sec. 2).
+// Target. The ratio estimators are the same as on the torus, over the N absolute angles with
+// density sqrt(det A) prod_j exp(alpha_j cos phi_j); <cos phi_j> is Rao-Blackwellized over psi
+// to (I1/I0)(R) cos(phi_j - arg z) (MATH.md Sec. 2).
+// Proposal (QmcProposal::pivot_sequential, the default; PivotSampler below). sqrt(det A)
+// factorizes root to tail as prod_j l_j sqrt(m_j (1 + u_j)) with trace_formula.hpp's forward
+// sweep u_{j+1} = (m_{j+1}/m_j)(u_j + sin^2(phi_{j+1} - phi_j))/(u_j + 1), u_1 = 0. The angles
+// are drawn root to tail, angle j+1 from a law that includes its von Mises factor and its pivot
+// factor sqrt(1 + u_{j+1}) given the angles already drawn. Per angle, the variable is v in [0, 1)
+// of the Best-Fisher wrapped Cauchy map x = 2 atan(tan(pi (v - 1/2)) (1 - rho)/(1 + rho)) (the
+// envelope of their von Mises sampler, 1979), in which the von Mises factor is the smooth
+// acceptance ratio exp(alpha (cos x - 1)) (1 + rho^2 - 2 rho cos x)/(1 - rho)^2 (within [0.66,
+// 1.5] of its mean for every alpha); the conditional law of v is the periodic piecewise-linear
+// interpolant of ratio * pivot on `proposal_grid` (32) equispaced nodes, normalized exactly and
+// inverted exactly (a quadratic per cell). The weight, target over proposal, is exact: only what
+// the interpolant and the root-to-tail order miss remains in it. The lattice coordinate u_j of
+// each point feeds the inverse CDF of angle j; the integrand on the unit cube stays periodic and
+// continuous (piecewise smooth). The old proposal, independent von Mises laws with all of
+// sqrt(det A) in the weight (QmcProposal::von_mises), is kept for comparison: its weights
+// degenerate as N grows (effective sample fraction at beta = 1, unit chains: 0.23 at N = 8,
+// 0.03 at N = 16, ~1e-5 at N = 64), while the pivot proposal keeps 0.97, 0.94, 0.89, 0.80 at
+// N = 8, 16, 32, 64. Tabulated grids of 16 (64) nodes give 0.54 (0.83) at N = 64; 32 is the
+// balance of cost and weight spread.
 // Points: a rank-1 lattice rule with n = 2^m points, x_k = frac(k z / n + Delta), randomized by
-// independent uniform shifts Delta. The generating vectors z are our own CBC constructions
-// (cbc_generating_vector below; tabulated for n = 2^10..2^16, N <= 32). Published embedded
-// sequences optimized for order-2 weights (e.g. Cools-Kuo-Nuyens 2006) were tried and rejected:
-// their 3-D projections carry short dual vectors such as (-1, -11, -2) for every n >= 2^13,
-// which froze the error at ~3e-7 for N = 3 from 2^13 to 2^16 points; this integrand couples
-// all angles through det A.
-// From the unit cube to the angles, per coordinate, the exact inverse CDF of the wrapped Cauchy
-// law that Best and Fisher (1979) use as the envelope of their von Mises sampler: x = 2 atan(
-// tan(pi (u - 1/2)) (1 - rho)/(1 + rho)). Their rejection step would break the lattice structure;
-// the acceptance ratio exp(alpha (cos x - 1)) (1 + rho^2 - 2 rho cos x)/(1 - rho)^2 is kept as an
-// importance weight instead, so the estimate is exactly that of von Mises sampling (same
-// integrals), the integrand on the unit cube stays periodic and analytic (what lattice rules
-// need), and the weight never exceeds ~1.5 times its mean, for every alpha (Best-Fisher's
-// acceptance rate is >= 0.66). No Bessel series, tables or rejection: closed form at any alpha.
+// independent uniform shifts Delta. The generating vectors z are our own CBC constructions for
+// the Korobov space (alpha = 2) with equal product weights gamma_j = 0.01 (lattice_table,
+// computed by fast_cbc_generating_vector; n = 2^10..2^20, up to 256 dimensions). Equal weights
+// suit this integrand: each tr X_i depends mostly on the angles next to particle i, so every
+// low-order projection of nearby coordinates matters, wherever it sits in the chain. Measured at
+// N = 64, beta = 1, 2^16 x 16 points: largest 3-sigma bar over the beta<K_i> 8e-5 (gamma = 0.01,
+// 0.003), 9.5e-5 (0.2), 1.5e-4 (0.05: one poor projection), 1.7e-4 (random odd z), 2e-4
+// (the earlier weights gamma_j = 1/j, which neglect the tail). Published embedded sequences
+// optimized for order-2 weights (e.g. Cools-Kuo-Nuyens 2006) were tried and rejected: their 3-D
+// projections carry short dual vectors such as (-1, -11, -2) for every n >= 2^13, which froze
+// the error at ~3e-7 for N = 3 from 2^13 to 2^16 points.
 // Error bar: the R shifted lattices give R independent, unbiased estimates of every numerator
 // and denominator; the value is the ratio of the totals and its standard error the jackknife
 // over shifts (delete-one-shift). The reported error is `sigmas` standard errors (default 3:
 // ~99% two-sided coverage for Student's t with R - 1 = 15 degrees of freedom) plus the rounding
-// budget. A statistical bar, not a bound. Deterministic for a given seed and any thread count.
+// budget. A statistical bar, not a bound. Deterministic for a given seed and bitwise
+// independent of the thread count (each shift is summed by one thread, in point order).
+// Weights are kept as exp(log W - log_scale) per shift, so no N overflows them.
 // When to use it: N >= 5 or so (a tensor grid needs n^(N-1) nodes); for N <= 4 torus_average is
-// exact to 1e-13 in milliseconds. Large beta needs no special care here (the sampler follows
-// the concentration). Limitation: the sampler ignores sqrt(det A), whose spread grows with N at
-// moderate beta; the pooled-weight efficiency (effective_sample_fraction) for unit chains at
-// beta = 1 is 0.70 (N = 3), 0.23 (N = 8), 0.03 (N = 16), ~0 (N = 32), and the error bars grow
-// accordingly (3-sigma bar on beta<K_1> with 2^14 x 16 points: 4e-9, 2e-4, 1e-3, 2e-2). Watch
-// that fraction: below ~0.01 the jackknife bar itself becomes unreliable.
-// Measured (tests/test_torus.cpp): with 2^10 points x 16 shifts the 3-sigma bars cover the exact
-// N = 3 values for 97..100 of 100 seeds, per quantity and particle.
+// exact to 1e-13 in milliseconds. Cost ~100 ns per particle and point (the 32-node table of
+// each conditional law, one tan and one exp per angle, the backward trace sweep).
+// Measured (tests/bench/bench_any_n.cpp, BM_qmc_to_target: points per shift doubled from 2^12,
+// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar over the beta<K_i> is <= 1e-4;
+// unit chains, g = 1; the machine's 2 cores were shared, load average ~4, so wall times are
+// ~3x the per-thread CPU times given here, which are what 2 free cores would take):
+//     N = 8,  beta = 1:    2^12 points, bar 8.9e-5, fraction 0.97,  0.06 s
+//     N = 16, beta = 1:    2^14 points, bar 6.7e-5, fraction 0.94,  0.5 s  (ladder)
+//     N = 32, beta = 1:    2^15 points, bar 7.7e-5, fraction 0.89,  2.1 s
+//     N = 64, beta = 1:    2^16 points, bar 9.1e-5, fraction 0.81,  8.7 s  (ladder; the 2^16
+//                          run alone ~4.5 s)
+//     N = 16, beta = 0.1:  2^13 points, bar 6.8e-5, fraction 0.99,  0.2 s
+//     N = 16, beta = 10:   2^13 points, bar 6.3e-5, fraction 0.96,  0.2 s
+// The von Mises law at N = 16, 2^14 points: bar 2.8e-3, fraction 0.03 (2.7x cheaper per point).
+// Coverage (tests/test_torus.cpp): the 3-sigma bars cover the tensor-torus values for >= 95 of
+// 100 seeds, per quantity and particle, at N = 3 (both laws) and N = 4 (unequal masses and
+// lengths, beta = 2, pivot law), 2^10 x 16 points.
+// Limitations: the bar is statistical (3 sigma, Student t with 15 degrees of freedom); it is
+// trustworthy while effective_sample_fraction stays above ~0.1. Mass ratios m_{j+1}/m_j far
+// from 1 make the pivot factors, and so the tables, steeper (not measured beyond the tests'
+// random chains). The lattices beyond 256 particles must be passed in generating_vector
+// (fast_cbc_generating_vector builds one in seconds for 2^16 points).
+
+/// The law qmc_average maps the lattice points to (see the comment above QmcOptions).
+enum class QmcProposal {
+  automatic,         ///< von_mises for N <= 4, pivot_sequential beyond
+  pivot_sequential,  ///< root to tail, each angle's law includes its pivot factor of det A
+  von_mises,         ///< independent von Mises laws; all of sqrt(det A) in the weight
+};
 
 /// Options of qmc_average.
 struct QmcOptions {
@@ -867,6 +909,11 @@ struct QmcOptions {
   /// Optional generating vector for `points` points (one odd entry per particle); empty: the
   /// built-in table.
   std::vector<std::uint32_t> generating_vector;
+  /// The law the points are mapped to: automatic (default), pivot_sequential or von_mises (the
+  /// product of von Mises laws, sqrt(det A) left entirely to the weight).
+  QmcProposal proposal = QmcProposal::automatic;
+  /// Nodes of the tabulated conditional law per angle (pivot_sequential), >= 4.
+  std::size_t proposal_grid = 32;
 };
 
 /// qmc_average's result: the averages (errors = sigmas standard errors + rounding) and extras.
@@ -891,58 +938,8 @@ using std::exp;
 using std::log;
 using std::sqrt;
 
-/// Built-in generating vectors: row m - 10 holds z for n = 2^m points (m = 10..16) in up to 32
-/// dimensions (take the first N entries: CBC vectors are extensible in dimension). Output of
-/// cbc_generating_vector(m, 32, gamma_j = 1/j, alpha = 2) below (run offline, ~1 min in all;
-/// a test recomputes the rows m = 10, 11). Product weights 1/j keep the criterion finite and
-/// meaningful in 32 dimensions; equal weights make it overflow to ties (repeated components).
-/// Every z_j is odd, so each one-dimensional projection is the full grid {k / n}.
-inline constexpr std::uint32_t lattice_table[7][32] = {
-    {// m = 10
-     1, 283, 157, 385, 401, 419, 207, 367, 13, 37,
-     215, 115, 47, 275, 495, 21, 309, 317, 343, 173,
-     487, 89, 131, 359, 55, 453, 241, 351, 165, 123,
-     97, 199,
-    },
-    {// m = 11
-     1, 857, 269, 949, 493, 309, 197, 1019, 907, 249,
-     127, 655, 87, 645, 543, 117, 775, 715, 329, 15,
-     137, 755, 299, 187, 157, 147, 279, 989, 877, 431,
-     887, 421,
-    },
-    {// m = 12
-     1, 1557, 1087, 701, 89, 1499, 1163, 901, 1279, 2035,
-     851, 1255, 1827, 1523, 21, 1213, 1977, 205, 1775, 911,
-     1439, 953, 625, 223, 785, 1515, 331, 1935, 793, 415,
-     1733, 1389,
-    },
-    {// m = 13
-     1, 3457, 559, 1925, 2125, 1161, 2707, 921, 1751, 997,
-     3005, 1583, 3519, 1287, 1499, 3143, 1411, 1637, 345, 2277,
-     2905, 1387, 521, 1625, 1975, 3041, 2327, 1663, 3857, 2841,
-     3933, 2679,
-    },
-    {// m = 14
-     1, 6229, 2691, 7621, 4417, 2821, 183, 3259, 3579, 6291,
-     5429, 4307, 1241, 5495, 4441, 3495, 7019, 7893, 4367, 77,
-     2007, 7197, 373, 821, 6689, 5981, 5911, 4709, 4951, 3919,
-     7609, 3837,
-    },
-    {// m = 15
-     1, 12031, 14297, 677, 10515, 413, 3479, 10875, 13233, 15981,
-     16087, 4425, 7585, 11391, 8837, 243, 2815, 3521, 8455, 2449,
-     13855, 737, 3249, 13727, 2577, 5609, 6375, 6001, 8531, 11571,
-     2875, 16367,
-    },
-    {// m = 16
-     1, 19463, 8279, 15259, 9471, 27489, 14621, 2807, 8141, 24773,
-     9705, 15109, 7897, 29825, 21467, 18787, 21023, 6643, 11535, 27169,
-     31263, 10823, 22487, 609, 20803, 23863, 19635, 23949, 399, 31999,
-     21159, 10527,
-    },
-};
-inline constexpr unsigned lattice_table_min_log2 = 10, lattice_table_max_log2 = 16;
-inline constexpr std::size_t lattice_max_dimension = 32;
+// Built-in generating vectors: lattice_table[m - 10] for n = 2^m points, m = 10..20, in up to
+// lattice_max_dimension = 256 dimensions (pendavg/detail/qmc_lattices.hpp).
 
 /// Component-by-component construction (Sloan-Reztsov; Nuyens-Cools) of a rank-1 lattice rule
 /// with n = 2^m points in d dimensions for the Korobov space of smoothness alpha = 2 with product
@@ -985,6 +982,117 @@ inline std::vector<std::uint32_t> cbc_generating_vector(unsigned m, std::size_t 
   return z;
 }
 
+/// In-place radix-2 complex FFT (sign -1: forward, +1: inverse without the 1/n), size 2^k.
+inline void lattice_fft(std::vector<std::complex<double>>& a, int sign) {
+  const std::size_t n = a.size();
+  for (std::size_t i = 1, j = 0; i < n; ++i) {
+    std::size_t bit = n >> 1;
+    for (; j & bit; bit >>= 1) j ^= bit;
+    j ^= bit;
+    if (i < j) std::swap(a[i], a[j]);
+  }
+  std::vector<std::complex<double>> twiddle(n / 2 + 1);
+  for (std::size_t len = 2; len <= n; len <<= 1) {
+    const double angle = sign * 2 * 3.141592653589793238462643 / static_cast<double>(len);
+    for (std::size_t k = 0; k < len / 2; ++k) twiddle[k] = std::polar(1.0, angle * static_cast<double>(k));
+    for (std::size_t i = 0; i < n; i += len) {
+      for (std::size_t k = 0; k < len / 2; ++k) {
+        const std::complex<double> w = twiddle[k];
+        const std::complex<double> x = a[i + k], y = a[i + k + len / 2] * w;
+        a[i + k] = x + y;
+        a[i + k + len / 2] = x - y;
+      }
+    }
+  }
+}
+
+/// The same construction and criterion as cbc_generating_vector, in O(d n log n) (Nuyens-Cools
+/// fast CBC, for n = 2^m): the odd residues mod 2^r (r >= 3) are {+-5^a}, the kernel is even
+/// (omega(1 - x) = omega(x)), so for the k with 2-adic valuation s the criterion of the
+/// candidate 5^a is a cyclic correlation of length 2^(m-s-2), done by FFT. Candidates z and
+/// n - z are equivalent; the one below n/2 is returned. Picks the same z as the plain version
+/// up to ties within rounding (~1e-13 relative). m <= 24; n = 2^20 in 256 dimensions: ~10 s.
+inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::size_t d,
+                                                             const std::vector<double>& gamma,
+                                                             int alpha = 2) {
+  if (m < 3 || m > 24) throw invalid_input("fast_cbc_generating_vector: 3 <= m <= 24");
+  const std::uint64_t n = std::uint64_t(1) << m;
+  const double two_pi2 = 2 * 9.869604401089358;
+  std::vector<double> omega(n);
+  for (std::uint64_t k = 0; k < n; ++k) {
+    const double x = static_cast<double>(k) / static_cast<double>(n);
+    omega[k] = alpha == 4 ? -(two_pi2 * 9.869604401089358 / 3) *
+                                (x * x * x * x - 2 * x * x * x + x * x - 1.0 / 30.0)
+                          : two_pi2 * (x * x - x + 1.0 / 6.0);
+  }
+  // Per valuation s (modulus n_s = 2^(m-s) >= 8, L_s = n_s / 4): the powers of 5 mod n_s and
+  // the transformed kernel W_s[t] = omega(2^s (5^t mod n_s)).
+  struct Level {
+    unsigned s;
+    std::size_t length;
+    std::vector<std::uint64_t> power;  // 5^t mod n_s
+    std::vector<std::complex<double>> kernel_hat;
+  };
+  std::vector<Level> levels;
+  for (unsigned s = 0; s + 3 <= m; ++s) {
+    Level lv;
+    lv.s = s;
+    const std::uint64_t ns = n >> s;
+    lv.length = static_cast<std::size_t>(ns / 4);
+    lv.power.resize(lv.length);
+    std::vector<std::complex<double>> w(lv.length);
+    std::uint64_t p = 1;
+    for (std::size_t t = 0; t < lv.length; ++t) {
+      lv.power[t] = p;
+      w[t] = omega[(p << s) & (n - 1)];
+      p = (p * 5) & (ns - 1);
+    }
+    lattice_fft(w, -1);
+    lv.kernel_hat = std::move(w);
+    levels.push_back(std::move(lv));
+  }
+  const std::size_t candidates = static_cast<std::size_t>(n / 4);  // a = 0 .. n/4 - 1
+  std::vector<double> product(n, 1.0), criterion(candidates);
+  std::vector<std::uint32_t> z;
+  for (std::size_t j = 0; j < d; ++j) {
+    const double g = j < gamma.size() ? gamma[j] : gamma.back();
+    std::uint64_t best = 1;
+    if (j > 0) {
+      std::fill(criterion.begin(), criterion.end(), 0.0);
+      for (const Level& lv : levels) {
+        const std::uint64_t ns = n >> lv.s;
+        std::vector<std::complex<double>> q(lv.length);
+        for (std::size_t b = 0; b < lv.length; ++b) {
+          const std::uint64_t o = lv.power[b];
+          q[b] = product[(o << lv.s) & (n - 1)] + product[((ns - o) << lv.s) & (n - 1)];
+        }
+        lattice_fft(q, -1);
+        // Correlation S[a] = sum_b Q[b] W[a + b]: inverse FFT of conj(Q^) W^.
+        for (std::size_t t = 0; t < lv.length; ++t) q[t] = std::conj(q[t]) * lv.kernel_hat[t];
+        lattice_fft(q, +1);
+        const double inv = 1.0 / static_cast<double>(lv.length);
+        for (std::size_t a = 0; a < candidates; ++a) criterion[a] += q[a % lv.length].real() * inv;
+      }
+      double best_value = std::numeric_limits<double>::infinity();
+      std::uint64_t p = 1;
+      for (std::size_t a = 0; a < candidates; ++a) {
+        const std::uint64_t c = p < n / 2 ? p : n - p;
+        // Ties (within rounding) to the smaller z, as in the plain construction.
+        const double tol = 1e-13 * std::abs(criterion[a]);
+        if (criterion[a] < best_value - tol ||
+            (criterion[a] <= best_value + tol && c < best)) {
+          if (criterion[a] < best_value) best_value = criterion[a];
+          best = c;
+        }
+        p = (p * 5) & (n - 1);
+      }
+    }
+    z.push_back(static_cast<std::uint32_t>(best));
+    for (std::uint64_t k = 0; k < n; ++k) product[k] *= 1 + g * omega[(k * best) & (n - 1)];
+  }
+  return z;
+}
+
 /// Per angle: the wrapped Cauchy (Best-Fisher envelope) inverse CDF and the acceptance ratio.
 template <class Real>
 struct BestFisherMap {
@@ -1019,39 +1127,221 @@ struct BestFisherMap {
   }
 };
 
-/// Sums of one shifted lattice: W, W tr X_i, W ((tr X_i)^2 + 2 tr X_i^2), W cos-factor_i, W^2.
+/// QmcProposal::automatic uses the von Mises law up to this N: its integrand is smooth (lattice
+/// errors fall fast) and its weights still even; the pivot law's piecewise-linear tables cost it
+/// the lattice's higher-order convergence (N = 4, beta = 1, 2^14 x 16 points: largest bar 4e-7
+/// against 8e-6), which its even weights outweigh from N ~ 5 on (N = 6: 2.4e-5 against 1e-4).
+inline constexpr std::size_t automatic_von_mises_max_particles = 4;
+
+/// The angle of the wrapped Cauchy law (Best-Fisher envelope) at v in [0, 1), returned as
+/// cos x, sin x and 1 - cos x (no cancellation), from w = tan(x / 2) = tan(pi (v - 1/2)) (1 - rho)
+/// / (1 + rho): no atan, sin or cos. The same map as BestFisherMap::map.
+template <class Real>
+void wrapped_cauchy_point(const BestFisherMap<Real>& map, const Real& v, Real& cos_x, Real& sin_x,
+                          Real& one_minus_cos) {
+  using std::isfinite;
+  using std::tan;
+  const Real w = tan(detail::torus::pi<Real>() * (v - Real(0.5))) * map.contraction;
+  const Real w2 = w * w;
+  if (!isfinite(w2)) {  // v = 0: x = -pi
+    cos_x = -1;
+    sin_x = 0;
+    one_minus_cos = 2;
+    return;
+  }
+  const Real inv = 1 / (1 + w2);
+  one_minus_cos = 2 * w2 * inv;
+  cos_x = 1 - one_minus_cos;
+  sin_x = 2 * w * inv;
+}
+
+/// The Best-Fisher acceptance ratio exp(alpha (cos x - 1)) (1 + rho^2 - 2 rho cos x) / (1 - rho)^2
+/// from 1 - cos x: the von Mises density over the wrapped Cauchy density, up to a constant.
+template <class Real>
+Real best_fisher_ratio(const BestFisherMap<Real>& map, const Real& one_minus_cos) {
+  const Real one_minus_rho = 1 - map.rho;
+  return exp(-map.alpha * one_minus_cos) *
+         (1 + 2 * map.rho * one_minus_cos / (one_minus_rho * one_minus_rho));
+}
+
+/// The proposal law of qmc_average and its tables (see the comment above QmcOptions).
+/// Root-to-tail factorization of the target (trace_formula.hpp's forward sweep):
+///     sqrt(det A) = prod_j l_j sqrt(m_j (1 + u_j)),   u_1 = 0,
+///     u_{j+1} = (m_{j+1} / m_j) (u_j + sin^2(phi_{j+1} - phi_j)) / (u_j + 1),
+/// so given phi_1..phi_j the factor of angle j+1 is e^{alpha_{j+1} cos phi_{j+1}} sqrt(1 + u_{j+1}).
+/// In the variable v of the Best-Fisher map of angle j+1 that factor is g(v) = ratio(x(v))
+/// sqrt(1 + u_{j+1}(x(v))) (ratio: best_fisher_ratio), smooth and of bounded spread. The
+/// proposal density of v is the periodic piecewise-linear interpolant of g on `grid` equispaced
+/// nodes v_k = k / grid, normalized exactly (its integral is the mean of the node values), and
+/// sampled by its exact inverse CDF (a quadratic per cell). The importance weight keeps the rest:
+/// prod_j g_j(v_j) / q_j(v_j), exactly the target over the proposal.
+template <class Real>
+struct PivotSampler {
+  std::size_t n = 0, grid = 0;
+  bool sequential = true;
+  std::vector<BestFisherMap<Real>> maps;
+  std::vector<Real> node_ratio, node_cos, node_sin;  ///< per angle, `grid` nodes each
+  std::vector<Real> mass_ratio;                      ///< m_j / m_{j-1} (entry 0 unused)
+
+  PivotSampler(const Chain<Real>& chain, const std::vector<Real>& alpha, std::size_t grid_nodes,
+               bool sequential_proposal)
+      : n(chain.size()), grid(grid_nodes), sequential(sequential_proposal) {
+    mass_ratio.assign(n, Real(1));
+    for (std::size_t j = 0; j < n; ++j) {
+      maps.emplace_back(alpha[j]);
+      if (j > 0) mass_ratio[j] = chain.mass(j) / chain.mass(j - 1);
+    }
+    if (!sequential) return;
+    node_ratio.resize(n * grid);
+    node_cos.resize(n * grid);
+    node_sin.resize(n * grid);
+    for (std::size_t j = 0; j < n; ++j) {
+      for (std::size_t k = 0; k < grid; ++k) {
+        Real c, s, omc;
+        wrapped_cauchy_point(maps[j], Real(static_cast<double>(k)) / Real(static_cast<double>(grid)),
+                             c, s, omc);
+        node_cos[j * grid + k] = c;
+        node_sin[j * grid + k] = s;
+        node_ratio[j * grid + k] = best_fisher_ratio(maps[j], omc);
+      }
+    }
+  }
+};
+
+/// Sums of one shifted lattice: W, W tr X_i, W ((tr X_i)^2 + 2 tr X_i^2), W cos-factor_i, W^2,
+/// all scaled by exp(-log_scale) (W = exp(log W - log_scale) stays finite for any N).
 template <class Real>
 struct ShiftSums {
   detail::torus::CompensatedSum<Real> weight, weight_squared;
   std::vector<detail::torus::CompensatedSum<Real>> trace, second_moment, cosine;
+  Real log_scale{0};
   explicit ShiftSums(std::size_t n = 0) : trace(n), second_moment(n), cosine(n) {}
+  void rescale(const Real& factor) {
+    const auto scale = [&](detail::torus::CompensatedSum<Real>& s, const Real& f) {
+      s.sum *= f;
+      s.compensation *= f;
+    };
+    scale(weight, factor);
+    scale(weight_squared, factor * factor);
+    for (auto& s : trace) scale(s, factor);
+    for (auto& s : second_moment) scale(s, factor);
+    for (auto& s : cosine) scale(s, factor);
+  }
 };
 
 template <class Real>
 ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
                                      const detail::torus::WeightConstants<Real>& k,
-                                     const std::vector<BestFisherMap<Real>>& maps,
+                                     const PivotSampler<Real>& sampler,
                                      const std::vector<Real>& shift, std::size_t points,
                                      const std::vector<std::uint32_t>& generator) {
   const std::size_t n = chain.size();
+  const std::size_t grid = sampler.grid;
   ShiftSums<Real> sums(n);
-  TraceWorkspace<Real> ws(chain);
-  std::vector<Real> phi(n), sphi(n), cphi(n), delta(n > 1 ? n - 1 : 1);
+  std::vector<Real> cphi(n), sphi(n), root_u(n), sin2(n), cos2(n), tr(n), tr2(n), g(grid + 1);
   const std::uint64_t mask = points - 1;  // points is a power of two
   const Real inv_points = Real(1) / Real(static_cast<double>(points));
+  const Real inv_grid = Real(1) / Real(static_cast<double>(grid));
+  const std::vector<Real>& m = chain.masses();
+  bool first = true;
   for (std::uint64_t p = 0; p < points; ++p) {
-    Real log_w = 0;
+    Real log_w = 0, product = 1;
     for (std::size_t j = 0; j < n; ++j) {
       const std::uint64_t kz = (p * generator[j]) & mask;  // k z_j mod 2^m, exact
       Real u = Real(static_cast<double>(kz)) * inv_points + shift[j];
       if (u >= 1) u -= 1;
-      Real log_ratio;
-      maps[j].map(u, phi[j], sphi[j], cphi[j], log_ratio);
-      log_w += log_ratio;
+      Real v = u, relative_density = 1;  // the proposal's density of v over its mean
+      const Real u_prev = j > 0 ? root_u[j - 1] : Real(0);
+      if (sampler.sequential) {
+        const Real* ratio = &sampler.node_ratio[j * grid];
+        Real* gg = g.data();
+        if (j == 0) {
+          for (std::size_t q = 0; q < grid; ++q) gg[q] = ratio[q];
+        } else {
+          const Real* nc = &sampler.node_cos[j * grid];
+          const Real* ns = &sampler.node_sin[j * grid];
+          const Real a = sampler.mass_ratio[j] / (u_prev + 1), b = a * u_prev + 1;
+          const Real cp = cphi[j - 1], sp = sphi[j - 1];
+          for (std::size_t q = 0; q < grid; ++q) {  // vectorizes (src/torus.cpp: no errno)
+            const Real s = ns[q] * cp - nc[q] * sp;  // sin(x_q - phi_{j-1})
+            gg[q] = ratio[q] * sqrt(b + a * (s * s));
+          }
+        }
+        gg[grid] = gg[0];
+        // Four partial sums in a fixed order (grid is a multiple of 4).
+        Real t0 = 0, t1 = 0, t2 = 0, t3 = 0;
+        for (std::size_t q = 0; q < grid; q += 4) {
+          t0 += gg[q];
+          t1 += gg[q + 1];
+          t2 += gg[q + 2];
+          t3 += gg[q + 3];
+        }
+        const Real total = (t0 + t1) + (t2 + t3);
+        // Cell q holds mass (g_q + g_{q+1}) / 2 in units of 1 / grid; find the cell of u total.
+        const Real target = u * total;
+        Real accumulated = 0;
+        std::size_t q = 0;
+        for (; q + 1 < grid; ++q) {
+          const Real h = (g[q] + g[q + 1]) / 2;
+          if (accumulated + h > target) break;
+          accumulated += h;
+        }
+        const Real r = target - accumulated, gq = g[q], slope = g[q + 1] - gq;
+        // g_q tau + slope tau^2 / 2 = r, the root in [0, 1] without cancellation.
+        const Real disc = gq * gq + 2 * slope * r;
+        Real tau = 2 * r / (gq + sqrt(disc > 0 ? disc : Real(0)));
+        if (!(tau >= 0)) tau = 0;
+        if (tau > 1) tau = 1;
+        v = (Real(static_cast<double>(q)) + tau) * inv_grid;
+        if (v >= 1) v -= 1;
+        relative_density = (gq + slope * tau) / (total * inv_grid);
+      }
+      Real one_minus_cos;
+      wrapped_cauchy_point(sampler.maps[j], v, cphi[j], sphi[j], one_minus_cos);
+      Real factor = best_fisher_ratio(sampler.maps[j], one_minus_cos) / relative_density;
+      if (j > 0) {
+        const Real sd = sphi[j] * cphi[j - 1] - cphi[j] * sphi[j - 1];  // sin(phi_j - phi_{j-1})
+        const Real cd = cphi[j] * cphi[j - 1] + sphi[j] * sphi[j - 1];
+        sin2[j - 1] = sd * sd;
+        cos2[j - 1] = cd * cd;
+        root_u[j] = sampler.mass_ratio[j] * (u_prev + sin2[j - 1]) / (u_prev + 1);
+        factor *= sqrt(1 + root_u[j]);
+      } else {
+        root_u[0] = 0;
+      }
+      product *= factor;
+      if ((j & 31) == 31) {  // keep the running product far from overflow for any N
+        log_w += log(product);
+        product = 1;
+      }
     }
-    for (std::size_t i = 0; i + 1 < n; ++i) delta[i] = phi[i + 1] - phi[i];
-    const NodeTraces<Real>& t = node_traces_relative(chain, delta.data(), ws);
-    const Real w = exp(log_w + t.log_sqrt_det_A - k.log_hadamard);
+    log_w += log(product);
+
+    // Backward sweep (trace_formula.hpp, node_traces_relative) from the forward sweep's u_j.
+    Real kappa = 0;
+    for (std::size_t i = n; i-- > 0;) {
+      const Real uu = root_u[i];
+      Real pivot_ratio = 1, w = 0, w_cos2 = 0;
+      if (i + 1 < n) {
+        pivot_ratio += kappa * sin2[i];
+        w = kappa * uu;
+        w_cos2 = w * cos2[i];
+      }
+      const Real one_plus_u = 1 + uu, u_plus_w = uu + w;
+      const Real inv_d = 1 / (u_plus_w + pivot_ratio);
+      tr[i] = (one_plus_u + u_plus_w) * inv_d;
+      tr2[i] = (one_plus_u * one_plus_u + u_plus_w * u_plus_w + 2 * w_cos2) * (inv_d * inv_d);
+      if (i > 0) kappa = m[i] * (1 + kappa) / (m[i - 1] * pivot_ratio);
+    }
+
+    if (first) {
+      sums.log_scale = log_w;
+      first = false;
+    } else if (log_w > sums.log_scale + 256) {
+      sums.rescale(exp(sums.log_scale - log_w));
+      sums.log_scale = log_w;
+    }
+    const Real weight = exp(log_w - sums.log_scale);
     // Rao-Blackwellized cos phi_j: (I1/I0)(R) cos(phi_j - arg z), z = sum_j alpha_j e^{i phi_j}.
     Real zx = 0, zy = 0;
     for (std::size_t j = 0; j < n; ++j) {
@@ -1066,14 +1356,13 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
     Real ratio_w = 0;
     if (radius > 0) {
       const ScaledBesselI01<Real> b = scaled_bessel_i01(radius);
-      ratio_w = w * (b.i1e / b.i0e) / radius;
+      ratio_w = weight * (b.i1e / b.i0e) / radius;
     }
-    sums.weight.add(w);
-    sums.weight_squared.add(w * w);
+    sums.weight.add(weight);
+    sums.weight_squared.add(weight * weight);
     for (std::size_t i = 0; i < n; ++i) {
-      const Real& tr = t.trace_X[i];
-      sums.trace[i].add(w * tr);
-      sums.second_moment[i].add(w * (tr * tr + 2 * t.trace_X_squared[i]));
+      sums.trace[i].add(weight * tr[i]);
+      sums.second_moment[i].add(weight * (tr[i] * tr[i] + 2 * tr2[i]));
       sums.cosine[i].add(ratio_w * (cphi[i] * zx + sphi[i] * zy));
     }
   }
@@ -1083,7 +1372,7 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
 }  // namespace detail::qmc
 
 /// Randomized lattice QMC estimate of the averages (see the comment above QmcOptions).
-/// Throws invalid_input for a bad beta or options, or N > 250 (the generating vector's length).
+/// Throws invalid_input for a bad beta or options, or N > 256 without options.generating_vector.
 template <class Real>
 QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
                               const QmcOptions& options = {}) {
@@ -1100,9 +1389,9 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   if (generator.empty()) {
     unsigned log2_points = 0;
     while ((std::size_t(1) << log2_points) < points) ++log2_points;
-    if (n > lattice_max_dimension || log2_points > lattice_table_max_log2) {
+    if (n > lattice_max_dimension || log2_points > lattice_rows_max_log2) {
       throw invalid_input(
-          "qmc_average: the built-in lattices cover N <= 32 and 2^10..2^16 points; pass "
+          "qmc_average: the built-in lattices cover N <= 256 and 2^10..2^20 points; pass "
           "options.generating_vector (e.g. from cbc_generating_vector) for N = " +
           std::to_string(n) + " with " + std::to_string(points) + " points");
     }
@@ -1115,9 +1404,14 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
       if (zj % 2 == 0) throw invalid_input("qmc_average: generating vector entries must be odd");
     }
   }
+  if (options.proposal_grid < 4 || options.proposal_grid % 4 != 0) {
+    throw invalid_input("qmc_average: proposal_grid must be a multiple of 4, >= 4");
+  }
+  const bool sequential =
+      options.proposal == QmcProposal::pivot_sequential ||
+      (options.proposal == QmcProposal::automatic && n > automatic_von_mises_max_particles);
   const detail::torus::WeightConstants<Real> constants(chain, beta);
-  std::vector<BestFisherMap<Real>> maps;
-  for (std::size_t j = 0; j < n; ++j) maps.emplace_back(constants.alpha[j]);
+  const PivotSampler<Real> sampler(chain, constants.alpha, options.proposal_grid, sequential);
 
   // Shifts: 53 random bits per coordinate, drawn in a fixed order from the seed.
   const std::size_t shifts = options.shifts;
@@ -1134,8 +1428,8 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
 #endif
   for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
     sums[static_cast<std::size_t>(r)] =
-        shifted_lattice_sums(chain, constants, maps, shift[static_cast<std::size_t>(r)], points,
-                             generator);
+        shifted_lattice_sums(chain, constants, sampler, shift[static_cast<std::size_t>(r)],
+                             points, generator);
   }
   (void)team;
 
@@ -1168,15 +1462,19 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   std::vector<Real> s_weight(shifts);
   std::vector<std::vector<Real>> s_trace(shifts, std::vector<Real>(n)),
       s_second(shifts, std::vector<Real>(n)), s_cos(shifts, std::vector<Real>(n));
+  // Bring every shift's sums to the largest scale (the weights are exp(log W - log_scale)).
+  Real log_scale = sums[0].log_scale;
+  for (std::size_t r = 1; r < shifts; ++r) log_scale = std::max(log_scale, sums[r].log_scale);
   Real total_w = 0, total_w2 = 0;
   for (std::size_t r = 0; r < shifts; ++r) {
-    s_weight[r] = sums[r].weight.value();
+    const Real f = exp(sums[r].log_scale - log_scale);
+    s_weight[r] = f * sums[r].weight.value();
     total_w += s_weight[r];
-    total_w2 += sums[r].weight_squared.value();
+    total_w2 += f * f * sums[r].weight_squared.value();
     for (std::size_t i = 0; i < n; ++i) {
-      s_trace[r][i] = sums[r].trace[i].value();
-      s_second[r][i] = sums[r].second_moment[i].value();
-      s_cos[r][i] = sums[r].cosine[i].value();
+      s_trace[r][i] = f * sums[r].trace[i].value();
+      s_second[r][i] = f * sums[r].second_moment[i].value();
+      s_cos[r][i] = f * sums[r].cosine[i].value();
     }
   }
   const std::vector<Real> value = quantities(s_weight, s_trace, s_second, s_cos, shifts);
