@@ -68,9 +68,9 @@ constexpr std::string_view average_usage =
     "                   in MPFR; --tol T: relative tolerance in double (default 1e-13; with\n"
     "                   --digits D > 16 it is 1e-D)\n"
     "  torus-gauss      the same with Gauss-Legendre nodes (a check)\n"
-    "  qmc              randomized lattice QMC, double only, N <= 32, 3-sigma statistical error\n"
-    "                   bars; --samples S points per shift (a power of two, 1024..65536, default\n"
-    "                   65536), --shifts R (4..1024, default 16), --seed K (default 1)\n"
+    "  qmc              randomized lattice QMC, double only, N <= 256, 3-sigma statistical error\n"
+    "                   bars; --samples S points per shift (a power of two, 1024..1048576,\n"
+    "                   default 65536), --shifts R (4..1024, default 16), --seed K (default 1)\n"
     "Options of a method that is not run are rejected.\n"
     "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
     "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
@@ -169,8 +169,8 @@ constexpr std::size_t auto_torus_max_particles = 4;
 constexpr double default_tolerance = 1e-13;
 /// --samples: QMC lattice points per shift, powers of two covered by the built-in lattices.
 constexpr std::size_t min_samples = std::size_t(1) << detail::qmc::lattice_table_min_log2;
-constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
-constexpr std::size_t default_samples = max_samples;
+constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_rows_max_log2;
+constexpr std::size_t default_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
 /// --shifts: independent random shifts of the QMC lattice.
 constexpr long min_shifts = 4, max_shifts = 1024;
 

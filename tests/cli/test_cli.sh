@@ -115,7 +115,7 @@ bad "tol with N = 2 auto"    average "${pendulum[@]}" --beta 1 --tol 1e-10
 bad "tol with digits 30"     average "${unit3[@]}" --beta 1 --tol 1e-10 --digits 30
 bad "samples 1000"           average "${unit3[@]}" --beta 1 --method qmc --samples 1000
 bad "samples 3072"           average "${unit3[@]}" --beta 1 --method qmc --samples 3072
-bad "samples 2^17"           average "${unit3[@]}" --beta 1 --method qmc --samples 131072
+bad "samples 2^21"           average "${unit3[@]}" --beta 1 --method qmc --samples 2097152
 bad "samples 4096.0"         average "${unit3[@]}" --beta 1 --method qmc --samples 4096.0
 bad "samples with torus"     average "${unit3[@]}" --beta 1 --method torus-trapezoid --samples 4096
 bad "seed -1"                average "${unit3[@]}" --beta 1 --method qmc --seed -1
