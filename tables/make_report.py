@@ -33,6 +33,10 @@ cos_head, cos_rows = read("cos_phi.csv")
 _, limit_rows = read("high_temperature_limit.csv")
 _, chain_rows = read("chains.csv")
 _, series_rows = read("series_convergence.csv")
+paper_head, paper_rows = read("dynamics_paper_runs.csv")
+_, confirm_rows = read("dynamics_confirmation.csv")
+_, fig5_rows = read("dynamics_fig5.csv")
+_, poincare_rows = read("poincare.csv")
 
 # Paper values (beta -> 0, mu1 = 1/2).
 half = [r for r in limit_rows if r["mu1"] == "0.5"][0]
@@ -81,6 +85,18 @@ for (n, beta), (total, err, method) in sums.items():
     dev = abs(total - int(n) / 2)
     worst = max(worst, dev)
     check(dev <= max(err, 1e-13), f"chain N = {n}, beta = {beta} ({method}): sum beta<K_i> - N/2 = {total - int(n) / 2:.1e} (error bars sum {err:.1e})")
+# Dynamics (issue 4): constraints, and the confirmation runs within 3 combined error bars.
+for line in paper_head:
+    if line.startswith("# N = "):
+        residual = float(line.split("constraint_residual ")[1].split(",")[0])
+        check(residual <= 1e-12, f"dynamics_paper_runs.csv, {line[2:8].strip()}: largest constraint residual "
+                                 f"{residual:.1e} <= 1e-12 (relative to the link length)")
+worst_dev = max(abs(float(r["deviation_sigmas"])) for r in confirm_rows)
+worst_kc = max(abs(float(r["Kc_deviation_sigmas"])) for r in confirm_rows)
+check(worst_dev <= 3, f"dynamics_confirmation.csv: N = 2 and N = 3, NVE and Langevin, every <K_i> within "
+                      f"{worst_dev:.2f} combined error bars of the exact value (target 3)")
+check(worst_kc <= 3, f"dynamics_confirmation.csv: every <K_i^(c)> within {worst_kc:.2f} error bars of "
+                     f"<K>_E/N (NVE) or 1/(2 beta) (Langevin)")
 checks_chain_summary = f"chains.csv: sum_i beta<K_i> = N/2 on all {len(sums)} (N, beta) pairs; largest deviation {worst:.1e}"
 
 if failures:
@@ -108,7 +124,11 @@ and date; all were computed by `pendavg table` / `pendavg limit` (exact, not MCM
 | `high_temperature_limit.csv` | the beta -> 0 limit (paper eq. aveK1-beta0) vs mu1: 41 values log-spaced from 1e-4 to 0.9999, plus mu1 = 0.5, 0.05, 0.95, at 20 digits |
 | `chains.csv` | chains N = 3..8 of unit masses and links: beta<K_i> vs i at beta in {{0.1, 1, 10}}, with the paper's diagonal approximation (eq. ke-linear-tave-1); torus-trapezoid (exact, ~1e-13) for N <= 4, qmc (65536 points x 16 shifts, 3-sigma bars up to {qmc_err:.1e}) for N = 5..8 |
 | `series_convergence.csv` | the paper's series (eq. ave-K1-result): terms needed for a certified bound vs mu1 and digits |
-| `work_precision.csv` | speed against error: beta<K1> by every method on four fixed cases, true and reported errors, seconds |
+| `work_precision.csv` | speed against error: beta<K1> by every method on four fixed cases, true and reported errors, seconds (dynamics: Langevin time averages) |
+| `dynamics_paper_runs.csv` | the paper's runs (Figs. 3-4): N = 7 and 16 unit chains from phi_i = pi/2, RATTLE + Yoshida-4, dt = 1e-3, T = 1e4; <K_i>, <K_i^(c)> with error bars beside the exact microcanonical values |
+| `dynamics_confirmation.csv` | N = 2 and 3: NVE runs against the exact microcanonical averages and Langevin runs against the exact canonical ones, T = 1e4, deviations in error bars |
+| `dynamics_fig5.csv` | Langevin time averages of beta<K_i> for Fig. 5's double pendulum at beta = 0.1 .. 10 (the paper's MCMC symbols, from trajectories) |
+| `poincare.csv` | Poincare sections of the unit double pendulum (phi_1 = 0, phidot_1 > 0) at E - E_min = 0.1, 0.2, 1, 2, 3 ({len(poincare_rows)} points) |
 
 Masses are m1 = mu1, m2 = 1 - mu1 (computed in decimal, so M = 1 exactly); in every double-pendulum
 table m1 is mu1.
@@ -117,12 +137,14 @@ table m1 is mu1.
 
 | file | shows |
 |---|---|
-| `fig5_beta_K.png` | beta<K1>, beta<K2> vs beta (log x), mu1 = 0.5, l = 1, 1; dashed: the beta -> 0 limits 0.3431..., 0.6568...; dotted: 1/2 (beta -> infinity) |
+| `fig5_beta_K.png` | beta<K1>, beta<K2> vs beta (log x), mu1 = 0.5, l = 1, 1; dashed: the beta -> 0 limits 0.3431..., 0.6568...; dotted: 1/2 (beta -> infinity); symbols: Langevin trajectories (2-sigma bars) where the paper had MCMC |
 | `fig6_ratio_vs_l2.png` | <K1>/<K2> vs l2 (log x), panels mu1 = 0.05, 0.5, 0.95; colors beta = 1, 2, 5, 10 (blue to red) |
 | `fig7_ratio_vs_beta.png` | <K1>/<K2> vs beta (log x), panels mu1, colors l2 = 0.5, 1, 2; dashed: beta -> 0 limit |
 | `fig8_cos_phi.png` | <cos phi_1>, <cos phi_2> vs beta (log x), mu1 = 0.5, l = 1, 1 |
 | `chains.png` | beta<K_i> vs i for N = 3..8 (error bars: qmc), panels beta = 0.1, 1, 10; dashed: diagonal approximation |
 | `work_precision.png` | work-precision diagram: seconds vs true error (filled) and reported error (open), per case and method |
+| `fig3_4_kinetic_vs_i.png` | the paper's Figs. 3-4: time averages <K_i> (non-uniform) and <K_i^(c)> (uniform) vs i for N = 16 and 7 with 2-sigma bars; lines: exact microcanonical values |
+| `fig9_poincare.png` | the paper's Fig. 9: Poincare sections at E - E_min = 0.1, 0.2, 1 (the paper's E = 0.1, 0.2, 1.0, read as measured from the minimum: its potential's zero is ambiguous), 2 and 3 (E = 0, the paper's start): regular tori at low energy, a chaotic sea from E - E_min ~ 2 (the outer link can go over the top) that fills the section at 3; grey: the energy boundary |
 
 ## Checks (all passed)
 """)
@@ -212,3 +234,34 @@ if resolved_bad:
 else:
     print(f"- reported error + half a unit in the last printed digit + the reference's resolution >= true error on "
           f"all {len(done)} results (no estimate is too optimistic).")
+
+
+# Dynamics summary.
+print("""
+## Dynamics
+
+The paper's runs (`dynamics_paper_runs.csv`, figure `figures/fig3_4_kinetic_vs_i.png`):""")
+for line in paper_head:
+    if line.startswith("# N = "):
+        print(f"- {line[2:]}")
+for n in ("7", "16"):
+    rows = [r for r in paper_rows if r["N"] == n]
+    devs = [abs(float(r["K_deviation_sigmas"])) for r in rows]
+    print(f"- N = {n}: <K_1> = {rows[0]['K']} +- {rows[0]['K_error']} (exact {rows[0]['exact_K']}), "
+          f"<K_{n}> = {rows[-1]['K']} +- {rows[-1]['K_error']} (exact {rows[-1]['exact_K']}); "
+          f"{sum(d <= 3 for d in devs)} of {len(devs)} particles within 3 combined error bars "
+          f"(largest {max(devs):.2f}); <K_i^(c)> = {min(float(r['Kc']) for r in rows):.3f} .. "
+          f"{max(float(r['Kc']) for r in rows):.3f} against <K>_E/N = {float(rows[0]['exact_Kc']):.4f}")
+print("""
+Confirmation (`dynamics_confirmation.csv`): deviation of each time average from the exact value in
+combined error bars.
+
+| run | i | <K_i> (dynamics) | exact | deviation | <K_i^(c)> | exact | deviation |
+|---|---|---|---|---|---|---|---|""")
+for r in confirm_rows:
+    print(f"| {r['run']} | {r['i']} | {r['K']} +- {r['K_error']} | {r['exact_K']} | {r['deviation_sigmas']} | "
+          f"{r['Kc']} +- {r['Kc_error']} | {r['exact_Kc']} | {r['Kc_deviation_sigmas']} |")
+devs5 = [abs(float(r["deviation_sigmas"])) for r in fig5_rows]
+print(f"""
+Fig. 5 symbols (`dynamics_fig5.csv`): {sum(d <= 3 for d in devs5)} of {len(devs5)} Langevin averages within 3
+error bars of the exact curve (largest deviation {max(devs5):.2f}).""")

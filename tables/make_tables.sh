@@ -111,12 +111,16 @@ chain_dir=$(mktemp -d chains.tmp.XXXXXX)
 trap 'rm -rf "$chain_dir"' EXIT
 write_atomically chains.csv chains_table "$chain_dir"
 
+log "dynamics: the paper's runs, confirmation runs, Fig. 5 symbols, Poincare sections"
+"$PYTHON" dynamics_tables.py "$PENDAVG" .
+
 log "speed against error (work precision)"
 write_atomically work_precision.csv "$PYTHON" work_precision.py "$PENDAVG"
 
 log "figures"
 "$PYTHON" figures/plot_figures.py .
 "$PYTHON" figures/plot_work_precision.py .
+"$PYTHON" figures/plot_dynamics.py .
 log "report"
 write_atomically REPORT.md "$PYTHON" make_report.py . "$(echo "$(date +%s.%N) - $start_all" | bc)"
 log "done"

@@ -58,7 +58,7 @@ save_png(fig, FIGURES, "fig3_4_kinetic_vs_i.png")
 # ---------------------------------------------------------------- Fig. 9
 points = read("poincare.csv")
 energies = list(dict.fromkeys(r["E_above_min"] for r in points))
-fig, axes = plt.subplots(1, len(energies), figsize=(4.2 * len(energies), 4.4))
+fig, axes = plt.subplots(1, len(energies), figsize=(3.9 * len(energies), 4.4))
 cmap = plt.get_cmap("tab20")
 for ax, above in zip(axes, energies):
     rows = [r for r in points if r["E_above_min"] == above]
@@ -67,12 +67,14 @@ for ax, above in zip(axes, energies):
         ax.plot([float(r["phi2"]) for r in mine], [float(r["p2"]) for r in mine], ".", ms=1.5,
                 color=cmap(orbit % 20))
     energy = float(rows[0]["energy"])
-    # The boundary of the allowed region on the section: p2^2 = 2 (E + 2 + cos phi2).
-    phi = [-math.pi + 2 * math.pi * k / 400 for k in range(401)]
+    # The boundary of the allowed region on the section: p2^2 = 2 (E + 2 + cos phi2), drawn
+    # only where it exists (cos phi2 >= -(E + 2)).
+    reach = math.pi if energy + 2 >= 1 else math.acos(-(energy + 2))
+    phi = [-reach + 2 * reach * k / 400 for k in range(401)]
     edge = [math.sqrt(max(0.0, 2 * (energy + 2 + math.cos(x)))) for x in phi]
     ax.plot(phi, edge, "-", color="0.5", lw=0.8)
     ax.plot(phi, [-e for e in edge], "-", color="0.5", lw=0.8)
-    ax.set_xlim(-math.pi, math.pi)
+    ax.set_xlim(-min(math.pi, 1.1 * reach), min(math.pi, 1.1 * reach))
     ax.set_xlabel(r"$\varphi_2$ (rad)")
     ax.set_title(f"$E - E_{{min}}$ = {above}  (E = {energy:g})", fontsize=10)
     ax.grid(True, alpha=0.3)

@@ -54,10 +54,19 @@ for key, color, name in (("beta_K2", "tab:red", "2"), ("beta_K1", "tab:blue", "1
     ax.axhline(float(lim[key]), ls="--", lw=1, color=color,
                label=rf"$\beta\to0$: $\beta\langle K_{name}\rangle$ = {float(lim[key]):.10f}")
 ax.axhline(0.5, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1/2")
+# Trajectory symbols (constrained Langevin), where the paper showed MCMC.
+if os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
+    sym = read("dynamics_fig5.csv")
+    for i, color in (("1", "tab:blue"), ("2", "tab:red")):
+        mine = [r for r in sym if r["i"] == i]
+        ax.errorbar(f(mine, "beta"), f(mine, "beta_K"), yerr=[2 * v for v in f(mine, "beta_K_error")],
+                    fmt="o", ms=5, mfc="none", color=color, capsize=3,
+                    label=rf"Langevin trajectory $\beta\overline{{K_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
 ax.set_xlabel(r"inverse temperature $\beta$  ($1/(m g \ell)$ units, $g = 1$)")
 ax.set_ylabel(r"$\beta\langle K_i\rangle$ (dimensionless)")
-ax.set_title(r"Double pendulum, $m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 5, exact)")
+ax.set_title(r"Double pendulum, $m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 5: exact curves, trajectory symbols)",
+             fontsize=9)
 ax.set_ylim(0.3, 0.7)
 ax.legend(fontsize=8, loc="center right")
 ax.grid(True, which="both", alpha=0.3)
