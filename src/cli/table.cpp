@@ -35,26 +35,37 @@
 namespace pendavg::cli {
 
 const std::string_view table_usage =
-    "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g G]\n"
-    "                     [--digits D] [--method auto|integral|series] [--output FILE.csv]\n"
-    "       pendavg table --chain N --beta SPEC [--g G] [--digits D]\n"
-    "                     [--method auto|torus-trapezoid|qmc] [--output FILE.csv]\n"
+    "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g SPEC]\n"
+    "                     [--digits LIST] [--method auto|integral|series] [--output FILE.csv]\n"
+    "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
+    "                     [--method auto|torus-trapezoid|qmc] [--samples S] [--shifts R]\n"
+    "                     [--seed K] [--output FILE.csv]\n"
     "\n"
     "A parameter sweep: one CSV row per combination of the values. SPEC is one of\n"
     "  log:A:B:N   N values log-spaced from A to B (N >= 2; the ends are A and B as written)\n"
     "  lin:A:B:N   N values equally spaced from A to B\n"
     "  list:X,Y,Z  or simply X,Y,Z (or one value X): the values as written\n"
+    "LIST is list:X,Y,Z, X,Y,Z or X (integers, no ranges).\n"
     "Generated values are the shortest decimals that round-trip the double nearest the grid\n"
     "point; every value is then used as that exact decimal (also in MPFR).\n"
+    "--digits LIST (16..1000 each, default 16): significant digits; 16 runs in double, more in\n"
+    "MPFR. --g SPEC: gravity (>= 0, default 1).\n"
     "Double pendulum (default): masses m1 = mu1 and m2 = 1 - mu1 (computed in decimal, exactly;\n"
-    "0 < mu1 < 1), lengths l1 (default 1) and l2 (default 1), gravity G (default 1).\n"
-    "--chain N (3..8): unit masses and lengths, only --beta is swept; --method auto runs\n"
-    "torus-trapezoid for N <= 4 and qmc (2^16 points x 16 shifts, seed 1, double only) beyond.\n"
-    "Rows: the loops nest mu1, l1, l2, beta (outermost first), except that variables given as\n"
-    "log:/lin: ranges are moved innermost, so a range varies fastest.\n"
-    "Columns: beta,g,m1..mN,l1..lN (as for average --cases), beta_K1..N, error_K1..N, ratio,\n"
-    "cos_phi1..N, var_K1..N, [diagonal_approx1..N for --chain], method, evaluations, converged.\n"
-    "The CSV starts with '#' lines naming the sweep, method, digits, version and UTC date.\n"
+    "0 < mu1 < 1), lengths l1 (default 1) and l2 (default 1).\n"
+    "--chain LIST: chains of N unit masses on unit links (3 <= N <= 256); one table may mix N.\n"
+    "--method auto runs torus-trapezoid for N <= 4 and qmc beyond; torus-trapezoid needs a\n"
+    "feasible grid (8^(N-1) <= 1e9, N <= 10); qmc runs in double only, so with --method auto\n"
+    "its N get rows at --digits 16 only (16 must then be listed). qmc: --samples S points per\n"
+    "shift (a power of two, 1024..1048576, default 65536), --shifts R (4..1024, default 16),\n"
+    "--seed K (default 1; every qmc row uses the same shifts); these are refused when no row\n"
+    "runs qmc.\n"
+    "Rows: the loops nest N, digits, mu1, l1, l2, g, beta (outermost first), except that\n"
+    "variables given as log:/lin: ranges are moved innermost, so a range varies fastest.\n"
+    "Columns (M = the largest N): N, digits, beta, g, m1..mM, l1..lM, beta_K1..M, error_K1..M,\n"
+    "ratio, cos_phi1..M, var_K1..M, diagonal_approx1..M, method, evaluations, converged. A row\n"
+    "with N < M leaves its cells for particles N+1..M empty.\n"
+    "The CSV starts with '#' lines naming every swept value, the method (and qmc's samples,\n"
+    "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
     "place (nothing is left behind on error); without --output the CSV goes to stdout.\n"
     "Progress goes to stderr (\"[table] 120/366 points\") when a sweep runs for over 2 s.\n";
@@ -133,61 +144,140 @@ Sweep parse_sweep(std::string_view name, std::string_view spec, Domain domain) {
   return sweep;
 }
 
-/// One row's parameters: beta, g, m1..mN, l1..lN as decimal strings.
-using Point = std::vector<std::string>;
+/// A list of integers in [lowest, highest] ("list:A,B" or "A,B" or "A"): --chain and --digits.
+/// Ranges are refused: N and the digits are chosen, not sampled.
+Sweep parse_integer_sweep(std::string_view name, std::string_view spec, long lowest, long highest) {
+  const std::string what = "--" + std::string(name);
+  Sweep sweep{std::string(name), std::string(spec), {}, false};
+  const auto bad = [&](const std::string& why) {
+    return usage_error(what + ": bad list '" + std::string(spec) + "': " + why);
+  };
+  if (spec.starts_with("log:") || spec.starts_with("lin:"))
+    throw bad("expected integers X,Y,Z (no log:/lin: ranges)");
+  const std::string_view list = spec.starts_with("list:") ? spec.substr(5) : spec;
+  if (list.empty()) throw bad("no values");
+  for (const std::string_view value : split(list, ',')) {
+    if (value.empty()) throw bad("empty value");
+    sweep.values.push_back(std::to_string(parse_integer(value, what, lowest, highest)));
+  }
+  if (static_cast<long>(sweep.values.size()) > max_sweep_points) throw bad("too many values");
+  return sweep;
+}
 
-enum class ChainSolver { torus, qmc };
+/// What computes one row: the double-pendulum engine (N = 2), the torus trapezoid or QMC.
+enum class Solver { pendulum, torus, qmc };
 
+/// --method auto runs the torus trapezoid for chains up to this N (n^(N-1) nodes) and qmc beyond,
+/// as `pendavg average` does.
+constexpr std::size_t auto_torus_max_particles = 4;
+/// The longest chain qmc's built-in lattices cover.
+constexpr long max_chain_particles = static_cast<long>(detail::qmc::lattice_max_dimension);
+
+/// --samples: lattice points per shift, the powers of two of the built-in lattice rows.
+constexpr std::size_t min_samples = std::size_t(1) << detail::qmc::lattice_table_min_log2;
+constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_rows_max_log2;
+constexpr std::size_t default_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
+/// --shifts: independent random shifts of the lattice.
+constexpr long min_shifts = 4, max_shifts = 1024;
+
+/// The sweep's settings that hold for every row.
 struct TablePlan {
+  bool chain = false;                   ///< --chain: unit masses and lengths
+  std::string method = "auto";          ///< as given
+  Engine engine = Engine::automatic;    ///< double pendulum
+  QmcOptions qmc;                       ///< points, shifts, seed (threads = 1)
+  std::vector<std::string> qmc_options; ///< which of --samples, --shifts, --seed were given
+  std::size_t columns_particles = 2;    ///< the largest N: the per-particle columns
+};
+
+Solver solver_for(const TablePlan& plan, std::size_t particles) {
+  if (!plan.chain) return Solver::pendulum;
+  if (plan.method == "torus-trapezoid") return Solver::torus;
+  if (plan.method == "qmc") return Solver::qmc;
+  return particles <= auto_torus_max_particles ? Solver::torus : Solver::qmc;
+}
+
+std::string join_values(const std::vector<std::string>& values) {
+  std::string out;
+  for (const std::string& value : values) out += (out.empty() ? "" : ",") + value;
+  return out;
+}
+
+/// One row's parameters, as decimal strings (used exactly, also in MPFR).
+struct Point {
   std::size_t particles = 2;
   int digits = min_digits;
-  std::string method = "auto";
-  Engine engine = Engine::automatic;    // N = 2
-  ChainSolver solver = ChainSolver::torus;  // chains
+  Solver solver = Solver::pendulum;
+  std::string beta, g;
+  std::vector<std::string> masses, lengths;
+
+  std::string describe() const {
+    const auto join = join_values;
+    return "N = " + std::to_string(particles) + ", digits = " + std::to_string(digits) +
+           ", beta = " + beta + ", g = " + g + ", masses " + join(masses) + ", lengths " +
+           join(lengths);
+  }
 };
+
+/// Appends `values` and then empty cells up to `width` (a row shorter than the largest N).
+void add_padded(std::vector<std::string>& fields, const std::vector<std::string>& values,
+                std::size_t width) {
+  fields.insert(fields.end(), values.begin(), values.end());
+  fields.insert(fields.end(), width - values.size(), std::string());
+}
 
 template <class Real>
 std::string table_row(const Point& point, const TablePlan& plan) {
-  const std::size_t n = plan.particles;
-  const Real beta = parse_real<Real>(point[0], "--beta", Domain::positive);
-  const Real g = parse_real<Real>(point[1], "--g", Domain::nonnegative);
+  const std::size_t n = point.particles;
+  const int digits = point.digits;
+  const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
+  const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
   std::vector<Real> masses, lengths;
-  for (std::size_t i = 0; i < n; ++i)
-    masses.push_back(parse_real<Real>(point[2 + i], "mass", Domain::positive));
-  for (std::size_t i = 0; i < n; ++i)
-    lengths.push_back(parse_real<Real>(point[2 + n + i], "length", Domain::positive));
+  for (const std::string& mass : point.masses)
+    masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
+  for (const std::string& length : point.lengths)
+    lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
   const Chain<Real> chain(std::move(masses), std::move(lengths), g);
 
   Averages<Real> averages;
   std::vector<Real> diagonal;
-  if (n == 2) {
-    averages = pendavg::average(chain, beta, plan.digits, plan.engine);
-  } else if (plan.solver == ChainSolver::torus) {
-    TorusOptions options;
-    options.digits = plan.digits == min_digits ? 0 : plan.digits;
-    options.threads = 1;
-    TorusAverages<Real> r = torus_average_full(chain, beta, options);
-    averages = std::move(r.averages);
-    diagonal = std::move(r.diagonal_approximation);
-  } else {
-    QmcOptions options;
-    options.points = std::size_t(1) << detail::qmc::lattice_table_max_log2;
-    options.threads = 1;
-    QmcAverages<Real> r = qmc_average(chain, beta, options);
-    averages = std::move(r.averages);
-    diagonal = std::move(r.diagonal_approximation);
+  switch (point.solver) {
+    case Solver::pendulum:
+      averages = pendavg::average(chain, beta, digits, plan.engine);
+      diagonal = diagonal_approximation(chain);
+      break;
+    case Solver::torus: {
+      TorusOptions options;
+      options.digits = digits == min_digits ? 0 : digits;
+      options.threads = 1;  // one thread per row: the numbers do not depend on the thread count
+      TorusAverages<Real> r = torus_average_full(chain, beta, options);
+      averages = std::move(r.averages);
+      diagonal = std::move(r.diagonal_approximation);
+      break;
+    }
+    case Solver::qmc: {
+      QmcOptions options = plan.qmc;
+      options.threads = 1;
+      QmcAverages<Real> r = qmc_average(chain, beta, options);
+      averages = std::move(r.averages);
+      diagonal = std::move(r.diagonal_approximation);
+      break;
+    }
   }
-  const AveragesText text = averages_text(averages, plan.digits, &beta);
-  std::vector<std::string> fields(point.begin(), point.end());
-  const auto add = [&](const std::vector<std::string>& values) {
-    fields.insert(fields.end(), values.begin(), values.end());
-  };
-  add(text.beta_kinetic);
-  add(text.error);
+  const AveragesText text = averages_text(averages, digits, &beta);
+  std::vector<std::string> diagonal_text;
+  for (const Real& value : diagonal) diagonal_text.push_back(decimal(value, digits));
+
+  const std::size_t width = plan.columns_particles;
+  std::vector<std::string> fields{std::to_string(n), std::to_string(digits), point.beta, point.g};
+  add_padded(fields, point.masses, width);
+  add_padded(fields, point.lengths, width);
+  add_padded(fields, text.beta_kinetic, width);
+  add_padded(fields, text.error, width);
   fields.push_back(text.ratio);
-  add(text.cos_angle);
-  add(text.variance);
-  for (const Real& value : diagonal) fields.push_back(decimal(value, plan.digits));
+  add_padded(fields, text.cos_angle, width);
+  add_padded(fields, text.variance, width);
+  add_padded(fields, diagonal_text, width);
   fields.push_back(text.method);
   fields.push_back(std::to_string(text.evaluations));
   fields.push_back(text.converged ? "true" : "false");
@@ -196,25 +286,15 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   return out;
 }
 
-/// Evaluates every point on all cores; rows come back in point order. The first failing point
-/// (in point order) is reported.
-template <class Real>
-std::vector<std::string> table_rows(const std::vector<Point>& points, const TablePlan& plan) {
-  const std::size_t count = points.size();
-  std::vector<std::string> rows(count);
-  std::vector<std::exception_ptr> errors(count);
+/// "[table] k/count points" on stderr, at most every 2 s, once the sweep has run for 2 s.
+struct Progress {
+  std::size_t count = 0;
   std::atomic<std::size_t> done{0};
-  const auto start = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   double last_report = 0;
   bool reported = false;
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long i = 0; i < static_cast<long>(count); ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    try {
-      rows[k] = table_row<Real>(points[k], plan);
-    } catch (...) {
-      errors[k] = std::current_exception();
-    }
+
+  void finished_one() {
     const std::size_t finished = ++done;
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -225,17 +305,84 @@ std::vector<std::string> table_rows(const std::vector<Point>& points, const Tabl
       reported = true;
     }
   }
+};
+
+/// Evaluates the points `indices` (all of one digits value, so one MPFR precision, which is
+/// process-wide) on all cores, one thread per point; each row lands in its slot of `rows`.
+template <class Real>
+void table_rows(const std::vector<Point>& points, const std::vector<std::size_t>& indices,
+                const TablePlan& plan, std::vector<std::string>& rows,
+                std::vector<std::exception_ptr>& errors, Progress& progress) {
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long i = 0; i < static_cast<long>(indices.size()); ++i) {
+    const std::size_t k = indices[static_cast<std::size_t>(i)];
+    try {
+      rows[k] = table_row<Real>(points[k], plan);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+    progress.finished_one();
+  }
+}
+
+/// The rows of every point, in point order. Points are grouped by digits (ascending); each
+/// group runs in parallel under its own working precision. The first failing point (in point
+/// order) is reported.
+std::vector<std::string> compute_rows(const std::vector<Point>& points, const TablePlan& plan) {
+  const std::size_t count = points.size();
+  std::vector<std::string> rows(count);
+  std::vector<std::exception_ptr> errors(count);
+  Progress progress;
+  progress.count = count;
+  std::vector<int> digit_groups;
+  for (const Point& point : points) digit_groups.push_back(point.digits);
+  std::ranges::sort(digit_groups);
+  digit_groups.erase(std::unique(digit_groups.begin(), digit_groups.end()), digit_groups.end());
+  for (const int digits : digit_groups) {
+    std::vector<std::size_t> indices;
+    for (std::size_t k = 0; k < count; ++k)
+      if (points[k].digits == digits) indices.push_back(k);
+    if (digits == min_digits) {
+      table_rows<double>(points, indices, plan, rows, errors, progress);
+    } else {
+      const working_precision guard(digits + guard_digits);
+      table_rows<mpfr_real>(points, indices, plan, rows, errors, progress);
+    }
+  }
   for (std::size_t k = 0; k < count; ++k) {
     if (!errors[k]) continue;
     try {
       std::rethrow_exception(errors[k]);
     } catch (const invalid_input& bad) {
-      std::string where;
-      for (std::size_t j = 0; j < points[k].size(); ++j) where += (j ? "," : "") + points[k][j];
-      throw usage_error("table: point (" + where + "): " + bad.what());
+      throw usage_error("table: point (" + points[k].describe() + "): " + bad.what());
     }
   }
   return rows;
+}
+
+/// --samples, --shifts, --seed, validated as by `pendavg average`.
+void parse_qmc_options(const Options& options, TablePlan& plan) {
+  plan.qmc.points = default_samples;
+  if (options.has("samples")) {
+    const std::string_view text = options.required("samples");
+    plan.qmc.points = static_cast<std::size_t>(parse_integer(
+        text, "--samples", static_cast<long>(min_samples), static_cast<long>(max_samples)));
+    if ((plan.qmc.points & (plan.qmc.points - 1)) != 0)
+      throw usage_error("--samples: '" + std::string(text) + "' is not a power of two (" +
+                        std::to_string(min_samples) + ", " + std::to_string(2 * min_samples) +
+                        ", ..., " + std::to_string(max_samples) + ")");
+    plan.qmc_options.push_back("samples");
+  }
+  if (options.has("shifts")) {
+    plan.qmc.shifts = static_cast<std::size_t>(
+        parse_integer(options.required("shifts"), "--shifts", min_shifts, max_shifts));
+    plan.qmc_options.push_back("shifts");
+  }
+  if (options.has("seed")) {
+    plan.qmc.seed = parse_unsigned(options.required("seed"), "--seed");
+    plan.qmc_options.push_back("seed");
+  }
+  plan.qmc.threads = 1;
 }
 
 std::string utc_now() {
@@ -294,48 +441,90 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
 
 std::string table_command(const Options& options) {
   TablePlan plan;
-  plan.digits = parse_digits(options.get("digits", "16"));
-  const bool chain = options.has("chain");
-  if (chain) {
-    plan.particles = static_cast<std::size_t>(parse_integer(options.required("chain"), "--chain", 3, 8));
+  plan.chain = options.has("chain");
+  parse_qmc_options(options, plan);
+
+  // Swept variables in their default nesting (outermost first); ranges are moved innermost.
+  std::vector<Sweep> sweeps;
+  if (plan.chain) {
     for (const std::string_view single : {"mu1", "l1", "l2"})
       if (options.has(single))
         throw usage_error("table: --chain has unit masses and lengths; --" +
                           std::string(single) + " is for the double pendulum");
     constexpr std::array<std::string_view, 3> methods{"auto", "torus-trapezoid", "qmc"};
     plan.method = std::string(methods[parse_choice(options.get("method", "auto"), "method", methods)]);
-    plan.solver = plan.method == "qmc" || (plan.method == "auto" && plan.particles > 4)
-                      ? ChainSolver::qmc
-                      : ChainSolver::torus;
-    if (plan.solver == ChainSolver::qmc && plan.digits != min_digits)
-      throw usage_error("table: --digits " + std::to_string(plan.digits) +
-                        " is not available with qmc (double only; N = " +
-                        std::to_string(plan.particles) + " with --method auto runs qmc)");
+    sweeps.push_back(parse_integer_sweep("chain", options.required("chain"), 3, max_chain_particles));
   } else {
     constexpr std::array<std::string_view, 3> methods{"auto", "integral", "series"};
     const std::size_t m = parse_choice(options.get("method", "auto"), "method", methods);
     plan.method = std::string(methods[m]);
     plan.engine = m == 0 ? Engine::automatic : m == 1 ? Engine::integral : Engine::series;
   }
-  const std::string g(options.get("g", "1"));
-  parse_real<double>(g, "--g", Domain::nonnegative);
-
-  // Swept variables in their default nesting (outermost first); ranges are moved innermost.
-  std::vector<Sweep> sweeps;
-  if (!chain) {
+  sweeps.push_back(parse_integer_sweep("digits", options.get("digits", "16"), min_digits, max_digits));
+  if (!plan.chain) {
     sweeps.push_back(parse_sweep("mu1", options.get("mu1", "0.5"), Domain::positive));
     for (const std::string& mu1 : sweeps.back().values) one_minus_decimal(mu1, "--mu1");
     sweeps.push_back(parse_sweep("l1", options.get("l1", "1"), Domain::positive));
     sweeps.push_back(parse_sweep("l2", options.get("l2", "1"), Domain::positive));
   }
+  sweeps.push_back(parse_sweep("g", options.get("g", "1"), Domain::nonnegative));
   sweeps.push_back(parse_sweep("beta", options.required("beta"), Domain::positive));
   std::ranges::stable_partition(sweeps, [](const Sweep& s) { return !s.range; });
-  std::size_t count = 1;
+  std::size_t combinations = 1;
   for (const Sweep& s : sweeps) {
-    count *= s.values.size();
-    if (count > static_cast<std::size_t>(max_sweep_points))
+    combinations *= s.values.size();
+    if (combinations > static_cast<std::size_t>(max_sweep_points))
       throw usage_error("table: more than " + std::to_string(max_sweep_points) + " points");
   }
+  const auto sweep_named = [&](std::string_view name) -> const Sweep* {
+    const auto found = std::ranges::find(sweeps, name, &Sweep::name);
+    return found == sweeps.end() ? nullptr : &*found;
+  };
+
+  // Which solver runs each N; which N and digits pair up (qmc is double only).
+  std::vector<std::size_t> particle_values{2};
+  if (plan.chain) {
+    particle_values.clear();
+    for (const std::string& n : sweep_named("chain")->values)
+      particle_values.push_back(std::stoul(n));
+  }
+  plan.columns_particles = std::ranges::max(particle_values);
+  std::vector<std::string> torus_n, qmc_n;  // as listed, for messages and the header
+  for (const std::size_t n : particle_values) {
+    const Solver solver = solver_for(plan, n);
+    if (solver == Solver::torus) {
+      const TorusOptions torus;
+      const double nodes = std::pow(static_cast<double>(torus.min_points_per_dim),
+                                    static_cast<double>(n - 1));
+      if (nodes > torus.max_grid_points)
+        throw usage_error("table: N = " + std::to_string(n) + " is too long for a torus grid (" +
+                          std::to_string(torus.min_points_per_dim) + "^" +
+                          std::to_string(n - 1) + " = " + decimal(nodes, 2) +
+                          " nodes at the first level, over the cap of " +
+                          decimal(torus.max_grid_points, 1) + "); use --method qmc or auto");
+    }
+    std::vector<std::string>& names = solver == Solver::qmc ? qmc_n : torus_n;
+    if (solver != Solver::pendulum && std::ranges::find(names, std::to_string(n)) == names.end())
+      names.push_back(std::to_string(n));
+  }
+  const std::string chosen =
+      !plan.chain ? "the double-pendulum engines (--method " + plan.method + ")"
+      : plan.method != "auto"
+          ? "--method " + plan.method
+          : "--method auto, which runs torus-trapezoid for N = " + join_values(torus_n);
+  if (qmc_n.empty())
+    for (const std::string& option : plan.qmc_options)
+      throw usage_error("table: --" + option + " is used by qmc only, not by " + chosen);
+  const std::vector<std::string>& digit_values = sweep_named("digits")->values;
+  for (const std::string& digits : digit_values) {
+    if (digits == std::to_string(min_digits) || !torus_n.empty() || !plan.chain) continue;
+    throw usage_error("table: --digits " + digits + " is not available with qmc (double only; N = " +
+                      join_values(qmc_n) + (plan.method == "auto" ? " with --method auto" : "") +
+                      " runs qmc)");
+  }
+  if (!qmc_n.empty() && std::ranges::find(digit_values, std::to_string(min_digits)) == digit_values.end())
+    throw usage_error("table: N = " + join_values(qmc_n) + " runs qmc, which is double only, but "
+                      "--digits has no 16");
 
   const std::string output(options.get("output", ""));
   if (options.has("output")) {
@@ -343,27 +532,34 @@ std::string table_command(const Options& options) {
     probe_output(output, "table");
   }
 
-  // Points in row order: the last sweep varies fastest.
-  const std::size_t n = plan.particles;
+  // Points in row order: the last sweep varies fastest. A qmc N skips its MPFR digits.
   std::vector<Point> points;
-  points.reserve(count);
+  points.reserve(combinations);
   std::vector<std::size_t> index(sweeps.size(), 0);
-  for (std::size_t k = 0; k < count; ++k) {
-    std::string beta, mu1 = "1", l1 = "1", l2 = "1";
+  for (std::size_t k = 0; k < combinations; ++k) {
+    Point point;
+    std::string mu1 = "0.5", l1 = "1", l2 = "1";
     for (std::size_t s = 0; s < sweeps.size(); ++s) {
       const std::string& value = sweeps[s].values[index[s]];
-      if (sweeps[s].name == "beta") beta = value;
-      else if (sweeps[s].name == "mu1") mu1 = value;
-      else if (sweeps[s].name == "l1") l1 = value;
+      const std::string& name = sweeps[s].name;
+      if (name == "beta") point.beta = value;
+      else if (name == "g") point.g = value;
+      else if (name == "chain") point.particles = std::stoul(value);
+      else if (name == "digits") point.digits = std::stoi(value);
+      else if (name == "mu1") mu1 = value;
+      else if (name == "l1") l1 = value;
       else l2 = value;
     }
-    Point point{beta, g};
-    if (chain) {
-      point.insert(point.end(), 2 * n, "1");
+    point.solver = solver_for(plan, point.particles);
+    if (plan.chain) {
+      point.masses.assign(point.particles, "1");
+      point.lengths.assign(point.particles, "1");
     } else {
-      point.insert(point.end(), {mu1, one_minus_decimal(mu1, "--mu1"), l1, l2});
+      point.masses = {mu1, one_minus_decimal(mu1, "--mu1")};
+      point.lengths = {l1, l2};
     }
-    points.push_back(std::move(point));
+    if (point.solver != Solver::qmc || point.digits == min_digits)
+      points.push_back(std::move(point));
     for (std::size_t s = sweeps.size(); s-- > 0;) {
       if (++index[s] < sweeps[s].values.size()) break;
       index[s] = 0;
@@ -371,51 +567,61 @@ std::string table_command(const Options& options) {
   }
 
   std::string out;
-  if (chain) {
-    out += "# pendavg table: chain of N = " + std::to_string(n) +
+  if (plan.chain) {
+    out += "# pendavg table: chains of N = " + sweep_named("chain")->spec +
            " unit masses on unit links (m_i = l_i = 1)\n";
   } else {
     out += "# pendavg table: double pendulum (N = 2), m1 = mu1, m2 = 1 - mu1 (exact decimals), "
            "M = 1\n";
   }
   for (const Sweep& s : sweeps)
-    out += "# " + s.name + " = " + s.spec + " (" + std::to_string(s.values.size()) +
-           (s.values.size() == 1 ? " value)\n" : " values)\n");
-  out += "# g = " + g + "\n";
+    out += "# " + (s.name == "chain" ? std::string("N") : s.name) + " = " + s.spec + " (" +
+           std::to_string(s.values.size()) + (s.values.size() == 1 ? " value)\n" : " values)\n");
   std::string nesting;
-  for (const Sweep& s : sweeps) nesting += (nesting.empty() ? "" : ", ") + s.name;
-  out += "# rows = " + std::to_string(count) + ", nested " + nesting +
-         " (outermost first; the last varies fastest)\n";
-  out += "# method = " + plan.method +
-         (chain ? (plan.solver == ChainSolver::qmc
-                       ? " (qmc: 65536 points x 16 shifts, seed 1, 3-sigma error bars)"
-                       : " (torus-trapezoid, tolerance 1e-13)")
-                : "") +
-         ", digits = " + std::to_string(plan.digits) + "\n";
+  for (const Sweep& s : sweeps)
+    nesting += (nesting.empty() ? "" : ", ") + (s.name == "chain" ? std::string("N") : s.name);
+  out += "# rows = " + std::to_string(points.size()) + ", nested " + nesting +
+         " (outermost first; the last varies fastest)";
+  if (points.size() < combinations)
+    out += "; qmc is double only, so N = " + join_values(qmc_n) + " has rows at digits = 16 only";
+  out += "\n# method = " + plan.method;
+  if (plan.chain) {
+    const std::string torus = "torus-trapezoid (tolerance " + shortest(TorusOptions{}.tolerance) +
+                              " in double, 1e-D at D > 16 digits)";
+    if (plan.method == "auto")
+      out += ": " + torus + " for N <= " + std::to_string(auto_torus_max_particles) +
+             ", qmc for N > " + std::to_string(auto_torus_max_particles);
+    else if (plan.method == "torus-trapezoid")
+      out += ": " + torus;
+    out += "\n";
+    if (!qmc_n.empty())
+      out += "# qmc (N = " + join_values(qmc_n) + "): " + std::to_string(plan.qmc.points) +
+             " points x " + std::to_string(plan.qmc.shifts) + " shifts, seed " +
+             std::to_string(plan.qmc.seed) +
+             " (the same shifts for every row), double only, 3-sigma error bars\n";
+  } else {
+    out += " (the double-pendulum engines)\n";
+  }
+  if (plan.columns_particles > 1 && particle_values.size() > 1 &&
+      std::ranges::min(particle_values) < plan.columns_particles)
+    out += "# per-particle columns run to N = " + std::to_string(plan.columns_particles) +
+           "; a row of a shorter chain leaves the cells beyond its N empty\n";
   out += "# pendavg " PENDAVG_VERSION ", generated " + utc_now() + " (UTC)\n";
-  std::vector<std::string> header = case_columns(n);
+  std::vector<std::string> header{"N", "digits"};
+  const std::vector<std::string> cases = case_columns(plan.columns_particles);
+  header.insert(header.end(), cases.begin(), cases.end());
   for (const std::string_view stem :
        {std::string_view("beta_K"), std::string_view("error_K"), std::string_view(""),
         std::string_view("cos_phi"), std::string_view("var_K"),
         std::string_view("diagonal_approx")}) {
     if (stem.empty()) { header.push_back("ratio"); continue; }
-    if (stem == "diagonal_approx" && !chain) continue;
-    const auto names = indexed_names(stem, n);
+    const auto names = indexed_names(stem, plan.columns_particles);
     header.insert(header.end(), names.begin(), names.end());
   }
   header.insert(header.end(), {"method", "evaluations", "converged"});
   append_csv_line(out, header);
 
-  const auto compute = [&]<class Real>() {
-    for (const std::string& row : table_rows<Real>(points, plan)) out += row;
-    return std::string();
-  };
-  if (plan.digits == min_digits) {
-    compute.template operator()<double>();
-  } else {
-    const working_precision guard(plan.digits + guard_digits);
-    compute.template operator()<mpfr_real>();
-  }
+  for (const std::string& row : compute_rows(points, plan)) out += row;
   if (output.empty()) return out;
   write_atomically(output, out, "table");
   return {};

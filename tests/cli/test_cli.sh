@@ -319,7 +319,7 @@ good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,method,evaluations,converged'
+table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged'
 check_table() {
   "$python" -c '
 import csv, sys
@@ -346,13 +346,13 @@ good "table sweep to stdout"  'check_table "$work/out"' \
 good "table sweep to file"    '[ ! -s "$work/out" ] && check_table "$work/table.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
   table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 --output "$work/table.csv"
 good "table l2 range innermost" \
-  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f1,6 | tr "\n" " ")" = "1,0.1 1,1 1,10 2,0.1 2,1 2,10 " ]' \
+  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f3,8 | tr "\n" " ")" = "1,0.1 1,1 1,10 2,0.1 2,1 2,10 " ]' \
   table --beta 1,2 --l2 log:0.1:10:3
 good "table same with 1 thread" \
   'OMP_NUM_THREADS=1 "$pendavg" table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 | grep -v generated >"$work/t1" &&
    grep -v generated "$work/out" | cmp -s - "$work/t1"' \
   table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2
-good "table digits 30"        '[ "$(grep -v "^#" "$work/out" | sed -n 2p | cut -d, -f7 | wc -c)" -eq 36 ]' \
+good "table digits 30"        '[ "$(grep -v "^#" "$work/out" | sed -n 2p | cut -d, -f9 | wc -c)" -eq 36 ]' \
   table --beta 1 --mu1 1e-4 --digits 30
 good "table chain 3"          '[ "$(grep -v "^#" "$work/out" | wc -l)" -eq 3 ] && grep -q "diagonal_approx3" "$work/out"' \
   table --chain 3 --beta 0.1,1
@@ -376,12 +376,177 @@ bad "table malformed value"   table --beta 1,two
 bad "table mu1 = 1"           table --beta 1 --mu1 1
 bad "table mu1 > 1"           table --beta 1 --mu1 0.5,1.5
 bad "table mu1 = 0"           table --beta 1 --mu1 0
-bad "table chain too long"    table --chain 9 --beta 1
+bad "table chain too long"    table --chain 257 --beta 1
 bad "table chain with l2"     table --chain 3 --beta 1 --l2 2
 bad "table chain series"      table --chain 3 --beta 1 --method series
 bad "table chain qmc digits"  table --chain 5 --beta 1 --digits 20
 bad "table unknown option"    table --beta 1 --masses 1,1
 good "table --help"           'grep -q "usage" "$work/out"' table --help
+
+# table: lists of N, digits and g (issue 5). check_mixed_table FILE: a table of chains N = 3 and
+# 5 at digits 16 and 20 (N = 5 runs qmc: digits 16 only) and g = 1, 2, with the mixed-N layout.
+check_mixed_table() {
+  "$python" - "$1" <<'PY'
+import csv, sys
+from decimal import Decimal as D
+lines = open(sys.argv[1]).read().splitlines()
+comments = [l for l in lines if l.startswith("#")]
+text = "\n".join(comments)
+for needle in ("N = 3,5 (2 values)", "digits = 16,20 (2 values)", "g = 1,2 (2 values)",
+               "beta = 0.5 (1 value)", "rows = 6, nested N, digits, g, beta",
+               "N = 5 has rows at digits = 16 only", "method = auto: torus-trapezoid",
+               "qmc (N = 5): 1024 points x 4 shifts, seed 1", "cells beyond its N empty", "UTC"):
+    assert needle in text, needle
+data = [l for l in lines if not l.startswith("#")]
+header = data[0].split(",")
+per = lambda stem: [f"{stem}{i}" for i in range(1, 6)]
+expected = (["N", "digits", "beta", "g"] + per("m") + per("l") + per("beta_K") + per("error_K") +
+            ["ratio"] + per("cos_phi") + per("var_K") + per("diagonal_approx") +
+            ["method", "evaluations", "converged"])
+assert header == expected, header
+assert all(len(l.split(",")) == len(header) for l in data), "ragged rows"
+rows = list(csv.DictReader(data))
+assert [(r["N"], r["digits"], r["g"]) for r in rows] == [
+    ("3", "16", "1"), ("3", "16", "2"), ("3", "20", "1"), ("3", "20", "2"),
+    ("5", "16", "1"), ("5", "16", "2")], [(r["N"], r["digits"], r["g"]) for r in rows]
+for r in rows:
+    n = int(r["N"])
+    assert r["method"] == ("torus-trapezoid" if n == 3 else "qmc") and r["converged"] == "true", r
+    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx"):
+        cells = [r[f"{stem}{i}"] for i in range(1, 6)]
+        assert all(cells[:n]) and not any(cells[n:]), (stem, cells)
+    # beta<K_i> has as many significant digits as the row's digits; equipartition sum = N/2.
+    assert len(r["beta_K1"].split("e")[0].replace(".", "")) == int(r["digits"]), r["beta_K1"]
+    total = sum(D(r[f"beta_K{i}"]) for i in range(1, n + 1))
+    bound = sum(D(r[f"error_K{i}"]) for i in range(1, n + 1))
+    assert abs(total - D(n) / 2) <= bound, (total, bound)
+# The 20-digit rows agree with the 16-digit rows within the 16-digit error bars.
+for lo, hi in ((rows[0], rows[2]), (rows[1], rows[3])):
+    for i in range(1, 4):
+        assert abs(D(lo[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(lo[f"error_K{i}"]) + D(hi[f"error_K{i}"]), i
+        assert D(hi[f"error_K{i}"]) < D("1e-18"), hi[f"error_K{i}"]
+PY
+}
+mixed_table=(table --chain 3,5 --beta 0.5 --g 1,2 --digits 16,20 --samples 1024 --shifts 4)
+good "table lists of N, digits, g"   'check_mixed_table "$work/out"' "${mixed_table[@]}"
+good "table mixed N to file"         '[ ! -s "$work/out" ] && check_mixed_table "$work/mixed.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
+  "${mixed_table[@]}" --output "$work/mixed.csv"
+good "table mixed N with 1 thread" \
+  'OMP_NUM_THREADS=1 "$pendavg" "${mixed_table[@]}" | grep -v generated >"$work/t1" &&
+   grep -v generated "$work/out" | cmp -s - "$work/t1"' "${mixed_table[@]}"
+
+# beta<K_i>, <cos phi_i>, <K1>/<K2> and beta^2 Var K_i depend on beta and g only through beta g
+# (fixed masses and lengths; MATH.md): the row beta = 2, g = 1 equals the row beta = 1, g = 2 to
+# a few units of the last digit, in double and at 30 digits. g = 0 is the beta -> 0 limit at
+# every beta.
+check_beta_g() { # FILE
+  "$python" - "$1" <<'PY'
+import csv, sys
+from decimal import Decimal as D, getcontext
+getcontext().prec = 50
+lines = open(sys.argv[1]).read().splitlines()
+assert any(l.startswith("# g = 0,1,2 (3 values)") for l in lines)
+rows = list(csv.DictReader(l for l in lines if not l.startswith("#")))
+assert len(rows) == 2 * 3 * 2 and {r["N"] for r in rows} == {"2"}, len(rows)
+at = {(r["digits"], r["g"], r["beta"]): r for r in rows}
+for digits, tol in (("16", D("1e-14")), ("30", D("1e-29"))):
+    a, b = at[(digits, "1", "2")], at[(digits, "2", "1")]
+    for key in ("beta_K1", "beta_K2", "cos_phi1", "cos_phi2", "ratio"):
+        assert abs(D(a[key]) - D(b[key])) <= tol, (digits, key, a[key], b[key])
+    for i in (1, 2):  # beta^2 Var K_i
+        va, vb = 4 * D(a[f"var_K{i}"]), D(b[f"var_K{i}"])
+        assert abs(va - vb) <= tol * abs(vb), (digits, i, va, vb)
+    z1, z2 = at[(digits, "0", "1")], at[(digits, "0", "2")]
+    for key in ("beta_K1", "beta_K2", "cos_phi1", "ratio"):
+        assert abs(D(z1[key]) - D(z2[key])) <= tol, (digits, key, z1[key], z2[key])
+    # Colder (larger beta g) moves the kinetic energy towards the low-temperature split.
+    assert D(at[(digits, "1", "1")]["beta_K1"]) != D(a["beta_K1"])
+# digits-30 values agree with the double ones within the double error bars.
+for key, r in at.items():
+    if key[0] == "16":
+        hi = at[("30",) + key[1:]]
+        for i in (1, 2):
+            assert abs(D(r[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(r[f"error_K{i}"]), (key, i)
+PY
+}
+good "table beta g scaling"          'check_beta_g "$work/out"' \
+  table --beta 1,2 --g 0,1,2 --digits 16,30 --mu1 0.3 --l1 1.5 --l2 0.7
+check_chain_beta_g() { # FILE: chain N = 3 by the torus, beta = 2, g = 1 vs beta = 1, g = 2
+  "$python" - "$1" <<'PY'
+import csv, sys
+rows = list(csv.DictReader(l for l in open(sys.argv[1]) if not l.startswith("#")))
+at = {(r["g"], r["beta"]): r for r in rows}
+a, b = at[("1", "2")], at[("2", "1")]
+for i in (1, 2, 3):
+    err = float(a[f"error_K{i}"]) + float(b[f"error_K{i}"])
+    assert abs(float(a[f"beta_K{i}"]) - float(b[f"beta_K{i}"])) <= err, i
+    assert abs(float(a[f"cos_phi{i}"]) - float(b[f"cos_phi{i}"])) <= 1e-12, i
+PY
+}
+good "table chain beta g scaling"    'check_chain_beta_g "$work/out"' \
+  table --chain 3 --beta 1,2 --g 1,2
+good "table g range innermost" \
+  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f3,4 | tr "\n" " ")" = "1,0 1,0.5 1,1 2,0 2,0.5 2,1 " ]' \
+  table --beta 1,2 --g lin:0:1:3
+good "table single N, no empty cells" \
+  '! grep -v "^#" "$work/out" | grep -q ",," && ! grep -q "cells beyond" "$work/out" &&
+   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K")" -eq 3 ]' \
+  table --chain 3 --beta 1
+# qmc options are recorded and used: the table's row is the row of `average` with the same
+# options (qmc's numbers do not depend on the thread count).
+good "table qmc options" \
+  'grep -q "^# qmc (N = 5): 2048 points x 8 shifts, seed 42" "$work/out" &&
+   [ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15-19,41-42)" = \
+     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --method qmc --samples 2048 --shifts 8 --seed 42 --format csv | sed 1d | cut -d, -f5-9),qmc,16384" ]' \
+  table --chain 5 --method qmc --beta 1 --samples 2048 --shifts 8 --seed 42
+good "table qmc seed changes values" \
+  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15)" != \
+     "$("$pendavg" table --chain 5 --beta 1 --samples 1024 --shifts 4 --seed 2 | grep -v "^#" | sed 1d | cut -d, -f15)" ]' \
+  table --chain 5 --beta 1 --samples 1024 --shifts 4 --seed 1
+
+# bad_table NAME ARGS...: bad input with --output: exit 2, one line, and no file left behind.
+bad_table() {
+  local name=$1
+  shift
+  bad "$name" table "$@" --output "$work/never.csv"
+  [ -z "$(ls "$work" | grep never)" ] || fail "$name: left a file"
+}
+bad_table "table negative g"         --beta 1 --g -1
+bad_table "table negative g in list" --chain 3 --beta 1 --g 1,-0.5
+bad_table "table negative g range"   --beta 1 --g lin:-1:1:3
+bad_table "table g log from 0"       --beta 1 --g log:0:1:3
+bad_table "table malformed g"        --beta 1 --g 1,two
+bad_table "table empty g element"    --beta 1 --g 1,,2
+bad_table "table chain 300"          --chain 300 --beta 1
+bad_table "table chain 257"          --chain 3,257 --beta 1
+bad_table "table chain 2"            --chain 2,3 --beta 1
+bad_table "table chain 0"            --chain 0 --beta 1
+bad_table "table chain not integer"  --chain 3,4.5 --beta 1
+bad_table "table chain range"        --chain lin:3:5:3 --beta 1
+bad_table "table chain empty list"   --chain list: --beta 1
+bad_table "table chain empty elem"   --chain 3,,4 --beta 1
+bad_table "table chain torus N = 11" --chain 3,11 --method torus-trapezoid --beta 1
+bad_table "table digits 15"          --beta 1 --digits 15,16
+bad_table "table digits 1001"        --beta 1 --digits 16,1001
+bad_table "table digits malformed"   --beta 1 --digits 16,x
+bad_table "table digits empty elem"  --beta 1 --digits 16,
+bad_table "table digits range"       --beta 1 --digits lin:16:32:3
+bad_table "table qmc digits only"    --chain 5,8 --beta 1 --digits 16,30
+bad_table "table qmc N without 16"   --chain 3,5 --beta 1 --digits 20
+bad_table "table qmc method digits"  --chain 3 --method qmc --beta 1 --digits 16,20
+bad_table "table samples not pow2"   --chain 5 --beta 1 --samples 3000
+bad_table "table samples too few"    --chain 5 --beta 1 --samples 512
+bad_table "table samples too many"   --chain 5 --beta 1 --samples 2097152
+bad_table "table shifts too few"     --chain 5 --beta 1 --shifts 3
+bad_table "table seed negative"      --chain 5 --beta 1 --seed -1
+bad_table "table samples with torus" --chain 3 --method torus-trapezoid --beta 1 --samples 1024
+bad_table "table shifts, auto torus" --chain 3,4 --beta 1 --shifts 8
+bad_table "table seed, pendulum"     --beta 1 --seed 2
+bad_table "table samples, series"    --beta 1 --method series --samples 1024
+bad "table mixed unwritable"         table --chain 3,5 --beta 1 --samples 1024 --output "$work/plain_file/t.csv"
+bad "table mixed missing dir"        table --chain 3,5 --beta 1 --output "$work/no/such/dir/t.csv"
+bad "table g sweep bad point"        table --beta 1 --g 1,2 --l2 0 --output "$work/bad.csv"
+[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep 'bad.csv')" ] && pass || fail "table g sweep bad point left a file"
 
 # ---------------------------------------------------------------- simulate and poincare
 check_simulate_json() { # ENSEMBLE N
