@@ -45,7 +45,7 @@ constexpr std::string_view general_usage =
     "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
-    "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] ... [--chain N] [--output FILE.csv]\n"
+    "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] [--g SPEC] ... [--chain LIST] [--digits LIST] [--output FILE.csv]\n"
     "  pendavg simulate --masses ... --lengths ... (--theta A | --phi ...) --time T [options]\n"
     "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
