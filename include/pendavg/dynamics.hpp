@@ -164,7 +164,7 @@ class DynamicsWorkspace {
   }
 
   // Buffers (internal).
-  std::vector<Real> inv_mass, joint_compliance, inv_length_squared, half_length_squared, link,
+  std::vector<Real> inv_mass, joint_compliance, length, inv_length_squared, half_length_squared, link,
       trial_link, trial, multiplier, multiplier_estimate, residual, sub, rhs, pivot;
   /// Kick time since the last position or velocity stage (its constraint impulse is pending).
   Real pending_kick_time{0};
