@@ -47,8 +47,16 @@
 // if the motion is ergodic there; regular islands (see the Poincare section) make time
 // averages differ from ensemble averages. With g = 0 the angular momentum is conserved too.
 //
-// Accuracy (tests/test_dynamics.cpp, tests/bench/bench_dynamics.cpp): constraint residuals
-// ~1e-15 relative; energy error of the fourth-order composition ~C h^4, bounded, no drift.
+// Accuracy (tests/test_dynamics.cpp, tests/bench/bench_dynamics.cpp, tables/dynamics_*.csv).
+// Constraint residuals stay at rounding level (<= 2e-15 relative over 1e7 steps). The observed
+// orders are 2, 4, 4, 6 (rattle2, yoshida4, suzuki4, kahan_li6). The paper's N = 16 run (unit
+// chain from phi_i = pi/2, E = 0, dt = 1e-3, T = 1e4): max |E(t) - E(0)| / ((sum m) g (sum l))
+// = 2.8e-7 with yoshida4 (rms 1.4e-9, drift 3e-10: bounded, no secular growth; the maxima
+// come from the fast whips of the free end), 1.1e-8 with suzuki4 (1.5x the cost), 1.5e-11
+// with kahan_li6 (2.5x the cost). Time averages of N = 2, 3 (NVE and Langevin) and of the
+// paper's N = 7, 16 runs agree with the exact values within ~2 combined error bars. Cost
+// ~0.9 us per yoshida4 step at N = 16 and linear in N (~50-60 ns per particle per step); about
+// one Newton solve per position stage.
 //
 // Generic over Real (double and long double are instantiated in src/dynamics.cpp). The model
 // (Chain) is kept apart from the state (ChainState) and the workspace (DynamicsWorkspace). The
