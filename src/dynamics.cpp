@@ -443,11 +443,13 @@ DynamicsWorkspace<Real>::DynamicsWorkspace(const Chain<Real>& chain) : n_(chain.
   inv_length_squared.resize(n_);
   half_length_squared.resize(n_);
   length.resize(n_);
+  inv_length.resize(n_);
   for (std::size_t i = 0; i < n_; ++i) {
     inv_mass[i] = Real(1) / chain.mass(i);
     joint_compliance[i] = inv_mass[i] + (i > 0 ? inv_mass[i - 1] : Real(0));
     const Real l = chain.length(i);
     length[i] = l;
+    inv_length[i] = Real(1) / l;
     inv_length_squared[i] = Real(1) / (l * l);
     half_length_squared[i] = l * l / 2;
   }
@@ -621,7 +623,8 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
   };
 
   // Observables per sample: K_i (n), K_i^(c) (n), K, U, E.
-  const std::size_t width = 2 * n + 3;
+  // Observables per sample: K_i (n), K_i^(c) (n), cos phi_i (n), K, U, E.
+  const std::size_t width = 3 * n + 3;
   // Finest blocks: as short as max_blocks allows for the planned samples (>= block_samples).
   const std::size_t block_length =
       std::max(options.block_samples, (steps + options.max_blocks - 1) / options.max_blocks);
@@ -654,6 +657,7 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
       const Real k = (p[2 * i] * vx + p[2 * i + 1] * vy) / 2;
       sample[i] = k;
       sample[n + i] = p_phi * phidot / 2;
+      sample[2 * n + i] = -ry * ws.inv_length[i];  // cos phi_i
       kinetic += k;
       height += chain.mass(i) * x[2 * i + 1];
       xprev = x[2 * i];
@@ -669,9 +673,9 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
       energy_error_squares += e * e;
     }
     if (step > burn_steps) {
-      sample[2 * n] = kinetic;
-      sample[2 * n + 1] = potential;
-      sample[2 * n + 2] = energy;
+      sample[3 * n] = kinetic;
+      sample[3 * n + 1] = potential;
+      sample[3 * n + 2] = energy;
       blocks.add(sample.data());
     }
     if (observer.trajectory && observer.trajectory_every > 0 &&
@@ -708,9 +712,11 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
     out.kinetic[i] = blocks.time_average(i, sample_time);
     out.kinetic_canonical[i] = blocks.time_average(n + i, sample_time);
   }
-  out.kinetic_total = blocks.time_average(2 * n, sample_time);
-  out.potential = blocks.time_average(2 * n + 1, sample_time);
-  if (!langevin) out.energy_trend = blocks.trend(2 * n + 2) / out.energy_scale;
+  out.cos_angle.resize(n);
+  for (std::size_t i = 0; i < n; ++i) out.cos_angle[i] = blocks.time_average(2 * n + i, sample_time);
+  out.kinetic_total = blocks.time_average(3 * n, sample_time);
+  out.potential = blocks.time_average(3 * n + 1, sample_time);
+  if (!langevin) out.energy_trend = blocks.trend(3 * n + 2) / out.energy_scale;
   return out;
 }
 

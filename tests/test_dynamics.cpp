@@ -269,6 +269,7 @@ TEST_CASE("N = 2 chaotic NVE run agrees with the exact microcanonical averages",
     CHECK(std::abs(r.kinetic_canonical[i].value - exact.kinetic_canonical) <=
           3 * r.kinetic_canonical[i].error);
     CHECK(r.kinetic[i].error < 0.05 * r.kinetic[i].value);  // a real test, not a wide bar
+    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i]) <= 3 * r.cos_angle[i].error);
   }
   CHECK(r.energy_error_max < 1e-9);
   CHECK(std::abs(r.energy_trend) < 1e-11);
@@ -295,6 +296,7 @@ TEST_CASE("N = 2 constrained Langevin run agrees with the exact canonical averag
     CHECK(std::abs(r.kinetic[i].value - k) <= 3 * r.kinetic[i].error);
     CHECK(std::abs(r.kinetic_canonical[i].value - 0.5 / beta) <= 3 * r.kinetic_canonical[i].error);
     CHECK(r.kinetic[i].error < 0.05 * k);
+    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i]) <= 3 * r.cos_angle[i].error);
   }
   // Equipartition holds in total (sum_i beta<K_i> = N/2): the thermostat's temperature.
   CHECK(std::abs(r.kinetic_total.value - 1 / beta) <= 3 * r.kinetic_total.error);

@@ -172,7 +172,7 @@ class DynamicsWorkspace {
   }
 
   // Buffers (internal).
-  std::vector<Real> inv_mass, joint_compliance, length, inv_length_squared, half_length_squared, link,
+  std::vector<Real> inv_mass, joint_compliance, length, inv_length, inv_length_squared, half_length_squared, link,
       trial_link, trial, multiplier, multiplier_estimate, residual, sub, rhs, pivot;
   /// Kick time since the last position or velocity stage (its constraint impulse is pending).
   Real pending_kick_time{0};
@@ -263,6 +263,7 @@ template <class Real>
 struct SimulationResult {
   std::vector<TimeAverage<Real>> kinetic;            ///< <K_i> over time
   std::vector<TimeAverage<Real>> kinetic_canonical;  ///< <K_i^(c)> over time
+  std::vector<TimeAverage<Real>> cos_angle;          ///< <cos phi_i> over time
   TimeAverage<Real> kinetic_total, potential;
   Method method = Method::dynamics_nve;  ///< dynamics_nve or dynamics_langevin
   Real initial_energy{}, final_energy{};

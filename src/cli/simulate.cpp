@@ -164,7 +164,7 @@ std::vector<double> parse_angle_list(std::string_view text, std::string_view wha
 
 /// Exact values of the run's ensemble, per particle, in energy units.
 struct ExactValues {
-  std::vector<double> kinetic, kinetic_error;
+  std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
   double kinetic_canonical = 0, kinetic_canonical_error = 0;
   std::string method;
 };
@@ -173,7 +173,8 @@ ExactValues microcanonical_values(const Chain<double>& chain, double energy) {
   MicrocanonicalOptions options;
   options.threads = available_threads();
   const MicrocanonicalAverages<double> r = microcanonical_average(chain, energy, options);
-  return {r.kinetic, r.kinetic_error, r.kinetic_canonical, r.kinetic_canonical_error,
+  return {r.kinetic, r.kinetic_error, r.cos_angle, r.cos_angle_error, r.kinetic_canonical,
+          r.kinetic_canonical_error,
           std::string(method_name(r.method)) + "/" + method_name(r.quadrature)};
 }
 
@@ -196,6 +197,8 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
     out.kinetic.push_back(a.beta_kinetic[i] / beta);
     out.kinetic_error.push_back(a.beta_kinetic_error[i] / beta);
   }
+  out.cos_angle = a.cos_angle;
+  out.cos_angle_error = a.cos_angle_error;
   out.kinetic_canonical = 0.5 / beta;  // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4)
   out.method = method_name(a.method);
   return out;
@@ -308,8 +311,10 @@ std::string simulate_command(const Options& options) {
   if (exact) reference = langevin ? canonical_values(chain, run.beta)
                                   : microcanonical_values(chain, energy);
 
-  std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n);
+  std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
   for (std::size_t i = 0; i < n; ++i) {
+    cosine[i] = r.cos_angle[i].value;
+    cosine_error[i] = r.cos_angle[i].error;
     k[i] = r.kinetic[i].value;
     k_error[i] = r.kinetic[i].error;
     kc[i] = r.kinetic_canonical[i].value;
@@ -352,7 +357,9 @@ std::string simulate_command(const Options& options) {
       .raw("K_error", number_array(k_error))
       .raw("Kc", number_array(kc))
       .raw("Kc_error", number_array(kc_error))
-      .raw("K_autocorrelation_time", number_array(tau));
+      .raw("K_autocorrelation_time", number_array(tau))
+      .raw("cos_phi", number_array(cosine))
+      .raw("cos_phi_error", number_array(cosine_error));
   if (reference) {
     std::vector<double> deviation(n);
     for (std::size_t i = 0; i < n; ++i)
@@ -361,6 +368,7 @@ std::string simulate_command(const Options& options) {
     json.raw("exact_K", number_array(reference->kinetic))
         .raw("exact_K_error", number_array(reference->kinetic_error))
         .raw("exact_Kc", number(reference->kinetic_canonical))
+        .raw("exact_cos_phi", number_array(reference->cos_angle))
         .raw("K_deviation_sigmas", number_array(deviation))
         .string("exact_method", reference->method);
   } else {

@@ -111,11 +111,19 @@ save(fig, "fig7_ratio_vs_beta.png")
 fig, ax = plt.subplots(figsize=(6.4, 4.4))
 ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi1"), color="tab:blue", label=r"$\langle\cos\varphi_1\rangle$")
 ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi2"), color="tab:red", label=r"$\langle\cos\varphi_2\rangle$")
+if os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
+    sym = read("dynamics_fig5.csv")
+    for i, color in (("1", "tab:blue"), ("2", "tab:red")):
+        mine = [r for r in sym if r["i"] == i]
+        ax.errorbar(f(mine, "beta"), f(mine, "cos_phi"), yerr=[2 * v for v in f(mine, "cos_phi_error")],
+                    fmt="o", ms=5, mfc="none", color=color, capsize=3,
+                    label=rf"Langevin trajectory $\overline{{\cos\varphi_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
 ax.set_xlabel(r"$\beta$  ($g = 1$)")
 ax.set_ylabel(r"$\langle\cos\varphi_i\rangle$")
-ax.set_title(r"$m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 8, exact instead of MCMC)")
-ax.legend()
+ax.set_title(r"$m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 8: exact curves, trajectory symbols)",
+             fontsize=9)
+ax.legend(fontsize=8)
 ax.grid(True, which="both", alpha=0.3)
 save(fig, "fig8_cos_phi.png")
 
