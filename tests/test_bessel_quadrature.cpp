@@ -157,3 +157,24 @@ TEST_CASE("MPFR Hankel path (cached coefficients) agrees with Boost.Math across 
     }
   }
 }
+
+TEST_CASE("Clenshaw-Curtis levels from n0 = 12 integrate exactly and nest", "[quadrature]") {
+  // The double engine's second level family (12 2^L intervals) for sinh maps of moderate span.
+  pendavg::ClenshawCurtisRule<double> rule(12);
+  rule.ensure_level(4);
+  for (std::size_t L = 0; L <= 4; ++L) {
+    const auto& x = rule.nodes(L);
+    const auto& w = rule.weights(L);
+    REQUIRE(x.size() == (std::size_t{12} << L) + 1);
+    // exact for polynomials of degree <= n: x^n integrates to 1/(n+1)
+    const std::size_t n = x.size() - 1;
+    double s = 0;
+    for (std::size_t j = 0; j < x.size(); ++j) s += w[j] * std::pow(x[j], static_cast<double>(n));
+    CHECK(s == Approx(1.0 / static_cast<double>(n + 1)).epsilon(1e-14));
+    if (L >= 1) {
+      for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j) {
+        CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
+      }
+    }
+  }
+}
