@@ -786,8 +786,10 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     }
     // Level sizes: the nodes needed grow with the sinh map's span sigma (~ln(T/d)). In double,
     // for 3.8 < sigma < 8.4 the 8 2^L levels stop at 129 nodes where 97 of the 12 2^L levels
-    // suffice (measured on the benchmark's 1000 cases: 67 cases 129 -> 97, 1 case 65 -> 97).
-    const bool base12 = !is_mpfr_v<Real> && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
+    // suffice (measured on the benchmark's 1000 cases: 67 cases 129 -> 97).
+    // Direct weights only: per-node Graf sums are dearer, and there one case went 65 -> 97.
+    const bool base12 =
+        !is_mpfr_v<Real> && !graf_nodes && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
     if (graf_nodes) {
       r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf), tol, max_level, base12);
     } else {
@@ -800,14 +802,23 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
       // w = (a1 a2 / (a1 + a2))^{-1/2} of the weight's peak: one sinh map over [0, T] spans
       // sigma ~ ln(2T/d) and the Gaussian becomes a double-exponential cliff in its variable,
       // which then needs ~2x the nodes of [0, t1] (sinh map at q's zero) plus [t1, T] (sinh
-      // map at scale t1), t1 = 2 w (measured best of 1-6 w at 38 and 77 digits). Worth it at
-      // high precision only: in double both panels need as many levels as the single one.
+      // map at scale t1), t1 = 2 w (measured best of 1-6 w at 38 and 77 digits; see the cap
+      // below). Worth it at high precision only: in double both panels need as many levels as
+      // the single one.
       const double t1_d = 2.0 / std::sqrt(harmonic);
       const bool two_panels = is_mpfr_v<Real> && map.half_angle && map.sigma > 6 &&
                               t1_d < static_cast<double>(map.T) / 3 &&
                               std::sin(t1_d / 2) > 40 * static_cast<double>(map.eps);
       if (two_panels) {
-        const Real s1 = sin(Real(t1_d) / 2);
+        // Up to ~50 digits the inner panel still converges at 129 nodes for spans sigma <= 8.3;
+        // a longer span (q's zero very close) costs a level more there than the longer outer
+        // panel does, so the split moves in (measured at 38 digits: 386 -> 258 nodes). At
+        // higher precision the outer panel is the dearer one: t1 = 2 w stays.
+        Real s1 = sin(Real(t1_d) / 2);
+        constexpr double inner_span_cap = 8.3;
+        if (ln_inv_tol < 120.0 && asinh(s1 / map.eps) > inner_span_cap) {
+          s1 = map.eps * sinh(Real(inner_span_cap));
+        }
         NodeMap<Real> inner = map, outer = map;
         inner.sigma = asinh(s1 / map.eps);
         outer.eps = s1;
