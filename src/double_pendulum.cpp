@@ -9,6 +9,11 @@
 // (= tr X_1): <x> = mu1 J_{-1/2}/J_{1/2}, <x^2> = mu1^2 J_{-3/2}/J_{1/2},
 //   beta^2 Var K1 = (3/4)<x^2> - <x>^2/4,
 //   beta^2 Var K2 = (1 - <x>) + <x>^2/2 + (3/4)(<x^2> - <x>^2)      (MATH.md Sec. 4).
+// On a cut range [0, T] (unfolded weight, Bessel weights at the nodes) J_{-3/2} is integrated
+// by parts: with q' = 2 mu2 sin t cos t and mu1 + mu2 = 1,
+//   mu1 J_{-3/2} = J_{1/2} - mu2 int_0^T sin t cos t q^{-1/2} W' dt + mu2 B(T),
+//   B(t) = sin t cos t q^{-1/2} W(t),   W' = -a1 a2 sin t e^{-A} I1(R)/R <= 0,
+// so both integrand terms are >= 0 and only q^{-1/2}'s branch point at q = 0 remains.
 #include "pendavg/double_pendulum.hpp"
 
 #include "pendavg/bessel.hpp"

@@ -19,6 +19,10 @@
 //   bench_double_pendulum --write-cases FILE [--replicate N]
 // writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), repeated N times (default 1), and
 // exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
+//   bench_double_pendulum --profile-cases DIGITS [FIRST COUNT [quadrature]]
+// times each case alone (thread CPU time, so other processes on the cores matter less) and
+// prints index, time, evaluations (nodes or Graf terms) and parameters, one line per case;
+// `sort -k2 -g -r` lists the slowest. DIGITS = 16: double; otherwise MPFR at DIGITS.
 #include <benchmark/benchmark.h>
 
 #include "cases.hpp"
