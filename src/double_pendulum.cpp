@@ -9,6 +9,11 @@
 // (= tr X_1): <x> = mu1 J_{-1/2}/J_{1/2}, <x^2> = mu1^2 J_{-3/2}/J_{1/2},
 //   beta^2 Var K1 = (3/4)<x^2> - <x>^2/4,
 //   beta^2 Var K2 = (1 - <x>) + <x>^2/2 + (3/4)(<x^2> - <x>^2)      (MATH.md Sec. 4).
+// On a cut range [0, T] (unfolded weight, Bessel weights at the nodes) J_{-3/2} is integrated
+// by parts: with q' = 2 mu2 sin t cos t and mu1 + mu2 = 1,
+//   mu1 J_{-3/2} = J_{1/2} - mu2 int_0^T sin t cos t q^{-1/2} W' dt + mu2 B(T),
+//   B(t) = sin t cos t q^{-1/2} W(t),   W' = -a1 a2 sin t e^{-A} I1(R)/R <= 0,
+// so both integrand terms are >= 0 and only q^{-1/2}'s branch point at q = 0 remains.
 #include "pendavg/double_pendulum.hpp"
 
 #include "pendavg/bessel.hpp"
@@ -81,20 +86,56 @@ double to_double_saturated(const Real& x) {
   return (boost::math::isfinite)(d) ? d : std::numeric_limits<double>::max();
 }
 
-/// Node placement: t(x) = eps sinh(sigma x) (clusters nodes at t = 0, where q nearly vanishes
-/// when mu1 is small and where the Boltzmann weight peaks when beta is large), or t = T x.
+/// Node placement, returning the half-angle sine sh = sin(t/2) and dt/dx:
+///  * t(x) = eps sinh(sigma x) (clusters nodes at t = 0, where q nearly vanishes when mu1 is
+///    small and where the Boltzmann weight peaks when beta is large), or t = T x;
+///  * half_angle: sin(t/2) = eps sinh(sigma x) itself, the same clustering without a sine per
+///    node (t = 2 asin(sh), dt/dx = 2 d(sh)/dx / cos(t/2)). Used on cut ranges only, where the
+///    branch point of asin at sh = 1 lies beyond the cut, under a weight below e^{-L}; eps is
+///    then |sh| at the zero of q, so the zero sits at x = i pi/(2 sigma) in both maps.
 template <class Real>
 struct NodeMap {
   bool use_sinh = false;
+  bool half_angle = false;
   Real eps = 0, sigma = 0, T = 0;
-  void operator()(const Real& x, Real& t, Real& dtdx) const {
+  Real v0 = 0;  // half_angle only: sin(t/2) = eps sinh(v0 + sigma x) (a panel away from t = 0)
+  mutable Real arg_, e_, num_, den_;  // MPFR scratch: in-place arithmetic
+  void operator()(const Real& x, Real& sh, Real& dtdx) const {
+    if constexpr (is_mpfr_v<Real>) {
+      if (use_sinh && half_angle) {
+        // The same operations as below, in place.
+        arg_ = sigma;
+        arg_ *= x;
+        arg_ += v0;
+        e_ = sinh(arg_);
+        sh = eps;
+        sh *= e_;
+        num_ = e_;
+        num_ *= e_;
+        num_ += 1;
+        den_ = sh;
+        den_ *= sh;
+        den_ = 1 - den_;
+        num_ /= den_;
+        dtdx = sqrt(num_);
+        dtdx *= eps;
+        dtdx *= sigma;
+        dtdx *= 2;
+        return;
+      }
+    }
     if (use_sinh) {
       // sinh itself, not (e^s - e^-s)/2, which cancels for the small s near x = 0.
-      const Real sh = sinh(sigma * x);
-      t = eps * sh;
-      dtdx = eps * sigma * sqrt(1 + sh * sh);
+      const Real e = half_angle ? Real(sinh(v0 + sigma * x)) : Real(sinh(sigma * x));
+      if (half_angle) {
+        sh = eps * e;
+        dtdx = 2 * eps * sigma * sqrt((1 + e * e) / (1 - sh * sh));
+      } else {
+        dtdx = eps * sigma * sqrt(1 + e * e);
+        sh = sin(eps * e / 2);
+      }
     } else {
-      t = T * x;
+      sh = sin(T * x / 2);
       dtdx = T;
     }
   }
@@ -106,8 +147,9 @@ template <class Real>
 struct GrafWeights {
   std::vector<Real> c0, c1, c2;  // coefficients of T_k(y), y = cos 2t
   std::vector<double> error_ulps;  // rounding bound of c0[k], c1[k], c2[k], in roundoffs
+  static constexpr bool by_parts = false;  // F[3] is not provided
   void operator()(const Real& sin2_t, const Real& /*half-angle sine*/,
-                  std::array<Real, 3>& F) const {
+                  std::array<Real, 4>& F) const {
     const Real y = 1 - 2 * sin2_t;
     const Real two_y = 2 * y;
     Real b0 = 0, b0n = 0, b1 = 0, b1n = 0, b2 = 0, b2n = 0, tmp;
@@ -133,7 +175,57 @@ template <class Real>
 struct DirectWeights {
   Real a1, a2, A, P;  // P = 4 a1 a2
   bool fold = true;   // add the reflected node pi - t
-  void operator()(const Real& sin2_t, const Real& sh, std::array<Real, 3>& F) const {
+  Real negligible_exponent = std::numeric_limits<double>::infinity();  // see operator()
+  // Without the fold F[3] = -W'(t) / sin t = a1 a2 e^{-A} I1(R) / R, for J_{-3/2} by parts.
+  bool by_parts = false;
+  // MPFR scratch (in-place arithmetic, no allocation per operation); A^2 and P/4 per call.
+  mutable Real s2_, c2_, cos_t_, R_, E_, tmp_, ex_, g_, A2_, quarter_P_;
+  void operator()(const Real& sin2_t, const Real& sh, std::array<Real, 4>& F) const {
+    if constexpr (is_mpfr_v<Real>) {
+      if (!fold) {
+        // The same operations as below, in place.
+        if (A2_ == 0) {
+          A2_ = A;
+          A2_ *= A;
+          quarter_P_ = P;
+          quarter_P_ /= 4;
+        }
+        s2_ = sh;
+        s2_ *= sh;
+        cos_t_ = 1;
+        cos_t_ -= s2_;
+        cos_t_ -= s2_;
+        tmp_ = P;
+        tmp_ *= s2_;  // P s2
+        R_ = A2_;
+        R_ -= tmp_;
+        R_ = sqrt(R_);
+        E_ = R_;
+        E_ += A;
+        tmp_ /= E_;
+        E_ = -tmp_;  // R - A = -P s2 / (R + A)
+        ex_ = exp(E_);
+        const auto b = scaled_bessel_i01(R_);
+        F[0] = b.i0e;
+        F[0] *= ex_;
+        g_ = b.i1e;
+        g_ *= ex_;
+        g_ /= R_;
+        F[1] = a2;
+        F[1] *= cos_t_;
+        F[1] += a1;
+        F[1] *= g_;
+        F[2] = a1;
+        F[2] *= cos_t_;
+        F[2] += a2;
+        F[2] *= g_;
+        if (by_parts) {
+          F[3] = g_;
+          F[3] *= quarter_P_;
+        }
+        return;
+      }
+    }
     const Real s2 = sh * sh;                // sin^2(t/2)
     const Real c2 = 1 - s2;                 // cos^2(t/2) >= 1/2 on [0, pi/2]
     const Real cos_t = c2 - s2;
@@ -147,11 +239,15 @@ struct DirectWeights {
     const Real g = b.i1e * ex / R;  // R >= |a1 - a2| + ... > 0 here
     F[1] = g * (a1 + a2 * cos_t);
     F[2] = g * (a2 + a1 * cos_t);
+    if (by_parts) F[3] = g * (P / 4);
     if (fold) {
       // pi - t: R'^2 = (a1 - a2)^2 + 4 a1 a2 sin^2(t/2), R' - A = -4 a1 a2 cos^2(t/2)/(R' + A).
       const Real d = a1 - a2;
       const Real Rp = sqrt(d * d + P * s2);
       const Real Ep = -P * c2 / (Rp + A);
+      // Below e^{-negligible_exponent} of the peak the reflected weight (and its a-derivatives,
+      // at most A times larger) is far below the roundoff of the sum: skip its Bessel functions.
+      if (Ep < -negligible_exponent) return;
       auto bp = scaled_bessel_i01(Rp);
       const Real exp_p = exp(Ep);
       F[0] += bp.i0e * exp_p;
@@ -167,14 +263,15 @@ struct DirectWeights {
 template <class Real>
 struct IntegralWorkspace {
   ClenshawCurtisRule<Real> rule{8};
-  std::vector<std::vector<Integrands<Real>>> values;  // per level, per node
+  ClenshawCurtisRule<Real> rule12{12};  // levels 12 2^L: for integrands predicted to need ~100 nodes
+  std::vector<std::vector<Integrands<Real>>> values;  // [0]: this level, [1]: the previous one
 };
 
 template <class Real>
 IntegralWorkspace<Real>& integral_workspace() {
   thread_local std::unique_ptr<IntegralWorkspace<Real>> ws;
   const int digits = is_mpfr_v<Real> ? current_digits10<Real>() : 0;
-  if (!ws || ws->rule.digits() != digits) ws = std::make_unique<IntegralWorkspace<Real>>();
+  if (!ws || ws->rule.digits() != digits || ws->rule12.digits() != digits) ws = std::make_unique<IntegralWorkspace<Real>>();
   return *ws;
 }
 
@@ -192,27 +289,79 @@ struct LevelResult {
 template <class Real, class Weights>
 LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, const Real& mu2,
                                    const Weights& weights, const Real& tol,
-                                   std::size_t max_level) {
-  auto& ws = integral_workspace<Real>();
+                                   std::size_t max_level, bool base12 = false) {
+  auto& ws0 = integral_workspace<Real>();
+  auto& rule = base12 ? ws0.rule12 : ws0.rule;
+  auto& ws = ws0;
   const Real u = unit_roundoff<Real>();
   LevelResult<Real> out;
   Integrands<Real> previous{}, previous_diff{};
-  std::array<Real, 3> F;
-  Real t, dtdx;
-  if (ws.values.size() < max_level + 1) ws.values.resize(max_level + 1);
+  std::array<Real, 4> F;
+  std::array<Real, 9> node_scratch;
+  Real sh, dtdx, wf, scratch;
+  if (ws.values.size() < 2) ws.values.resize(2);
   for (std::size_t level = 0; level <= max_level; ++level) {
-    ws.rule.ensure_level(level);
-    const auto& x = ws.rule.nodes(level);
-    const auto& w = ws.rule.weights(level);
-    auto& vals = ws.values[level];
+    rule.ensure_level(level);
+    const auto& x = rule.nodes(level);
+    const auto& w = rule.weights(level);
+    // The nodes of the previous level are the even nodes of this one: move their values.
+    std::swap(ws.values[0], ws.values[1]);
+    auto& vals = ws.values[0];
+    auto& coarse = ws.values[1];
     vals.resize(x.size());
     for (std::size_t j = 0; j < x.size(); ++j) {
       if (level > 0 && j % 2 == 0) {
-        vals[j] = ws.values[level - 1][j / 2];
+        std::swap(vals[j], coarse[j / 2]);
         continue;
       }
-      map(x[j], t, dtdx);
-      const Real sh = sin(t / 2);
+      map(x[j], sh, dtdx);
+      if constexpr (is_mpfr_v<Real>) {
+        if (weights.by_parts) {
+          // The same operations as below, in place (no allocation per operation).
+          node_scratch[0] = sh;
+          node_scratch[0] *= sh;  // sin^2(t/2)
+          node_scratch[1] = 1;
+          node_scratch[1] -= node_scratch[0];  // cos^2(t/2)
+          node_scratch[2] = node_scratch[0];
+          node_scratch[2] *= node_scratch[1];
+          node_scratch[2] *= 4;  // sin^2 t
+          node_scratch[3] = node_scratch[2];
+          node_scratch[3] *= mu2;
+          node_scratch[3] += mu1;  // q
+          node_scratch[4] = sqrt(node_scratch[3]);  // sqrt(q)
+          node_scratch[5] = 1;
+          node_scratch[5] /= node_scratch[4];  // q^{-1/2}
+          weights(node_scratch[2], sh, F);
+          auto& v = vals[j];
+          node_scratch[6] = dtdx;
+          node_scratch[6] *= node_scratch[4];  // dt/dx q^{1/2}
+          v[0] = node_scratch[6];
+          v[0] *= F[0];
+          v[1] = dtdx;
+          v[1] *= node_scratch[5];
+          v[1] *= F[0];
+          // by parts (below): cos t = 1 - 2 sin^2(t/2)
+          node_scratch[7] = 1;
+          node_scratch[7] -= node_scratch[0];
+          node_scratch[7] -= node_scratch[0];
+          node_scratch[7] *= node_scratch[2];
+          node_scratch[7] *= mu2;
+          node_scratch[7] *= node_scratch[5];
+          node_scratch[7] *= F[3];
+          node_scratch[8] = node_scratch[4];
+          node_scratch[8] *= F[0];
+          node_scratch[7] += node_scratch[8];
+          node_scratch[7] *= dtdx;
+          v[2] = node_scratch[7];
+          v[2] /= mu1;
+          v[3] = node_scratch[6];
+          v[3] *= F[1];
+          v[4] = node_scratch[6];
+          v[4] *= F[2];
+          ++out.nodes;
+          continue;
+        }
+      }
       const Real ch2 = 1 - sh * sh;
       const Real sin2_t = 4 * sh * sh * ch2;  // sin^2 t = 4 sin^2(t/2) cos^2(t/2)
       const Real q = mu1 + mu2 * sin2_t;
@@ -222,7 +371,15 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
       auto& v = vals[j];
       v[0] = dtdx * sq * F[0];
       v[1] = dtdx * iq * F[0];
-      v[2] = v[1] / q;
+      if (weights.by_parts) {
+        // q^{-3/2} W integrated by parts (see by_parts_boundary): the integrand
+        // [q^{1/2} W - mu2 sin t cos t q^{-1/2} W'] / mu1, both terms >= 0 for t <= pi/2,
+        // keeps only q^{-1/2}'s branch point at q = 0 instead of q^{-3/2}'s stronger one.
+        const Real cos_t = 1 - 2 * sh * sh;
+        v[2] = dtdx * (sq * F[0] + mu2 * sin2_t * cos_t * iq * F[3]) / mu1;
+      } else {
+        v[2] = v[1] / q;
+      }
       v[3] = dtdx * sq * F[1];
       v[4] = dtdx * sq * F[2];
       ++out.nodes;
@@ -232,17 +389,85 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
     // They expose features the level differences have not yet seen (pre-asymptotic stalls).
     Integrands<Real> sum{}, l1{}, top{}, next_top{}, sample_l1{};
     const std::size_t n = x.size() - 1;
-    for (std::size_t j = 0; j <= n; ++j) {
-      const Real h = (j == 0 || j == n) ? Real(0.5) : Real(1);
-      const Real hs = (j % 2 == 0) ? h : Real(-h);
-      const Real hsx = hs * (1 - 2 * x[j]);
+    // MPFR: the level-difference estimate alone (never larger than the final one, which adds
+    // the Chebyshev guard) decides first whether this level can be accepted at all; only
+    // then (or at the last level) are the guard's sums and the L1 norms formed. A level the
+    // pre-check rejects is rejected by the full test too, unless the rounding floor exceeded
+    // the tolerance (never at the MPFR tolerances, 10 digits above the roundoff); its error
+    // is not reported, since a later level's replaces it.
+    Integrands<Real> diff_estimate{};
+    if constexpr (is_mpfr_v<Real>) {
+      for (std::size_t j = 0; j <= n; ++j) {
+        for (std::size_t k = 0; k < integral_count; ++k) {
+          wf = w[j];
+          wf *= vals[j][k];
+          sum[k] += wf;
+        }
+      }
+      bool candidate = level >= 2;
       for (std::size_t k = 0; k < integral_count; ++k) {
-        const Real& f = vals[j][k];
-        sum[k] += w[j] * f;
-        l1[k] += abs(w[j] * f);
-        top[k] += hs * f;
-        next_top[k] += hsx * f;
-        sample_l1[k] += h * abs(f);
+        Real& est = diff_estimate[k];
+        est = abs(sum[k] - previous[k]);
+        if (level >= 2 && previous_diff[k] > 0 && est < previous_diff[k]) {
+          const Real r = est / previous_diff[k];
+          previous_diff[k] = est;
+          est *= r;
+          est *= r;
+        } else {
+          previous_diff[k] = est;
+        }
+        const Real tol_k = (k < 2 ? tol : 16 * tol) * abs(sum[k]);
+        if (!(est <= tol_k)) candidate = false;
+      }
+      if (!candidate && level < max_level) {
+        out.value = sum;
+        previous = sum;
+        continue;
+      }
+      for (auto& v : sum) v = 0;
+    }
+    // In-place updates (no multiprecision temporaries): the signs and the endpoint halves of
+    // the Chebyshev sums are applied as additions, subtractions and one halving.
+    Real xi;
+    if constexpr (!is_mpfr_v<Real>) {
+      // Hardware floats: branch-free (sign and half as multipliers).
+      for (std::size_t j = 0; j <= n; ++j) {
+        const Real h = (j == 0 || j == n) ? Real(0.5) : Real(1);
+        const Real hs = (j % 2 == 0) ? h : -h;
+        const Real hsx = hs * (1 - 2 * x[j]);
+        for (std::size_t k = 0; k < integral_count; ++k) {
+          const Real f = vals[j][k];
+          const Real wfk = w[j] * f;
+          sum[k] += wfk;
+          l1[k] += abs(wfk);
+          top[k] += hs * f;
+          next_top[k] += hsx * f;
+          sample_l1[k] += h * abs(f);
+        }
+      }
+    }
+    for (std::size_t j = 0; is_mpfr_v<Real> && j <= n; ++j) {
+      const bool endpoint = (j == 0 || j == n);
+      const bool odd = (j % 2 == 1);
+      xi = x[j];
+      xi *= -2;
+      xi += 1;
+      for (std::size_t k = 0; k < integral_count; ++k) {
+        const Real* f = &vals[j][k];
+        wf = w[j];
+        wf *= *f;
+        sum[k] += wf;
+        if (wf < 0) l1[k] -= wf; else l1[k] += wf;
+        if (endpoint) {
+          scratch = *f;
+          scratch /= 2;
+          f = &scratch;
+        }
+        if (odd) top[k] -= *f; else top[k] += *f;
+        if (*f < 0) sample_l1[k] -= *f; else sample_l1[k] += *f;
+        wf = *f;
+        wf *= xi;
+        if (odd) next_top[k] -= wf; else next_top[k] += wf;
       }
     }
     bool all_ok = level >= 2;
@@ -250,7 +475,9 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
       // Rounding: a few ulps per node in the sum and in the Chebyshev coefficients.
       const Real rounding = 8 * u * (l1[k] + 2 * sample_l1[k] / Real(x.size() - 1));
       Real est;
-      if (level == 0) {
+      if (is_mpfr_v<Real>) {
+        est = diff_estimate[k];  // formed above, as below
+      } else if (level == 0) {
         est = abs(sum[k]);
       } else {
         const Real diff = abs(sum[k] - previous[k]);
@@ -482,7 +709,13 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // Per-node Graf sums beat per-node Bessel functions while they are short; they also keep
   // <cos phi_j> free of the cancellation between t and pi - t when one of a1, a2 is small.
   const double graf_terms = graf_terms_estimate(a1_d, a2_d, L_graf);
-  const bool graf_nodes = graf_terms <= (is_mpfr_v<Real> ? 400.0 : 48.0);
+  // In double, once both weights' arguments stay >= 25 (R >= |a1 - a2|) the fixed-length
+  // Hankel series makes the Bessel functions cheaper than 24 or more Graf terms per node; a
+  // smaller argument a2 (or a1) >= 16 keeps the t <-> pi - t cancellation in <cos phi_j>, at
+  // most max(a1, a2)/min(a1, a2), as small as for the other cases with long Graf rows.
+  const bool direct_cheaper = !is_mpfr_v<Real> && graf_terms > 24.0 &&
+                              std::min(a1_d, a2_d) >= 16.0 && std::abs(a1_d - a2_d) >= 25.0;
+  const bool graf_nodes = graf_terms <= (is_mpfr_v<Real> ? 400.0 : 48.0) && !direct_cheaper;
   const Real d = asinh(sqrt(p.mu1 / p.mu2));  // distance of the zero of q from t = 0
 
   LevelResult<Real> r;
@@ -507,8 +740,11 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // rows, for K d < 1/4 (convergent series) and for d > 1/2 (short Miller run); in between
   // they take up to ~0.1 ms, while the nodes take ~10 us.
   const double d_d = static_cast<double>(d);
+  // In MPFR the sums cost ~2x per term what a node costs, and the Bessel tables and moments
+  // grow with the row: beyond ~800 Graf terms (Direct weights at the nodes) the nodes are
+  // cheaper (measured: 1.4-3.7x at 936-2940 terms, 38 digits).
   const bool sums_worthwhile =
-      is_mpfr_v<Real> ? graf_terms <= 4000.0
+      is_mpfr_v<Real> ? graf_terms <= 800.0
                       : graf_terms <= 400.0 && harmonic <= 30.0 &&
                             (graf_terms <= 24.0 || graf_terms * d_d < 0.25 || d_d > 0.5);
   if (options.evaluation != IntegralEvaluation::quadrature && sums_worthwhile) {
@@ -541,14 +777,85 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     }
     if (d < map.T / 4) {
       map.use_sinh = true;
-      map.eps = d;
-      map.sigma = asinh(map.T / d);
+      if (!fold) {
+        // sin^2(t/2) at the zero of q: 4 mu2 s^2 (1 - s^2) = -mu1, s^2 = -eps^2 with
+        // eps^2 = c^2 / (2 (1 + sqrt(1 + c^2))), c^2 = mu1 / mu2.
+        const Real c2 = p.mu1 / p.mu2;
+        map.half_angle = true;
+        map.eps = sqrt(c2 / (2 * (1 + sqrt(1 + c2))));
+        map.sigma = asinh(sin(map.T / 2) / map.eps);
+      } else {
+        map.eps = d;
+        map.sigma = asinh(map.T / d);
+      }
     }
+    // Level sizes: the nodes needed grow with the sinh map's span sigma (~ln(T/d)). In double,
+    // for 3.8 < sigma < 8.4 the 8 2^L levels stop at 129 nodes where 97 of the 12 2^L levels
+    // suffice (measured on the benchmark's 1000 cases: 67 cases 129 -> 97).
+    // Direct weights only: per-node Graf sums are dearer, and there one case went 65 -> 97.
+    const bool base12 =
+        !is_mpfr_v<Real> && !graf_nodes && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
     if (graf_nodes) {
-      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf), tol, max_level);
+      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf), tol, max_level, base12);
     } else {
       DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
-      r = integrate_levels(map, p.mu1, p.mu2, dw, tol, max_level);
+      dw.by_parts = !fold;
+      // W(pi - t) e^{...} below u e^{-5} / (1 + A) of W(0) ~ (2 pi A)^{-1/2} is negligible
+      // beside every integral, each at least its value at the peak times the peak's width.
+      dw.negligible_exponent = Real(ln_inv_tol + 5.0 + 2 * std::log1p(A_d));
+      // Two panels when q's zero (distance ~sqrt(mu1)) is far closer to t = 0 than the width
+      // w = (a1 a2 / (a1 + a2))^{-1/2} of the weight's peak: one sinh map over [0, T] spans
+      // sigma ~ ln(2T/d) and the Gaussian becomes a double-exponential cliff in its variable,
+      // which then needs ~2x the nodes of [0, t1] (sinh map at q's zero) plus [t1, T] (sinh
+      // map at scale t1), t1 = 2 w (measured best of 1-6 w at 38 and 77 digits; see the cap
+      // below). Worth it at high precision only: in double both panels need as many levels as
+      // the single one.
+      const double t1_d = 2.0 / std::sqrt(harmonic);
+      const bool two_panels = is_mpfr_v<Real> && map.half_angle && map.sigma > 6 &&
+                              t1_d < static_cast<double>(map.T) / 3 &&
+                              std::sin(t1_d / 2) > 40 * static_cast<double>(map.eps);
+      if (two_panels) {
+        // Up to ~50 digits the inner panel still converges at 129 nodes for spans sigma <= 8.3;
+        // a longer span (q's zero very close) costs a level more there than the longer outer
+        // panel does, so the split moves in (measured at 38 digits: 386 -> 258 nodes). At
+        // higher precision the outer panel is the dearer one: t1 = 2 w stays.
+        Real s1 = sin(Real(t1_d) / 2);
+        constexpr double inner_span_cap = 8.3;
+        if (ln_inv_tol < 120.0 && asinh(s1 / map.eps) > inner_span_cap) {
+          s1 = map.eps * sinh(Real(inner_span_cap));
+        }
+        NodeMap<Real> inner = map, outer = map;
+        inner.sigma = asinh(s1 / map.eps);
+        outer.eps = s1;
+        outer.v0 = asinh(Real(1));
+        outer.sigma = asinh(sin(map.T / 2) / s1) - outer.v0;
+        const auto r1 = integrate_levels(inner, p.mu1, p.mu2, dw, tol, max_level, base12);
+        const auto r2 = integrate_levels(outer, p.mu1, p.mu2, dw, tol, max_level, base12);
+        // Both panels' integrands are positive (t <= T < pi/2): relative tolerances add up.
+        for (std::size_t k = 0; k < integral_count; ++k) {
+          r.value[k] = r1.value[k] + r2.value[k];
+          r.error[k] = r1.error[k] + r2.error[k];
+        }
+        r.nodes = r1.nodes + r2.nodes;
+        r.converged = r1.converged && r2.converged;
+      } else {
+        r = integrate_levels(map, p.mu1, p.mu2, dw, tol, max_level, base12);
+      }
+      if (dw.by_parts) {
+        // By parts on [0, T] (MATH.md Sec. 2 integrands; q' = 2 mu2 sin t cos t, mu1 + mu2 = 1):
+        //   mu1 J_{-3/2} = J_{1/2} - mu2 int sin t cos t q^{-1/2} W' dt + mu2 B(T),
+        //   B(t) = sin t cos t q^{-1/2} W(t),  B(0) = 0.
+        // (Panel boundaries cancel.) Add the boundary term at the cut, exactly.
+        const Real sT = sin(map.T / 2);
+        const Real s2 = sT * sT;
+        const Real sin2_T = 4 * s2 * (1 - s2);
+        std::array<Real, 4> FT;
+        dw(sin2_T, sT, FT);
+        const Real boundary =
+            p.mu2 / p.mu1 * sqrt(sin2_T) * (1 - 2 * s2) / sqrt(p.mu1 + p.mu2 * sin2_T) * FT[0];
+        r.value[2] += boundary;
+        r.error[2] += 8 * unit_roundoff<Real>() * boundary;
+      }
       if (!fold) {
         // The cut at T drops a tail below tol |J| by the choice of L: report it.
         for (std::size_t k = 0; k < integral_count; ++k) r.error[k] += tol * abs(r.value[k]);

@@ -10,6 +10,7 @@
 #include <boost/math/special_functions/bessel.hpp>
 #include <gsl/gsl_sf_bessel.h>
 
+#include <algorithm>
 #include <cmath>
 
 using pendavg::mpfr_real;
@@ -105,4 +106,75 @@ TEST_CASE("Clenshaw-Curtis levels integrate known integrals and nest", "[quadrat
     err_prev = err;
   }
   CHECK(err_prev < 1e-14);
+}
+
+TEST_CASE("double Hankel path (fixed-length Horner) agrees with independent references", "[bessel]") {
+  // x >= 25: scaled_bessel_i01<double> sums Hankel's series by Horner's rule with a table of
+  // coefficients and an x-dependent length. References: the term-by-term generic series in long
+  // double (roundoff 5e-20) up to 1e12, and Boost.Math's cyl_bessel_i at 40 digits up to 3000.
+  double worst = 0;
+  for (double x = 25.0; x < 1e12; x *= 1.0173) {
+    const auto d = pendavg::scaled_bessel_i01(x);
+    const auto l = pendavg::scaled_bessel_i01_generic(static_cast<long double>(x));
+    const double e0 = static_cast<double>(std::abs((d.i0e - l.i0e) / l.i0e));
+    const double e1 = static_cast<double>(std::abs((d.i1e - l.i1e) / l.i1e));
+    worst = std::max({worst, e0, e1});
+  }
+  CHECK(worst <= 4e-16);
+  pendavg::working_precision guard(40);
+  for (double x : {25.0, 25.5, 31.0, 49.9, 50.1, 77.0, 333.0, 2999.0}) {
+    const auto d = pendavg::scaled_bessel_i01(x);
+    const mpfr_real X(x);
+    const mpfr_real e = exp(-X);
+    const double i0 = static_cast<double>(mpfr_real(boost::math::cyl_bessel_i(0, X) * e));
+    const double i1 = static_cast<double>(mpfr_real(boost::math::cyl_bessel_i(1, X) * e));
+    INFO("x = " << x);
+    CHECK(d.i0e == Approx(i0).epsilon(4e-16));
+    CHECK(d.i1e == Approx(i1).epsilon(4e-16));
+  }
+}
+
+TEST_CASE("MPFR Hankel path (cached coefficients) agrees with Boost.Math across precisions",
+          "[bessel]") {
+  // The coefficient cache is per precision: alternate precisions to check it is rebuilt.
+  for (int digits : {60, 100, 60, 38}) {
+    pendavg::working_precision guard(digits);
+    const mpfr_real tol = 8 * pendavg::unit_roundoff<mpfr_real>();
+    for (const char* xs : {"70", "150.25", "400", "1000", "2500"}) {
+      const mpfr_real x(xs);
+      const auto m = pendavg::scaled_bessel_i01(x);
+      mpfr_real i0, i1;
+      {
+        pendavg::working_precision wide(digits + 20);
+        const mpfr_real X(xs);
+        const mpfr_real e = exp(-X);
+        i0 = boost::math::cyl_bessel_i(0, X) * e;
+        i1 = boost::math::cyl_bessel_i(1, X) * e;
+      }
+      INFO("digits = " << digits << ", x = " << xs);
+      CHECK(abs(m.i0e / i0 - 1) < tol);
+      CHECK(abs(m.i1e / i1 - 1) < tol);
+    }
+  }
+}
+
+TEST_CASE("Clenshaw-Curtis levels from n0 = 12 integrate exactly and nest", "[quadrature]") {
+  // The double engine's second level family (12 2^L intervals) for sinh maps of moderate span.
+  pendavg::ClenshawCurtisRule<double> rule(12);
+  rule.ensure_level(4);
+  for (std::size_t L = 0; L <= 4; ++L) {
+    const auto& x = rule.nodes(L);
+    const auto& w = rule.weights(L);
+    REQUIRE(x.size() == (std::size_t{12} << L) + 1);
+    // exact for polynomials of degree <= n: x^n integrates to 1/(n+1)
+    const std::size_t n = x.size() - 1;
+    double s = 0;
+    for (std::size_t j = 0; j < x.size(); ++j) s += w[j] * std::pow(x[j], static_cast<double>(n));
+    CHECK(s == Approx(1.0 / static_cast<double>(n + 1)).epsilon(1e-14));
+    if (L >= 1) {
+      for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j) {
+        CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
+      }
+    }
+  }
 }

@@ -13,7 +13,11 @@
 //        where q nearly vanishes (distance asinh(sqrt(mu1/mu2)) from the real axis) and the
 //        Boltzmann weight peaks, on a range cut where the weight has decayed; per-node weights
 //        from Graf sums or scaled Bessel functions (nothing overflows at any beta). The error
-//        estimate combines the top Chebyshev coefficients with successive levels.
+//        estimate combines the top Chebyshev coefficients with successive levels. On cut
+//        ranges the map acts on sin(t/2) (no sine per node), q^{-3/2} W is integrated by parts
+//        (only q^{-1/2}'s branch point remains), and in MPFR, when q's zero lies far inside
+//        the weight's peak, [0, T] is split in two sinh-mapped panels. MPFR takes the nodes
+//        instead of Graf rows longer than ~800 terms (cheaper there).
 //  * series_average -- the paper's series, eq. ave-K1-result, with R_n from the closed-form
 //      Bessel derivatives (MATH.md Sec. 5) and a rigorous truncation bound that decides when
 //      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.

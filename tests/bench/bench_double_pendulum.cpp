@@ -19,6 +19,10 @@
 //   bench_double_pendulum --write-cases FILE [--replicate N]
 // writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), repeated N times (default 1), and
 // exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
+//   bench_double_pendulum --profile-cases DIGITS [FIRST COUNT [quadrature]]
+// times each case alone (thread CPU time, so other processes on the cores matter less) and
+// prints index, time, evaluations (nodes or Graf terms) and parameters, one line per case;
+// `sort -k2 -g -r` lists the slowest. DIGITS = 16: double; otherwise MPFR at DIGITS.
 #include <benchmark/benchmark.h>
 
 #include "cases.hpp"
@@ -33,10 +37,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <exception>
 #include <optional>
 #include <set>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace {
@@ -289,7 +295,63 @@ BENCHMARK_CAPTURE(BM_double_named, l2_1e4, Case{1, 1, 0.5, 0.5, 1, 1e4});
 
 }  // namespace
 
+/// --profile-cases DIGITS [FIRST COUNT]: times every case alone (thread CPU time, median of 5
+/// blocks) and prints
+/// one line per case: index, time, evaluations (nodes or Graf terms), parameters. DIGITS = 16 runs
+/// double, otherwise mpfr_real at that many digits. Sort the output to list the slowest cases.
+int profile_cases(int digits, std::size_t first, std::size_t count, bool force_quadrature) {
+  pendavg::IntegralOptions options;
+  if (force_quadrature) options.evaluation = pendavg::IntegralEvaluation::quadrature;
+  const auto& all = all_cases();
+  const std::size_t last = std::min(all.size(), first + count);
+  for (std::size_t i = first; i < last; ++i) {
+    const Case& c = all[i];
+    auto run = [&]<class Real>() {
+      const Chain<Real> chain = make_chain<Real>(c);
+      const Real beta(c.beta);
+      auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits, options);
+      std::vector<double> t;
+      const int reps = std::is_same_v<Real, double> ? 50 : 1;
+      // Thread CPU time: robust against other processes sharing the cores.
+      auto cpu_seconds = [] {
+        timespec ts{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+      };
+      for (int b = 0; b < 5; ++b) {
+        const double start = cpu_seconds();
+        for (int k = 0; k < reps; ++k) {
+          auto x = pendavg::reduced_integral_average<Real>(chain, beta, digits, options);
+          benchmark::DoNotOptimize(x);
+        }
+        t.push_back((cpu_seconds() - start) / reps);
+      }
+      std::printf("%4zu %10.3f us evals=%5zu %s\n", i, median_of(t) * 1e6, r.evaluations,
+                  pendavg_bench::describe(c).c_str());
+    };
+    if (digits == 16) {
+      run.template operator()<double>();
+    } else {
+      pendavg::working_precision guard(digits + pendavg::guard_digits);
+      run.template operator()<mpfr_real>();
+    }
+  }
+  return 0;
+}
+
 int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--profile-cases") != 0) continue;
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "--profile-cases needs DIGITS\n");
+      return 2;
+    }
+    const int digits = std::atoi(argv[i + 1]);
+    const std::size_t first = i + 2 < argc ? std::strtoull(argv[i + 2], nullptr, 10) : 0;
+    const std::size_t count = i + 3 < argc ? std::strtoull(argv[i + 3], nullptr, 10) : 1000;
+    const bool quadrature = i + 4 < argc && std::strcmp(argv[i + 4], "quadrature") == 0;
+    return profile_cases(digits, first, count, quadrature);
+  }
   // --write-cases FILE [--replicate N]: write the cases as CSV and exit (no benchmarks).
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--write-cases") != 0) continue;
