@@ -139,7 +139,7 @@ table m1 is mu1.
 |---|---|
 | `fig5_beta_K.png` | beta<K1>, beta<K2> vs beta (log x), mu1 = 0.5, l = 1, 1; dashed: the beta -> 0 limits 0.3431..., 0.6568...; dotted: 1/2 (beta -> infinity); symbols: Langevin trajectories (2-sigma bars) where the paper had MCMC |
 | `fig6_ratio_vs_l2.png` | <K1>/<K2> vs l2 (log x), panels mu1 = 0.05, 0.5, 0.95; colors beta = 1, 2, 5, 10 (blue to red) |
-| `fig7_ratio_vs_beta.png` | <K1>/<K2> vs beta (log x), panels mu1, colors l2 = 0.5, 1, 2; dashed: beta -> 0 limit |
+| `fig7_ratio_vs_beta.png` | <K1>/<K2> vs beta (log x), panels mu1, colors l2 = 0.5, 1, 2; dashed: beta -> 0 limit; symbols (mu1 = 0.5, l2 = 1): Langevin trajectories where the paper had MCMC |
 | `fig8_cos_phi.png` | <cos phi_1>, <cos phi_2> vs beta (log x), mu1 = 0.5, l = 1, 1; symbols: Langevin trajectories (2-sigma bars) where the paper had MCMC |
 | `chains.png` | beta<K_i> vs i for N = 3..8 (error bars: qmc), panels beta = 0.1, 1, 10; dashed: diagonal approximation |
 | `work_precision.png` | work-precision diagram: seconds vs true error (filled) and reported error (open), per case and method |

@@ -98,13 +98,26 @@ for ax, mu in zip(axes, MU1):
     if lim:
         ax.axhline(float(lim["ratio"]), ls="--", lw=1, color="gray", label=r"$\beta\to0$ limit")
     ax.axhline(1, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1")
+    if mu == "0.5" and os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
+        # Trajectory symbols (Langevin, l2 = 1), where the paper showed MCMC; the bar propagates
+        # the two 1-sigma bars as if independent (x 2).
+        sym = read("dynamics_fig5.csv")
+        one = [r for r in sym if r["i"] == "1"]
+        two = [r for r in sym if r["i"] == "2"]
+        ratio = [float(a["beta_K"]) / float(b["beta_K"]) for a, b in zip(one, two)]
+        bar = [2 * q * ((float(a["beta_K_error"]) / float(a["beta_K"])) ** 2 +
+                        (float(b["beta_K_error"]) / float(b["beta_K"])) ** 2) ** 0.5
+               for q, a, b in zip(ratio, one, two)]
+        ax.errorbar(f(one, "beta"), ratio, yerr=bar, fmt="o", ms=5, mfc="none", color="tab:blue",
+                    capsize=3, label=r"Langevin, $\ell_2 = 1$ ($\pm2\sigma$)")
     ax.set_xscale("log")
     ax.set_xlabel(r"$\beta$  ($\ell_1 = 1$, $g = 1$)")
     ax.set_title(rf"$\mu_1$ = {mu}")
     ax.grid(True, which="both", alpha=0.3)
 axes[0].set_ylabel(r"$\langle K_1\rangle / \langle K_2\rangle$")
 axes[0].legend(fontsize=8)
-fig.suptitle(r"$\beta$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 7, exact)")
+axes[1].legend(fontsize=8)
+fig.suptitle(r"$\beta$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 7: exact curves, trajectory symbols)")
 save(fig, "fig7_ratio_vs_beta.png")
 
 # Fig. 8: <cos phi_i> vs beta, mu1 = 0.5, l = 1, 1.
