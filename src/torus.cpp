@@ -9,7 +9,10 @@ namespace pendavg {
   template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,           \
                                               const TorusOptions&);                      \
   template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,          \
-                                               const QmcOptions&);
+                                               const QmcOptions&);                        \
+  template Averages<Real> high_temperature_limit_any<Real>(                              \
+      const Chain<Real>&, const TorusOptions&, const QmcOptions&, std::size_t);          \
+  template Averages<Real> low_temperature_limit_any<Real>(const Chain<Real>&);
 PENDAVG_TORUS_INSTANTIATE(double)
 PENDAVG_TORUS_INSTANTIATE(long double)
 PENDAVG_TORUS_INSTANTIATE(mpfr_real)

@@ -1536,6 +1536,61 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   return out;
 }
 
+// ============================================================================ limits, any N
+//
+// beta -> 0 (MATH.md Sec. 2): exp(-beta U) -> 1, so the angles are distributed as sqrt(det A)
+// on the torus and beta<K_i> -> <tr X_i>_{sqrt det A} / 2, Var likewise, <cos phi_i> -> 0. That
+// is exactly the torus average of the same chain with g = 0 (at any beta), evaluated here by
+// the tensor trapezoid for N <= max_tensor_particles (to options.tolerance) and by QMC beyond
+// (3-sigma bars). For N = 2 it reproduces the elliptic K/E limit (tested).
+// beta -> infinity: the chain hangs, tr X_i(0) = 1 for every i (MATH.md Sec. 2), so
+// beta<K_i> -> 1/2, <cos phi_i> -> 1 and, from Isserlis (Sec. 4) at phi = 0,
+// beta^2 Var K_i -> tr(X_i(0)^2) / 2 (1/2 for N = 2: X_1 has rank one). Closed form.
+
+/// The beta -> 0 limit for any N (see above). method = torus_trapezoid or qmc.
+template <class Real>
+Averages<Real> high_temperature_limit_any(const Chain<Real>& chain, const TorusOptions& torus = {},
+                                          const QmcOptions& qmc = {},
+                                          std::size_t max_tensor_particles = 5) {
+  const Chain<Real> free(chain.masses(), chain.lengths(), Real(0));
+  Averages<Real> out = chain.size() <= max_tensor_particles
+                           ? torus_average(free, Real(1), torus)
+                           : qmc_average(free, Real(1), qmc).averages;
+  // At g = 0 the cosine averages vanish by symmetry (phi -> phi + const); report exact zeros.
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    out.cos_angle[i] = 0;
+    out.cos_angle_error[i] = 0;
+  }
+  return out;
+}
+
+/// The beta -> infinity limit for any N (see above): exact, method low_temperature_limit.
+template <class Real>
+Averages<Real> low_temperature_limit_any(const Chain<Real>& chain) {
+  const std::size_t n = chain.size();
+  TraceWorkspace<Real> ws(chain);
+  const std::vector<Real> zero(n > 1 ? n - 1 : 1, Real(0));
+  const NodeTraces<Real>& t = node_traces_relative(chain, zero.data(), ws);
+  Averages<Real> out;
+  out.beta_kinetic.assign(n, Real(1) / 2);
+  out.beta_kinetic_error.assign(n, Real(0));
+  out.cos_angle.assign(n, Real(1));
+  out.cos_angle_error.assign(n, Real(0));
+  out.beta2_kinetic_variance.resize(n);
+  out.beta2_kinetic_variance_error.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out.beta2_kinetic_variance[i] = t.trace_X_squared[i] / 2;
+    // tr X_i^2 from the O(N) sweeps is accurate to a few ulps (trace_formula.hpp).
+    out.beta2_kinetic_variance_error[i] =
+        16 * std::numeric_limits<Real>::epsilon() * out.beta2_kinetic_variance[i];
+  }
+  out.ratio = n >= 2 ? Real(1) : Real(0);
+  out.ratio_error = 0;
+  out.method = Method::low_temperature_limit;
+  out.evaluations = 1;
+  return out;
+}
+
 // Explicit instantiations live in src/torus.cpp (double, long double, mpfr_real).
 #define PENDAVG_TORUS_EXTERN(Real)                                                          \
   extern template TorusAverages<Real> torus_average_full<Real>(const Chain<Real>&, const Real&, \
@@ -1543,7 +1598,10 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   extern template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,        \
                                                      const TorusOptions&);                  \
   extern template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,       \
-                                                      const QmcOptions&);
+                                                      const QmcOptions&);                   \
+  extern template Averages<Real> high_temperature_limit_any<Real>(                          \
+      const Chain<Real>&, const TorusOptions&, const QmcOptions&, std::size_t);             \
+  extern template Averages<Real> low_temperature_limit_any<Real>(const Chain<Real>&);
 PENDAVG_TORUS_EXTERN(double)
 PENDAVG_TORUS_EXTERN(long double)
 PENDAVG_TORUS_EXTERN(mpfr_real)

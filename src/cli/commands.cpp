@@ -81,11 +81,14 @@ constexpr std::string_view average_usage =
     "evaluations.\n";
 
 constexpr std::string_view limit_usage =
-    "usage: pendavg limit --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D]\n"
+    "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
     "                     [--format json|text]\n"
     "\n"
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
-    "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n";
+    "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
+    "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
+    "at g = 0 (tensor trapezoid for N <= 5, qmc with 3-sigma bars beyond, double only);\n"
+    "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
 
 constexpr std::string_view series_usage =
     "usage: pendavg series --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--digits D]\n"
@@ -588,10 +591,30 @@ void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_vi
 template <class Real>
 std::string limit_report(const Options& options, int digits, Format format) {
   const Chain<Real> chain = chain_option<Real>(options, false);
-  const AveragesText high = averages_text(high_temperature_limit(chain, digits), digits,
-                                          static_cast<const Real*>(nullptr));
-  const AveragesText low =
-      averages_text(low_temperature_limit(chain), digits, static_cast<const Real*>(nullptr));
+  const std::size_t n = chain.size();
+  constexpr std::size_t max_tensor_particles = 5;
+  if (n > max_tensor_particles && digits != min_digits)
+    throw usage_error("limit: N = " + std::to_string(n) + " > " +
+                      std::to_string(max_tensor_particles) +
+                      " uses qmc for beta -> 0, in double only (--digits 16)");
+  Averages<Real> high_values, low_values;
+  if (n == 2) {
+    high_values = high_temperature_limit(chain, digits);  // elliptic K/E (paper eq. aveK1-beta0)
+    low_values = low_temperature_limit(chain);
+  } else {
+    TorusOptions torus;
+    torus.digits = digits == min_digits ? 0 : digits;
+#ifdef _OPENMP
+    torus.threads = omp_get_max_threads();
+#endif
+    QmcOptions qmc;
+    qmc.threads = torus.threads;
+    high_values = high_temperature_limit_any(chain, torus, qmc, max_tensor_particles);
+    low_values = low_temperature_limit_any(chain);
+  }
+  const AveragesText high =
+      averages_text(high_values, digits, static_cast<const Real*>(nullptr));
+  const AveragesText low = averages_text(low_values, digits, static_cast<const Real*>(nullptr));
   if (format == Format::text) {
     std::vector<std::vector<std::string>> table{
         {"limit", "i", "beta<K_i>", "error", "beta^2 Var K_i", "<K1>/<K2>"}};

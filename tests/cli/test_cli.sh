@@ -311,6 +311,20 @@ assert value.startswith("0.3431834814709"), value
 good "limit paper value"     check_limit limit --masses 0.5,0.5
 good "limit paper value, digits 40" check_limit limit --masses 0.5,0.5 --digits 40
 good "limit text"            '[ -s "$work/out" ]' limit --masses 0.5,0.5 --format text
+check_limit_any() { # N: beta -> 0 sums to N/2; beta -> infinity is 1/2 each
+  "$python" - "$work/out" "$1" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1])); n = int(sys.argv[2])
+h, l = d["high_temperature"], d["low_temperature"]
+assert d["N"] == n and len(h["beta_K"]) == n
+total = sum(float(x) for x in h["beta_K"]); bars = sum(float(x) for x in h["error"])
+assert abs(total - n / 2) <= bars + 1e-13, (total, bars)
+assert all(float(x) == 0.5 for x in l["beta_K"])
+PY
+}
+good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --lengths 1,0.5,2
+good "limit N = 7 (qmc)"       'check_limit_any 7' limit --masses 1,1,1,1,1,1,1
+bad "limit N = 6 at 20 digits" limit --masses 1,1,1,1,1,1 --digits 20
 
 good "series 5 terms text" \
   '[ "$(sed "1d;\$d" "$work/out" | grep -c "^ *[0-9]")" -eq 5 ]' \
