@@ -88,7 +88,7 @@ for (n, beta), (total, err, method) in sums.items():
 # Dynamics (issue 4): constraints, and the confirmation runs within 3 combined error bars.
 for line in paper_head:
     if line.startswith("# N = "):
-        residual = float(line.split("constraint_residual ")[1].split(",")[0])
+        residual = float(line.split("constraint_residual ")[1].split(",")[0].split(";")[0])
         check(residual <= 1e-12, f"dynamics_paper_runs.csv, {line[2:8].strip()}: largest constraint residual "
                                  f"{residual:.1e} <= 1e-12 (relative to the link length)")
 worst_dev = max(abs(float(r["deviation_sigmas"])) for r in confirm_rows)
