@@ -147,13 +147,18 @@ struct HankelMpfrCache {
   }
 };
 
-ScaledBesselI01<mpfr_real> hankel_mpfr(const mpfr_real& x) {
+HankelMpfrCache& hankel_mpfr_cache() {
   thread_local HankelMpfrCache cache;
   const unsigned precision = mpfr_real::default_precision();
   if (cache.precision != precision) {
     cache = HankelMpfrCache{};
     cache.precision = precision;
   }
+  return cache;
+}
+
+/// Hankel terms for x: the first n with c_n x^{-n} <= u/16.
+std::size_t hankel_mpfr_terms(HankelMpfrCache& cache, const mpfr_real& x) {
   const double target = -log_inverse_roundoff<mpfr_real>() - std::log(16.0);
   const double xd = static_cast<double>(x);
   const double log_x = std::isfinite(xd) ? std::log(xd) : 710.0;
@@ -163,6 +168,12 @@ ScaledBesselI01<mpfr_real> hankel_mpfr(const mpfr_real& x) {
     if (cache.log_c[n] - static_cast<double>(n) * log_x <= target) break;
     if (n > 100000) throw std::domain_error("scaled_bessel_i01: Hankel series did not converge");
   }
+  return n;
+}
+
+ScaledBesselI01<mpfr_real> hankel_mpfr(const mpfr_real& x) {
+  auto& cache = hankel_mpfr_cache();
+  const std::size_t n = hankel_mpfr_terms(cache, x);
   const mpfr_real y = 1 / x;
   mpfr_real s0 = cache.c[n], s1 = cache.d[n];
   for (std::size_t k = n; k-- > 0;) {
@@ -180,6 +191,64 @@ ScaledBesselI01<mpfr_real> hankel_mpfr(const mpfr_real& x) {
 }
 
 }  // namespace
+
+template <class Real>
+ScaledBesselI01Range<Real> scaled_bessel_i01_range(const Real& x_min, const Real& x_max) {
+  ScaledBesselI01Range<Real> out;
+  if constexpr (is_mpfr_v<Real>) {
+    if (!(x_min >= Real(asymptotic_threshold<Real>())) || !(x_max >= x_min)) return out;
+    auto& cache = hankel_mpfr_cache();
+    // Hankel's polynomials of degree n in y = 1/x (the term count of scaled_bessel_i01 at
+    // x_min, hence at least as many terms as it takes anywhere in the range).
+    const std::size_t n = hankel_mpfr_terms(cache, x_min);
+    out.y0 = 1 / x_max;
+    const Real delta_max = 1 / x_min - out.y0;  // 0 <= y - y0 <= delta_max
+    // Taylor shift to y0 (Horner's synthetic division, exact re-expansion up to rounding):
+    // sum_k c_k y^k = sum_j d_j (y - y0)^j.
+    std::vector<Real> d0(cache.c.begin(), cache.c.begin() + static_cast<long>(n) + 1);
+    std::vector<Real> d1(cache.d.begin(), cache.d.begin() + static_cast<long>(n) + 1);
+    Real tmp;
+    for (std::size_t j = 0; j < n; ++j) {
+      for (std::size_t k = n; k-- > j;) {
+        tmp = d0[k + 1];
+        tmp *= out.y0;
+        d0[k] += tmp;
+        tmp = d1[k + 1];
+        tmp *= out.y0;
+        d1[k] += tmp;
+      }
+    }
+    // Cut the shifted series after J + 1 terms when sum_{j>J} |d_j| delta_max^j <= u/64. The
+    // sums are >= 1/2 (s0 >= 1; s1 >= 1 - 3 y/8 - ... >= 0.9 at x >= asymptotic_threshold),
+    // so this adds at most u/32 relative to the Hankel truncation error (u/16 per term count).
+    const Real cut = unit_roundoff<Real>() / 64;
+    Real tail = 0, power = 1;
+    std::vector<Real> tail_from(n + 2, Real(0));  // tail_from[j] = sum_{i>=j} |d_i| delta^i
+    std::vector<Real> powers(n + 1);
+    for (std::size_t j = 0; j <= n; ++j) {
+      powers[j] = power;
+      power *= delta_max;
+    }
+    for (std::size_t j = n + 1; j-- > 0;) {
+      tmp = abs(d0[j]) > abs(d1[j]) ? abs(d0[j]) : abs(d1[j]);
+      tmp *= powers[j];
+      tail += tmp;
+      tail_from[j] = tail;
+    }
+    std::size_t J = n;
+    while (J > 0 && tail_from[J] <= cut) --J;
+    d0.resize(J + 1);
+    d1.resize(J + 1);
+    out.c0 = std::move(d0);
+    out.c1 = std::move(d1);
+    out.inv_sqrt_two_pi = 1 / sqrt(2 * boost::math::constants::pi<Real>());
+    out.valid = true;
+  } else {
+    (void)x_min;
+    (void)x_max;
+  }
+  return out;
+}
 
 template <class Real>
 ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x) {
@@ -340,6 +409,8 @@ std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
   template double scaled_bessel_table_error_ulps<Real>(double, std::size_t, std::size_t); \
   template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
 PENDAVG_INSTANTIATE(double)
+template ScaledBesselI01Range<mpfr_real> scaled_bessel_i01_range<mpfr_real>(const mpfr_real&,
+                                                                          const mpfr_real&);
 PENDAVG_INSTANTIATE(long double)
 PENDAVG_INSTANTIATE(mpfr_real)
 #undef PENDAVG_INSTANTIATE

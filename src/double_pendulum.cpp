@@ -179,7 +179,10 @@ struct DirectWeights {
   // Without the fold F[3] = -W'(t) / sin t = a1 a2 e^{-A} I1(R) / R, for J_{-3/2} by parts.
   bool by_parts = false;
   // MPFR scratch (in-place arithmetic, no allocation per operation); A^2 and P/4 per call.
-  mutable Real s2_, c2_, cos_t_, R_, E_, tmp_, ex_, g_, A2_, quarter_P_;
+  mutable Real s2_, c2_, cos_t_, R_, E_, tmp_, ex_, g_, A2_, quarter_P_, y_, dy_, b0_, b1_;
+  // MPFR, unfolded: e^{-R} I0(R), e^{-R} I1(R) from Hankel's series re-expanded over the
+  // range of R at the nodes (set by the caller when that range is above the Hankel threshold).
+  ScaledBesselI01Range<Real> bessel_range;
   void operator()(const Real& sin2_t, const Real& sh, std::array<Real, 4>& F) const {
     if constexpr (is_mpfr_v<Real>) {
       if (!fold) {
@@ -205,12 +208,38 @@ struct DirectWeights {
         tmp_ /= E_;
         E_ = -tmp_;  // R - A = -P s2 / (R + A)
         ex_ = exp(E_);
-        const auto b = scaled_bessel_i01(R_);
-        F[0] = b.i0e;
-        F[0] *= ex_;
-        g_ = b.i1e;
-        g_ *= ex_;
-        g_ /= R_;
+        if (bessel_range.valid) {
+          // y = 1/R; sums in (y - y0) by Horner's rule; prefactor sqrt(y / (2 pi)).
+          y_ = 1;
+          y_ /= R_;
+          dy_ = y_;
+          dy_ -= bessel_range.y0;
+          const auto& c0 = bessel_range.c0;
+          const auto& c1 = bessel_range.c1;
+          b0_ = c0.back();
+          b1_ = c1.back();
+          for (std::size_t j = c0.size() - 1; j-- > 0;) {
+            b0_ *= dy_;
+            b0_ += c0[j];
+            b1_ *= dy_;
+            b1_ += c1[j];
+          }
+          tmp_ = sqrt(y_);
+          tmp_ *= bessel_range.inv_sqrt_two_pi;
+          tmp_ *= ex_;  // e^{R - A} sqrt(y / (2 pi))
+          F[0] = b0_;
+          F[0] *= tmp_;
+          g_ = b1_;
+          g_ *= tmp_;
+          g_ *= y_;
+        } else {
+          const auto b = scaled_bessel_i01(R_);
+          F[0] = b.i0e;
+          F[0] *= ex_;
+          g_ = b.i1e;
+          g_ *= ex_;
+          g_ /= R_;
+        }
         F[1] = a2;
         F[1] *= cos_t_;
         F[1] += a1;
@@ -299,6 +328,7 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
   std::array<Real, 4> F;
   std::array<Real, 9> node_scratch;
   Real sh, dtdx, wf, scratch;
+  const Real inv_mu1 = 1 / mu1;
   if (ws.values.size() < 2) ws.values.resize(2);
   for (std::size_t level = 0; level <= max_level; ++level) {
     rule.ensure_level(level);
@@ -328,9 +358,10 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
           node_scratch[3] = node_scratch[2];
           node_scratch[3] *= mu2;
           node_scratch[3] += mu1;  // q
-          node_scratch[4] = sqrt(node_scratch[3]);  // sqrt(q)
-          node_scratch[5] = 1;
-          node_scratch[5] /= node_scratch[4];  // q^{-1/2}
+          mpfr_rec_sqrt(node_scratch[5].backend().data(), node_scratch[3].backend().data(),
+                        MPFR_RNDN);  // q^{-1/2}
+          node_scratch[4] = node_scratch[3];
+          node_scratch[4] *= node_scratch[5];  // sqrt(q) = q q^{-1/2}
           weights(node_scratch[2], sh, F);
           auto& v = vals[j];
           node_scratch[6] = dtdx;
@@ -353,7 +384,7 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
           node_scratch[7] += node_scratch[8];
           node_scratch[7] *= dtdx;
           v[2] = node_scratch[7];
-          v[2] /= mu1;
+          v[2] *= inv_mu1;
           v[3] = node_scratch[6];
           v[3] *= F[1];
           v[4] = node_scratch[6];
@@ -800,6 +831,16 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     } else {
       DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
       dw.by_parts = !fold;
+      if constexpr (is_mpfr_v<Real>) {
+        if (!fold) {
+          // R at the nodes lies in [R(T), A]: R(T)^2 = A^2 - 4 a1 a2 sin^2(T/2). Slightly
+          // widened (relative 2^-40) so that rounding of R at the nodes stays inside.
+          const Real sT = sin(map.T / 2);
+          const Real R_T = sqrt(A * A - dw.P * sT * sT);
+          dw.bessel_range = scaled_bessel_i01_range(Real(R_T * (1 - ldexp(Real(1), -40))),
+                                                    Real(A * (1 + ldexp(Real(1), -40))));
+        }
+      }
       // W(pi - t) e^{...} below u e^{-5} / (1 + A) of W(0) ~ (2 pi A)^{-1/2} is negligible
       // beside every integral, each at least its value at the peak times the peak's width.
       dw.negligible_exponent = Real(ln_inv_tol + 5.0 + 2 * std::log1p(A_d));

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 using pendavg::mpfr_real;
 
@@ -155,6 +156,45 @@ TEST_CASE("MPFR Hankel path (cached coefficients) agrees with Boost.Math across 
       CHECK(abs(m.i0e / i0 - 1) < tol);
       CHECK(abs(m.i1e / i1 - 1) < tol);
     }
+  }
+}
+
+TEST_CASE("MPFR Hankel series re-expanded over a range agrees with Boost.Math", "[bessel]") {
+  // scaled_bessel_i01_range: the double pendulum's nodes at large beta, where R spans a narrow
+  // range below A = a1 + a2. Independent reference: Boost.Math's cyl_bessel_i at 20 more
+  // digits. Points across the range, both ends included, several precisions and widths.
+  for (int digits : {50, 89, 140, 50}) {
+    pendavg::working_precision guard(digits);
+    const mpfr_real tol = 8 * pendavg::unit_roundoff<mpfr_real>();
+    for (const auto& [lo, hi] : {std::pair<const char*, const char*>{"196920.5", "197119.25"},
+                                 {"400", "2500"}, {"600", "600"}, {"3e7", "3.0001e7"}}) {
+      const mpfr_real x_min(lo), x_max(hi);
+      const auto range = pendavg::scaled_bessel_i01_range(x_min, x_max);
+      REQUIRE(range.valid);
+      for (int k = 0; k <= 4; ++k) {
+        const mpfr_real x = x_min + (x_max - x_min) * k / 4;
+        const mpfr_real y = 1 / x, dy = y - range.y0;
+        mpfr_real s0 = 0, s1 = 0;
+        for (std::size_t j = range.c0.size(); j-- > 0;) {
+          s0 = s0 * dy + range.c0[j];
+          s1 = s1 * dy + range.c1[j];
+        }
+        const mpfr_real pre = sqrt(y) * range.inv_sqrt_two_pi;
+        mpfr_real i0, i1;
+        {
+          pendavg::working_precision wide(digits + 20);
+          const mpfr_real X = mpfr_real(x_min) + (mpfr_real(x_max) - mpfr_real(x_min)) * k / 4;
+          const mpfr_real e = exp(-X);
+          i0 = boost::math::cyl_bessel_i(0, X) * e;
+          i1 = boost::math::cyl_bessel_i(1, X) * e;
+        }
+        INFO("digits = " << digits << ", range [" << lo << ", " << hi << "], k = " << k);
+        CHECK(abs(pre * s0 / i0 - 1) < tol);
+        CHECK(abs(pre * s1 / i1 - 1) < tol);
+      }
+    }
+    // Below the Hankel threshold the range expansion declines.
+    CHECK_FALSE(pendavg::scaled_bessel_i01_range(mpfr_real(10), mpfr_real(20)).valid);
   }
 }
 

@@ -39,6 +39,21 @@ ScaledBesselI01<Real> scaled_bessel_i01(const Real& x);
 template <class Real>
 ScaledBesselI01<Real> scaled_bessel_i01_generic(const Real& x);
 
+/// e^{-x} I0(x), e^{-x} I1(x) for many x in one range [x_min, x_max] (MPFR only; x_min above
+/// the Hankel threshold): Hankel's series in y = 1/x re-expanded about y0 = 1/x_max, cut where
+/// the shifted tail over the range is below u/64. Over a narrow range (x_max - x_min << x_min,
+/// e.g. the peak of the pendulum's weight at large beta) this takes far fewer terms than the
+/// series itself: i0e = sqrt(y) inv_sqrt_two_pi sum_j c0[j] (y - y0)^j, i1e likewise with c1.
+/// `valid` is false (use scaled_bessel_i01) when the range is not above the threshold.
+template <class Real>
+struct ScaledBesselI01Range {
+  bool valid = false;
+  Real y0, inv_sqrt_two_pi;
+  std::vector<Real> c0, c1;
+};
+template <class Real>
+ScaledBesselI01Range<Real> scaled_bessel_i01_range(const Real& x_min, const Real& x_max);
+
 /// e^{-a} I_m(a) for m = 0 .. count-1 (a >= 0). Cost O(count + sqrt(a * digits) + a).
 template <class Real>
 std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count);
