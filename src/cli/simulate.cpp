@@ -6,6 +6,7 @@
 #include "simulate.hpp"
 
 #include "files.hpp"
+#include "interrupt.hpp"
 #include "format.hpp"
 
 #include "pendavg/double_pendulum.hpp"
@@ -17,7 +18,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <numbers>
 #include <optional>
@@ -70,32 +70,6 @@ constexpr std::array<std::string_view, 4> integrator_names{"rattle2", "yoshida4"
 constexpr std::array<std::string_view, 2> thermostat_names{"none", "langevin"};
 constexpr std::array<std::string_view, 2> yes_no{"yes", "no"};
 constexpr std::array<std::string_view, 2> simulate_formats{"json", "csv"};
-
-// ---------------------------------------------------------------- signals
-
-std::atomic<bool> stop_requested{false};
-
-extern "C" void request_stop(int) { stop_requested.store(true); }
-
-/// Installs SIGINT/SIGTERM handlers for its lifetime (restores the previous ones after).
-class StopOnSignal {
- public:
-  StopOnSignal() {
-    stop_requested.store(false);
-    previous_int_ = std::signal(SIGINT, request_stop);
-    previous_term_ = std::signal(SIGTERM, request_stop);
-  }
-  ~StopOnSignal() {
-    std::signal(SIGINT, previous_int_);
-    std::signal(SIGTERM, previous_term_);
-  }
-  StopOnSignal(const StopOnSignal&) = delete;
-  StopOnSignal& operator=(const StopOnSignal&) = delete;
-
- private:
-  void (*previous_int_)(int);
-  void (*previous_term_)(int);
-};
 
 /// Prints "[command] ..." to stderr at most every 2 s, starting after 2 s.
 class Progress {
@@ -296,7 +270,7 @@ std::string simulate_command(const Options& options) {
   Progress progress("simulate");
   observer.progress = [&](double fraction) { progress(fraction); };
   StopOnSignal signals;
-  observer.stop = &stop_requested;
+  observer.stop = &stop_flag();
   const SimulationResult<double> r = simulate(chain, initial, run, observer);
   const double seconds = progress.seconds();
   if (trajectory) {
@@ -406,7 +380,7 @@ std::string poincare_command(const Options& options) {
   DynamicsObserver<double> observer;
   observer.progress = [&](double fraction) { progress(fraction, "of the orbits "); };
   StopOnSignal signals;
-  observer.stop = &stop_requested;
+  observer.stop = &stop_flag();
   const PoincareSection<double> section = poincare_section(chain, energy, run, observer);
   if (section.interrupted) std::fprintf(stderr, "[poincare] interrupted: points so far\n");
   std::string out = "# pendavg poincare: section phi1 = 0, phidot1 > 0; energy " +

@@ -4,6 +4,7 @@
 #include "table.hpp"
 
 #include "files.hpp"
+#include "interrupt.hpp"
 #include "format.hpp"
 
 #include "pendavg/double_pendulum.hpp"
@@ -68,7 +69,9 @@ const std::string_view table_usage =
     "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
     "place (nothing is left behind on error); without --output the CSV goes to stdout.\n"
-    "Progress goes to stderr (\"[table] 120/366 points\") when a sweep runs for over 2 s.\n";
+    "Progress goes to stderr (\"[table] 120/366 points\") when a sweep runs for over 2 s.\n"
+    "SIGINT/SIGTERM stop a sweep early: the points already computed are still written, after a\n"
+    "'# interrupted: K of N points computed' line.\n";
 
 namespace {
 
@@ -316,6 +319,7 @@ void table_rows(const std::vector<Point>& points, const std::vector<std::size_t>
 #pragma omp parallel for schedule(dynamic, 1)
   for (long i = 0; i < static_cast<long>(indices.size()); ++i) {
     const std::size_t k = indices[static_cast<std::size_t>(i)];
+    if (stop_flag().load(std::memory_order_relaxed)) continue;  // SIGINT: finish what runs
     try {
       rows[k] = table_row<Real>(points[k], plan);
     } catch (...) {
@@ -621,7 +625,21 @@ std::string table_command(const Options& options) {
   header.insert(header.end(), {"method", "evaluations", "converged"});
   append_csv_line(out, header);
 
-  for (const std::string& row : compute_rows(points, plan)) out += row;
+  std::vector<std::string> rows;
+  {
+    const StopOnSignal signals;
+    rows = compute_rows(points, plan);
+  }
+  const auto finished = static_cast<std::size_t>(
+      std::ranges::count_if(rows, [](const std::string& row) { return !row.empty(); }));
+  if (finished < rows.size()) {
+    // Interrupted (SIGINT/SIGTERM): keep every finished row, say so in the file and on stderr.
+    out += "# interrupted: " + std::to_string(finished) + " of " + std::to_string(rows.size()) +
+           " points computed; the rows of the others are left out\n";
+    std::fprintf(stderr, "[table] interrupted: %zu of %zu points written\n", finished,
+                 rows.size());
+  }
+  for (const std::string& row : rows) out += row;
   if (output.empty()) return out;
   write_atomically(output, out, "table");
   return {};

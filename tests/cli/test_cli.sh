@@ -618,6 +618,18 @@ rc=$?
 if [ "$rc" -eq 0 ] && "$python" -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['interrupted'] and 0 < d['steps'] < 10**9 and len(d['K']) == 4" "$work/out" \
    && grep -q "interrupted" "$work/err"; then pass; else fail "simulate SIGINT"; fi
 
+# SIGINT ends a long table sweep cleanly: exit 0, the finished rows written after an
+# '# interrupted' line, atomically to --output.
+"$pendavg" table --beta log:1:1000:60 --mu1 0.001 --digits 1000 --output "$work/partial.csv" 2>"$work/err" &
+pid=$!
+sleep 1
+kill -INT "$pid"
+wait "$pid"
+rc=$?
+if [ "$rc" -eq 0 ] && grep -q '^# interrupted: [0-9]* of 60 points computed' "$work/partial.csv" \
+   && [ "$(grep -c '^2,' "$work/partial.csv")" -lt 60 ] && [ -z "$(ls "$work" | grep 'partial.csv.tmp')" ] \
+   && grep -q "interrupted" "$work/err"; then pass; else fail "table SIGINT"; fi
+
 check_poincare() { # POINTS
   "$python" - "$work/out" "$1" <<'PY'
 import math, sys

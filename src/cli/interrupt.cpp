@@ -1,0 +1,26 @@
+// src/cli/interrupt.cpp -- see interrupt.hpp.
+#include "interrupt.hpp"
+
+#include <csignal>
+
+namespace pendavg::cli {
+
+namespace {
+std::atomic<bool> stop_requested{false};
+extern "C" void request_stop(int) { stop_requested.store(true); }
+}  // namespace
+
+std::atomic<bool>& stop_flag() { return stop_requested; }
+
+StopOnSignal::StopOnSignal() {
+  stop_requested.store(false);
+  previous_int_ = std::signal(SIGINT, request_stop);
+  previous_term_ = std::signal(SIGTERM, request_stop);
+}
+
+StopOnSignal::~StopOnSignal() {
+  std::signal(SIGINT, previous_int_);
+  std::signal(SIGTERM, previous_term_);
+}
+
+}  // namespace pendavg::cli

@@ -1,0 +1,27 @@
+// src/cli/interrupt.hpp -- SIGINT/SIGTERM end long CLI runs cleanly: a handler sets a flag that
+// the library polls (DynamicsObserver::stop) or the CLI checks between points, and the command
+// still prints what it finished.
+#pragma once
+
+#include <atomic>
+
+namespace pendavg::cli {
+
+/// The flag the handlers set (false until a signal arrives while a StopOnSignal is alive).
+std::atomic<bool>& stop_flag();
+
+/// Installs SIGINT/SIGTERM handlers that set stop_flag() for its lifetime (and clears the flag
+/// first); restores the previous handlers after.
+class StopOnSignal {
+ public:
+  StopOnSignal();
+  ~StopOnSignal();
+  StopOnSignal(const StopOnSignal&) = delete;
+  StopOnSignal& operator=(const StopOnSignal&) = delete;
+
+ private:
+  void (*previous_int_)(int);
+  void (*previous_term_)(int);
+};
+
+}  // namespace pendavg::cli
