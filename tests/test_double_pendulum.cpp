@@ -11,6 +11,7 @@
 #include <gsl/gsl_mode.h>
 #include <gsl/gsl_sf_ellint.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -256,6 +257,131 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
         check_double(d.cos_angle[i], d.cos_angle_error[i], exact.cos_angle[i], false);
         check_double(d.beta2_kinetic_variance[i], d.beta2_kinetic_variance_error[i],
                      exact.beta2_kinetic_variance[i], false);
+      }
+    }
+  }
+}
+
+// ---- product integration over the inner panel (detail/inner_panel_series.hpp) --------------
+
+#include "bench/cases.hpp"
+#include "pendavg/bessel.hpp"
+#include "pendavg/detail/inner_panel_series.hpp"
+
+#include "pendavg/quadrature.hpp"
+
+TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers its error",
+          "[double_pendulum][mpfr]") {
+  // The nine slowest benchmark cases at 77 digits (tests/bench/cases.hpp), inner panel
+  // t in [0, t1], t1 = 2 (a1 a2 / (a1 + a2))^{-1/2} as in reduced_integral_average.
+  const auto cases = pendavg_bench::make_cases();
+  for (const int digits : {30, 50, 80}) {
+    const pendavg::precision_guard<mpfr_real> precision(digits + pendavg::guard_digits);
+    const mpfr_real u = pendavg::unit_roundoff<mpfr_real>();
+    for (const std::size_t i : {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u}) {
+      const auto& c = cases[i];
+      const mpfr_real M = mpfr_real(c.m1) + mpfr_real(c.m2);
+      const mpfr_real mu1 = mpfr_real(c.m1) / M, mu2 = mpfr_real(c.m2) / M;
+      const mpfr_real a1 = mpfr_real(c.beta) * M * c.g * c.l1;
+      const mpfr_real a2 = mpfr_real(c.beta) * mpfr_real(c.m2) * c.g * c.l2;
+      const mpfr_real A = a1 + a2, P = 4 * a1 * a2;
+      const double h = static_cast<double>(a1 * a2 / A);
+      const mpfr_real s1 = sin(mpfr_real(2.0 / std::sqrt(h)) / 2);
+      const auto series = pendavg::detail::inner_panel_series(mu1, mu2, a1, a2, s1);
+      REQUIRE(series.ok);
+      // Reference: sin(t/2) = eps sinh(v) on [0, asinh(s1 / eps)], where q = 4 mu2 eps^2
+      // cosh^2 v (1 + eps^2 - sin^2(t/2)) and dt = 2 eps cosh v dv / cos(t/2): analytic in v.
+      const mpfr_real c2 = mu1 / mu2;
+      const mpfr_real eps = sqrt(c2 / (2 * (1 + sqrt(1 + c2))));
+      const mpfr_real v1 = asinh(s1 / eps);
+      auto integrands = [&](const mpfr_real& v) {
+        const mpfr_real ch = cosh(v), sh = eps * sinh(v);
+        const mpfr_real z = sh * sh;
+        const mpfr_real dt = 2 * eps * ch / sqrt(1 - z);
+        const mpfr_real sq = 2 * sqrt(mu2) * eps * ch * sqrt(1 + eps * eps - z);  // q^{1/2}
+        const mpfr_real R = sqrt(A * A - P * z);
+        const auto b = pendavg::scaled_bessel_i01(R);
+        const mpfr_real ex = exp(-P * z / (R + A));
+        const mpfr_real W = b.i0e * ex, g = b.i1e * ex / R;
+        const mpfr_real cos_t = 1 - 2 * z, sin2_t = 4 * z * (1 - z);
+        return std::array<mpfr_real, 5>{
+            sq * W * dt, W / sq * dt,
+            (sq * W + mu2 * sin2_t * cos_t / sq * (P / 4) * g) / mu1 * dt,
+            sq * g * (a1 + a2 * cos_t) * dt, sq * g * (a2 + a1 * cos_t) * dt};
+      };
+      // Clenshaw-Curtis in v (the integrands are analytic there), levels until two agree.
+      pendavg::ClenshawCurtisRule<mpfr_real> rule(8);
+      std::array<mpfr_real, 5> previous{}, current{}, l1_sum{};
+      std::array<mpfr_real, 5> err_level{};
+      bool converged = false;
+      for (std::size_t level = 0; level <= 9 && !converged; ++level) {
+        rule.ensure_level(level);
+        const auto& x = rule.nodes(level);
+        const auto& wt = rule.weights(level);
+        for (auto& s : current) s = 0;
+        for (auto& s : l1_sum) s = 0;
+        for (std::size_t j = 0; j < x.size(); ++j) {
+          const auto F = integrands(x[j] * v1);
+          for (std::size_t k = 0; k < 5; ++k) {
+            current[k] += wt[j] * v1 * F[k];
+            l1_sum[k] += abs(wt[j] * v1 * F[k]);
+          }
+        }
+        converged = level >= 3;
+        for (std::size_t k = 0; k < 5; ++k) {
+          err_level[k] = abs(current[k] - previous[k]);
+          if (!(err_level[k] <= pow(mpfr_real(10), -(digits + 8)) * abs(current[k]))) {
+            converged = false;
+          }
+        }
+        previous = current;
+      }
+      REQUIRE(converged);
+      for (std::size_t k = 0; k < 5; ++k) {
+        const mpfr_real ref = current[k], err = err_level[k], l1 = l1_sum[k];
+        const mpfr_real diff = abs(series.value[k] - ref);
+        INFO("case " << i << " digits " << digits << " integral " << k << " diff "
+                     << static_cast<double>(diff / abs(ref)) << " reported "
+                     << static_cast<double>(series.error[k] / abs(ref)));
+        // Value: the requested tolerance 10^{-(digits + 2)} (what the engine asks for).
+        CHECK(diff <= pow(mpfr_real(10), -(digits + 2)) * abs(ref));
+        // Error estimate: covers the difference up to the reference's own rounding (l1 u 1e3),
+        // and is tight (within the tolerance).
+        CHECK(diff <= series.error[k] + 1000 * u * l1 + 100 * err);
+        CHECK(series.error[k] <= pow(mpfr_real(10), -(digits + 2)) * abs(ref));
+      }
+    }
+  }
+}
+
+TEST_CASE("averages through the inner-panel series: 30 and 50 digits against 80, errors cover",
+          "[double_pendulum][mpfr]") {
+  // The slow benchmark cases, which take the series path (inner panel) at every precision.
+  const auto cases = pendavg_bench::make_cases();
+  for (const std::size_t i : {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u}) {
+    const auto& c = cases[i];
+    auto run = [&](int digits) {
+      const pendavg::precision_guard<mpfr_real> precision(100);
+      const Chain<mpfr_real> chain({mpfr_real(c.m1), mpfr_real(c.m2)},
+                                   {mpfr_real(c.l1), mpfr_real(c.l2)}, mpfr_real(c.g));
+      return pendavg::reduced_integral_average(chain, mpfr_real(c.beta), digits);
+    };
+    const auto ref = run(80);
+    REQUIRE(ref.converged);
+    for (const int digits : {30, 50}) {
+      const auto r = run(digits);
+      REQUIRE(r.converged);
+      const pendavg::precision_guard<mpfr_real> precision(100);
+      for (std::size_t j = 0; j < 2; ++j) {
+        INFO("case " << i << " digits " << digits << " component " << j);
+        const mpfr_real diff = abs(r.beta_kinetic[j] - ref.beta_kinetic[j]);
+        CHECK(diff <= r.beta_kinetic_error[j] + ref.beta_kinetic_error[j]);
+        const mpfr_real tolerance = pow(mpfr_real(10), -digits);
+        CHECK(r.beta_kinetic_error[j] <= tolerance * (abs(r.beta_kinetic[j]) + 1));
+        CHECK(abs(r.cos_angle[j] - ref.cos_angle[j]) <=
+              r.cos_angle_error[j] + ref.cos_angle_error[j]);
+        CHECK(abs(r.beta2_kinetic_variance[j] - ref.beta2_kinetic_variance[j]) <=
+              r.beta2_kinetic_variance_error[j] + ref.beta2_kinetic_variance_error[j]);
       }
     }
   }
