@@ -869,8 +869,14 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
           // cases 46, 22, 38 at 77 digits: 0.85 w the same; 1.5-2.5 w 4-17% slower (longer
           // series, the outer panel stays at 257 nodes); 0.5-0.7 w or 3 w ~70% slower (513
           // outer nodes, or the series too long: fallback).
-          const Real s1 = sin(Real(t1_d) / 2);
-          const auto inner = detail::inner_panel_series(p.mu1, p.mu2, p.a1, p.a2, s1);
+          // q's zero at or beyond the peak's width (e = eps^2 / z1 >= 1/2 at t1 = 2 w): the
+          // panel's end moves out to e = 0.45 (inner_panel_end), if still well inside [0, T].
+          const Real s1 = detail::inner_panel_end(sin(Real(t1_d) / 2), map.eps);
+          const double s1_d = static_cast<double>(s1);
+          detail::InnerPanelSeries<Real> inner;
+          if (s1_d < 1 && 2 * std::asin(s1_d) < static_cast<double>(map.T) / 3) {
+            inner = detail::inner_panel_series(p.mu1, p.mu2, p.a1, p.a2, s1);
+          }
           bool accepted = inner.ok;
           for (std::size_t k = 0; accepted && k < integral_count; ++k) {
             const Real tol_k = (k < 2 ? tol : 16 * tol) * abs(inner.value[k]);

@@ -273,12 +273,15 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
 TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers its error",
           "[double_pendulum][mpfr]") {
   // The nine slowest benchmark cases at 77 digits (tests/bench/cases.hpp), inner panel
-  // t in [0, t1], t1 = 2 (a1 a2 / (a1 + a2))^{-1/2} as in reduced_integral_average.
+  // t in [0, t1], t1 = 2 (a1 a2 / (a1 + a2))^{-1/2} as in reduced_integral_average; and five
+  // where q's zero lies at or beyond the peak's width (700, 620, 354, 816, 116: the panel's
+  // end moves out, detail::inner_panel_end, e = 0.45, series of ~90-135 terms).
   const auto cases = pendavg_bench::make_cases();
   for (const int digits : {30, 50, 80}) {
     const pendavg::precision_guard<mpfr_real> precision(digits + pendavg::guard_digits);
     const mpfr_real u = pendavg::unit_roundoff<mpfr_real>();
-    for (const std::size_t i : {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u}) {
+    for (const std::size_t i :
+         {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u, 700u, 620u, 354u, 816u, 116u}) {
       const auto& c = cases[i];
       const mpfr_real M = mpfr_real(c.m1) + mpfr_real(c.m2);
       const mpfr_real mu1 = mpfr_real(c.m1) / M, mu2 = mpfr_real(c.m2) / M;
@@ -286,13 +289,14 @@ TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers 
       const mpfr_real a2 = mpfr_real(c.beta) * mpfr_real(c.m2) * c.g * c.l2;
       const mpfr_real A = a1 + a2, P = 4 * a1 * a2;
       const double h = static_cast<double>(a1 * a2 / A);
-      const mpfr_real s1 = sin(mpfr_real(2.0 / std::sqrt(h)) / 2);
+      const mpfr_real c2 = mu1 / mu2;
+      const mpfr_real eps = sqrt(c2 / (2 * (1 + sqrt(1 + c2))));
+      const mpfr_real s1 =
+          pendavg::detail::inner_panel_end(mpfr_real(sin(mpfr_real(2.0 / std::sqrt(h)) / 2)), eps);
       const auto series = pendavg::detail::inner_panel_series(mu1, mu2, a1, a2, s1);
       REQUIRE(series.ok);
       // Reference: sin(t/2) = eps sinh(v) on [0, asinh(s1 / eps)], where q = 4 mu2 eps^2
       // cosh^2 v (1 + eps^2 - sin^2(t/2)) and dt = 2 eps cosh v dv / cos(t/2): analytic in v.
-      const mpfr_real c2 = mu1 / mu2;
-      const mpfr_real eps = sqrt(c2 / (2 * (1 + sqrt(1 + c2))));
       const mpfr_real v1 = asinh(s1 / eps);
       auto integrands = [&](const mpfr_real& v) {
         const mpfr_real ch = cosh(v), sh = eps * sinh(v);
@@ -356,9 +360,11 @@ TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers 
 
 TEST_CASE("averages through the inner-panel series: 30 and 50 digits against 80, errors cover",
           "[double_pendulum][mpfr]") {
-  // The slow benchmark cases, which take the series path (inner panel) at every precision.
+  // The slow benchmark cases, which take the series path (inner panel) at every precision;
+  // the last five with the panel's end moved out to q's zero (detail::inner_panel_end).
   const auto cases = pendavg_bench::make_cases();
-  for (const std::size_t i : {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u}) {
+  for (const std::size_t i :
+       {46u, 24u, 82u, 18u, 38u, 94u, 22u, 78u, 16u, 700u, 620u, 354u, 816u, 116u}) {
     const auto& c = cases[i];
     auto run = [&](int digits) {
       const pendavg::precision_guard<mpfr_real> precision(100);
