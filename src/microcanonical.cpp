@@ -350,11 +350,8 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
       log_envelope += log((1 + maps[j].rho) / (2 * pi<Real>() * (1 - maps[j].rho)));
     }
     const std::size_t shifts = options.shifts;
-    std::vector<std::vector<Real>> shift(shifts, std::vector<Real>(n));
-    std::mt19937_64 rng(options.seed);
-    for (auto& s : shift) {
-      for (auto& v : s) v = Real(static_cast<double>(rng() >> 11) * 0x1.0p-53);
-    }
+    const std::vector<std::vector<Real>> shift =
+        detail::qmc::random_shifts<Real>(shifts, n, options.seed);
     std::vector<QmcShellShift<Real>> sums(shifts, QmcShellShift<Real>(n));
     const int team = std::max(options.threads, 1);
 #if defined(_OPENMP)
@@ -404,16 +401,7 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     const std::vector<Real> est = quantities(shifts);
     std::vector<std::vector<Real>> leave(shifts);
     for (std::size_t r = 0; r < shifts; ++r) leave[r] = quantities(r);
-    std::vector<Real> se(count);
-    const Real rr = Real(static_cast<double>(shifts));
-    for (std::size_t c = 0; c < count; ++c) {
-      Real mean = 0;
-      for (std::size_t r = 0; r < shifts; ++r) mean += leave[r][c];
-      mean /= rr;
-      Real ss = 0;
-      for (std::size_t r = 0; r < shifts; ++r) ss += (leave[r][c] - mean) * (leave[r][c] - mean);
-      se[c] = sqrt((rr - 1) / rr * ss);
-    }
+    const std::vector<Real> se = detail::qmc::jackknife_standard_errors(leave, count);
     const Real sig = Real(options.sigmas);
     out.quadrature = Method::qmc;
     out.evaluations = points * shifts;

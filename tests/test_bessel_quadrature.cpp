@@ -75,6 +75,16 @@ TEST_CASE("Miller tables match direct Bessel values and the sum rule", "[bessel]
   CHECK(f0[3] == Approx(1.0 / 48.0).epsilon(1e-15));
 }
 
+namespace {
+/// Level L's nodes contain level L - 1's (every other node): the levels nest.
+void check_nested(const pendavg::ClenshawCurtisRule<double>& rule, std::size_t L) {
+  if (L == 0) return;
+  const auto& x = rule.nodes(L);
+  for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j)
+    CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
+}
+}  // namespace
+
 TEST_CASE("Clenshaw-Curtis levels integrate known integrals and nest", "[quadrature]") {
   pendavg::ClenshawCurtisRule<double> rule(8);
   rule.ensure_level(5);
@@ -88,11 +98,7 @@ TEST_CASE("Clenshaw-Curtis levels integrate known integrals and nest", "[quadrat
     }
     CHECK(s1 == Approx(1.0).epsilon(1e-15));
     if (L >= 1) CHECK(s2 == Approx(std::exp(1.0) - 1).epsilon(1e-15));
-    if (L >= 1) {
-      for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j) {
-        CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
-      }
-    }
+    check_nested(rule, L);
   }
   // 1 / (1 + 25 x^2) on [0, 1] (Runge): converges geometrically.
   const double exact = std::atan(5.0) / 5.0;
@@ -211,10 +217,6 @@ TEST_CASE("Clenshaw-Curtis levels from n0 = 12 integrate exactly and nest", "[qu
     double s = 0;
     for (std::size_t j = 0; j < x.size(); ++j) s += w[j] * std::pow(x[j], static_cast<double>(n));
     CHECK(s == Approx(1.0 / static_cast<double>(n + 1)).epsilon(1e-14));
-    if (L >= 1) {
-      for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j) {
-        CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
-      }
-    }
+    check_nested(rule, L);
   }
 }

@@ -160,10 +160,7 @@ using std::exp;
 using std::log;
 using std::sqrt;
 
-template <class Real>
-Real pi() {
-  return boost::math::constants::pi<Real>();
-}
+using detail::torus::pi;
 
 /// The psi integrals of one shell, divided by scale^p (see the header comment):
 ///   weight = F_p / W^p,  kinetic = F_{p+1} / W^{p+1},  cosine = G_p / W^p.

@@ -941,6 +941,56 @@ using std::sqrt;
 // Built-in generating vectors: lattice_table[m - 10] for n = 2^m points, m = 10..20, in up to
 // lattice_max_dimension = 256 dimensions (pendavg/detail/qmc_lattices.hpp).
 
+/// The Korobov-space kernel omega(k / n), k = 0..n-1, of smoothness alpha = 2 (2 pi^2 B_2(x))
+/// or 4 (-(4 pi^4 / 3) B_4(x)): the one-dimensional factor of the CBC criterion.
+inline std::vector<double> korobov_kernel(std::uint64_t n, int alpha) {
+  const double two_pi2 = 2 * 9.869604401089358;  // 2 pi^2
+  std::vector<double> omega(n);
+  for (std::uint64_t k = 0; k < n; ++k) {
+    const double x = static_cast<double>(k) / static_cast<double>(n);
+    omega[k] = alpha == 4 ? -(two_pi2 * 9.869604401089358 / 3) *
+                                (x * x * x * x - 2 * x * x * x + x * x - 1.0 / 30.0)
+                          : two_pi2 * (x * x - x + 1.0 / 6.0);
+  }
+  return omega;
+}
+
+/// Delete-one jackknife standard errors: leave_out[r][q] is quantity q estimated without shift r
+/// (R shifts); SE_q = sqrt((R - 1)/R sum_r (leave_out[r][q] - mean_q)^2).
+template <class Real>
+std::vector<Real> jackknife_standard_errors(const std::vector<std::vector<Real>>& leave_out,
+                                            std::size_t count) {
+  using std::sqrt;
+  const std::size_t shifts = leave_out.size();
+  const Real R = Real(static_cast<double>(shifts));
+  std::vector<Real> standard_error(count);
+  for (std::size_t q = 0; q < count; ++q) {
+    Real mean = 0;
+    for (std::size_t r = 0; r < shifts; ++r) mean += leave_out[r][q];
+    mean /= R;
+    Real ss = 0;
+    for (std::size_t r = 0; r < shifts; ++r) {
+      const Real d = leave_out[r][q] - mean;
+      ss += d * d;
+    }
+    standard_error[q] = sqrt((R - 1) / R * ss);
+  }
+  return standard_error;
+}
+
+/// Random shifts of a lattice rule: `shifts` vectors of `n` coordinates in [0, 1), 53 random
+/// bits each, drawn in a fixed order from std::mt19937_64(seed) (so results depend on the seed
+/// only, never on the thread count).
+template <class Real>
+std::vector<std::vector<Real>> random_shifts(std::size_t shifts, std::size_t n, std::uint64_t seed) {
+  std::vector<std::vector<Real>> shift(shifts, std::vector<Real>(n));
+  std::mt19937_64 rng(seed);
+  for (auto& s : shift) {
+    for (auto& v : s) v = Real(static_cast<double>(rng() >> 11) * 0x1.0p-53);
+  }
+  return shift;
+}
+
 /// Component-by-component construction (Sloan-Reztsov; Nuyens-Cools) of a rank-1 lattice rule
 /// with n = 2^m points in d dimensions for the Korobov space of smoothness alpha = 2 with product
 /// weights gamma_j: z_1 = 1, then each z_j in {1, 3, ..., n/2 - 1} minimizes the squared worst-case
@@ -951,14 +1001,7 @@ inline std::vector<std::uint32_t> cbc_generating_vector(unsigned m, std::size_t 
                                                         const std::vector<double>& gamma,
                                                         int alpha = 2) {
   const std::uint64_t n = std::uint64_t(1) << m;
-  const double two_pi2 = 2 * 9.869604401089358;  // 2 pi^2
-  std::vector<double> omega(n);
-  for (std::uint64_t k = 0; k < n; ++k) {
-    const double x = static_cast<double>(k) / static_cast<double>(n);
-    omega[k] = alpha == 4 ? -(two_pi2 * 9.869604401089358 / 3) *
-                                (x * x * x * x - 2 * x * x * x + x * x - 1.0 / 30.0)
-                          : two_pi2 * (x * x - x + 1.0 / 6.0);
-  }
+  const std::vector<double> omega = korobov_kernel(n, alpha);
   std::vector<double> product(n, 1.0);
   std::vector<std::uint32_t> z;
   for (std::size_t j = 0; j < d; ++j) {
@@ -1017,14 +1060,7 @@ inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::si
                                                              int alpha = 2) {
   if (m < 3 || m > 24) throw invalid_input("fast_cbc_generating_vector: 3 <= m <= 24");
   const std::uint64_t n = std::uint64_t(1) << m;
-  const double two_pi2 = 2 * 9.869604401089358;
-  std::vector<double> omega(n);
-  for (std::uint64_t k = 0; k < n; ++k) {
-    const double x = static_cast<double>(k) / static_cast<double>(n);
-    omega[k] = alpha == 4 ? -(two_pi2 * 9.869604401089358 / 3) *
-                                (x * x * x * x - 2 * x * x * x + x * x - 1.0 / 30.0)
-                          : two_pi2 * (x * x - x + 1.0 / 6.0);
-  }
+  const std::vector<double> omega = korobov_kernel(n, alpha);
   // Per valuation s (modulus n_s = 2^(m-s) >= 8, L_s = n_s / 4): the powers of 5 mod n_s and
   // the transformed kernel W_s[t] = omega(2^s (5^t mod n_s)).
   struct Level {
@@ -1413,13 +1449,8 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const detail::torus::WeightConstants<Real> constants(chain, beta);
   const PivotSampler<Real> sampler(chain, constants.alpha, options.proposal_grid, sequential);
 
-  // Shifts: 53 random bits per coordinate, drawn in a fixed order from the seed.
   const std::size_t shifts = options.shifts;
-  std::vector<std::vector<Real>> shift(shifts, std::vector<Real>(n));
-  std::mt19937_64 rng(options.seed);
-  for (auto& s : shift) {
-    for (auto& v : s) v = Real(static_cast<double>(rng() >> 11) * 0x1.0p-53);
-  }
+  const std::vector<std::vector<Real>> shift = random_shifts<Real>(shifts, n, options.seed);
   std::vector<ShiftSums<Real>> sums(shifts, ShiftSums<Real>(n));
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(options.threads, 1);
@@ -1482,19 +1513,7 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   for (std::size_t r = 0; r < shifts; ++r) {
     leave_out[r] = quantities(s_weight, s_trace, s_second, s_cos, r);
   }
-  std::vector<Real> standard_error(count);
-  const Real R = Real(static_cast<double>(shifts));
-  for (std::size_t q = 0; q < count; ++q) {
-    Real mean = 0;
-    for (std::size_t r = 0; r < shifts; ++r) mean += leave_out[r][q];
-    mean /= R;
-    Real ss = 0;
-    for (std::size_t r = 0; r < shifts; ++r) {
-      const Real d = leave_out[r][q] - mean;
-      ss += d * d;
-    }
-    standard_error[q] = sqrt((R - 1) / R * ss);
-  }
+  const std::vector<Real> standard_error = jackknife_standard_errors(leave_out, count);
 
   const Real u = unit_roundoff<Real>();
   const Real rounding = detail::torus::rounding_ulps(constants, n) * u;

@@ -5,6 +5,7 @@
 
 #include "args.hpp"
 #include "format.hpp"
+#include "qmc_options.hpp"
 #include "simulate.hpp"
 #include "table.hpp"
 
@@ -170,12 +171,6 @@ constexpr std::size_t auto_torus_max_particles = 4;
 
 /// --tol: the torus rules' relative tolerance in double.
 constexpr double default_tolerance = 1e-13;
-/// --samples: QMC lattice points per shift, powers of two covered by the built-in lattices.
-constexpr std::size_t min_samples = std::size_t(1) << detail::qmc::lattice_table_min_log2;
-constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_rows_max_log2;
-constexpr std::size_t default_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
-/// --shifts: independent random shifts of the QMC lattice.
-constexpr long min_shifts = 4, max_shifts = 1024;
 
 /// What runs: the double-pendulum engine (N = 2), a torus rule or QMC.
 enum class Solver { pendulum, torus, qmc };
@@ -185,7 +180,7 @@ struct AverageSettings {
   AverageMethod method = AverageMethod::automatic;
   int digits = min_digits;
   std::optional<double> tolerance;            ///< --tol, when given
-  std::vector<std::string_view> qmc_options;  ///< which of --samples, --shifts, --seed were given
+  std::vector<std::string> qmc_options;  ///< which of --samples, --shifts, --seed were given
   QmcOptions qmc;                             ///< points, shifts, seed
 };
 
@@ -215,26 +210,7 @@ AverageSettings average_settings(const Options& options) {
     s.tolerance = parse_real<double>(text, "--tol", Domain::positive);
     if (!(*s.tolerance < 1)) throw usage_error("--tol: '" + std::string(text) + "' must be < 1");
   }
-  s.qmc.points = default_samples;
-  if (options.has("samples")) {
-    const std::string_view text = options.required("samples");
-    s.qmc.points = static_cast<std::size_t>(parse_integer(
-        text, "--samples", static_cast<long>(min_samples), static_cast<long>(max_samples)));
-    if ((s.qmc.points & (s.qmc.points - 1)) != 0)
-      throw usage_error("--samples: '" + std::string(text) + "' is not a power of two (" +
-                        std::to_string(min_samples) + ", " + std::to_string(2 * min_samples) +
-                        ", ..., " + std::to_string(max_samples) + ")");
-    s.qmc_options.push_back("samples");
-  }
-  if (options.has("shifts")) {
-    s.qmc.shifts = static_cast<std::size_t>(
-        parse_integer(options.required("shifts"), "--shifts", min_shifts, max_shifts));
-    s.qmc_options.push_back("shifts");
-  }
-  if (options.has("seed")) {
-    s.qmc.seed = parse_unsigned(options.required("seed"), "--seed");
-    s.qmc_options.push_back("seed");
-  }
+  s.qmc_options = parse_qmc_options(options, s.qmc);
   return s;
 }
 
@@ -276,7 +252,7 @@ AveragePlan average_plan(const AverageSettings& s, std::size_t n, int threads) {
 
   if (s.tolerance && plan.solver != Solver::torus)
     throw usage_error("average: --tol is used by the torus methods only, not by " + chosen);
-  for (const std::string_view option : s.qmc_options)
+  for (const std::string& option : s.qmc_options)
     if (plan.solver != Solver::qmc)
       throw usage_error("average: --" + std::string(option) + " is used by qmc only, not by " +
                         chosen);

@@ -5,6 +5,7 @@
 
 #include "files.hpp"
 #include "interrupt.hpp"
+#include "qmc_options.hpp"
 #include "format.hpp"
 
 #include "pendavg/double_pendulum.hpp"
@@ -176,12 +177,6 @@ constexpr std::size_t auto_torus_max_particles = 4;
 /// The longest chain qmc's built-in lattices cover.
 constexpr long max_chain_particles = static_cast<long>(detail::qmc::lattice_max_dimension);
 
-/// --samples: lattice points per shift, the powers of two of the built-in lattice rows.
-constexpr std::size_t min_samples = std::size_t(1) << detail::qmc::lattice_table_min_log2;
-constexpr std::size_t max_samples = std::size_t(1) << detail::qmc::lattice_rows_max_log2;
-constexpr std::size_t default_samples = std::size_t(1) << detail::qmc::lattice_table_max_log2;
-/// --shifts: independent random shifts of the lattice.
-constexpr long min_shifts = 4, max_shifts = 1024;
 
 /// The sweep's settings that hold for every row.
 struct TablePlan {
@@ -364,30 +359,6 @@ std::vector<std::string> compute_rows(const std::vector<Point>& points, const Ta
   return rows;
 }
 
-/// --samples, --shifts, --seed, validated as by `pendavg average`.
-void parse_qmc_options(const Options& options, TablePlan& plan) {
-  plan.qmc.points = default_samples;
-  if (options.has("samples")) {
-    const std::string_view text = options.required("samples");
-    plan.qmc.points = static_cast<std::size_t>(parse_integer(
-        text, "--samples", static_cast<long>(min_samples), static_cast<long>(max_samples)));
-    if ((plan.qmc.points & (plan.qmc.points - 1)) != 0)
-      throw usage_error("--samples: '" + std::string(text) + "' is not a power of two (" +
-                        std::to_string(min_samples) + ", " + std::to_string(2 * min_samples) +
-                        ", ..., " + std::to_string(max_samples) + ")");
-    plan.qmc_options.push_back("samples");
-  }
-  if (options.has("shifts")) {
-    plan.qmc.shifts = static_cast<std::size_t>(
-        parse_integer(options.required("shifts"), "--shifts", min_shifts, max_shifts));
-    plan.qmc_options.push_back("shifts");
-  }
-  if (options.has("seed")) {
-    plan.qmc.seed = parse_unsigned(options.required("seed"), "--seed");
-    plan.qmc_options.push_back("seed");
-  }
-  plan.qmc.threads = 1;
-}
 
 std::string utc_now() {
   const std::time_t now = std::time(nullptr);
@@ -446,7 +417,8 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
 std::string table_command(const Options& options) {
   TablePlan plan;
   plan.chain = options.has("chain");
-  parse_qmc_options(options, plan);
+  plan.qmc_options = parse_qmc_options(options, plan.qmc);
+  plan.qmc.threads = 1;  // one thread per point
 
   // Swept variables in their default nesting (outermost first); ranges are moved innermost.
   std::vector<Sweep> sweeps;

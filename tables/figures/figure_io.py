@@ -1,6 +1,14 @@
-"""Atomic PNG output shared by the plotting scripts: temporary file beside the target, rename."""
+"""Shared by the plotting scripts: reading a table (CSV with leading # lines) and atomic PNG output
+(temporary file beside the target, rename)."""
+import csv
 import os
 import tempfile
+
+
+def read_table(directory, name):
+    """The rows of directory/name as dicts, skipping the # comment lines."""
+    with open(os.path.join(directory, name)) as fh:
+        return list(csv.DictReader(line for line in fh if not line.startswith("#")))
 
 
 def save_png(fig, directory, name, dpi=130):

@@ -6,7 +6,6 @@ usage: plot_dynamics.py TABLES_DIR     writes, each atomically, into TABLES_DIR/
                             N = 16 (and N = 7), with error bars, and the exact microcanonical values
   fig9_poincare.png         the paper's Fig. 9: Poincare sections (phi_2, p_2) at four energies
 """
-import csv
 import math
 import os
 import sys
@@ -17,15 +16,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import save_png  # noqa: E402
+from figure_io import read_table, save_png  # noqa: E402
 
 TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
 FIGURES = os.path.join(TABLES, "figures")
 
 
 def read(name):
-    with open(os.path.join(TABLES, name)) as fh:
-        return list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    return read_table(TABLES, name)
 
 
 # ---------------------------------------------------------------- Figs. 3-4

@@ -3,7 +3,6 @@
 
 usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each atomically
 """
-import csv
 import os
 import sys
 
@@ -13,15 +12,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import save_png  # noqa: E402
+from figure_io import read_table, save_png  # noqa: E402
 
 TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
 FIGURES = os.path.join(TABLES, "figures")
 
 
 def read(name):
-    with open(os.path.join(TABLES, name)) as f:
-        return list(csv.DictReader(line for line in f if not line.startswith("#")))
+    return read_table(TABLES, name)
 
 
 def save(fig, name):
@@ -35,6 +33,18 @@ def f(rows, key):
 
 def select(rows, **where):
     return [r for r in rows if all(float(r[k]) == float(v) for k, v in where.items())]
+
+
+def trajectory_symbols(ax, key, error_key, label):
+    """Langevin time averages from dynamics_fig5.csv as open symbols with 2-sigma bars, where the
+    paper showed MCMC; `label` is formatted with the particle index i."""
+    if not os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
+        return
+    sym = read("dynamics_fig5.csv")
+    for i, color in (("1", "tab:blue"), ("2", "tab:red")):
+        mine = [r for r in sym if r["i"] == i]
+        ax.errorbar(f(mine, "beta"), f(mine, key), yerr=[2 * v for v in f(mine, error_key)],
+                    fmt="o", ms=5, mfc="none", color=color, capsize=3, label=label.format(i=i))
 
 
 beta_rows = read("beta_sweep.csv")
@@ -54,14 +64,8 @@ for key, color, name in (("beta_K2", "tab:red", "2"), ("beta_K1", "tab:blue", "1
     ax.axhline(float(lim[key]), ls="--", lw=1, color=color,
                label=rf"$\beta\to0$: $\beta\langle K_{name}\rangle$ = {float(lim[key]):.10f}")
 ax.axhline(0.5, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1/2")
-# Trajectory symbols (constrained Langevin), where the paper showed MCMC.
-if os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
-    sym = read("dynamics_fig5.csv")
-    for i, color in (("1", "tab:blue"), ("2", "tab:red")):
-        mine = [r for r in sym if r["i"] == i]
-        ax.errorbar(f(mine, "beta"), f(mine, "beta_K"), yerr=[2 * v for v in f(mine, "beta_K_error")],
-                    fmt="o", ms=5, mfc="none", color=color, capsize=3,
-                    label=rf"Langevin trajectory $\beta\overline{{K_{i}}}$ ($\pm2\sigma$)")
+trajectory_symbols(ax, "beta_K", "beta_K_error",
+                   r"Langevin trajectory $\beta\overline{{K_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
 ax.set_xlabel(r"inverse temperature $\beta$  ($1/(m g \ell)$ units, $g = 1$)")
 ax.set_ylabel(r"$\beta\langle K_i\rangle$ (dimensionless)")
@@ -124,13 +128,8 @@ save(fig, "fig7_ratio_vs_beta.png")
 fig, ax = plt.subplots(figsize=(6.4, 4.4))
 ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi1"), color="tab:blue", label=r"$\langle\cos\varphi_1\rangle$")
 ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi2"), color="tab:red", label=r"$\langle\cos\varphi_2\rangle$")
-if os.path.exists(os.path.join(TABLES, "dynamics_fig5.csv")):
-    sym = read("dynamics_fig5.csv")
-    for i, color in (("1", "tab:blue"), ("2", "tab:red")):
-        mine = [r for r in sym if r["i"] == i]
-        ax.errorbar(f(mine, "beta"), f(mine, "cos_phi"), yerr=[2 * v for v in f(mine, "cos_phi_error")],
-                    fmt="o", ms=5, mfc="none", color=color, capsize=3,
-                    label=rf"Langevin trajectory $\overline{{\cos\varphi_{i}}}$ ($\pm2\sigma$)")
+trajectory_symbols(ax, "cos_phi", "cos_phi_error",
+                   r"Langevin trajectory $\overline{{\cos\varphi_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
 ax.set_xlabel(r"$\beta$  ($g = 1$)")
 ax.set_ylabel(r"$\langle\cos\varphi_i\rangle$")
