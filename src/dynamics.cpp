@@ -28,14 +28,69 @@ void check_finite_vector(const std::vector<Real>& v, const char* what) {
       throw invalid_input(std::string(what) + " must be finite");
 }
 
-/// Link vectors r_i = x_i - x_{i-1} (x_{-1} = pivot = 0) into `link` (2N).
+// ---------------------------------------------------------------- the link frame
+//
+// The kernels work on the links r_i = x_i - x_{i-1} and the link velocities u_i = v_i - v_{i-1}
+// (x_{-1} = v_{-1} = 0, the pivot), kept in the workspace as separate x and y arrays with one
+// zero pad at each end (link i at index i + 1). Every neighbour access is then branch-free and
+// the loops vectorize; only the two tridiagonal sweeps are serial. Gravity is uniform, so its
+// kick changes u_0 alone. simulate() keeps the frame across steps; the public step functions
+// load it from the state and store it back.
+
+/// Pointers to the padded link frame: index -1 and n are the zero pads.
 template <class Real>
-void link_vectors(const std::vector<Real>& x, std::vector<Real>& link, std::size_t n) {
-  link[0] = x[0];
-  link[1] = x[1];
-  for (std::size_t i = 1; i < n; ++i) {
-    link[2 * i] = x[2 * i] - x[2 * i - 2];
-    link[2 * i + 1] = x[2 * i + 1] - x[2 * i - 1];
+struct LinkFrame {
+  Real* rx;
+  Real* ry;
+  Real* ux;
+  Real* uy;
+  const Real* im;  // 1/m_i, im[-1] = im[n] = 0
+  Real* s;         // multipliers, s[-1] = s[n] = 0
+  explicit LinkFrame(DynamicsWorkspace<Real>& ws)
+      : rx(ws.link_x.data() + 1),
+        ry(ws.link_y.data() + 1),
+        ux(ws.rate_x.data() + 1),
+        uy(ws.rate_y.data() + 1),
+        im(ws.inv_mass_padded.data() + 1),
+        s(ws.multiplier.data() + 1) {}
+};
+
+template <class Real>
+void load_links(const ChainState<Real>& st, DynamicsWorkspace<Real>& ws) {
+  const std::size_t n = ws.size();
+  LinkFrame<Real> lf(ws);
+  const Real* x = st.position.data();
+  const Real* p = st.momentum.data();
+  Real xprev = 0, yprev = 0, vxprev = 0, vyprev = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    lf.rx[i] = x[2 * i] - xprev;
+    lf.ry[i] = x[2 * i + 1] - yprev;
+    const Real vx = p[2 * i] * lf.im[i], vy = p[2 * i + 1] * lf.im[i];
+    lf.ux[i] = vx - vxprev;
+    lf.uy[i] = vy - vyprev;
+    xprev = x[2 * i];
+    yprev = x[2 * i + 1];
+    vxprev = vx;
+    vyprev = vy;
+  }
+}
+
+template <class Real>
+void store_links(DynamicsWorkspace<Real>& ws, ChainState<Real>& st) {
+  const std::size_t n = ws.size();
+  LinkFrame<Real> lf(ws);
+  st.position.resize(2 * n);
+  st.momentum.resize(2 * n);
+  Real x = 0, y = 0, vx = 0, vy = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    x += lf.rx[i];
+    y += lf.ry[i];
+    vx += lf.ux[i];
+    vy += lf.uy[i];
+    st.position[2 * i] = x;
+    st.position[2 * i + 1] = y;
+    st.momentum[2 * i] = ws.mass[i] * vx;
+    st.momentum[2 * i + 1] = ws.mass[i] * vy;
   }
 }
 
@@ -46,234 +101,334 @@ constexpr Real continuant_limit() {
   return Real(1.157920892373162e77);  // 2^256
 }
 
-/// Relative rounding of the tridiagonal solve's residual f + J ds (a generous multiple of eps).
+/// u_0 -= tau g y-hat: the kick of uniform gravity (every v_k changes by the same amount). The
+/// constraint impulse that belongs to it (tau mu, mu the multiplier) is left to the next
+/// position or velocity stage, which absorbs every normal momentum component; the workspace
+/// counts that pending kick time to guess the next stage's multipliers.
 template <class Real>
-Real rounding_factor() {
-  return Real(64) * std::numeric_limits<Real>::epsilon();
+void gravity_kick(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const Real& tau) {
+  ws.pending_kick_time += tau;
+  ws.rate_y[1] -= tau * chain.gravity();
 }
 
-/// p_k -= tau m_k g y-hat: the kick of uniform gravity. The constraint impulse that belongs to
-/// it (tau mu, mu the multiplier) is left to the next position or velocity stage, which
-/// absorbs every normal momentum component; the workspace counts that pending kick time to
-/// guess the next stage's multipliers.
+/// Solves the tridiagonal system a_i x_{i-1} + d_i x_i + c_i x_{i+1} = r_i (a_0 = c_{n-1} = 0)
+/// and adds x to `out` (out[i] += x_i), in O(n) with a twisted factorization: elimination
+/// runs down from the top to the middle row k = n/2 and up from the bottom to it at the same
+/// time (two independent serial chains, so the latency is halved), row k is solved, and the
+/// back substitution runs outwards from k. The pivots are ratios of continuants,
+///   top:    theta_i = d_i theta_{i-1} - a_i c_{i-1} theta_{i-2},  pivot_i = theta_i/theta_{i-1},
+///   bottom: phi_i   = d_i phi_{i+1}   - c_i a_{i+1} phi_{i+2},    pivot_i = phi_i/phi_{i+1},
+/// and the eliminated right-hand sides are z_i / theta_i (z_i = r_i theta_{i-1} - a_i z_{i-1})
+/// and v_i / phi_i (v_i = r_i phi_{i+1} - c_i v_{i+1}), so each serial chain holds a single
+/// multiply-add per row and the divisions run beside the chains, off their critical path.
+/// Continuants are renormalized when they leave [2^-256, 2^256]. No pivoting: for the RATTLE
+/// systems (+-H plus O(tau) terms, H = G M^{-1} G^T symmetric positive definite) it is not
+/// needed at any usable step. Scratch: num_c, num_r (n each).
 template <class Real>
-void gravity_kick(const Chain<Real>& chain, ChainState<Real>& st, const Real& tau,
-                  DynamicsWorkspace<Real>& ws) {
-  ws.pending_kick_time += tau;
-  const Real g = chain.gravity();
-  if (g == 0) return;
-  for (std::size_t k = 0; k < chain.size(); ++k) st.momentum[2 * k + 1] -= tau * chain.mass(k) * g;
+[[gnu::always_inline]] inline void solve_tridiagonal_twisted(std::size_t n, const Real* __restrict a, const Real* __restrict d,
+                               const Real* __restrict c, const Real* __restrict r,
+                               Real* __restrict out, Real* __restrict num_c,
+                               Real* __restrict num_r) {
+  const std::size_t k = n / 2;  // the twist row
+  const Real big = continuant_limit<Real>(), small = 1 / continuant_limit<Real>();
+  // Top rows 0..k-1 and bottom rows n-1..k+1, interleaved.
+  Real theta1 = 1, theta2 = 0, z = 0, c_prev = 0;
+  Real phi1 = 1, phi2 = 0, v = 0, a_next = 0;
+  const std::size_t top = k, bottom = n - 1 - k;
+  const std::size_t both = std::min(top, bottom);
+  auto top_row = [&](std::size_t i) {
+    Real theta = d[i] * theta1 - (a[i] * c_prev) * theta2;
+    z = r[i] * theta1 - a[i] * z;
+    const Real inv = 1 / theta;
+    num_c[i] = c[i] * theta1 * inv;
+    num_r[i] = z * inv;
+    c_prev = c[i];
+    if (abs(theta) > big || abs(theta) < small) {
+      const Real scale = 1 / abs(theta);  // any scale works: only ratios are used
+      theta *= scale;
+      theta1 *= scale;
+      z *= scale;
+    }
+    theta2 = theta1;
+    theta1 = theta;
+  };
+  auto bottom_row = [&](std::size_t i) {
+    Real phi = d[i] * phi1 - (c[i] * a_next) * phi2;
+    v = r[i] * phi1 - c[i] * v;
+    const Real inv = 1 / phi;
+    num_c[i] = a[i] * phi1 * inv;
+    num_r[i] = v * inv;
+    a_next = a[i];
+    if (abs(phi) > big || abs(phi) < small) {
+      const Real scale = 1 / abs(phi);
+      phi *= scale;
+      phi1 *= scale;
+      v *= scale;
+    }
+    phi2 = phi1;
+    phi1 = phi;
+  };
+  for (std::size_t j = 0; j < both; ++j) {
+    top_row(j);
+    bottom_row(n - 1 - j);
+  }
+  for (std::size_t j = both; j < top; ++j) top_row(j);
+  for (std::size_t j = both; j < bottom; ++j) bottom_row(n - 1 - j);
+  // Row k with x_{k-1} = y_{k-1} - cp_{k-1} x_k and x_{k+1} = w_{k+1} - aq_{k+1} x_k.
+  Real pivot = d[k], rhs = r[k];
+  if (k > 0) {
+    pivot -= a[k] * num_c[k - 1];
+    rhs -= a[k] * num_r[k - 1];
+  }
+  if (k + 1 < n) {
+    pivot -= c[k] * num_c[k + 1];
+    rhs -= c[k] * num_r[k + 1];
+  }
+  const Real xk = rhs / pivot;
+  out[k] += xk;
+  Real up = xk, down = xk;
+  for (std::size_t j = 1; j <= both; ++j) {
+    up = num_r[k - j] - num_c[k - j] * up;
+    down = num_r[k + j] - num_c[k + j] * down;
+    out[k - j] += up;
+    out[k + j] += down;
+  }
+  for (std::size_t j = both + 1; j <= top; ++j) {
+    up = num_r[k - j] - num_c[k - j] * up;
+    out[k - j] += up;
+  }
+  for (std::size_t j = both + 1; j <= bottom; ++j) {
+    down = num_r[k + j] - num_c[k + j] * down;
+    out[k + j] += down;
+  }
+}
+
+/// The position stage's first pass at the guess s: trial links rt = r + tau u, the trial
+/// r'(s) = rt + c(s) (see constrained_drift), the negated residuals -f(s) and the Jacobian
+/// df/ds at r'(s) (diagonal jd, sub ja, super jc). Returns max_i |f_i| / l_i^2.
+template <int Extrapolate, class Real>
+[[gnu::always_inline]] inline Real first_pass(std::size_t n, const Real& tau, Real* __restrict s,
+                const Real* __restrict last, const Real* __restrict before,
+                const Real* __restrict oldest,
+                const Real* __restrict w, const Real* __restrict im, const Real* __restrict rx,
+                const Real* __restrict ry, const Real* __restrict ux, const Real* __restrict uy,
+                const Real* __restrict half_l2, const Real* __restrict inv_l2,
+                Real* __restrict rtx, Real* __restrict rty, Real* __restrict neg_f,
+                Real* __restrict jd, Real* __restrict ja, Real* __restrict jc) {
+  Real worst = 0;
+#pragma omp simd reduction(max : worst)
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real tx0 = rx[i] + tau * ux[i], ty0 = ry[i] + tau * uy[i];
+    rtx[i] = tx0;
+    rty[i] = ty0;
+    Real s0, s_next, s_prev;
+    if constexpr (Extrapolate == 2) {
+      // The guess 3 (last - before) + oldest, formed here rather than loaded from a just-
+      // written s (shifted loads of fresh stores stall the store forwarding).
+      s0 = 3 * (last[i] - before[i]) + oldest[i];
+      s_next = 3 * (last[i + 1] - before[i + 1]) + oldest[i + 1];
+      s_prev = 3 * (last[i - 1] - before[i - 1]) + oldest[i - 1];
+      s[i] = s0;
+    } else if constexpr (Extrapolate == 1) {
+      s0 = 2 * last[i] - before[i];
+      s_next = 2 * last[i + 1] - before[i + 1];
+      s_prev = 2 * last[i - 1] - before[i - 1];
+      s[i] = s0;
+    } else {
+      s0 = s[i];
+      s_next = s[i + 1];
+      s_prev = s[i - 1];
+    }
+    const Real sig = s0 * w[i], alp = s_next * im[i], bet = s_prev * im[i - 1];
+    const Real lx = tx0 + (alp * rx[i + 1] + bet * rx[i - 1] - sig * rx[i]);
+    const Real ly = ty0 + (alp * ry[i + 1] + bet * ry[i - 1] - sig * ry[i]);
+    // (l^2 - |r'|^2)/2 as a difference of squares is accurate to ~ulp(l^2): all we ask.
+    const Real g = half_l2[i] - (lx * lx + ly * ly) / 2;
+    neg_f[i] = g;
+    worst = std::max(worst, abs(g) * inv_l2[i]);
+    jd[i] = -w[i] * (lx * rx[i] + ly * ry[i]);
+    ja[i] = im[i - 1] * (lx * rx[i - 1] + ly * ry[i - 1]);  // 0 at i = 0
+    jc[i] = im[i] * (lx * rx[i + 1] + ly * ry[i + 1]);      // 0 at i = n - 1
+  }
+  return worst;
+}
+
+/// The position stage's pass at the current s: the new links r' = rt + c(s) and link
+/// velocities u + c(s)/tau into the next-frame arrays, -f(s), and max_i |f_i| / l_i^2.
+template <class Real>
+[[gnu::always_inline]] inline Real final_pass(std::size_t n, const Real& inv_tau, const Real* __restrict s,
+                const Real* __restrict w, const Real* __restrict im, const Real* __restrict rx,
+                const Real* __restrict ry, const Real* __restrict ux, const Real* __restrict uy,
+                const Real* __restrict rtx, const Real* __restrict rty,
+                const Real* __restrict half_l2, const Real* __restrict inv_l2,
+                Real* __restrict next_rx, Real* __restrict next_ry, Real* __restrict next_ux,
+                Real* __restrict next_uy, Real* __restrict neg_f) {
+  Real worst = 0;
+#pragma omp simd reduction(max : worst)
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real sig = s[i] * w[i], alp = s[i + 1] * im[i], bet = s[i - 1] * im[i - 1];
+    const Real dx = alp * rx[i + 1] + bet * rx[i - 1] - sig * rx[i];
+    const Real dy = alp * ry[i + 1] + bet * ry[i - 1] - sig * ry[i];
+    const Real lx = rtx[i] + dx, ly = rty[i] + dy;
+    next_rx[i] = lx;
+    next_ry[i] = ly;
+    next_ux[i] = ux[i] + dx * inv_tau;  // the impulse from s: no cancellation
+    next_uy[i] = uy[i] + dy * inv_tau;
+    const Real g = half_l2[i] - (lx * lx + ly * ly) / 2;
+    neg_f[i] = g;
+    worst = std::max(worst, abs(g) * inv_l2[i]);
+  }
+  return worst;
+}
+
+/// The Jacobian df/ds at the links t (a further Newton iteration; rare).
+template <class Real>
+void link_jacobian(std::size_t n, const Real* __restrict w, const Real* __restrict im,
+                   const Real* __restrict rx, const Real* __restrict ry,
+                   const Real* __restrict tx, const Real* __restrict ty, Real* __restrict jd,
+                   Real* __restrict ja, Real* __restrict jc) {
+#pragma omp simd
+  for (std::size_t i = 0; i < n; ++i) {
+    jd[i] = -w[i] * (tx[i] * rx[i] + ty[i] * ry[i]);
+    ja[i] = im[i - 1] * (tx[i] * rx[i - 1] + ty[i] * ry[i - 1]);
+    jc[i] = im[i] * (tx[i] * rx[i + 1] + ty[i] * ry[i + 1]);
+  }
 }
 
 /// Position stage: x_k <- x_k + tau p_k / m_k + (s_{k+1} r_{k+1} - s_k r_k) / m_k with the N
 /// scaled multipliers s chosen so that every link has its length at the new positions; p
-/// receives the matching impulse (s_{k+1} r_{k+1} - s_k r_k) / tau. With r_i the links at the
-/// old positions,
-///   r'_i(s) = rt_i - s_i w_i r_i + s_{i+1} r_{i+1} / m_i + s_{i-1} r_{i-1} / m_{i-1},
-///   rt_i = r_i + tau (v_i - v_{i-1}),  w_i = 1/m_i + 1/m_{i-1}  (1/m_{-1} = 0, s_N = 0),
-///   f_i(s) = (|r'_i|^2 - l_i^2) / 2 = 0.
+/// receives the matching impulse (s_{k+1} r_{k+1} - s_k r_k) / tau. In the link frame,
+///   r'_i(s) = rt_i + c_i(s),  rt_i = r_i + tau u_i,
+///   c_i(s) = s_{i+1} r_{i+1} / m_i - s_i w_i r_i + s_{i-1} r_{i-1} / m_{i-1},
+///   w_i = 1/m_i + 1/m_{i-1} (1/m_{-1} = 0, s_N = 0),  f_i(s) = (|r'_i|^2 - l_i^2) / 2 = 0,
+/// and then r_i <- r'_i, u_i <- u_i + c_i / tau (the impulse, computed from s: no cancellation).
 /// f is quadratic in s, so Newton converges quadratically from a good guess; its Jacobian
-/// df_i/ds_j = r'_i . dr'_i/ds_j is tridiagonal (-H at tau = 0, H = G M^{-1} G^T, diagonally
-/// dominant enough that Thomas' algorithm needs no pivoting at any usable step) and each
-/// iteration costs O(N). `slot` >= 0 names the stage's place in its composition: the guess is
-/// then the linear extrapolation of that slot's multipliers over the last two steps (error
-/// O(h^2), so one Newton solve usually suffices); otherwise (or for the first two steps)
-/// s = tau (pending kick time) mu from the last velocity stage.
+/// df_i/ds_j = r'_i . dr'_i/ds_j is tridiagonal (-H at tau = 0, H = G M^{-1} G^T) and each
+/// iteration is one O(N) twisted solve. `slot` >= 0 names the stage's place in its
+/// composition: the guess is then the linear extrapolation of that slot's multipliers over
+/// the last two steps (error O(h^2), so one Newton solve usually suffices); otherwise (or for
+/// the first two steps) s = tau (pending kick time) mu from the last velocity stage. The
+/// stage stops when every |f_i| / l_i^2 is at most newton_tolerance_ulps ulps, evaluated at
+/// the final s by the same pass that writes the new frame.
 template <class Real>
-void constrained_drift(const Chain<Real>& chain, ChainState<Real>& st, const Real& tau,
-                       DynamicsWorkspace<Real>& ws, int slot = -1) {
-  const std::size_t n = chain.size();
-  std::vector<Real>& x = st.position;
-  std::vector<Real>& p = st.momentum;
-  const std::vector<Real>& im = ws.inv_mass;
-  std::vector<Real>& r = ws.link;
-  std::vector<Real>& rt = ws.trial_link;
-  std::vector<Real>& s = ws.multiplier;
-  const std::vector<Real>& w = ws.joint_compliance;  // 1/m_i + 1/m_{i-1}
-  const std::vector<Real>& inv_l2 = ws.inv_length_squared;
+void constrained_drift(DynamicsWorkspace<Real>& ws, const Real& tau, int slot = -1) {
+  const std::size_t n = ws.size();
+  LinkFrame<Real> lf(ws);
+  Real* s = lf.s;
+  // The guess: the quadratic extrapolation of this slot's last three multipliers (error
+  // O(h^3); formed inside the first pass), the linear one after two, else tau (pending kick
+  // time) mu.
   typename DynamicsWorkspace<Real>::StageHistory* history =
       slot >= 0 ? &ws.stage_history(static_cast<std::size_t>(slot)) : nullptr;
-  const bool extrapolate = history != nullptr && history->count >= 2;
-  const Real guess_scale = tau * ws.pending_kick_time;
-  // Links r_i, trial links rt_i = r_i + tau (v_i - v_{i-1}) and the guess, in one pass.
-  {
-    Real x_prev = 0, y_prev = 0, vx_prev = 0, vy_prev = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Real rx = x[2 * i] - x_prev, ry = x[2 * i + 1] - y_prev;
-      x_prev = x[2 * i];
-      y_prev = x[2 * i + 1];
-      r[2 * i] = rx;
-      r[2 * i + 1] = ry;
-      const Real vx = p[2 * i] * im[i], vy = p[2 * i + 1] * im[i];
-      rt[2 * i] = rx + tau * (vx - vx_prev);
-      rt[2 * i + 1] = ry + tau * (vy - vy_prev);
-      vx_prev = vx;
-      vy_prev = vy;
-      s[i] = extrapolate ? 2 * history->last[i] - history->before[i]
-                         : guess_scale * ws.multiplier_estimate[i];
-    }
+  if (history != nullptr && history->last.size() != n + 2) {
+    for (auto* v : {&history->last, &history->before, &history->oldest}) v->assign(n + 2, Real(0));
+    history->count = 0;
   }
-
+  const int order = history == nullptr ? 0 : history->count >= 3 ? 2 : history->count >= 2 ? 1 : 0;
+  if (order == 0) {
+    const Real guess_scale = tau * ws.pending_kick_time;
+    const Real* estimate = ws.multiplier_estimate.data();
+    for (std::size_t i = 0; i < n; ++i) s[i] = guess_scale * estimate[i];
+  }
+  const Real* w = ws.joint_compliance.data();
+  const Real* half_l2 = ws.half_length_squared.data();
+  const Real* inv_l2 = ws.inv_length_squared.data();
+  Real* rtx = ws.trial_link_x.data();
+  Real* rty = ws.trial_link_y.data();
+  Real* neg_f = ws.residual.data();
+  Real* jd = ws.diagonal.data();
+  Real* ja = ws.sub.data();
+  Real* jc = ws.super.data();
+  Real* nrx = ws.next_link_x.data() + 1;
+  Real* nry = ws.next_link_y.data() + 1;
+  Real* nux = ws.next_rate_x.data() + 1;
+  Real* nuy = ws.next_rate_y.data() + 1;
+  const Real inv_tau = Real(1) / tau;
   const Real tolerance =
       Real(ws.newton_tolerance_ulps) * std::numeric_limits<Real>::epsilon();
-  std::vector<Real>& trial = ws.trial;  // r'_i(s), 2N
-  std::vector<Real>& f = ws.residual;
-  std::vector<Real>& cp = ws.pivot;
-  std::vector<Real>& y = ws.rhs;
+
+  const Real* none = nullptr;
   Real worst = 0;
-  // One pass computes the trial links r'(s) and the residuals f; with `sweep` it also builds
-  // the Jacobian rows and runs the forward sweep of Thomas' algorithm for J ds = -f. The
-  // pivots d_i - a_i c'_{i-1} are ratios theta_i / theta_{i-1} of continuants (theta_i =
-  // d_i theta_{i-1} - a_i c_{i-1} theta_{i-2}), so the serial chain holds multiplications
-  // only and the divisions run side by side; theta is renormalized for long chains. The first
-  // pass always sweeps (a guess is never exact to a few ulps), later ones only when needed.
-  auto pass = [&](bool sweep) {
-    worst = 0;
-    Real theta_prev = 1, theta_prev2 = 0, c_prev = 0, y_prev = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      Real lx = rt[2 * i] - s[i] * w[i] * r[2 * i];
-      Real ly = rt[2 * i + 1] - s[i] * w[i] * r[2 * i + 1];
-      if (i + 1 < n) {
-        lx += s[i + 1] * im[i] * r[2 * i + 2];
-        ly += s[i + 1] * im[i] * r[2 * i + 3];
-      }
-      if (i > 0) {
-        lx += s[i - 1] * im[i - 1] * r[2 * i - 2];
-        ly += s[i - 1] * im[i - 1] * r[2 * i - 1];
-      }
-      trial[2 * i] = lx;
-      trial[2 * i + 1] = ly;
-      // (|r'|^2 - l^2)/2 as a difference of squares is accurate to ~ulp(l^2): all we ask.
-      const Real fi = (lx * lx + ly * ly) / 2 - ws.half_length_squared[i];
-      f[i] = fi;
-      worst = std::max(worst, abs(fi) * inv_l2[i]);
-      if (!sweep) continue;
-      const Real d = -w[i] * (lx * r[2 * i] + ly * r[2 * i + 1]);
-      const Real a = i > 0 ? im[i - 1] * (lx * r[2 * i - 2] + ly * r[2 * i - 1]) : Real(0);
-      const Real c = i + 1 < n ? im[i] * (lx * r[2 * i + 2] + ly * r[2 * i + 3]) : Real(0);
-      Real theta = d * theta_prev - a * c_prev * theta_prev2;
-      const Real inv = theta_prev / theta;  // 1 / pivot_i
-      cp[i] = c * inv;
-      y_prev = (-fi - a * y_prev) * inv;
-      y[i] = y_prev;
-      c_prev = c;
-      if (abs(theta) > continuant_limit<Real>() || abs(theta) < 1 / continuant_limit<Real>()) {
-        const Real scale = 1 / abs(theta);  // any scale works: only ratios are used
-        theta *= scale;
-        theta_prev *= scale;
-      }
-      theta_prev2 = theta_prev;
-      theta_prev = theta;
-    }
-  };
-  for (int iteration = 0;; ++iteration) {
-    pass(iteration == 0);
-    if (worst <= tolerance) break;
+  if (order == 2) {
+    worst = first_pass<2>(n, tau, s, history->last.data() + 1, history->before.data() + 1,
+                          history->oldest.data() + 1, w, lf.im, lf.rx, lf.ry, lf.ux, lf.uy,
+                          half_l2, inv_l2, rtx, rty, neg_f, jd, ja, jc);
+  } else if (order == 1) {
+    worst = first_pass<1>(n, tau, s, history->last.data() + 1, history->before.data() + 1, none,
+                          w, lf.im, lf.rx, lf.ry, lf.ux, lf.uy, half_l2, inv_l2, rtx, rty, neg_f,
+                          jd, ja, jc);
+  } else {
+    worst = first_pass<0>(n, tau, s, none, none, none, w, lf.im, lf.rx, lf.ry, lf.ux, lf.uy,
+                          half_l2, inv_l2, rtx, rty, neg_f, jd, ja, jc);
+  }
+  bool written = false;
+  for (int iteration = 0; worst > tolerance; ++iteration) {
     if (iteration >= ws.max_newton_iterations) {
       ++ws.unconverged_stages;
       break;
     }
-    if (iteration > 0) pass(true);  // the Jacobian at the current s
-    Real next = y[n - 1];
-    s[n - 1] += next;
-    y[n - 1] = next;
-    for (std::size_t i = n - 1; i-- > 0;) {
-      next = y[i] - cp[i] * next;
-      s[i] += next;
-      y[i] = next;  // the step ds
-    }
+    if (iteration > 0) link_jacobian(n, w, lf.im, lf.rx, lf.ry, nrx, nry, jd, ja, jc);
+    solve_tridiagonal_twisted(n, ja, jd, jc, neg_f, s, ws.pivot.data(), ws.rhs.data());
     ++ws.newton_solves;
-    // f is quadratic in s: after a Newton step ds, f(s + ds) = f(s) + J ds + |dr'_i(ds)|^2 / 2
-    // with f(s) + J ds = 0 up to the rounding of the solve (relative ~eps to the old f, which is
-    // itself tiny by now). So when |dr'_i| <= |ds_i| w_i l_i + |ds_{i+1}| l_{i+1} / m_i +
-    // |ds_{i-1}| l_{i-1} / m_{i-1} bounds the new residual below the tolerance, the stage has
-    // converged without a check pass (the usual case: one solve from the extrapolated guess).
-    Real predicted = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      Real bound = abs(y[i]) * w[i] * ws.length[i];
-      if (i + 1 < n) bound += abs(y[i + 1]) * im[i] * ws.length[i + 1];
-      if (i > 0) bound += abs(y[i - 1]) * im[i - 1] * ws.length[i - 1];
-      predicted = std::max(predicted, (bound * bound / 2 + abs(f[i]) * rounding_factor<Real>()) * inv_l2[i]);
-    }
-    if (predicted <= tolerance / 2) {
-      worst = predicted;
-      break;
-    }
+    worst = final_pass(n, inv_tau, s, w, lf.im, lf.rx, lf.ry, lf.ux, lf.uy, rtx, rty, half_l2,
+                       inv_l2, nrx, nry, nux, nuy, neg_f);
+    written = true;
+  }
+  if (!written) {
+    // Converged at the guess: the new frame is still to be written.
+    worst = final_pass(n, inv_tau, s, w, lf.im, lf.rx, lf.ry, lf.ux, lf.uy, rtx, rty, half_l2,
+                       inv_l2, nrx, nry, nux, nuy, neg_f);
   }
   ++ws.position_stages;
   ws.pending_kick_time = 0;
   ws.largest_stage_residual = std::max(ws.largest_stage_residual, worst);
   if (history != nullptr) {
+    // Rotate: oldest <- before <- last <- s; the multiplier buffer takes the old `oldest`
+    // (every buffer is padded with zeros at both ends, and the next stage overwrites it).
+    history->oldest.swap(history->before);
     history->before.swap(history->last);
-    history->last.resize(n);
-    std::copy(s.begin(), s.end(), history->last.begin());
+    history->last.swap(ws.multiplier);
     ++history->count;
   }
-  // x_k += tau v_k + (s_{k+1} r_{k+1} - s_k r_k) / m_k;  p_k += (s_{k+1} r_{k+1} - s_k r_k) / tau.
-  const Real inv_tau = Real(1) / tau;
-  for (std::size_t k = 0; k < n; ++k) {
-    Real jx = -s[k] * r[2 * k], jy = -s[k] * r[2 * k + 1];
-    if (k + 1 < n) {
-      jx += s[k + 1] * r[2 * k + 2];
-      jy += s[k + 1] * r[2 * k + 3];
-    }
-    x[2 * k] += (tau * p[2 * k] + jx) * im[k];
-    x[2 * k + 1] += (tau * p[2 * k + 1] + jy) * im[k];
-    p[2 * k] += jx * inv_tau;
-    p[2 * k + 1] += jy * inv_tau;
-  }
+  ws.link_x.swap(ws.next_link_x);
+  ws.link_y.swap(ws.next_link_y);
+  ws.rate_x.swap(ws.next_rate_x);
+  ws.rate_y.swap(ws.next_rate_y);
 }
 
-/// Velocity stage: H t = b, b_i = r_i . (v_i - v_{i-1}), p_k += t_{k+1} r_{k+1} - t_k r_k.
-/// With learn = true (a stage that closes kicks, not noise) mu = t / (pending kick time)
-/// becomes the guess of the next position stages.
+/// Velocity stage: H t = b, b_i = r_i . u_i, H_ii = w_i |r_i|^2, H_{i,i-1} = -r_i . r_{i-1} /
+/// m_{i-1}; then p_k += t_{k+1} r_{k+1} - t_k r_k, i.e. u_i += c_i(t) (the same stencil as the
+/// position stage's displacement). With learn = true (a stage that closes kicks, not noise)
+/// mu = t / (pending kick time) becomes the guess of the next position stages.
 template <class Real>
-void velocity_stage(const Chain<Real>& chain, ChainState<Real>& st, DynamicsWorkspace<Real>& ws,
-                    bool learn = true) {
-  const std::size_t n = chain.size();
-  std::vector<Real>& p = st.momentum;
-  const std::vector<Real>& im = ws.inv_mass;
-  std::vector<Real>& r = ws.link;
-  link_vectors(st.position, r, n);
-  std::vector<Real>& t = ws.multiplier;
-  std::vector<Real>& off = ws.sub;   // off[i] = H_{i,i-1}
-  std::vector<Real>& dd = ws.pivot;  // LDL^T pivots
-  // Forward sweep of LDL^T with the right-hand side; pivots D_i = theta_i / theta_{i-1} from
-  // continuants (theta_i = H_ii theta_{i-1} - H_{i,i-1}^2 theta_{i-2}), as in the position stage.
-  Real vx_prev = 0, vy_prev = 0, theta_prev = 1, theta_prev2 = 0;
+void velocity_stage(DynamicsWorkspace<Real>& ws, bool learn = true) {
+  const std::size_t n = ws.size();
+  LinkFrame<Real> lf(ws);
+  const Real* __restrict rx = lf.rx;
+  const Real* __restrict ry = lf.ry;
+  Real* __restrict ux = lf.ux;
+  Real* __restrict uy = lf.uy;
+  Real* __restrict t = lf.s;
+  const Real* __restrict im = lf.im;
+  const Real* __restrict w = ws.joint_compliance.data();
+  Real* __restrict b = ws.residual.data();
+  Real* __restrict hd = ws.diagonal.data();
+  Real* __restrict ha = ws.sub.data();
+  Real* __restrict hc = ws.super.data();
+#pragma omp simd
   for (std::size_t i = 0; i < n; ++i) {
-    const Real vx = p[2 * i] * im[i], vy = p[2 * i + 1] * im[i];
-    const Real b = r[2 * i] * (vx - vx_prev) + r[2 * i + 1] * (vy - vy_prev);
-    vx_prev = vx;
-    vy_prev = vy;
-    const Real w = im[i] + (i > 0 ? im[i - 1] : Real(0));
-    const Real h_ii = w * (r[2 * i] * r[2 * i] + r[2 * i + 1] * r[2 * i + 1]);
-    const Real h_off =
-        i > 0 ? -im[i - 1] * (r[2 * i] * r[2 * i - 2] + r[2 * i + 1] * r[2 * i - 1]) : Real(0);
-    Real theta = h_ii * theta_prev - h_off * h_off * theta_prev2;
-    // ell_i = H_{i,i-1} / D_{i-1} = H_{i,i-1} theta_{i-2} / theta_{i-1}; 1 / D_i = theta_{i-1}/theta_i.
-    const Real ell = i > 0 ? h_off * theta_prev2 / theta_prev : Real(0);
-    off[i] = ell;
-    dd[i] = theta_prev / theta;
-    t[i] = b - (i > 0 ? ell * t[i - 1] : Real(0));
-    if (abs(theta) > continuant_limit<Real>() || abs(theta) < 1 / continuant_limit<Real>()) {
-      const Real scale = 1 / abs(theta);
-      theta *= scale;
-      theta_prev *= scale;
-    }
-    theta_prev2 = theta_prev;
-    theta_prev = theta;
+    b[i] = rx[i] * ux[i] + ry[i] * uy[i];
+    hd[i] = w[i] * (rx[i] * rx[i] + ry[i] * ry[i]);
+    ha[i] = -im[i - 1] * (rx[i] * rx[i - 1] + ry[i] * ry[i - 1]);  // 0 at i = 0
+    hc[i] = -im[i] * (rx[i] * rx[i + 1] + ry[i] * ry[i + 1]);      // 0 at i = n - 1
+    t[i] = 0;
   }
-  t[n - 1] *= dd[n - 1];
-  for (std::size_t i = n - 1; i-- > 0;) t[i] = t[i] * dd[i] - off[i + 1] * t[i + 1];
-  for (std::size_t k = 0; k < n; ++k) {
-    Real jx = -t[k] * r[2 * k], jy = -t[k] * r[2 * k + 1];
-    if (k + 1 < n) {
-      jx += t[k + 1] * r[2 * k + 2];
-      jy += t[k + 1] * r[2 * k + 3];
-    }
-    p[2 * k] += jx;
-    p[2 * k + 1] += jy;
+  solve_tridiagonal_twisted(n, ha, hd, hc, b, t, ws.pivot.data(), ws.rhs.data());
+#pragma omp simd
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real sig = t[i] * w[i], alp = t[i + 1] * im[i], bet = t[i - 1] * im[i - 1];
+    ux[i] += alp * rx[i + 1] + bet * rx[i - 1] - sig * rx[i];
+    uy[i] += alp * ry[i + 1] + bet * ry[i - 1] - sig * ry[i];
   }
   if (learn && ws.pending_kick_time != 0) {
     const Real inv = Real(1) / ws.pending_kick_time;
@@ -282,6 +437,146 @@ void velocity_stage(const Chain<Real>& chain, ChainState<Real>& st, DynamicsWork
   ws.pending_kick_time = 0;
 }
 
+/// Weights of the symmetric compositions of RATTLE (each sums to 1).
+template <class Real>
+std::vector<Real> composition_weights(Integrator integrator) {
+  using std::cbrt;
+  switch (integrator) {
+    case Integrator::rattle2:
+      return {Real(1)};
+    case Integrator::yoshida4: {
+      // Yoshida (1990) / Forest-Ruth: w1 = 1 / (2 - 2^{1/3}), w0 = 1 - 2 w1.
+      const Real w1 = Real(1) / (Real(2) - cbrt(Real(2)));
+      return {w1, Real(1) - 2 * w1, w1};
+    }
+    case Integrator::suzuki4: {
+      // Suzuki (1990): p = 1 / (4 - 4^{1/3}); p p (1 - 4p) p p. Smaller error constants.
+      const Real p = Real(1) / (Real(4) - cbrt(Real(4)));
+      return {p, p, Real(1) - 4 * p, p, p};
+    }
+    case Integrator::kahan_li6: {
+      // Kahan and Li (1997), s9odr6a: 9 stages, sixth order.
+      const Real g[5] = {Real(0.39216144400731413927925056L), Real(0.33259913678935943859974864L),
+                         Real(-0.70624617255763935980996482L), Real(0.08221359629355080023149045L),
+                         Real(0.79854399093482996339895035L)};
+      return {g[0], g[1], g[2], g[3], g[4], g[3], g[2], g[1], g[0]};
+    }
+    case Integrator::yoshida6: {
+      // Yoshida (1990), Phys. Lett. A 150, 262, Table 1, solution A: w3 w2 w1 w0 w1 w2 w3.
+      const Real w1 = Real(-1.17767998417887L), w2 = Real(0.235573213359357L),
+                 w3 = Real(0.784513610477560L);
+      const Real w0 = 1 - 2 * (w1 + w2 + w3);
+      return {w3, w2, w1, w0, w1, w2, w3};
+    }
+  }
+  return {Real(1)};
+}
+
+
+/// One step of a composition on the link frame (see composition_step).
+template <class Real>
+void advance_composition(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const Real& h,
+                         Integrator integrator) {
+  const std::vector<Real>& w = ws.composition(integrator, composition_weights<Real>);
+  // kick(w_1 h/2) drift(w_1 h) kick((w_1 + w_2) h/2) drift(w_2 h) ... drift(w_s h)
+  // kick(w_s h/2) project. The position stages absorb the normal momentum components, so the
+  // skipped intermediate velocity stages would change nothing but the multipliers.
+  const std::size_t stages = w.size();
+  if (integrator == Integrator::rattle2) {
+    gravity_kick(chain, ws, h / 2);
+    constrained_drift(ws, h, 0);
+    gravity_kick(chain, ws, h / 2);
+  } else {
+    gravity_kick(chain, ws, w[0] * h / 2);
+    for (std::size_t j = 0; j < stages; ++j) {
+      constrained_drift(ws, w[j] * h, static_cast<int>(8 + j));
+      const Real next = j + 1 < stages ? w[j + 1] : Real(0);
+      gravity_kick(chain, ws, (w[j] + next) * h / 2);
+    }
+  }
+  velocity_stage(ws);
+}
+
+/// One constrained BAOAB step on the link frame (see baoab_step).
+template <class Real>
+void advance_baoab(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const Real& h,
+                   const Real& beta, const Real& friction, std::mt19937_64& rng) {
+  using std::exp;
+  using std::expm1;
+  const std::size_t n = ws.size();
+  const Real half = h / 2;
+  gravity_kick(chain, ws, half);   // B
+  constrained_drift(ws, half, 4);  // A (its end projection is folded into O's)
+  // O: v <- c1 v + sqrt((1 - c1^2) / (m beta)) xi on the particle velocities, then back to the
+  // cotangent space.
+  const Real c1 = exp(-friction * h);
+  const Real noise = sqrt(-expm1(-2 * friction * h) / beta);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  LinkFrame<Real> lf(ws);
+  Real vx = 0, vy = 0, vx_new_prev = 0, vy_new_prev = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    vx += lf.ux[k];
+    vy += lf.uy[k];
+    const Real sm = noise * ws.inv_sqrt_mass[k];
+    const Real vx_new = c1 * vx + sm * Real(normal(rng));
+    const Real vy_new = c1 * vy + sm * Real(normal(rng));
+    lf.ux[k] = vx_new - vx_new_prev;
+    lf.uy[k] = vy_new - vy_new_prev;
+    vx_new_prev = vx_new;
+    vy_new_prev = vy_new;
+  }
+  velocity_stage(ws, /*learn=*/false);
+  constrained_drift(ws, half, 5);  // A
+  gravity_kick(chain, ws, half);   // B
+  velocity_stage(ws);
+}
+
+/// Per-particle observables and energies of the link frame in two O(N) passes: K_i, K_i^(c),
+/// cos phi_i into sample[0..3N), and the kinetic and potential energy.
+template <class Real>
+void link_observables(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, Real* sample,
+                      Real& kinetic, Real& potential) {
+  const std::size_t n = ws.size();
+  LinkFrame<Real> lf(ws);
+  Real* vxs = ws.velocity_x.data();
+  Real* vys = ws.velocity_y.data();
+  Real vx = 0, vy = 0, k_sum = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    vx += lf.ux[i];
+    vy += lf.uy[i];
+    vxs[i] = vx;
+    vys[i] = vy;
+    const Real k = ws.mass[i] * (vx * vx + vy * vy) / 2;
+    sample[i] = k;
+    k_sum += k;
+  }
+  // Tail momenta P_i = sum_{k >= i} p_k: p_phi_i = r_i x P_i; phidot_i = r_i x u_i / l_i^2;
+  // U = g sum_k m_k y_k = g sum_i S_i r_iy (S_i the tail mass).
+  Real px = 0, py = 0, height = 0;
+  for (std::size_t i = n; i-- > 0;) {
+    px += ws.mass[i] * vxs[i];
+    py += ws.mass[i] * vys[i];
+    const Real rx = lf.rx[i], ry = lf.ry[i];
+    const Real p_phi = rx * py - ry * px;
+    const Real phidot = (rx * lf.uy[i] - ry * lf.ux[i]) * ws.inv_length_squared[i];
+    sample[n + i] = p_phi * phidot / 2;
+    sample[2 * n + i] = -ry * ws.inv_length[i];  // cos phi_i
+    height += ws.tail_mass[i] * ry;
+  }
+  kinetic = k_sum;
+  potential = height * chain.gravity();
+}
+
+/// max_i | |r_i| - l_i | / l_i of the link frame.
+template <class Real>
+Real link_constraint_residual(DynamicsWorkspace<Real>& ws) {
+  using std::hypot;
+  LinkFrame<Real> lf(ws);
+  Real worst = 0;
+  for (std::size_t i = 0; i < ws.size(); ++i)
+    worst = std::max(worst, abs(hypot(lf.rx[i], lf.ry[i]) - ws.length[i]) * ws.inv_length[i]);
+  return worst;
+}
 
 }  // namespace
 
@@ -438,88 +733,52 @@ Real velocity_constraint_residual(const Chain<Real>& chain, const ChainState<Rea
 
 template <class Real>
 DynamicsWorkspace<Real>::DynamicsWorkspace(const Chain<Real>& chain) : n_(chain.size()) {
-  inv_mass.resize(n_);
-  joint_compliance.resize(n_);
-  inv_length_squared.resize(n_);
-  half_length_squared.resize(n_);
-  length.resize(n_);
-  inv_length.resize(n_);
+  for (auto* v : {&mass, &inv_sqrt_mass, &tail_mass, &joint_compliance, &length, &inv_length,
+                  &inv_length_squared, &half_length_squared})
+    v->assign(n_, Real(0));
+  for (auto* v : {&link_x, &link_y, &rate_x, &rate_y, &inv_mass_padded, &multiplier,
+                  &next_link_x, &next_link_y, &next_rate_x, &next_rate_y})
+    v->assign(n_ + 2, Real(0));
   for (std::size_t i = 0; i < n_; ++i) {
-    inv_mass[i] = Real(1) / chain.mass(i);
-    joint_compliance[i] = inv_mass[i] + (i > 0 ? inv_mass[i - 1] : Real(0));
+    mass[i] = chain.mass(i);
+    inv_mass_padded[i + 1] = Real(1) / chain.mass(i);
+    inv_sqrt_mass[i] = Real(1) / sqrt(chain.mass(i));
+    tail_mass[i] = chain.tail_mass(i);
+    joint_compliance[i] = inv_mass_padded[i + 1] + inv_mass_padded[i];
     const Real l = chain.length(i);
     length[i] = l;
     inv_length[i] = Real(1) / l;
     inv_length_squared[i] = Real(1) / (l * l);
     half_length_squared[i] = l * l / 2;
   }
-  link.assign(2 * n_, Real(0));
-  trial_link.assign(2 * n_, Real(0));
-  trial.assign(2 * n_, Real(0));
-  for (auto* v : {&multiplier, &multiplier_estimate, &residual, &sub, &rhs, &pivot})
+  for (auto* v : {&trial_link_x, &trial_link_y, &velocity_x, &velocity_y,
+                  &multiplier_estimate, &residual, &diagonal, &sub, &super,
+                  &rhs, &pivot})
     v->assign(n_, Real(0));
 }
 
 template <class Real>
-void project_momenta(const Chain<Real>& chain, ChainState<Real>& state,
-                     DynamicsWorkspace<Real>& ws) {
-  velocity_stage(chain, state, ws, /*learn=*/false);
+void project_momenta(const Chain<Real>&, ChainState<Real>& state, DynamicsWorkspace<Real>& ws) {
+  load_links(state, ws);
+  velocity_stage(ws, /*learn=*/false);
+  store_links(ws, state);
 }
 
 template <class Real>
 void rattle_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
                  DynamicsWorkspace<Real>& ws) {
-  const Real half = h / 2;
-  gravity_kick(chain, state, half, ws);
-  constrained_drift(chain, state, h, ws, 0);
-  gravity_kick(chain, state, half, ws);
-  velocity_stage(chain, state, ws);
+  load_links(state, ws);
+  advance_composition(chain, ws, h, Integrator::rattle2);
+  store_links(ws, state);
   state.time += h;
-}
-
-/// Weights of the symmetric compositions of RATTLE (each sums to 1).
-template <class Real>
-std::vector<Real> composition_weights(Integrator integrator) {
-  using std::cbrt;
-  switch (integrator) {
-    case Integrator::rattle2:
-      return {Real(1)};
-    case Integrator::yoshida4: {
-      // Yoshida (1990) / Forest-Ruth: w1 = 1 / (2 - 2^{1/3}), w0 = 1 - 2 w1.
-      const Real w1 = Real(1) / (Real(2) - cbrt(Real(2)));
-      return {w1, Real(1) - 2 * w1, w1};
-    }
-    case Integrator::suzuki4: {
-      // Suzuki (1990): p = 1 / (4 - 4^{1/3}); p p (1 - 4p) p p. Smaller error constants.
-      const Real p = Real(1) / (Real(4) - cbrt(Real(4)));
-      return {p, p, Real(1) - 4 * p, p, p};
-    }
-    case Integrator::kahan_li6: {
-      // Kahan and Li (1997), s9odr6a: 9 stages, sixth order.
-      const Real g[5] = {Real(0.39216144400731413927925056L), Real(0.33259913678935943859974864L),
-                         Real(-0.70624617255763935980996482L), Real(0.08221359629355080023149045L),
-                         Real(0.79854399093482996339895035L)};
-      return {g[0], g[1], g[2], g[3], g[4], g[3], g[2], g[1], g[0]};
-    }
-  }
-  return {Real(1)};
 }
 
 template <class Real>
 void composition_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
                       Integrator integrator, DynamicsWorkspace<Real>& ws) {
-  const std::vector<Real>& w = ws.composition(integrator, composition_weights<Real>);
-  // kick(w_1 h/2) drift(w_1 h) kick((w_1 + w_2) h/2) drift(w_2 h) ... drift(w_s h)
-  // kick(w_s h/2) project. The position stages absorb the normal momentum components, so the
-  // skipped intermediate velocity stages would change nothing but the multipliers.
-  const std::size_t stages = w.size();
-  gravity_kick(chain, state, w[0] * h / 2, ws);
-  for (std::size_t j = 0; j < stages; ++j) {
-    constrained_drift(chain, state, w[j] * h, ws, static_cast<int>(8 + j));
-    const Real next = j + 1 < stages ? w[j + 1] : Real(0);
-    gravity_kick(chain, state, (w[j] + next) * h / 2, ws);
-  }
-  velocity_stage(chain, state, ws);
+  load_links(state, ws);
+  advance_composition(chain, ws, h, integrator);
+  store_links(ws, state);
   state.time += h;
 }
 
@@ -533,24 +792,9 @@ template <class Real>
 void baoab_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
                 const Real& beta, const Real& friction, std::mt19937_64& rng,
                 DynamicsWorkspace<Real>& ws) {
-  using std::exp;
-  using std::expm1;
-  const Real half = h / 2;
-  gravity_kick(chain, state, half, ws);   // B
-  constrained_drift(chain, state, half, ws, 4);   // A (its end projection is folded into O's)
-  // O: p <- c1 p + sqrt((1 - c1^2) m / beta) xi, then back to the cotangent space.
-  const Real c1 = exp(-friction * h);
-  const Real noise = sqrt(-expm1(-2 * friction * h) / beta);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  for (std::size_t k = 0; k < chain.size(); ++k) {
-    const Real sm = noise * sqrt(chain.mass(k));
-    state.momentum[2 * k] = c1 * state.momentum[2 * k] + sm * Real(normal(rng));
-    state.momentum[2 * k + 1] = c1 * state.momentum[2 * k + 1] + sm * Real(normal(rng));
-  }
-  velocity_stage(chain, state, ws, /*learn=*/false);
-  constrained_drift(chain, state, half, ws, 5);  // A
-  gravity_kick(chain, state, half, ws);  // B
-  velocity_stage(chain, state, ws);
+  load_links(state, ws);
+  advance_baoab(chain, ws, h, beta, friction, rng);
+  store_links(ws, state);
   state.time += h;
 }
 
@@ -586,34 +830,39 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
   const auto burn_steps = static_cast<std::size_t>(burn_d);
 
   DynamicsWorkspace<Real> ws(chain);
-  velocity_stage(chain, state, ws, false);  // the initial momenta onto the cotangent space
+  // The run lives in the link frame; the state is written back for observers and at the end.
+  load_links(state, ws);
+  velocity_stage(ws, false);  // the initial momenta onto the cotangent space
   const Real h(options.time_step);
   const Real beta(options.beta), friction(options.friction);
   std::mt19937_64 rng(options.seed);
+  const Real start_time = state.time;
 
   Real mass_sum = 0, length_sum = 0;
   for (std::size_t i = 0; i < n; ++i) {
     mass_sum += chain.mass(i);
     length_sum += chain.length(i);
   }
+  // Observables per sample: K_i (n), K_i^(c) (n), cos phi_i (n), K, U, E.
+  const std::size_t width = 3 * n + 3;
+  std::vector<Real> sample(width);
   SimulationResult<Real> out;
   out.method = langevin ? Method::dynamics_langevin : Method::dynamics_nve;
-  out.initial_energy = total_energy(chain, state);
   {
-    const Real k0 = out.initial_energy - potential_energy(chain, state);
+    Real k0 = 0, u0 = 0;
+    link_observables(chain, ws, sample.data(), k0, u0);
+    out.initial_energy = k0 + u0;
     out.energy_scale = chain.gravity() > 0 ? mass_sum * chain.gravity() * length_sum
                                            : abs(out.initial_energy) + k0;
     if (!(out.energy_scale > 0)) out.energy_scale = 1;
   }
-  out.constraint_residual = constraint_residual(chain, state);
+  out.constraint_residual = link_constraint_residual(ws);
 
   auto advance = [&]() {
     if (langevin) {
-      baoab_step(chain, state, h, beta, friction, rng, ws);
-    } else if (options.integrator == Integrator::rattle2) {
-      rattle_step(chain, state, h, ws);
+      advance_baoab(chain, ws, h, beta, friction, rng);
     } else {
-      composition_step(chain, state, h, options.integrator, ws);
+      advance_composition(chain, ws, h, options.integrator);
     }
   };
   const std::size_t total_steps = burn_steps + steps;
@@ -621,51 +870,26 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
   auto stop_requested = [&]() {
     return observer.stop != nullptr && observer.stop->load(std::memory_order_relaxed);
   };
+  auto export_state = [&](std::size_t step) {
+    store_links(ws, state);
+    state.time = start_time + Real(static_cast<double>(step)) * h;
+  };
 
-  // Observables per sample: K_i (n), K_i^(c) (n), K, U, E.
-  // Observables per sample: K_i (n), K_i^(c) (n), cos phi_i (n), K, U, E.
-  const std::size_t width = 3 * n + 3;
   // Finest blocks: as short as max_blocks allows for the planned samples (>= block_samples).
   const std::size_t block_length =
       std::max(options.block_samples, (steps + options.max_blocks - 1) / options.max_blocks);
   detail::BlockAverager<Real> blocks(width, block_length, options.max_blocks);
-  std::vector<Real> sample(width);
-  std::vector<Real> tail_x(n), tail_y(n);
   Real energy_error_max = 0, energy_error_squares = 0;
   std::size_t done = 0;
-  if (observer.trajectory) observer.trajectory(state);
+  if (observer.trajectory) {
+    export_state(0);
+    observer.trajectory(state);
+  }
   for (std::size_t step = 1; step <= total_steps; ++step) {
     advance();
     ++done;
-    // Per-sample observables in one O(N) pass (cf. observables()).
-    const std::vector<Real>& x = state.position;
-    const std::vector<Real>& p = state.momentum;
-    Real px = 0, py = 0;
-    for (std::size_t i = n; i-- > 0;) {
-      px += p[2 * i];
-      py += p[2 * i + 1];
-      tail_x[i] = px;
-      tail_y[i] = py;
-    }
-    Real xprev = 0, yprev = 0, vxprev = 0, vyprev = 0, kinetic = 0, height = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Real im = ws.inv_mass[i];
-      const Real rx = x[2 * i] - xprev, ry = x[2 * i + 1] - yprev;
-      const Real vx = p[2 * i] * im, vy = p[2 * i + 1] * im;
-      const Real p_phi = rx * tail_y[i] - ry * tail_x[i];
-      const Real phidot = (rx * (vy - vyprev) - ry * (vx - vxprev)) * ws.inv_length_squared[i];
-      const Real k = (p[2 * i] * vx + p[2 * i + 1] * vy) / 2;
-      sample[i] = k;
-      sample[n + i] = p_phi * phidot / 2;
-      sample[2 * n + i] = -ry * ws.inv_length[i];  // cos phi_i
-      kinetic += k;
-      height += chain.mass(i) * x[2 * i + 1];
-      xprev = x[2 * i];
-      yprev = x[2 * i + 1];
-      vxprev = vx;
-      vyprev = vy;
-    }
-    const Real potential = height * chain.gravity();
+    Real kinetic = 0, potential = 0;
+    link_observables(chain, ws, sample.data(), kinetic, potential);
     const Real energy = kinetic + potential;
     if (!langevin) {
       const Real e = energy - out.initial_energy;
@@ -679,22 +903,28 @@ SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> state
       blocks.add(sample.data());
     }
     if (observer.trajectory && observer.trajectory_every > 0 &&
-        step % observer.trajectory_every == 0)
+        step % observer.trajectory_every == 0) {
+      export_state(step);
       observer.trajectory(state);
+    }
     if (observer.progress && step % progress_every == 0)
       observer.progress(static_cast<double>(step) / static_cast<double>(total_steps));
     if ((step & 1023) == 0) {
-      out.constraint_residual = std::max(out.constraint_residual, constraint_residual(chain, state));
+      out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
       if (stop_requested()) {
         out.interrupted = step < total_steps;
         break;
       }
     }
   }
-  out.constraint_residual = std::max(out.constraint_residual, constraint_residual(chain, state));
+  out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
   // The position stages' own residual |sigma|/l^2 ~ relative length error: include it.
   out.constraint_residual = std::max(out.constraint_residual, ws.largest_stage_residual);
-  out.final_energy = total_energy(chain, state);
+  {
+    Real k1 = 0, u1 = 0;
+    link_observables(chain, ws, sample.data(), k1, u1);
+    out.final_energy = k1 + u1;
+  }
   out.energy_drift = (out.final_energy - out.initial_energy) / out.energy_scale;
   out.energy_error_max = energy_error_max / out.energy_scale;
   if (done > 0)
@@ -825,7 +1055,7 @@ PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& ene
     const Real p1 = (a2 * p2 + sqrt(disc)) / a3;
     ChainState<Real> st = state_from_canonical(chain, {Real(0), phi2}, {p1, p2});
     DynamicsWorkspace<Real> ws(chain);
-    velocity_stage(chain, st, ws, false);
+    project_momenta(chain, st, ws);
     const Real e0 = total_energy(chain, st);
     Real worst = abs(e0 - energy);
     std::vector<SectionPoint<Real>>& points = per_orbit[k];

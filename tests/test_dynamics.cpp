@@ -146,7 +146,8 @@ TEST_CASE("energy error converges with the order of each composition", "[dynamic
     double order, h;
   };
   for (const Case c : {Case{Integrator::rattle2, 2, 4e-3}, Case{Integrator::yoshida4, 4, 2e-2},
-                       Case{Integrator::suzuki4, 4, 4e-2}, Case{Integrator::kahan_li6, 6, 8e-2}}) {
+                       Case{Integrator::suzuki4, 4, 4e-2}, Case{Integrator::kahan_li6, 6, 8e-2},
+                       Case{Integrator::yoshida6, 6, 4e-2}}) {
     const double coarse = max_energy_error(chain, state, c.h, 2.0, c.integrator);
     const double fine = max_energy_error(chain, state, c.h / 2, 2.0, c.integrator);
     const double observed = std::log2(coarse / fine);
@@ -157,6 +158,7 @@ TEST_CASE("energy error converges with the order of each composition", "[dynamic
   const double yoshida = max_energy_error(chain, state, 1e-2, 2.0, Integrator::yoshida4);
   CHECK(max_energy_error(chain, state, 1e-2, 2.0, Integrator::suzuki4) < yoshida / 10);
   CHECK(max_energy_error(chain, state, 1e-2, 2.0, Integrator::kahan_li6) < yoshida / 100);
+  CHECK(max_energy_error(chain, state, 1e-2, 2.0, Integrator::yoshida6) < yoshida / 10);
 }
 
 TEST_CASE("the composed RATTLE map is time reversible", "[dynamics]") {

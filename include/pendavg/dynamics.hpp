@@ -12,16 +12,24 @@
 //         p_{n+1} = p_{1/2} - (h/2) grad U - G(q_{n+1})^T mu,  G(q_{n+1}) M^{-1} p_{n+1} = 0.
 //     Position stage: the N multipliers solve N quadratic equations. Each constraint couples
 //     only neighbouring multipliers, so Newton's Jacobian is tridiagonal and one iteration is an
-//     O(N) Thomas solve (MATH.md Secs. 3, 7). Iterations run until every |sigma_i| / l_i^2 is
-//     at most a few ulps (typically one or two solves: the guess is the last step's multiplier).
-//     Velocity stage: a linear system with the symmetric positive definite tridiagonal matrix
-//     H = G M^{-1} G^T (MATH.md Sec. 3), solved by an O(N) LDL^T sweep.
-//   * yoshida4_step: Yoshida's (1990) symmetric composition of three RATTLE steps with
-//     w1 = 1/(2 - 2^{1/3}), w0 = -2^{1/3} w1: fourth order, symplectic on the constraint
-//     manifold, time reversible. Gravity is uniform, so the kick forces are constants.
-//     Velocity stages between the substeps are skipped: the next position stage absorbs any
-//     momentum component along G(q)^T exactly, so only the last one (which returns the
-//     momenta to the cotangent space) changes the state. Same map, one solve fewer per substep.
+//     O(N) solve (MATH.md Secs. 3, 7), done by a twisted factorization: elimination from both
+//     ends towards the middle row, two independent serial chains of one multiply-add per row.
+//     Iterations run until every |sigma_i| / l_i^2 is at most a few ulps; the guess is the
+//     quadratic extrapolation of the stage's multipliers over the last three steps, which
+//     leaves one solve per stage (1.00 at N = 16). Velocity stage: a linear system with the
+//     symmetric positive definite tridiagonal matrix H = G M^{-1} G^T (MATH.md Sec. 3), the
+//     same O(N) solve. The kernels run on the links r_i = x_i - x_{i-1} and link velocities
+//     u_i = v_i - v_{i-1} stored as separate arrays (uniform gravity then kicks u_0 alone), so
+//     every pass but the two serial chains vectorizes.
+//   * composition_step: a symmetric composition of RATTLE steps RATTLE(w_s h) o ... o
+//     RATTLE(w_1 h): Yoshida's (1990) fourth-order triple jump w1 = 1/(2 - 2^{1/3}),
+//     w0 = -2^{1/3} w1 (the paper's; yoshida4_step), Suzuki's 5-stage fourth order, Yoshida's
+//     7-stage sixth order (solution A) and Kahan-Li's 9-stage sixth order. All are
+//     symplectic on the constraint manifold and time reversible. Gravity is uniform, so the
+//     kick forces are constants. Velocity stages between the substeps are skipped: the next
+//     position stage absorbs any momentum component along G(q)^T exactly, so only the last
+//     one (which returns the momenta to the cotangent space) changes the state. Same map, one
+//     solve fewer per substep.
 //   * baoab_step: constrained Langevin dynamics (Leimkuhler-Matthews 2016, "g-BAOAB" with one
 //     RATTLE solve per A): B(h/2) A(h/2) O(h) A(h/2) B(h/2), the O step
 //     p <- e^{-gamma h} p + sqrt((1 - e^{-2 gamma h}) m / beta) xi followed by the projection
@@ -49,14 +57,14 @@
 //
 // Accuracy (tests/test_dynamics.cpp, tests/bench/bench_dynamics.cpp, tables/dynamics_*.csv).
 // Constraint residuals stay at rounding level (<= 2e-15 relative over 1e7 steps). The observed
-// orders are 2, 4, 4, 6 (rattle2, yoshida4, suzuki4, kahan_li6). The paper's N = 16 run (unit
-// chain from phi_i = pi/2, E = 0, dt = 1e-3, T = 1e4): max |E(t) - E(0)| / ((sum m) g (sum l))
-// = 2.8e-7 with yoshida4 (rms 1.4e-9, drift 3e-10: bounded, no secular growth; the maxima
-// come from the fast whips of the free end), 1.1e-8 with suzuki4 (1.5x the cost), 1.5e-11
-// with kahan_li6 (2.5x the cost). Time averages of N = 2, 3 (NVE and Langevin) and of the
-// paper's N = 7, 16 runs agree with the exact values within ~2 combined error bars. Cost
-// ~0.9 us per yoshida4 step at N = 16 and linear in N (~50-60 ns per particle per step); about
-// one Newton solve per position stage.
+// orders are 2, 4, 4, 6, 6 (rattle2, yoshida4, suzuki4, yoshida6, kahan_li6). The paper's
+// N = 16 run (unit chain from phi_i = pi/2, E = 0, dt = 1e-3, T = 1e4): max |E(t) - E(0)| /
+// ((sum m) g (sum l)) = 2.8e-7 with yoshida4 (rms 1.4e-9, drift 3e-10: bounded, no secular
+// growth; the maxima come from the fast whips of the free end), 6e-11 to 2e-10 with yoshida6
+// (the default), 1.5e-11 with kahan_li6. Time averages of N = 2, 3 (NVE and Langevin) and of
+// the paper's N = 7, 16 runs agree with the exact values within ~2 combined error bars. Cost
+// at N = 16 per step: yoshida4 0.45 us, yoshida6 0.87 us, kahan_li6 1.1 us; linear in N
+// (25-35 ns per particle per yoshida4 step for N >= 16).
 //
 // Generic over Real (double and long double are instantiated in src/dynamics.cpp). The model
 // (Chain) is kept apart from the state (ChainState) and the workspace (DynamicsWorkspace). The
@@ -146,10 +154,11 @@ class DynamicsWorkspace {
   double newton_tolerance_ulps = 4;
   int max_newton_iterations = 30;
 
-  /// Multipliers of the last two position stages at one place in a composition (their
-  /// linear extrapolation is the next guess). Slots: 0 RATTLE, 1-3 Yoshida, 4-5 BAOAB.
+  /// Multipliers of the last three position stages at one place in a composition (their
+  /// quadratic extrapolation is the next guess), N + 2 each with zero pads at both ends. Slots:
+  /// 0 RATTLE, 4-5 BAOAB, 8 + j stage j of a composition.
   struct StageHistory {
-    std::vector<Real> last, before;
+    std::vector<Real> last, before, oldest;
     std::size_t count = 0;
   };
   StageHistory& stage_history(std::size_t slot) {
@@ -171,9 +180,18 @@ class DynamicsWorkspace {
     return weights_;
   }
 
-  // Buffers (internal).
-  std::vector<Real> inv_mass, joint_compliance, length, inv_length, inv_length_squared, half_length_squared, link,
-      trial_link, trial, multiplier, multiplier_estimate, residual, sub, rhs, pivot;
+  // Internal. Chain constants (N each): masses, 1/sqrt(m), tail masses, joint compliances
+  // 1/m_i + 1/m_{i-1}, lengths and their inverses.
+  std::vector<Real> mass, inv_sqrt_mass, tail_mass, joint_compliance, length, inv_length,
+      inv_length_squared, half_length_squared;
+  // The link frame (N + 2 each, zero pads at both ends): links r_i = x_i - x_{i-1}, link
+  // velocities u_i = v_i - v_{i-1}, 1/m_i and the multipliers.
+  std::vector<Real> link_x, link_y, rate_x, rate_y, inv_mass_padded, multiplier;
+  // The frame a position stage writes (swapped in when it has converged).
+  std::vector<Real> next_link_x, next_link_y, next_rate_x, next_rate_y;
+  // Scratch of the constraint stages (N each).
+  std::vector<Real> trial_link_x, trial_link_y, velocity_x, velocity_y, multiplier_estimate,
+      residual, diagonal, sub, super, rhs, pivot;
   /// Kick time since the last position or velocity stage (its constraint impulse is pending).
   Real pending_kick_time{0};
 
@@ -221,6 +239,7 @@ enum class Integrator {
   yoshida4,   ///< Yoshida's triple jump: fourth order, 3 stages (the paper's)
   suzuki4,    ///< Suzuki's 5-stage fourth order: smaller error constants
   kahan_li6,  ///< Kahan-Li s9odr6a: sixth order, 9 stages
+  yoshida6,   ///< Yoshida's solution A: sixth order, 7 stages (larger error constants)
 };
 enum class Thermostat { none, langevin };
 
@@ -228,7 +247,9 @@ struct SimulationOptions {
   double time_step = 1e-3;
   double duration = 0;     ///< T: steps = round(T / time_step)
   double burn_in = 0;      ///< run this long before averaging starts (in addition to T)
-  Integrator integrator = Integrator::yoshida4;
+  /// yoshida6 meets 1e-9 relative energy error on the paper's N = 16 run at dt = 1e-3;
+  /// yoshida4 is the paper's own scheme (2.8e-7 there, half the cost).
+  Integrator integrator = Integrator::yoshida6;
   Thermostat thermostat = Thermostat::none;
   double beta = 1;         ///< Langevin only
   double friction = 1;     ///< Langevin only: gamma (1/time)

@@ -46,7 +46,9 @@ const std::string_view simulate_usage =
     "  --phi, --phidot angles from the downward vertical and angular velocities (default 0)\n"
     "  --dt H          time step (default 1e-3); --time T the averaging time; --burn-in T0\n"
     "                  extra time before averaging starts (default 0)\n"
-    "  --integrator I  yoshida4 (default, the paper's), suzuki4, kahan-li6 (6th order), rattle2\n"
+    "  --integrator I  yoshida6 (default: 6th order, 7 stages, energy error ~1e-10 on the\n"
+    "                  paper's runs), yoshida4 (the paper's: 4th order, 3 stages, ~1e-7),\n"
+    "                  suzuki4, kahan-li6 (6th order, 9 stages), rattle2\n"
     "  --thermostat langevin  constrained BAOAB at --beta B, friction --friction G (default 1)\n"
     "  --exact no      skip the exact values (N >= 5 uses QMC for them: a few seconds)\n"
     "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
@@ -65,8 +67,8 @@ const std::string_view poincare_usage =
 
 namespace {
 
-constexpr std::array<std::string_view, 4> integrator_names{"rattle2", "yoshida4", "suzuki4",
-                                                           "kahan-li6"};
+constexpr std::array<std::string_view, 5> integrator_names{"rattle2", "yoshida4", "suzuki4",
+                                                           "kahan-li6", "yoshida6"};
 constexpr std::array<std::string_view, 2> thermostat_names{"none", "langevin"};
 constexpr std::array<std::string_view, 2> yes_no{"yes", "no"};
 constexpr std::array<std::string_view, 2> simulate_formats{"json", "csv"};
@@ -219,7 +221,7 @@ std::string simulate_command(const Options& options) {
   if (run.duration / run.time_step < 1)
     throw usage_error("simulate: --time is shorter than one step --dt");
   run.integrator = static_cast<Integrator>(
-      parse_choice(options.get("integrator", "yoshida4"), "integrator", integrator_names));
+      parse_choice(options.get("integrator", "yoshida6"), "integrator", integrator_names));
   run.thermostat = parse_choice(options.get("thermostat", "none"), "thermostat",
                                 thermostat_names) == 1
                        ? Thermostat::langevin
