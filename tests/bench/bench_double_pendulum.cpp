@@ -20,9 +20,10 @@
 // such case is printed once to stderr with its exact parameters, as is the slowest case.
 //
 // Extra flag, handled before benchmark::Initialize:
-//   bench_double_pendulum --write-cases FILE [--replicate N]
-// writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), repeated N times (default 1), and
-// exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
+//   bench_double_pendulum --write-cases FILE [--replicate N] [--grouped]
+// writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), the list repeated N times (default
+// 1; data row r is case r % 1000) or, with --grouped, each case N times in a row (row r is case
+// r / N), and exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
 //   bench_double_pendulum --profile-cases DIGITS [FIRST COUNT [quadrature|sums]]
 // times each case alone (thread CPU time, so other processes on the cores matter less) and
 // prints index, time, evaluations (nodes or Graf terms) and parameters, one line per case;
@@ -371,7 +372,7 @@ int main(int argc, char** argv) {
     }
     return profile_cases(digits, first, count, evaluation);
   }
-  // --write-cases FILE [--replicate N]: write the cases as CSV and exit (no benchmarks).
+  // --write-cases FILE [--replicate N] [--grouped]: write the cases as CSV and exit.
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--write-cases") != 0) continue;
     if (i + 1 >= argc) {
@@ -386,8 +387,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "--replicate needs a positive count\n");
       return 2;
     }
+    bool grouped = false;
+    for (int j = 1; j < argc; ++j)
+      if (std::strcmp(argv[j], "--grouped") == 0) grouped = true;
     try {
-      pendavg_bench::write_cases_csv(argv[i + 1], all_cases(), replicate);
+      pendavg_bench::write_cases_csv(argv[i + 1], all_cases(), replicate, grouped);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "%s\n", e.what());
       return 1;
