@@ -555,9 +555,13 @@ inline double graf_terms_estimate(double a1, double a2, double L) {
   if (!(geometric_mean > 0)) return 1.0;
   const double harmonic = a1 * a2 / (a1 + a2);
   const double gaussian = std::sqrt(2.0 * L * (harmonic + 0.5)) + 4.0;
-  // 2 m ln(2m / (e g)) >= L
+  // 2 m ln(2m / (e g)) >= L. While 2m < e g the logarithm is negative (L > 0): no log needed.
   double m = 1.0;
-  while (2.0 * m * std::log(2.0 * m / (2.718281828 * geometric_mean)) < L && m < 1e7) m *= 1.25;
+  while (m < 1e7) {
+    const double r = 2.0 * m / (2.718281828 * geometric_mean);
+    if (!(r < 1.0 && L > 0) && 2.0 * m * std::log(r) >= L) break;
+    m *= 1.25;
+  }
   return std::min(gaussian, m + 2.0);
 }
 
@@ -600,12 +604,15 @@ inline double graf_orders_needed(double a1, double a2, double L) {
 /// of ~6000 steps, over 3 ms at 77 digits). Hardware types keep graf_terms_estimate + 8: its
 /// shorter tables keep the forward recurrence for large a (count^2 <= 2a), which a few
 /// rebuilds of ~20-50 entries cost less than (measured: 1.2 -> 2.1 us on the affected cases).
+/// `terms_estimate`: graf_terms_estimate(a1, a2, L) when the caller has it (hardware types).
 template <class Real>
-GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
+GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L,
+                               double terms_estimate = -1.0) {
   const double a1_d = to_double_saturated(a1), a2_d = to_double_saturated(a2);
+  if (!is_mpfr_v<Real> && terms_estimate < 0) terms_estimate = graf_terms_estimate(a1_d, a2_d, L);
   std::size_t count = is_mpfr_v<Real>
                           ? 12 + static_cast<std::size_t>(graf_orders_needed(a1_d, a2_d, L))
-                          : 8 + static_cast<std::size_t>(graf_terms_estimate(a1_d, a2_d, L));
+                          : 8 + static_cast<std::size_t>(terms_estimate);
   // In place (MPFR: no temporaries), in the order of eps * I1 * I2 (eps a power of two).
   auto add_magnitude = [](Real& sum, const Real& x) {
     if (x < 0) {
@@ -870,7 +877,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // ~(1 + a1 a2 / (a1 + a2)) when the weight is peaked where q is small.
   const auto exact_sums = [&]<class Work>() {
     const DoublePendulumParameters<Work> pw{Work(p.mu1), Work(p.mu2), Work(p.a1), Work(p.a2)};
-    const auto rw = graf_moment_integrals(pw, graf_weights(pw.a1, pw.a2, L_graf), L_graf);
+    const auto rw =
+        graf_moment_integrals(pw, graf_weights(pw.a1, pw.a2, L_graf, graf_terms), L_graf);
     for (std::size_t k = 0; k < integral_count; ++k) {
       r.value[k] = Real(rw.value[k]);
       r.error[k] = Real(rw.error[k]) + unit_roundoff<Real>() * abs(r.value[k]);
@@ -949,7 +957,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     const bool base12 =
         !is_mpfr_v<Real> && !graf_nodes && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
     if (graf_nodes) {
-      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf), tol, max_level, base12);
+      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf, graf_terms), tol,
+                           max_level, base12);
     } else {
       DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
       dw.by_parts = !fold;
