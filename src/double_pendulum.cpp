@@ -889,8 +889,11 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // In double, skip the sums where they would likely be rejected (cancellation ~ a1 a2/(a1 +
   // a2) together with the bounds on the Bessel tables' rounding, measured to exceed 32 ulps
   // beyond a1 a2/(a1 + a2) ~ 30) or are slow: long double moments are cheap for short
-  // rows, for K d < 1/4 (convergent series) and for d > 1/2 (short Miller run); in between
-  // they take up to ~0.1 ms, while the nodes take ~10 us.
+  // rows, for K d < 1/4 (convergent series; K ~ graf_terms/2 rows) and for d > 1/2 (short
+  // Miller run); in between they take up to ~0.1 ms, while the nodes take ~10 us. (The cut
+  // was graf_terms d < 1/4, i.e. K d < 1/8: on the benchmark's 4 cases with graf_terms d in
+  // [1/4, 1/2) the sums took 3.8-5.1 us against the nodes' 6.5-9.6 us, with errors 0-1.9e-16
+  // against 1.1e-16-1.5e-15; case 308 was the double engine's slowest.)
   const double d_d = static_cast<double>(d);
   // In MPFR the sums cost about the same per Graf order m at any precision (two Bessel table
   // entries, half a moment and a coefficient row: median 2.3 us at 38 digits, 2.8 at 77), while the
@@ -904,7 +907,7 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   const bool sums_worthwhile =
       is_mpfr_v<Real> ? graf_nodes || graf_orders <= 8.0 * ln_inv_tol
                       : graf_terms <= 400.0 && harmonic <= 30.0 &&
-                            (graf_terms <= 24.0 || graf_terms * d_d < 0.25 || d_d > 0.5);
+                            (graf_terms <= 24.0 || graf_terms * d_d < 0.5 || d_d > 0.5);
   const bool try_sums =
       options.evaluation == IntegralEvaluation::graf_sums ||
       (options.evaluation == IntegralEvaluation::automatic && sums_worthwhile);
