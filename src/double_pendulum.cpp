@@ -896,16 +896,25 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // against 1.1e-16-1.5e-15; case 308 was the double engine's slowest.)
   const double d_d = static_cast<double>(d);
   // In MPFR the sums cost about the same per Graf order m at any precision (two Bessel table
-  // entries, half a moment and a coefficient row: median 2.3 us at 38 digits, 2.8 at 77), while the
-  // nodes' cost grows with it: their number like ln(1/tol) (Clenshaw-Curtis on an analytic
-  // integrand; 129-182 at 38 digits, 257-336 at 77), and each costs more Hankel terms. With
-  // per-node Direct weights the sums win below ~8 ln(1/tol) orders: measured crossovers of
-  // the 1000 benchmark cases 6-10 ln(1/tol) at 25-160 digits, 8 minimising the summed time
-  // at 38 and 110 digits and within 3% of it at 25-77. With per-node Graf rows (graf_nodes)
-  // every node costs a fraction of the sums themselves: the sums always win.
-  const double graf_orders = is_mpfr_v<Real> ? graf_orders_needed(a1_d, a2_d, L_graf) : 0.0;
+  // entries, half a moment and a coefficient row: median 2.3 us at 38 digits, 2.8 at 77), plus
+  // the Bessel tables' Miller runs beyond the row (up to ~sqrt(a ln(1/u)) steps for a ~ 1e4-1e5,
+  // where the forward recurrence is not yet stable), while the nodes' cost grows with the
+  // precision: their number like ln(1/tol) (Clenshaw-Curtis on an analytic integrand; 129-182
+  // at 38 digits, 257-336 at 77), and each costs more Hankel terms. With per-node Direct
+  // weights the sums win while m + 0.1 (Miller steps beyond the rows) <= 10 ln(1/tol): fitted
+  // on the 65 benchmark cases within 5-12 ln(1/tol) of the crossover at 38 and 77 digits (sums
+  // and nodes timed 5 times each; the summed time 1-10% below the orders-only cut at 8
+  // ln(1/tol), whose measured crossovers were 6-10 ln(1/tol) at 25-160 digits). With per-node
+  // Graf rows (graf_nodes) every node costs a fraction of the sums themselves: the sums win.
+  double graf_orders = 0, miller_extra = 0;
+  if constexpr (is_mpfr_v<Real>) {
+    graf_orders = graf_orders_needed(a1_d, a2_d, L_graf);
+    const auto rows = 14 + static_cast<std::size_t>(graf_orders);  // graf_weights' tables
+    miller_extra = static_cast<double>(scaled_bessel_table_steps<Real>(a1_d, rows) +
+                                       scaled_bessel_table_steps<Real>(a2_d, rows) - 2 * rows);
+  }
   const bool sums_worthwhile =
-      is_mpfr_v<Real> ? graf_nodes || graf_orders <= 8.0 * ln_inv_tol
+      is_mpfr_v<Real> ? graf_nodes || graf_orders + 0.1 * miller_extra <= 10.0 * ln_inv_tol
                       : graf_terms <= 400.0 && harmonic <= 30.0 &&
                             (graf_terms <= 24.0 || graf_terms * d_d < 0.5 || d_d > 0.5);
   const bool try_sums =
