@@ -204,9 +204,9 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
   // (Direct Bessel weights) maps sin(t/2) by a sinh at q's zero, integrates q^{-3/2} W by parts,
   // and, at high precision with mu1 tiny, splits [0, T] into two panels. The reference is the
   // exact finite sum of Graf coefficients times Fourier moments (no nodes, no map, q^{-3/2}'s
-  // moments directly), forced for these parameters (Graf rows of 440-740 orders; the cost
-  // model sends the longest one at 30 digits to the nodes). Checked: every observable to the
-  // requested digits, and each error estimate covers the difference.
+  // moments directly), forced for these parameters (Graf rows of 440-740 orders), whatever the
+  // cost model would pick. Checked: every observable to the requested digits, and each error
+  // estimate covers the difference.
   pendavg::IntegralOptions nodes, sums;
   nodes.evaluation = pendavg::IntegralEvaluation::quadrature;
   sums.evaluation = pendavg::IntegralEvaluation::graf_sums;
