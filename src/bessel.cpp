@@ -355,6 +355,13 @@ double scaled_bessel_table_error_ulps(double a, std::size_t count, std::size_t m
 }
 
 template <class Real>
+std::size_t scaled_bessel_table_steps(double a, std::size_t count) {
+  if (count == 0) return 0;
+  if (forward_recurrence_is_stable<Real>(a, count)) return count;
+  return miller_start<Real>(a, count);
+}
+
+template <class Real>
 std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count) {
   std::vector<Real> out(count, Real(0));
   if (count == 0) return out;
@@ -407,6 +414,7 @@ std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count) {
   template ScaledBesselI01<Real> scaled_bessel_i01_generic<Real>(const Real&);     \
   template std::vector<Real> scaled_bessel_i_table<Real>(const Real&, std::size_t); \
   template double scaled_bessel_table_error_ulps<Real>(double, std::size_t, std::size_t); \
+  template std::size_t scaled_bessel_table_steps<Real>(double, std::size_t);           \
   template std::vector<Real> reduced_bessel_table<Real>(const Real&, std::size_t);
 PENDAVG_INSTANTIATE(double)
 template ScaledBesselI01Range<mpfr_real> scaled_bessel_i01_range<mpfr_real>(const mpfr_real&,

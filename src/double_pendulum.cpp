@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -554,19 +555,71 @@ inline double graf_terms_estimate(double a1, double a2, double L) {
   if (!(geometric_mean > 0)) return 1.0;
   const double harmonic = a1 * a2 / (a1 + a2);
   const double gaussian = std::sqrt(2.0 * L * (harmonic + 0.5)) + 4.0;
-  // 2 m ln(2m / (e g)) >= L
+  // 2 m ln(2m / (e g)) >= L. While 2m < e g the logarithm is negative (L > 0): no log needed.
   double m = 1.0;
-  while (2.0 * m * std::log(2.0 * m / (2.718281828 * geometric_mean)) < L && m < 1e7) m *= 1.25;
+  while (m < 1e7) {
+    const double r = 2.0 * m / (2.718281828 * geometric_mean);
+    if (!(r < 1.0 && L > 0) && 2.0 * m * std::log(r) >= L) break;
+    m *= 1.25;
+  }
   return std::min(gaussian, m + 2.0);
 }
 
+/// Number of Graf orders m for which e^{-a1} I_m(a1) e^{-a2} I_m(a2) is above e^{-L} of the
+/// m = 0 term, from the exponent of the uniform (Debye) asymptotics of I_m(a) / I_0(a):
+///   -ln(I_m(a) / I_0(a)) ~ a phi(m/a),  phi(x) = x asinh x - sqrt(1 + x^2) + 1
+/// (the Gaussian m^2/(2a) for m << a, ln(m!) - m ln(a/2) - a for m >> a); the prefactors only
+/// make the true products smaller. Solves a1 phi(m/a1) + a2 phi(m/a2) = L for m by Newton's
+/// method (f is convex and increasing: from the Gaussian start, which lies below the root, the
+/// first step lands above it and the rest descend monotonically). Over the benchmark's 2400
+/// tables (16, 38 and 77 digits) the trimmed row length 2 keep lay 0.4-6.7 orders above it,
+/// where graf_terms_estimate missed by up to 21 orders and forced a rebuild at twice the size.
+inline double graf_orders_needed(double a1, double a2, double L) {
+  if (!(a1 > 0 && a2 > 0) || !(L > 0)) return 1.0;
+  // a phi(m/a) = m asinh(m/a) - m^2 / (sqrt(a^2 + m^2) + a): no cancellation, no a^2 overflow.
+  const auto f = [&](double m) {
+    double v = 0;
+    for (const double a : {a1, a2}) v += m * std::asinh(m / a) - m * m / (std::hypot(a, m) + a);
+    return v;
+  };
+  const double harmonic = a1 / (a1 + a2) * a2;
+  double m = std::sqrt(2.0 * L * harmonic);  // f(m) <= m^2 / (2 harmonic): at or below the root
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const double slope = std::asinh(m / a1) + std::asinh(m / a2);
+    if (!(slope > 0)) {
+      m = 1.0;  // m = 0 start (tiny harmonic): one unit step, then Newton
+      continue;
+    }
+    const double step = (L - f(m)) / slope;
+    m += step;
+    if (std::abs(step) < 0.25 || !(m < 1e9)) break;
+  }
+  return std::min(std::max(m, 1.0), 1e9);
+}
+
 /// Graf coefficients for the folded weight, trimmed to the terms above exp(-L) of each scale.
+/// The trim needs two negligible rows beyond the kept ones; a table that turns out too short is
+/// rebuilt longer. MPFR sizes its tables from graf_orders_needed plus a margin of 12 (no
+/// rebuilds over the benchmark's cases; a rebuild at twice the size used to cost a Miller run
+/// of ~6000 steps, over 3 ms at 77 digits). Hardware types keep graf_terms_estimate + 8: its
+/// shorter tables keep the forward recurrence for large a (count^2 <= 2a), which a few
+/// rebuilds of ~20-50 entries cost less than (measured: 1.2 -> 2.1 us on the affected cases).
+/// `terms_estimate`: graf_terms_estimate(a1, a2, L) when the caller has it (hardware types).
 template <class Real>
-GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
-  std::size_t count = 8 + static_cast<std::size_t>(graf_terms_estimate(
-                              to_double_saturated(a1), to_double_saturated(a2), L));
-  auto derivative = [](const std::vector<Real>& I, std::size_t m) {
-    return m == 0 ? I[1] : (I[m - 1] + I[m + 1]) / 2;
+GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L,
+                               double terms_estimate = -1.0) {
+  const double a1_d = to_double_saturated(a1), a2_d = to_double_saturated(a2);
+  if (!is_mpfr_v<Real> && terms_estimate < 0) terms_estimate = graf_terms_estimate(a1_d, a2_d, L);
+  std::size_t count = is_mpfr_v<Real>
+                          ? 12 + static_cast<std::size_t>(graf_orders_needed(a1_d, a2_d, L))
+                          : 8 + static_cast<std::size_t>(terms_estimate);
+  // In place (MPFR: no temporaries), in the order of eps * I1 * I2 (eps a power of two).
+  auto add_magnitude = [](Real& sum, const Real& x) {
+    if (x < 0) {
+      sum -= x;
+    } else {
+      sum += x;
+    }
   };
   const Real cut = exp(Real(-L));
   for (;;) {
@@ -579,41 +632,82 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L) {
     g.c2.resize(kmax + 1);
     for (std::size_t k = 0; k <= kmax; ++k) {
       const std::size_t m = 2 * k;
-      const Real eps = (m == 0) ? Real(2) : Real(4);  // 2 (fold) * eps_m
-      g.c0[k] = eps * i1[m] * i2[m];
-      g.c1[k] = eps * derivative(i1, m) * i2[m];
-      g.c2[k] = eps * i1[m] * derivative(i2, m);
+      const int eps = (m == 0) ? 2 : 4;  // 2 (fold) * eps_m
+      // c0 = eps I1_m I2_m, c1 = eps I1_m' I2_m, c2 = eps I1_m I2_m', I_m' = (I_{m-1} + I_{m+1})/2
+      Real& c0 = g.c0[k];
+      Real& c1 = g.c1[k];
+      Real& c2 = g.c2[k];
+      c0 = i1[m];
+      c0 *= eps;
+      c0 *= i2[m];
+      c1 = i1[m + 1];
+      c2 = i2[m + 1];
+      if (m > 0) {
+        c1 += i1[m - 1];
+        c1 /= 2;
+        c2 += i2[m - 1];
+        c2 /= 2;
+      }
+      c1 *= eps;
+      c1 *= i2[m];
+      c2 *= eps;
+      c2 *= i1[m];
     }
     // Trim: drop the top terms whose summed magnitude is below exp(-L) times each scale
     // (the scale of F1, F2 is their leading coefficient, floored at e^{-L} c0[0]).
+    const Real floor_scale = g.c0[0] * cut;
+    const Real limit0 = cut * g.c0[0];
+    const Real limit1 = cut * (g.c1[0] + floor_scale);
+    const Real limit2 = cut * (g.c2[0] + floor_scale);
     Real t0 = 0, t1 = 0, t2 = 0;
     std::size_t keep = kmax + 1;
     while (keep > 1) {
       const std::size_t k = keep - 1;
-      t0 += abs(g.c0[k]);
-      t1 += abs(g.c1[k]);
-      t2 += abs(g.c2[k]);
-      if (t0 > cut * g.c0[0] || t1 > cut * (g.c1[0] + g.c0[0] * cut) ||
-          t2 > cut * (g.c2[0] + g.c0[0] * cut)) {
-        break;
-      }
+      add_magnitude(t0, g.c0[k]);
+      add_magnitude(t1, g.c1[k]);
+      add_magnitude(t2, g.c2[k]);
+      if (t0 > limit0 || t1 > limit1 || t2 > limit2) break;
       keep = k;
     }
     if (keep + 2 <= kmax) {  // the tail really was negligible: done
       g.error_ulps.resize(keep);
       for (std::size_t k = 0; k < keep; ++k) {
         g.error_ulps[k] =
-            scaled_bessel_table_error_ulps<Real>(to_double_saturated(a1), count + 2, 2 * k + 1) +
-            scaled_bessel_table_error_ulps<Real>(to_double_saturated(a2), count + 2, 2 * k + 1) + 4;
+            scaled_bessel_table_error_ulps<Real>(a1_d, count + 2, 2 * k + 1) +
+            scaled_bessel_table_error_ulps<Real>(a2_d, count + 2, 2 * k + 1) + 4;
       }
       g.c0.resize(keep);
       g.c1.resize(keep);
       g.c2.resize(keep);
       return g;
     }
-    count *= 2;
+    count = is_mpfr_v<Real> ? count + count / 2 + 16 : 2 * count;
   }
 }
+
+/// A sum of non-negative magnitudes m 2^e in double with a running binary exponent, for error
+/// bounds of MPFR sums (whose terms may lie outside double's exponent range): terms more than
+/// 2^-1000 below the largest one underflow to 0.
+struct ExponentSum {
+  double mantissa = 0;
+  long exponent = std::numeric_limits<long>::min();
+  void add(double m, long e) {
+    if (e > exponent) {
+      mantissa = exponent == std::numeric_limits<long>::min()
+                     ? 0.0
+                     : std::ldexp(mantissa, static_cast<int>(std::max(exponent - e, -2000L)));
+      exponent = e;
+    }
+    mantissa += std::ldexp(m, static_cast<int>(std::max(e - exponent, -2000L)));
+  }
+  template <class Real>
+  Real to(double factor) const {
+    if (mantissa == 0) return Real(0);
+    Real r = mantissa * factor;
+    mpfr_mul_2si(r.backend().data(), r.backend().data(), exponent, MPFR_RNDU);
+    return r;
+  }
+};
 
 /// The five integrals from Graf's coefficients and the exact Fourier moments of q^s
 /// (detail/fourier_moments.hpp): no quadrature at all.
@@ -632,6 +726,31 @@ LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
   for (std::size_t k = 0; k < integral_count; ++k) {
     const auto& c = *coefficient[k];
     const auto& Q = m.Q[row[k]];
+    if constexpr (is_mpfr_v<Real>) {
+      // In place: one fused multiply-add per term for the value, and the bound's L1 sums in
+      // double with a running binary exponent (magnitudes only; a term 2^-1000 below the
+      // largest one drops out of them, far below their own rounding).
+      Real sum = 0;
+      ExponentSum l1, c_l1, weighted;
+      for (std::size_t j = 0; j < K; ++j) {
+        mpfr_fma(sum.backend().data(), c[j].backend().data(), Q[j].backend().data(),
+                 sum.backend().data(), MPFR_RNDN);
+        long ec = 0, eq = 0;
+        const double mc = std::abs(mpfr_get_d_2exp(&ec, c[j].backend().data(), MPFR_RNDA));
+        const double mq = std::abs(mpfr_get_d_2exp(&eq, Q[j].backend().data(), MPFR_RNDA));
+        if (mc == 0) continue;
+        c_l1.add(mc, ec);
+        if (mq == 0) continue;
+        l1.add(mc * mq, ec + eq);
+        weighted.add((g.error_ulps[j] + double(K)) * mc * mq, ec + eq);
+      }
+      // Each double sum is within (1 + 2^-40) of its exact value (K << 2^13 terms).
+      constexpr double slack = 1 + 0x1p-40;
+      out.value[k] = sum;
+      out.error[k] = c_l1.to<Real>(slack) * m.relative_error * abs(Q[0]) +
+                     u * weighted.to<Real>(slack) + tail * l1.to<Real>(slack);
+      continue;
+    }
     Real sum = 0, l1 = 0, c_l1 = 0, weighted = 0, term;
     for (std::size_t j = 0; j < K; ++j) {
       term = c[j] * Q[j];
@@ -758,7 +877,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // ~(1 + a1 a2 / (a1 + a2)) when the weight is peaked where q is small.
   const auto exact_sums = [&]<class Work>() {
     const DoublePendulumParameters<Work> pw{Work(p.mu1), Work(p.mu2), Work(p.a1), Work(p.a2)};
-    const auto rw = graf_moment_integrals(pw, graf_weights(pw.a1, pw.a2, L_graf), L_graf);
+    const auto rw =
+        graf_moment_integrals(pw, graf_weights(pw.a1, pw.a2, L_graf, graf_terms), L_graf);
     for (std::size_t k = 0; k < integral_count; ++k) {
       r.value[k] = Real(rw.value[k]);
       r.error[k] = Real(rw.error[k]) + unit_roundoff<Real>() * abs(r.value[k]);
@@ -769,17 +889,38 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   // In double, skip the sums where they would likely be rejected (cancellation ~ a1 a2/(a1 +
   // a2) together with the bounds on the Bessel tables' rounding, measured to exceed 32 ulps
   // beyond a1 a2/(a1 + a2) ~ 30) or are slow: long double moments are cheap for short
-  // rows, for K d < 1/4 (convergent series) and for d > 1/2 (short Miller run); in between
-  // they take up to ~0.1 ms, while the nodes take ~10 us.
+  // rows, for K d < 1/4 (convergent series; K ~ graf_terms/2 rows) and for d > 1/2 (short
+  // Miller run); in between they take up to ~0.1 ms, while the nodes take ~10 us. (The cut
+  // was graf_terms d < 1/4, i.e. K d < 1/8: on the benchmark's 4 cases with graf_terms d in
+  // [1/4, 1/2) the sums took 3.8-5.1 us against the nodes' 6.5-9.6 us, with errors 0-1.9e-16
+  // against 1.1e-16-1.5e-15; case 308 was the double engine's slowest.)
   const double d_d = static_cast<double>(d);
-  // In MPFR the sums cost ~2x per term what a node costs, and the Bessel tables and moments
-  // grow with the row: beyond ~800 Graf terms (Direct weights at the nodes) the nodes are
-  // cheaper (measured: 1.4-3.7x at 936-2940 terms, 38 digits).
+  // In MPFR the sums cost about the same per Graf order m at any precision (two Bessel table
+  // entries, half a moment and a coefficient row: median 2.3 us at 38 digits, 2.8 at 77), plus
+  // the Bessel tables' Miller runs beyond the row (up to ~sqrt(a ln(1/u)) steps for a ~ 1e4-1e5,
+  // where the forward recurrence is not yet stable), while the nodes' cost grows with the
+  // precision: their number like ln(1/tol) (Clenshaw-Curtis on an analytic integrand; 129-182
+  // at 38 digits, 257-336 at 77), and each costs more Hankel terms. With per-node Direct
+  // weights the sums win while m + 0.1 (Miller steps beyond the rows) <= 10 ln(1/tol): fitted
+  // on the 65 benchmark cases within 5-12 ln(1/tol) of the crossover at 38 and 77 digits (sums
+  // and nodes timed 5 times each; the summed time 1-10% below the orders-only cut at 8
+  // ln(1/tol), whose measured crossovers were 6-10 ln(1/tol) at 25-160 digits). With per-node
+  // Graf rows (graf_nodes) every node costs a fraction of the sums themselves: the sums win.
+  double graf_orders = 0, miller_extra = 0;
+  if constexpr (is_mpfr_v<Real>) {
+    graf_orders = graf_orders_needed(a1_d, a2_d, L_graf);
+    const auto rows = 14 + static_cast<std::size_t>(graf_orders);  // graf_weights' tables
+    miller_extra = static_cast<double>(scaled_bessel_table_steps<Real>(a1_d, rows) +
+                                       scaled_bessel_table_steps<Real>(a2_d, rows) - 2 * rows);
+  }
   const bool sums_worthwhile =
-      is_mpfr_v<Real> ? graf_terms <= 800.0
+      is_mpfr_v<Real> ? graf_nodes || graf_orders + 0.1 * miller_extra <= 10.0 * ln_inv_tol
                       : graf_terms <= 400.0 && harmonic <= 30.0 &&
-                            (graf_terms <= 24.0 || graf_terms * d_d < 0.25 || d_d > 0.5);
-  if (options.evaluation != IntegralEvaluation::quadrature && sums_worthwhile) {
+                            (graf_terms <= 24.0 || graf_terms * d_d < 0.5 || d_d > 0.5);
+  const bool try_sums =
+      options.evaluation == IntegralEvaluation::graf_sums ||
+      (options.evaluation == IntegralEvaluation::automatic && sums_worthwhile);
+  if (try_sums) {
     if constexpr (is_mpfr_v<Real>) {
       exact_sums.template operator()<Real>();
     } else {
@@ -828,7 +969,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     const bool base12 =
         !is_mpfr_v<Real> && !graf_nodes && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
     if (graf_nodes) {
-      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf), tol, max_level, base12);
+      r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf, graf_terms), tol,
+                           max_level, base12);
     } else {
       DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
       dw.by_parts = !fold;

@@ -64,6 +64,12 @@ std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count);
 template <class Real>
 double scaled_bessel_table_error_ulps(double a, std::size_t count, std::size_t m);
 
+/// Recurrence steps scaled_bessel_i_table(a, count) takes at the current precision: `count`
+/// for the forward recurrence, Miller's start index for the backward one (which starts up to
+/// ~sqrt(a ln(1/u)) beyond the table). A cost estimate for callers choosing a method.
+template <class Real>
+std::size_t scaled_bessel_table_steps(double a, std::size_t count);
+
 /// e^{-a} I_k(a) / a^k for k = 0 .. count-1 (a >= 0).
 template <class Real>
 std::vector<Real> reduced_bessel_table(const Real& a, std::size_t count);

@@ -17,7 +17,9 @@
 //        ranges the map acts on sin(t/2) (no sine per node), q^{-3/2} W is integrated by parts
 //        (only q^{-1/2}'s branch point remains), and in MPFR, when q's zero lies far inside
 //        the weight's peak, [0, T] is split in two sinh-mapped panels. MPFR takes the nodes
-//        instead of Graf rows longer than ~800 terms (cheaper there).
+//        instead of Graf rows longer than ~10 ln(1/tol) orders, less a tenth of the Bessel
+//        tables' Miller steps beyond the rows (cheaper there: ~920 orders at 38 digits, ~1820
+//        at 77; the nodes' count grows with the digits, the sums' cost per order not).
 //  * series_average -- the paper's series, eq. ave-K1-result, with R_n from the closed-form
 //      Bessel derivatives (MATH.md Sec. 5) and a rigorous truncation bound that decides when
 //      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.
@@ -63,9 +65,12 @@ enum class Engine { automatic, series, integral };
 /// How the reduced integral is evaluated. `automatic`: when a1, a2 are moderate (few Graf
 /// terms), exactly, as a finite sum of Graf coefficients times the Fourier moments of q^s
 /// (three-term recurrence from K and E; no nodes at all); otherwise by sinh-mapped nested
-/// Clenshaw-Curtis quadrature with per-node scaled Bessel functions. `quadrature` forces the
-/// nodes everywhere (an independent check of the moment path).
-enum class IntegralEvaluation { automatic, quadrature };
+/// Clenshaw-Curtis quadrature with per-node scaled Bessel functions. A cost model decides
+/// (MPFR: the sums while the Graf orders stay below ~10 ln(1/tol), where the nodes get dearer).
+/// `quadrature` forces the nodes everywhere (an independent check of the moment path);
+/// `graf_sums` forces the exact sums whatever their length (a check of the nodes, and of the
+/// cost model), except where they miss the tolerance (cancellation), where the nodes run.
+enum class IntegralEvaluation { automatic, quadrature, graf_sums };
 struct IntegralOptions {
   IntegralEvaluation evaluation = IntegralEvaluation::automatic;
 };

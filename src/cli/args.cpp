@@ -80,7 +80,8 @@ mpfr_real to_mpfr(std::string_view text, std::string_view what) {
 // ---------------------------------------------------------------- options
 
 Options::Options(std::string_view command, std::span<const std::string_view> args,
-                 std::span<const std::string_view> allowed)
+                 std::span<const std::string_view> allowed,
+                 std::span<const std::string_view> flags)
     : command_(command) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     std::string_view arg = args[i];
@@ -88,7 +89,15 @@ Options::Options(std::string_view command, std::span<const std::string_view> arg
       throw usage_error(command_ + ": unexpected argument " + in_quotes(arg));
     arg.remove_prefix(2);
     std::string_view name = arg, value;
+    if (std::ranges::find(flags, name) != flags.end()) {  // a flag: no value
+      if (!values_.emplace(std::string(name), std::string()).second)
+        throw usage_error(command_ + ": option --" + std::string(name) + " given twice");
+      continue;
+    }
     if (const auto equals = arg.find('='); equals != std::string_view::npos) {
+      if (std::ranges::find(flags, arg.substr(0, equals)) != flags.end())
+        throw usage_error(command_ + ": option --" + std::string(arg.substr(0, equals)) +
+                          " takes no value");
       name = arg.substr(0, equals);
       value = arg.substr(equals + 1);
     } else if (i + 1 < args.size() && !args[i + 1].starts_with("--")) {
@@ -303,34 +312,53 @@ std::vector<std::string> case_columns(std::size_t particles) {
 }
 
 CasesFile read_cases_file(const std::string& path) {
-  const std::string contents = read_file(path);
-
-  std::optional<Header> header;  // set by the header line
   CasesFile file;
+  file.text = read_file(path);
+  const std::string_view contents = file.text;
+  bool header = false;  // set by the header line
   std::size_t line_number = 0;
   for (std::size_t begin = 0; begin < contents.size();) {
     const std::size_t newline = std::min(contents.find('\n', begin), contents.size());
-    const std::string_view line =
-        trimmed(std::string_view(contents).substr(begin, newline - begin));
+    const std::string_view line = trimmed(contents.substr(begin, newline - begin));
     begin = newline + 1;
     ++line_number;
     if (line.empty() || line.front() == '#') continue;
-    const auto where = [&] { return path + " line " + std::to_string(line_number); };
     if (!header) {
-      header = parse_header(line, where());
-      file.particles = header->particles;
+      Header parsed = parse_header(line, path + " line " + std::to_string(line_number));
+      file.particles = parsed.particles;
+      file.positions = std::move(parsed.positions);
+      header = true;
       continue;
     }
-    const auto fields = split_fields(line);
-    if (fields.size() != header->positions.size())
-      throw usage_error(where() + ": expected " + std::to_string(header->positions.size()) +
-                        " fields, found " + std::to_string(fields.size()));
-    CaseRow row{line_number, std::vector<std::string>(fields.size())};
-    for (std::size_t i = 0; i < fields.size(); ++i) row.fields[header->positions[i]] = fields[i];
-    file.rows.push_back(std::move(row));
+    file.rows.push_back({line_number, static_cast<std::size_t>(line.data() - contents.data()),
+                         line.size()});
   }
   if (!header) throw usage_error("cases file " + in_quotes(path) + " has no header line");
   return file;
+}
+
+void case_fields(const CasesFile& file, const CaseRow& row, std::span<std::string_view> fields) {
+  // One pass over the characters (this runs once per row of a possibly long file).
+  const char* const text = file.text.data() + row.begin;
+  const std::size_t size = row.size;
+  const std::size_t expected = file.positions.size();
+  const auto is_space = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  std::size_t count = 0, begin = 0;
+  for (std::size_t i = 0;; ++i) {
+    if (i < size && text[i] != ',') continue;
+    if (count < expected) {
+      std::size_t first = begin, last = i;
+      while (first < last && is_space(text[first])) ++first;
+      while (last > first && is_space(text[last - 1])) --last;
+      fields[file.positions[count]] = std::string_view(text + first, last - first);
+    }
+    ++count;
+    if (i == size) break;
+    begin = i + 1;
+  }
+  if (count != expected)
+    throw usage_error("expected " + std::to_string(expected) + " fields, found " +
+                      std::to_string(count));
 }
 
 }  // namespace pendavg::cli

@@ -23,12 +23,15 @@ class usage_error : public invalid_input {
   using invalid_input::invalid_input;
 };
 
-/// The options of one command, `--name value` or `--name=value`, each given at most once.
+/// The options of one command, `--name value` or `--name=value`, each given at most once, and
+/// flags, `--name` alone (no value).
 class Options {
  public:
-  /// Parses `args` (everything after the command). Only names in `allowed` are accepted.
+  /// Parses `args` (everything after the command). Only names in `allowed` (options with a
+  /// value) and `flags` (without one) are accepted.
   Options(std::string_view command, std::span<const std::string_view> args,
-          std::span<const std::string_view> allowed);
+          std::span<const std::string_view> allowed,
+          std::span<const std::string_view> flags = {});
 
   bool has(std::string_view name) const { return values_.contains(name); }
   /// The value of --name, or `fallback` when it was not given.
@@ -76,22 +79,32 @@ std::size_t parse_choice(std::string_view text, std::string_view what,
 /// beta, g, m1..mN, l1..lN.
 std::vector<std::string> case_columns(std::size_t particles);
 
-/// One data row of a cases file: its 1-based line number and its fields as written, in the
-/// canonical column order.
+/// One data row of a cases file: its 1-based line number and where its (trimmed) text lies in
+/// CasesFile::text, as offsets (the text may move with the CasesFile).
 struct CaseRow {
   std::size_t line = 0;
-  std::vector<std::string> fields;
+  std::size_t begin = 0, size = 0;
 };
 
-/// A cases file: N (from the header) and its rows.
+/// A cases file: N (from the header), where each field of a row goes, its rows and its text.
 struct CasesFile {
   std::size_t particles = 0;
+  std::vector<std::size_t> positions;  ///< for each field of a row (file order): its canonical column
   std::vector<CaseRow> rows;
+  std::string text;  ///< the whole file
+  std::string_view row_text(const CaseRow& row) const {
+    return std::string_view(text).substr(row.begin, row.size);
+  }
 };
 
 /// Reads a cases CSV. The header names the columns beta, g, m1..mN and l1..lN (N >= 1, decided
 /// by the header), each exactly once, in any order. Blank lines and lines starting with '#' are
-/// skipped. Fields are not parsed as numbers here.
+/// skipped. Rows are only located here: case_fields splits them (no number is parsed here).
 CasesFile read_cases_file(const std::string& path);
+
+/// Splits `row` into its fields, trimmed, into `fields` (size file.positions.size()) in the
+/// canonical column order (beta, g, m1..mN, l1..lN); views into file.text, no allocation.
+/// Throws usage_error "expected K fields, found J" for a row of the wrong length.
+void case_fields(const CasesFile& file, const CaseRow& row, std::span<std::string_view> fields);
 
 }  // namespace pendavg::cli

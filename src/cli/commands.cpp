@@ -4,6 +4,7 @@
 #include "commands.hpp"
 
 #include "args.hpp"
+#include "files.hpp"
 #include "format.hpp"
 #include "qmc_options.hpp"
 #include "simulate.hpp"
@@ -15,9 +16,13 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
 #include <exception>
 #include <optional>
 #include <utility>
@@ -43,7 +48,7 @@ constexpr std::string_view general_usage =
     "\n"
     "usage:\n"
     "  pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [options]\n"
-    "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
+    "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options] [--timing]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] [--g SPEC] ... [--chain LIST] [--digits LIST] [--output FILE.csv]\n"
@@ -59,6 +64,7 @@ constexpr std::string_view average_usage =
     "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
     "                       [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
+    "                       [--timing] [--timing-rows FILE]\n"
     "\n"
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
@@ -79,7 +85,14 @@ constexpr std::string_view average_usage =
     "--cases reads a CSV with the columns beta,g,m1..mN,l1..lN (any order, N from the header;\n"
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
     "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
-    "evaluations.\n";
+    "evaluations. Rows run on all cores; the output does not depend on the thread count.\n"
+    "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
+    "and worst thread CPU time per row in microseconds (from parsing the row to its formatted\n"
+    "output line; the timer's own cost, timer_us, is measured and subtracted), the worst row\n"
+    "(0-based data row and file line) and the thread count:\n"
+    "  pendavg: timing: rows=R median_us=X p90_us=Y worst_us=Z worst_row=I worst_line=L\n"
+    "  threads=T timer_us=U (...)\n"
+    "--timing-rows FILE (with --cases) also writes every row's time as CSV row,line,us.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
@@ -431,43 +444,129 @@ std::string average_one(const Options& options, const AverageSettings& settings,
   return average_json(report);
 }
 
+/// Per-thread scratch of `average --cases`: reused from row to row.
+struct CaseScratch {
+  std::vector<std::string_view> fields;  ///< the row's fields in canonical order
+};
+
+/// Longest output line of a cases row: the row's text and a comma per field (at most one per
+/// character), 3N + 1 numbers and their commas, the method (<= 24), the count and a newline.
+std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digits) {
+  return 2 * row.size + 1 + (3 * particles + 1) * (decimal_max_length(digits) + 1) + 24 + 24;
+}
+
 /// One output row of `average --cases`: the input fields as written, then the averages.
-/// `columns` are the canonical column names (beta, g, m1..mN, l1..lN).
+/// `columns` are the canonical column names (beta, g, m1..mN, l1..lN). The line is written at
+/// `p` (room for case_line_bound characters); returns its end.
 template <class Real>
-void append_case(std::string& out, const CaseRow& row, const std::vector<std::string>& columns,
-                 int digits, const AveragePlan& plan) {
-  const std::size_t n = (row.fields.size() - 2) / 2;
-  const Real beta = parse_real<Real>(row.fields[0], columns[0], Domain::positive);
+char* write_case(char* p, const CasesFile& file, const CaseRow& row,
+                 const std::vector<std::string>& columns, int digits, const AveragePlan& plan,
+                 CaseScratch& scratch) {
+  auto& fields = scratch.fields;
+  fields.resize(columns.size());
+  case_fields(file, row, fields);
+  const std::size_t n = file.particles;
+  const Real beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
   std::vector<Real> masses, lengths;
   masses.reserve(n);
   lengths.reserve(n);
   for (std::size_t i = 0; i < n; ++i)
-    masses.push_back(parse_real<Real>(row.fields[2 + i], columns[2 + i], Domain::positive));
+    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
   for (std::size_t i = 0; i < n; ++i)
-    lengths.push_back(
-        parse_real<Real>(row.fields[2 + n + i], columns[2 + n + i], Domain::positive));
+    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
   const Chain<Real> chain = make_chain<Real>(
       std::move(masses), std::move(lengths),
-      parse_real<Real>(row.fields[1], columns[1], Domain::nonnegative));
-  const Averages<Real> averages = compute_average(chain, beta, digits, plan).averages;
-  for (const std::string& field : row.fields) (out += field) += ',';
-  append_csv_values(out, averages.beta_kinetic, digits);
-  append_csv_values(out, printed_errors(averages.beta_kinetic, averages.beta_kinetic_error, digits),
-                    error_digits);
-  if (n >= 2) append_decimal(out, averages.ratio, digits);
-  out += ',';
-  append_csv_values(out, averages.cos_angle, digits);
-  ((out += method_name(averages.method)) += ',') += std::to_string(averages.evaluations);
-  out += '\n';
+      parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
+  // The double-pendulum engines directly: the any-N extras (diagonal approximation,
+  // beta<K_i^(c)>) are not printed here.
+  const Averages<Real> averages = plan.solver == Solver::pendulum
+                                      ? pendavg::average(chain, beta, digits, plan.engine)
+                                      : compute_average(chain, beta, digits, plan).averages;
+  const std::string_view method = method_name(averages.method);
+  const auto put = [&p](std::string_view text) {
+    std::memcpy(p, text.data(), text.size());
+    p += text.size();
+  };
+  for (const std::string_view field : fields) {
+    put(field);
+    *p++ = ',';
+  }
+  for (const Real& value : averages.beta_kinetic) {
+    p = write_decimal(p, value, digits);
+    *p++ = ',';
+  }
+  for (std::size_t i = 0; i < averages.beta_kinetic.size(); ++i) {
+    p = write_decimal(
+        p, printed_error(averages.beta_kinetic[i], averages.beta_kinetic_error[i], digits),
+        error_digits);
+    *p++ = ',';
+  }
+  if (n >= 2) p = write_decimal(p, averages.ratio, digits);
+  *p++ = ',';
+  for (const Real& value : averages.cos_angle) {
+    p = write_decimal(p, value, digits);
+    *p++ = ',';
+  }
+  put(method);
+  *p++ = ',';
+  p = std::to_chars(p, p + 24, averages.evaluations).ptr;
+  *p++ = '\n';
+  return p;
+}
+
+/// Thread CPU time in microseconds (CLOCK_THREAD_CPUTIME_ID: a system call, ~0.5 us).
+double thread_cpu_microseconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e6 * static_cast<double>(ts.tv_sec) + 1e-3 * static_cast<double>(ts.tv_nsec);
+}
+
+/// --timing: the median cost of reading the timer twice (an empty interval), subtracted from
+/// every row's time and printed beside it.
+double timer_overhead_microseconds() {
+  std::vector<double> empty(201);
+  for (double& t : empty) {
+    const double start = thread_cpu_microseconds();
+    t = thread_cpu_microseconds() - start;
+  }
+  std::ranges::nth_element(empty, empty.begin() + 100);
+  return empty[100];
+}
+
+/// --timing: one line on stderr with the distribution of the rows' thread CPU times.
+void report_case_timing(const std::vector<double>& row_us, const CasesFile& file,
+                        double timer_us, int threads) {
+  if (row_us.empty()) {
+    std::fprintf(stderr, "pendavg: timing: rows=0\n");
+    return;
+  }
+  std::vector<double> sorted = row_us;
+  std::ranges::sort(sorted);
+  const std::size_t count = sorted.size();
+  const auto rank = [&](double p) {  // nearest rank
+    const auto r = static_cast<std::size_t>(std::ceil(p * static_cast<double>(count)));
+    return sorted[std::clamp<std::size_t>(r, 1, count) - 1];
+  };
+  const double median =
+      count % 2 ? sorted[count / 2] : 0.5 * (sorted[count / 2 - 1] + sorted[count / 2]);
+  const auto worst = static_cast<std::size_t>(std::ranges::max_element(row_us) - row_us.begin());
+  std::fprintf(stderr,
+               "pendavg: timing: rows=%zu median_us=%.3f p90_us=%.3f worst_us=%.3f "
+               "worst_row=%zu worst_line=%zu threads=%d timer_us=%.3f (thread CPU time per row, "
+               "parsing to formatted line, timer overhead subtracted)\n",
+               count, median, rank(0.9), sorted.back(), worst, file.rows[worst].line, threads,
+               timer_us);
 }
 
 /// Rows are independent: they are evaluated on all cores in blocks, each block into its own
-/// string, and joined in file order. The first bad row (in file order) is reported. Blocks hold
-/// 256 rows for the fast double-pendulum engines and one row for the torus and QMC engines; a
-/// single block runs on one thread and lets those engines use every core instead.
+/// stretch of the output, joined in file order (the output does not depend on the thread count). The first
+/// bad row (in file order) is reported. Blocks hold 256 rows for the fast double-pendulum
+/// engines and one row for the torus and QMC engines; a single block runs on one thread and
+/// lets those engines use every core instead. `timing`: see report_case_timing.
 template <class Real>
 std::string average_cases(const CasesFile& file, const std::string& path,
-                          const AverageSettings& settings) {
+                          const AverageSettings& settings, bool timing,
+                          const std::string& timing_rows_path) {
   const std::vector<CaseRow>& rows = file.rows;
   const std::size_t n = file.particles;
   const std::vector<std::string> columns = case_columns(n);
@@ -489,23 +588,52 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   add_names("cos_phi");
   out += ",method,evaluations\n";
 
-  std::vector<std::string> texts(blocks);
+  // One output buffer: each block writes into its own stretch (the sum of its rows' longest
+  // lines), sized and zero-filled here, before any row runs; the blocks' texts are then moved
+  // together in file order. No allocation while the rows run.
+  std::vector<std::size_t> block_start(blocks + 1, out.size()), block_end(blocks);
+  for (std::size_t b = 0; b < blocks; ++b) {
+    std::size_t bytes = 0;
+    for (std::size_t i = b * block; i < std::min(rows.size(), (b + 1) * block); ++i)
+      bytes += case_line_bound(rows[i], n, digits);
+    block_start[b + 1] = block_start[b] + bytes;
+  }
+  out.resize(block_start[blocks]);
+
+  const double timer_us = timing ? timer_overhead_microseconds() : 0.0;
+  std::vector<double> row_us(timing ? rows.size() : 0);
   std::vector<std::exception_ptr> errors(blocks);  // exceptions must not leave the region
   std::vector<std::size_t> error_row(blocks, rows.size());
-#pragma omp parallel for schedule(dynamic, 1) if (blocks > 1)
-  for (long b = 0; b < static_cast<long>(blocks); ++b) {
-    const std::size_t first = static_cast<std::size_t>(b) * block;
-    const std::size_t last = std::min(rows.size(), first + block);
-    std::string& text = texts[static_cast<std::size_t>(b)];
-    text.reserve((last - first) * (4 * n * static_cast<std::size_t>(digits) + 120));
-    for (std::size_t i = first; i < last; ++i) {
-      try {
-        append_case<Real>(text, rows[i], columns, digits, plan);
-      } catch (...) {
-        errors[static_cast<std::size_t>(b)] = std::current_exception();
-        error_row[static_cast<std::size_t>(b)] = i;
-        break;
+  int threads = 1;
+#pragma omp parallel if (blocks > 1)
+  {
+    CaseScratch scratch;
+#if defined(_OPENMP)
+#pragma omp single nowait
+    threads = omp_get_num_threads();
+#endif
+#pragma omp for schedule(dynamic, 1)
+    for (long b = 0; b < static_cast<long>(blocks); ++b) {
+      const auto bu = static_cast<std::size_t>(b);
+      const std::size_t first = bu * block;
+      const std::size_t last = std::min(rows.size(), first + block);
+      char* p = out.data() + block_start[bu];
+      for (std::size_t i = first; i < last; ++i) {
+        try {
+          if (timing) {
+            const double start = thread_cpu_microseconds();
+            p = write_case<Real>(p, file, rows[i], columns, digits, plan, scratch);
+            row_us[i] = thread_cpu_microseconds() - start - timer_us;
+          } else {
+            p = write_case<Real>(p, file, rows[i], columns, digits, plan, scratch);
+          }
+        } catch (...) {
+          errors[bu] = std::current_exception();
+          error_row[bu] = i;
+          break;
+        }
       }
+      block_end[bu] = static_cast<std::size_t>(p - out.data());
     }
   }
   for (std::size_t b = 0; b < blocks; ++b) {
@@ -518,16 +646,33 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       }
     }
   }
-  std::size_t size = out.size();
-  for (const auto& text : texts) size += text.size();
-  out.reserve(size);
-  for (const auto& text : texts) out += text;
+  std::size_t size = block_start[0];
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const std::size_t length = block_end[b] - block_start[b];
+    std::memmove(out.data() + size, out.data() + block_start[b], length);
+    size += length;
+  }
+  out.resize(size);
+  if (!timing_rows_path.empty()) {
+    std::string rows_csv = "row,line,us\n";
+    char number[32];
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
+      ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
+          .append(number, static_cast<std::size_t>(length)) += '\n';
+    }
+    write_atomically(timing_rows_path, rows_csv, "average");
+  }
+  if (timing) report_case_timing(row_us, file, timer_us, threads);
   return out;
 }
 
 std::string average_command(const Options& options) {
   const AverageSettings settings = average_settings(options);
   if (!options.has("cases")) {
+    for (const std::string_view timing : {"timing", "timing-rows"})
+      if (options.has(timing))
+        throw usage_error("average: --" + std::string(timing) + " is for --cases only");
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
     return with_number_type(settings.digits, [&]<class Real>() {
@@ -540,9 +685,14 @@ std::string average_command(const Options& options) {
   constexpr std::array<std::string_view, 1> formats{"csv"};
   format_option(options, "csv", formats);
   const std::string path(options.required("cases"));
+  const std::string timing_rows(options.get("timing-rows", ""));
+  if (options.has("timing-rows") && timing_rows.empty())
+    throw usage_error("average: --timing-rows needs a file name");
+  if (!timing_rows.empty()) probe_output(timing_rows, "average");
   const CasesFile file = read_cases_file(path);
   return with_number_type(settings.digits, [&]<class Real>() {
-    return average_cases<Real>(file, path, settings);
+    return average_cases<Real>(file, path, settings,
+                               options.has("timing") || !timing_rows.empty(), timing_rows);
   });
 }
 
@@ -688,18 +838,20 @@ struct Command {
   std::string_view usage;
   std::span<const std::string_view> options;
   std::string (*run)(const Options&);
+  std::span<const std::string_view> flags = {};  ///< options without a value
 };
 
-constexpr std::array<std::string_view, 12> average_options{
+constexpr std::array<std::string_view, 13> average_options{
     "masses", "lengths", "g",   "beta",    "digits", "method",
-    "format", "cases",   "tol", "samples", "shifts", "seed"};
+    "format", "cases",   "tol", "samples", "shifts", "seed", "timing-rows"};
+constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",
                                                          "digits", "terms",   "format"};
 
 const std::array<Command, 6> commands{{
-    {"average", average_usage, average_options, average_command},
+    {"average", average_usage, average_options, average_command, average_flags},
     {"limit", limit_usage, limit_options, limit_command},
     {"series", series_usage, series_options, series_command},
     {"table", table_usage, table_options, table_command},
@@ -726,7 +878,7 @@ std::string run(std::span<const std::string_view> args) {
   if (name == "--version") return PENDAVG_VERSION "\n";
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
-  return command.run(Options(name, rest, command.options));
+  return command.run(Options(name, rest, command.options, command.flags));
 }
 
 }  // namespace pendavg::cli

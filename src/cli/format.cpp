@@ -1,47 +1,80 @@
 // src/cli/format.cpp -- decimal strings and the JSON, CSV and text writers of the pendavg CLI.
 #include "format.hpp"
 
+#include "decimal.hpp"
+
 #include "pendavg/precision.hpp"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
+#include <cmath>
 #include <type_traits>
 
 namespace pendavg::cli {
 
 template <class Real>
-void append_decimal(std::string& out, const Real& x, int digits) {
+char* write_decimal(char* out, const Real& x, int digits) {
+  const std::size_t room = decimal_max_length(digits);
   if constexpr (is_mpfr_v<Real>) {
     // Same layout as the double branch (d.ddde-XX), correctly rounded by MPFR.
-    const int length = mpfr_snprintf(nullptr, 0, "%.*Re", digits - 1, x.backend().data());
-    const std::size_t start = out.size();
-    out.resize(start + static_cast<std::size_t>(length) + 1);
-    mpfr_snprintf(out.data() + start, static_cast<std::size_t>(length) + 1, "%.*Re", digits - 1,
-                  x.backend().data());
-    out.resize(start + static_cast<std::size_t>(length));
+    const int length = mpfr_snprintf(out, room, "%.*Re", digits - 1, x.backend().data());
+    return out + std::min<std::size_t>(static_cast<std::size_t>(length), room - 1);
   } else {
-    char buffer[64];
-    const auto end = std::to_chars(buffer, buffer + sizeof buffer, x,
-                                   std::chars_format::scientific, digits - 1).ptr;
-    out.append(buffer, end);
+    if constexpr (std::is_same_v<Real, double>) {
+      if (char* end = detail::scientific_fast(out, x, digits)) return end;
+    }
+    return std::to_chars(out, out + room, x, std::chars_format::scientific, digits - 1).ptr;
+  }
+}
+
+template <class Real>
+void append_decimal(std::string& out, const Real& x, int digits) {
+  const std::size_t start = out.size();
+  out.resize(start + decimal_max_length(digits));
+  out.resize(static_cast<std::size_t>(write_decimal(out.data() + start, x, digits) - out.data()));
+}
+
+namespace {
+
+/// 10^n as std::pow(10, n) computes it, for the integer n of printed_error (a table of pow's
+/// own values: the same numbers, without a pow call per value).
+double power_of_ten(double n) {
+  constexpr int lowest = -400, highest = 400;
+  static const auto table = [] {
+    std::array<double, highest - lowest + 1> t{};
+    for (int i = lowest; i <= highest; ++i) t[static_cast<std::size_t>(i - lowest)] = std::pow(10.0, i);
+    return t;
+  }();
+  if (n >= lowest && n <= highest) return table[static_cast<std::size_t>(static_cast<int>(n) - lowest)];
+  return std::pow(10.0, n);
+}
+
+}  // namespace
+
+template <class Real>
+Real printed_error(const Real& value, const Real& error, int digits) {
+  using std::abs;
+  using std::floor;
+  using std::log10;
+  using std::pow;
+  if (value == 0) return error;
+  // scientific notation with `digits` significant digits: the last place is
+  // 10^(floor(log10 |v|) - digits + 1); rounding to it moves the value by at most half.
+  const Real exponent = floor(log10(abs(value))) - Real(digits - 1);
+  if constexpr (std::is_same_v<Real, double>) {
+    return error + power_of_ten(exponent) / 2;
+  } else {
+    return error + pow(Real(10), exponent) / 2;
   }
 }
 
 template <class Real>
 std::vector<Real> printed_errors(const std::vector<Real>& values, const std::vector<Real>& errors,
                                  int digits) {
-  using std::abs;
-  using std::floor;
-  using std::log10;
-  using std::pow;
   std::vector<Real> out(errors);
-  for (std::size_t i = 0; i < values.size() && i < out.size(); ++i) {
-    if (values[i] == 0) continue;
-    // scientific notation with `digits` significant digits: the last place is
-    // 10^(floor(log10 |v|) - digits + 1); rounding to it moves the value by at most half.
-    const Real exponent = floor(log10(abs(values[i]))) - Real(digits - 1);
-    out[i] += pow(Real(10), exponent) / 2;
-  }
+  for (std::size_t i = 0; i < values.size() && i < out.size(); ++i)
+    out[i] = printed_error(values[i], errors[i], digits);
   return out;
 }
 
@@ -79,6 +112,10 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
 
 template void append_decimal<double>(std::string&, const double&, int);
 template void append_decimal<long double>(std::string&, const long double&, int);
+template char* write_decimal<double>(char*, const double&, int);
+template char* write_decimal<mpfr_real>(char*, const mpfr_real&, int);
+template double printed_error<double>(const double&, const double&, int);
+template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int);
 template std::vector<double> printed_errors<double>(const std::vector<double>&,
                                                     const std::vector<double>&, int);
 template std::vector<mpfr_real> printed_errors<mpfr_real>(const std::vector<mpfr_real>&,

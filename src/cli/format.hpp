@@ -22,6 +22,20 @@ inline constexpr int error_digits = 3;
 template <class Real>
 void append_decimal(std::string& out, const Real& x, int digits);
 
+/// Longest text write_decimal produces for `digits` significant digits.
+inline constexpr std::size_t decimal_max_length(int digits) {
+  return static_cast<std::size_t>(digits) + 24;  // sign, point, e, exponent sign and digits
+}
+
+/// Writes append_decimal's text of x at `out` (room for decimal_max_length(digits) chars) and
+/// returns its end.
+template <class Real>
+char* write_decimal(char* out, const Real& x, int digits);
+
+/// The printed error of a value printed with `digits` digits (printed_errors, one value).
+template <class Real>
+Real printed_error(const Real& value, const Real& error, int digits);
+
 /// The errors of values printed with `digits` significant digits: each computed error plus
 /// half a unit in the last printed place, so that the printed error covers the printed value.
 template <class Real>

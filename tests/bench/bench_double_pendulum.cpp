@@ -7,22 +7,29 @@
 //                                median of the blocks); counters median_us, p90_us, worst_us and
 //                                worst_case (index). The targets: median <= 2 us,
 //                                worst <= 10 us per parameter set.
-//   BM_mpfr38_distribution       the same over the first 100 cases in mpfr_real at 38 and 77
-//   BM_mpfr77_distribution       digits (3 timings per case, median); median_ms, p90_ms, worst_ms.
+//   BM_mpfr38_distribution       the same over all 1000 cases in mpfr_real at 38 and 77 digits
+//   BM_mpfr77_distribution       (5 timings per case, median); median_ms, p90_ms, worst_ms. About
+//                                2 s and 5 s. Targets: 38 digits median <= 1 ms, worst <= 3 ms;
+//                                77 digits worst <= 5 ms.
 //   BM_double_named/<name>       single typical cases.
+// Per-case times are thread CPU time (CLOCK_THREAD_CPUTIME_ID, one reading per block), so other
+// processes on the cores matter less; repeat the runs and compare medians all the same.
 //
 // Every distribution benchmark also counts, over its cases, `failures` (exceptions),
 // `nonfinite` (a NaN/inf beta<K_i>) and `not_converged` (Averages::converged == false); each
 // such case is printed once to stderr with its exact parameters, as is the slowest case.
 //
 // Extra flag, handled before benchmark::Initialize:
-//   bench_double_pendulum --write-cases FILE [--replicate N]
-// writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), repeated N times (default 1), and
-// exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
-//   bench_double_pendulum --profile-cases DIGITS [FIRST COUNT [quadrature]]
+//   bench_double_pendulum --write-cases FILE [--replicate N] [--grouped]
+// writes the 1000 cases as CSV (beta,g,m1,m2,l1,l2; %.17g), the list repeated N times (default
+// 1; data row r is case r % 1000) or, with --grouped, each case N times in a row (row r is case
+// r / N), and exits. tests/bench/cli_cases_bench.sh uses it to time the CLI on the same cases.
+//   bench_double_pendulum --profile-cases DIGITS [FIRST COUNT [quadrature|sums]]
 // times each case alone (thread CPU time, so other processes on the cores matter less) and
 // prints index, time, evaluations (nodes or Graf terms) and parameters, one line per case;
 // `sort -k2 -g -r` lists the slowest. DIGITS = 16: double; otherwise MPFR at DIGITS.
+// `quadrature` forces the nodes, `sums` the exact Graf sums (IntegralEvaluation), e.g. to
+// compare both paths case by case with the cost model's choice.
 #include <benchmark/benchmark.h>
 
 #include "cases.hpp"
@@ -64,6 +71,13 @@ Chain<Real> make_chain(const Case& c) {
 
 double seconds_since(clock_type::time_point start) {
   return std::chrono::duration<double>(clock_type::now() - start).count();
+}
+
+/// Thread CPU time in seconds (a system call, ~0.5 us: read once per block of calls).
+double thread_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 double median_of(std::vector<double> v) {
@@ -157,8 +171,8 @@ BENCHMARK(BM_double_all_cases)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 /// Times every case of `cases` alone: `blocks` blocks, each of `reps` calls (chosen per case so
 /// one block takes about `block_budget` seconds, at most `max_reps` calls); the per-case time is
-/// the median over the blocks of (block time / reps). Returns the per-case seconds (NaN for a
-/// case that threw).
+/// the median over the blocks of (block thread CPU time / reps). Returns the per-case seconds
+/// (NaN for a case that threw).
 template <class Real>
 std::vector<double> per_case_times(const std::vector<Case>& cases, int digits, int blocks,
                                    int max_reps, double block_budget, const char* bench,
@@ -179,12 +193,12 @@ std::vector<double> per_case_times(const std::vector<Case>& cases, int digits, i
       std::vector<double> block_times;
       block_times.reserve(static_cast<std::size_t>(blocks));
       for (int b = 0; b < blocks; ++b) {
-        const auto start = clock_type::now();
+        const double start = thread_cpu_seconds();
         for (int k = 0; k < reps; ++k) {
           auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits);
           benchmark::DoNotOptimize(r);
         }
-        block_times.push_back(seconds_since(start) / reps);
+        block_times.push_back((thread_cpu_seconds() - start) / reps);
       }
       times[i] = median_of(block_times);
     } catch (const std::exception& e) {
@@ -239,13 +253,12 @@ BENCHMARK(BM_double_case_distribution)->Iterations(1)->Unit(benchmark::kMillisec
 
 template <int Digits>
 void BM_mpfr_distribution(benchmark::State& state, const char* bench) {
-  const auto& all = all_cases();
-  const std::vector<Case> cases(all.begin(), all.begin() + 100);
+  const auto& cases = all_cases();
   // Chains, betas and every temporary are created at the working precision of the computation.
   pendavg::working_precision guard(Digits + pendavg::guard_digits);
   for (auto _ : state) {
     Problems problems;
-    const auto times = per_case_times<mpfr_real>(cases, Digits, /*blocks=*/3, /*max_reps=*/1,
+    const auto times = per_case_times<mpfr_real>(cases, Digits, /*blocks=*/5, /*max_reps=*/1,
                                                  /*block_budget=*/0, bench, problems);
     report_distribution(state, cases, times, 1e3, "ms", bench);
     set_problem_counters(state, problems);
@@ -295,13 +308,14 @@ BENCHMARK_CAPTURE(BM_double_named, l2_1e4, Case{1, 1, 0.5, 0.5, 1, 1e4});
 
 }  // namespace
 
-/// --profile-cases DIGITS [FIRST COUNT]: times every case alone (thread CPU time, median of 5
-/// blocks) and prints
-/// one line per case: index, time, evaluations (nodes or Graf terms), parameters. DIGITS = 16 runs
-/// double, otherwise mpfr_real at that many digits. Sort the output to list the slowest cases.
-int profile_cases(int digits, std::size_t first, std::size_t count, bool force_quadrature) {
+/// --profile-cases DIGITS [FIRST COUNT [quadrature|sums]]: times every case alone (thread CPU
+/// time, median of 5 blocks) and prints one line per case: index, time, evaluations (nodes or
+/// Graf terms), parameters. DIGITS = 16 runs double, otherwise mpfr_real at that many digits.
+/// Sort the output to list the slowest cases.
+int profile_cases(int digits, std::size_t first, std::size_t count,
+                  pendavg::IntegralEvaluation evaluation) {
   pendavg::IntegralOptions options;
-  if (force_quadrature) options.evaluation = pendavg::IntegralEvaluation::quadrature;
+  options.evaluation = evaluation;
   const auto& all = all_cases();
   const std::size_t last = std::min(all.size(), first + count);
   for (std::size_t i = first; i < last; ++i) {
@@ -313,11 +327,7 @@ int profile_cases(int digits, std::size_t first, std::size_t count, bool force_q
       std::vector<double> t;
       const int reps = std::is_same_v<Real, double> ? 50 : 1;
       // Thread CPU time: robust against other processes sharing the cores.
-      auto cpu_seconds = [] {
-        timespec ts{};
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-      };
+      const auto cpu_seconds = thread_cpu_seconds;
       for (int b = 0; b < 5; ++b) {
         const double start = cpu_seconds();
         for (int k = 0; k < reps; ++k) {
@@ -349,10 +359,20 @@ int main(int argc, char** argv) {
     const int digits = std::atoi(argv[i + 1]);
     const std::size_t first = i + 2 < argc ? std::strtoull(argv[i + 2], nullptr, 10) : 0;
     const std::size_t count = i + 3 < argc ? std::strtoull(argv[i + 3], nullptr, 10) : 1000;
-    const bool quadrature = i + 4 < argc && std::strcmp(argv[i + 4], "quadrature") == 0;
-    return profile_cases(digits, first, count, quadrature);
+    auto evaluation = pendavg::IntegralEvaluation::automatic;
+    if (i + 4 < argc) {
+      if (std::strcmp(argv[i + 4], "quadrature") == 0) {
+        evaluation = pendavg::IntegralEvaluation::quadrature;
+      } else if (std::strcmp(argv[i + 4], "sums") == 0) {
+        evaluation = pendavg::IntegralEvaluation::graf_sums;
+      } else {
+        std::fprintf(stderr, "--profile-cases: expected quadrature or sums, got %s\n", argv[i + 4]);
+        return 2;
+      }
+    }
+    return profile_cases(digits, first, count, evaluation);
   }
-  // --write-cases FILE [--replicate N]: write the cases as CSV and exit (no benchmarks).
+  // --write-cases FILE [--replicate N] [--grouped]: write the cases as CSV and exit.
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--write-cases") != 0) continue;
     if (i + 1 >= argc) {
@@ -367,8 +387,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "--replicate needs a positive count\n");
       return 2;
     }
+    bool grouped = false;
+    for (int j = 1; j < argc; ++j)
+      if (std::strcmp(argv[j], "--grouped") == 0) grouped = true;
     try {
-      pendavg_bench::write_cases_csv(argv[i + 1], all_cases(), replicate);
+      pendavg_bench::write_cases_csv(argv[i + 1], all_cases(), replicate, grouped);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "%s\n", e.what());
       return 1;

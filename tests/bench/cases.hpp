@@ -73,25 +73,28 @@ inline std::string describe(const Case& c) {
 }
 
 /// The cases as a CSV text: header beta,g,m1,m2,l1,l2, values with %.17g, the whole list
-/// repeated `replicate` times (for CLI throughput runs).
-inline std::string cases_csv(const std::vector<Case>& cases, std::size_t replicate = 1) {
+/// repeated `replicate` times (for CLI throughput runs: data row r is case r % count), or with
+/// `grouped` each case `replicate` times in a row (row r is case r / replicate: the repeated
+/// calls of the library benchmarks, warm caches).
+inline std::string cases_csv(const std::vector<Case>& cases, std::size_t replicate = 1,
+                             bool grouped = false) {
   std::string out = "beta,g,m1,m2,l1,l2\n";
   out.reserve(out.size() + cases.size() * replicate * 120);
   char line[256];
-  for (std::size_t r = 0; r < replicate; ++r) {
-    for (const Case& c : cases) {
-      std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", c.beta, c.g, c.m1,
-                    c.m2, c.l1, c.l2);
-      out += line;
-    }
+  const std::size_t rows = cases.size() * replicate;
+  for (std::size_t r = 0; r < rows; ++r) {
+    const Case& c = cases[grouped ? r / replicate : r % cases.size()];
+    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", c.beta, c.g, c.m1,
+                  c.m2, c.l1, c.l2);
+    out += line;
   }
   return out;
 }
 
-/// Writes cases_csv(cases, replicate) to `path`; throws std::runtime_error on failure.
+/// Writes cases_csv(cases, replicate, grouped) to `path`; throws std::runtime_error on failure.
 inline void write_cases_csv(const std::string& path, const std::vector<Case>& cases,
-                            std::size_t replicate = 1) {
-  const std::string text = cases_csv(cases, replicate);
+                            std::size_t replicate = 1, bool grouped = false) {
+  const std::string text = cases_csv(cases, replicate, grouped);
   std::FILE* file = std::fopen(path.c_str(), "wb");
   if (!file) throw std::runtime_error("cannot open " + path + " for writing");
   const bool ok = std::fwrite(text.data(), 1, text.size(), file) == text.size();

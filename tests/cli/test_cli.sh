@@ -180,6 +180,49 @@ good "cases shuffled" \
 good "cases shuffled, digits 20" '[ "$(wc -l <"$work/out")" -eq 4 ]' \
   average --cases "$work/cases.csv" --digits 20
 
+# --cases --timing: stdout unchanged, one summary line on stderr (its presence and format, not
+# its numbers); --timing-rows FILE: one CSV line per row with its file line. Bad uses exit 2.
+run average --cases "$work/cases.csv"
+cp "$work/out" "$work/cases_out.csv"
+timing_line='^pendavg: timing: rows=3 median_us=[0-9]+\.[0-9]{3} p90_us=[0-9]+\.[0-9]{3} worst_us=[0-9]+\.[0-9]{3} worst_row=[0-2] worst_line=(4|5|7) threads=[1-9][0-9]* timer_us=[0-9]+\.[0-9]{3} \(thread CPU time per row, parsing to formatted line, timer overhead subtracted\)$'
+check_timing() { # ARGS...: stdout as in $work/cases_out.csv, stderr one summary line
+  run average --cases "$work/cases.csv" "$@"
+  [ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/cases_out.csv" &&
+    [ "$(wc -l <"$work/err")" -eq 1 ] && grep -Eq "$timing_line" "$work/err"
+}
+check_timing --timing && pass || fail "cases --timing: stdout or the stderr summary line"
+check_timing --timing-rows "$work/rows.csv" &&
+  "$python" - "$work/rows.csv" <<'PY' && pass || fail "cases --timing-rows: file"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert [r["row"] for r in rows] == ["0", "1", "2"], rows
+assert [r["line"] for r in rows] == ["4", "5", "7"], rows  # data lines of the shuffled file
+float(rows[0]["us"])
+PY
+run average --cases "$work/cases.csv" --digits 20
+cp "$work/out" "$work/cases_out.csv"
+check_timing --timing --digits 20 && pass || fail "cases --timing --digits 20"
+bad "cases --timing without --cases"   average "${pendulum[@]}" --beta 1 --timing
+bad "cases --timing-rows without --cases" average "${pendulum[@]}" --beta 1 --timing-rows "$work/r.csv"
+bad "cases --timing=1"                 average --cases "$work/cases.csv" --timing=1
+bad "cases --timing twice"             average --cases "$work/cases.csv" --timing --timing
+bad "cases --timing-rows unwritable"   average --cases "$work/cases.csv" --timing-rows /nonexistent/rows.csv
+bad "cases --timing, bad row"          average --cases "$work/bad_row.csv" --timing
+grep -q 'line 3' "$work/err" && pass || fail "cases --timing, bad row: stderr does not name line 3"
+
+# Rows run in blocks of 256 on all cores: 600 rows give the same bytes on 1 and 2 threads.
+"$python" - "$work/many.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for i in range(600):
+        f.write(f"{10 ** (i % 9 - 4)},{1 + i % 3},{0.5 + i % 7},{1e-3 * (1 + i % 11)},1,{2 ** (i % 13 - 6)}\n")
+PY
+OMP_NUM_THREADS=1 "$pendavg" average --cases "$work/many.csv" >"$work/many1.csv" 2>/dev/null
+OMP_NUM_THREADS=2 "$pendavg" average --cases "$work/many.csv" >"$work/many2.csv" 2>/dev/null
+[ "$(wc -l <"$work/many1.csv")" -eq 601 ] && cmp -s "$work/many1.csv" "$work/many2.csv" && pass ||
+  fail "cases 600 rows: 1 and 2 threads differ"
+
 # ---------------------------------------------------------------- any N
 check_any_n_json() { # N
   "$python" -c '

@@ -1,0 +1,96 @@
+// The CLI's fast scientific notation (src/cli/decimal.hpp) against std::to_chars: the same
+// characters for every value it accepts (ties to even, powers of ten, rounding up to the next
+// power), and it accepts the values the CLI prints most (beta<K_i> ~ 1e-13..1, errors ~1e-17).
+#include <catch2/catch.hpp>
+
+#include "../src/cli/decimal.hpp"
+
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+
+namespace {
+
+struct Counts {
+  long checked = 0, fast = 0, mismatches = 0;
+};
+
+/// Compares one value; returns true when the fast path took it.
+bool compare(double x, int digits, Counts& counts) {
+  char fast[64], reference[64];
+  const char* fast_end = pendavg::cli::detail::scientific_fast(fast, x, digits);
+  const char* reference_end =
+      std::to_chars(reference, reference + sizeof reference, x, std::chars_format::scientific,
+                    digits - 1)
+          .ptr;
+  ++counts.checked;
+  if (!fast_end) return false;
+  ++counts.fast;
+  const std::string a(static_cast<const char*>(fast), fast_end);
+  const std::string b(static_cast<const char*>(reference), reference_end);
+  if (a != b) {
+    ++counts.mismatches;
+    if (counts.mismatches <= 5) {
+      INFO("x = " << b << " (" << std::bit_cast<std::uint64_t>(x) << "), digits " << digits
+                  << ": fast " << a);
+      CHECK(a == b);
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("fast scientific notation matches std::to_chars", "[cli][format]") {
+  std::mt19937_64 rng(20261122);
+  Counts counts;
+  // Random bit patterns: every exponent, every digit count (most outside the fast range).
+  for (int i = 0; i < 300000; ++i) {
+    const double x = std::bit_cast<double>(rng());
+    if (std::isfinite(x)) compare(x, 1 + static_cast<int>(rng() % 17), counts);
+  }
+  // Values of the CLI's magnitudes, at its digit counts (16 for values, 3 for errors).
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (int i = 0; i < 300000; ++i) {
+    const double x = unit(rng) * std::pow(10.0, static_cast<int>(rng() % 40) - 30);
+    compare(x, 16, counts);
+    compare(x, 3, counts);
+  }
+  // Short decimals: exact ties at many digit counts (e.g. 0.125 to 2 digits: ties to even).
+  for (int i = 0; i < 40000; ++i) {
+    const double x = static_cast<double>(rng() % 100000000) / std::pow(10.0, static_cast<int>(rng() % 12));
+    for (int digits = 1; digits <= 17; ++digits) compare((i % 2) ? x : -x, digits, counts);
+  }
+  // Powers of ten and two, their neighbours, and values that round up to a power of ten.
+  for (int n = -40; n <= 20; ++n) {
+    const double p = std::pow(10.0, n);
+    for (const double x : {p, std::nextafter(p, 0.0), std::nextafter(p, 1e300),
+                           0.99999999999999999 * p, 9.9999999999999995 * p, 9.5 * p, 0.5 * p}) {
+      for (int digits = 1; digits <= 17; ++digits) compare(x, digits, counts);
+    }
+  }
+  for (int n = -120; n <= 60; ++n) {
+    for (int digits = 1; digits <= 17; ++digits) compare(std::ldexp(1.0, n), digits, counts);
+  }
+  CHECK(counts.mismatches == 0);
+  // The fast path is taken for the bulk of the values (not only a fallback).
+  CHECK(counts.fast > counts.checked / 2);
+  // ...and for the CLI's typical values: 16 digits down to ~1e-12, errors with 3 digits.
+  for (const double x : {0.3431834814709, 0.6568165185290, -0.98765, 1.5e-12, 7.25}) {
+    char buffer[64];
+    CHECK(pendavg::cli::detail::scientific_fast(buffer, x, 16) != nullptr);
+  }
+  for (const double x : {1.2e-16, 3.4e-13, 2.2e-17, 0.5}) {
+    char buffer[64];
+    CHECK(pendavg::cli::detail::scientific_fast(buffer, x, 3) != nullptr);
+  }
+  // Outside the fast range it declines (the caller falls back to std::to_chars).
+  char buffer[64];
+  CHECK(pendavg::cli::detail::scientific_fast(buffer, 0.0, 16) == nullptr);
+  CHECK(pendavg::cli::detail::scientific_fast(buffer, 1e300, 16) == nullptr);
+  CHECK(pendavg::cli::detail::scientific_fast(buffer, 4.9e-324, 16) == nullptr);
+  CHECK(pendavg::cli::detail::scientific_fast(buffer, std::nan(""), 16) == nullptr);
+}
