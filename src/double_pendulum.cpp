@@ -913,9 +913,15 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
     miller_extra = static_cast<double>(scaled_bessel_table_steps<Real>(a1_d, rows) +
                                        scaled_bessel_table_steps<Real>(a2_d, rows) - 2 * rows);
   }
+  // Beyond harmonic 30 the double sums still win when q's zero is very close to t = 0 (d <
+  // 1e-3, mu1 below ~1e-6): the nodes then need the sinh map's 129-node level (~9.4 us), while
+  // the rows stay short (~35 Graf terms for harmonic <= 64, convergent in K d) and the long
+  // double sums were accepted with errors ~2e-16 (benchmark cases 876 and 128: 9.4 -> 5.5 us;
+  // at harmonic 64-128 sums and nodes cost about the same, so the cut stays at 64).
+  const bool tiny_d_short_rows = harmonic <= 64.0 && d_d < 1e-3;
   const bool sums_worthwhile =
       is_mpfr_v<Real> ? graf_nodes || graf_orders + 0.1 * miller_extra <= 10.0 * ln_inv_tol
-                      : graf_terms <= 400.0 && harmonic <= 30.0 &&
+                      : graf_terms <= 400.0 && (harmonic <= 30.0 || tiny_d_short_rows) &&
                             (graf_terms <= 24.0 || graf_terms * d_d < 0.5 || d_d > 0.5);
   const bool try_sums =
       options.evaluation == IntegralEvaluation::graf_sums ||
