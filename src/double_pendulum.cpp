@@ -181,10 +181,11 @@ struct DirectWeights {
   // Without the fold F[3] = -W'(t) / sin t = a1 a2 e^{-A} I1(R) / R, for J_{-3/2} by parts.
   bool by_parts = false;
   // MPFR scratch (in-place arithmetic, no allocation per operation); A^2 and P/4 per call.
-  mutable Real s2_, c2_, cos_t_, R_, E_, tmp_, ex_, g_, A2_, quarter_P_, y_, dy_, b0_, b1_;
+  mutable Real s2_{}, c2_{}, cos_t_{}, R_{}, E_{}, tmp_{}, ex_{}, g_{}, A2_{}, quarter_P_{}, y_{},
+      dy_{}, b0_{}, b1_{};
   // MPFR, unfolded: e^{-R} I0(R), e^{-R} I1(R) from Hankel's series re-expanded over the
   // range of R at the nodes (set by the caller when that range is above the Hankel threshold).
-  ScaledBesselI01Range<Real> bessel_range;
+  ScaledBesselI01Range<Real> bessel_range{};
   void operator()(const Real& sin2_t, const Real& sh, std::array<Real, 4>& F) const {
     if constexpr (is_mpfr_v<Real>) {
       if (!fold) {
