@@ -111,6 +111,32 @@ void gravity_kick(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const R
   ws.rate_y[1] -= tau * chain.gravity();
 }
 
+/// One direction of the twisted elimination below: the continuants theta and the scaled
+/// right-hand side z of the rows eliminated so far (see solve_tridiagonal_twisted).
+template <class Real>
+struct EliminationSweep {
+  Real theta1 = 1, theta2 = 0, z = 0, away_prev = 0;
+  /// Eliminates a row with diagonal d, coupling `toward` to the row eliminated before it and
+  /// `away` to the next one, right-hand side r: x = rhs - coef x_next.
+  void row(const Real& d, const Real& toward, const Real& away, const Real& r, Real& coef,
+           Real& rhs) {
+    Real theta = d * theta1 - (toward * away_prev) * theta2;
+    z = r * theta1 - toward * z;
+    const Real inv = 1 / theta;
+    coef = away * theta1 * inv;
+    rhs = z * inv;
+    away_prev = away;
+    if (abs(theta) > continuant_limit<Real>() || abs(theta) < 1 / continuant_limit<Real>()) {
+      const Real scale = 1 / abs(theta);  // any scale works: only ratios are used
+      theta *= scale;
+      theta1 *= scale;
+      z *= scale;
+    }
+    theta2 = theta1;
+    theta1 = theta;
+  }
+};
+
 /// Solves the tridiagonal system a_i x_{i-1} + d_i x_i + c_i x_{i+1} = r_i (a_0 = c_{n-1} = 0)
 /// and adds x to `out` (out[i] += x_i), in O(n) with a twisted factorization: elimination
 /// runs down from the top to the middle row k = n/2 and up from the bottom to it at the same
@@ -125,48 +151,20 @@ void gravity_kick(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const R
 /// systems (+-H plus O(tau) terms, H = G M^{-1} G^T symmetric positive definite) it is not
 /// needed at any usable step. Scratch: num_c, num_r (n each).
 template <class Real>
-[[gnu::always_inline]] inline void solve_tridiagonal_twisted(std::size_t n, const Real* __restrict a, const Real* __restrict d,
-                               const Real* __restrict c, const Real* __restrict r,
-                               Real* __restrict out, Real* __restrict num_c,
-                               Real* __restrict num_r) {
+[[gnu::always_inline]] inline void solve_tridiagonal_twisted(
+    std::size_t n, const Real* __restrict a, const Real* __restrict d, const Real* __restrict c,
+    const Real* __restrict r, Real* __restrict out, Real* __restrict num_c,
+    Real* __restrict num_r) {
   const std::size_t k = n / 2;  // the twist row
-  const Real big = continuant_limit<Real>(), small = 1 / continuant_limit<Real>();
   // Top rows 0..k-1 and bottom rows n-1..k+1, interleaved.
-  Real theta1 = 1, theta2 = 0, z = 0, c_prev = 0;
-  Real phi1 = 1, phi2 = 0, v = 0, a_next = 0;
+  EliminationSweep<Real> from_top, from_bottom;
   const std::size_t top = k, bottom = n - 1 - k;
   const std::size_t both = std::min(top, bottom);
   auto top_row = [&](std::size_t i) {
-    Real theta = d[i] * theta1 - (a[i] * c_prev) * theta2;
-    z = r[i] * theta1 - a[i] * z;
-    const Real inv = 1 / theta;
-    num_c[i] = c[i] * theta1 * inv;
-    num_r[i] = z * inv;
-    c_prev = c[i];
-    if (abs(theta) > big || abs(theta) < small) {
-      const Real scale = 1 / abs(theta);  // any scale works: only ratios are used
-      theta *= scale;
-      theta1 *= scale;
-      z *= scale;
-    }
-    theta2 = theta1;
-    theta1 = theta;
+    from_top.row(d[i], a[i], c[i], r[i], num_c[i], num_r[i]);
   };
   auto bottom_row = [&](std::size_t i) {
-    Real phi = d[i] * phi1 - (c[i] * a_next) * phi2;
-    v = r[i] * phi1 - c[i] * v;
-    const Real inv = 1 / phi;
-    num_c[i] = a[i] * phi1 * inv;
-    num_r[i] = v * inv;
-    a_next = a[i];
-    if (abs(phi) > big || abs(phi) < small) {
-      const Real scale = 1 / abs(phi);
-      phi *= scale;
-      phi1 *= scale;
-      v *= scale;
-    }
-    phi2 = phi1;
-    phi1 = phi;
+    from_bottom.row(d[i], c[i], a[i], r[i], num_c[i], num_r[i]);
   };
   for (std::size_t j = 0; j < both; ++j) {
     top_row(j);
