@@ -67,7 +67,7 @@ for n in (7, 16):
         log(f"the paper's N = {n} run: T = 1e4, 1e7 steps of RATTLE + {integrator}, then the exact values")
         d = simulate(ones(n), ones(n), "--theta", "90deg", "--time", "1e4", "--integrator", integrator)
         notes.append(f"# N = {n} ({integrator}): energy {g(d['energy'], 6)}, steps {d['steps']}, seconds "
-                     f"{d['seconds']:.1f} (trajectory and exact values, one core), energy_error_max "
+                     f"{d['seconds']:.1f} (the trajectory, one core), energy_error_max "
                      f"{d['energy_error_max']:.2e}, energy_error_rms {d['energy_error_rms']:.2e}, energy_drift "
                      f"{d['energy_drift']:.2e}, constraint_residual {d['constraint_residual']:.2e}, exact: "
                      f"{d['exact_method']}")
