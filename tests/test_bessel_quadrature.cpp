@@ -83,31 +83,32 @@ void check_nested(const pendavg::ClenshawCurtisRule<double>& rule, std::size_t L
   for (std::size_t j = 0; j < rule.nodes(L - 1).size(); ++j)
     CHECK(rule.nodes(L - 1)[j] == Approx(x[2 * j]).margin(1e-16));
 }
+/// sum_j w_j f(x_j) over level L of the rule (the integral of f over [0, 1]).
+template <class F>
+double level_sum(const pendavg::ClenshawCurtisRule<double>& rule, std::size_t L, F f) {
+  const auto& x = rule.nodes(L);
+  const auto& w = rule.weights(L);
+  double s = 0;
+  for (std::size_t j = 0; j < x.size(); ++j) s += w[j] * f(x[j]);
+  return s;
+}
 }  // namespace
 
 TEST_CASE("Clenshaw-Curtis levels integrate known integrals and nest", "[quadrature]") {
   pendavg::ClenshawCurtisRule<double> rule(8);
   rule.ensure_level(5);
   for (std::size_t L = 0; L <= 5; ++L) {
-    const auto& x = rule.nodes(L);
-    const auto& w = rule.weights(L);
-    double s1 = 0, s2 = 0;
-    for (std::size_t j = 0; j < x.size(); ++j) {
-      s1 += w[j];
-      s2 += w[j] * std::exp(x[j]);
-    }
-    CHECK(s1 == Approx(1.0).epsilon(1e-15));
-    if (L >= 1) CHECK(s2 == Approx(std::exp(1.0) - 1).epsilon(1e-15));
+    CHECK(level_sum(rule, L, [](double) { return 1.0; }) == Approx(1.0).epsilon(1e-15));
+    if (L >= 1)
+      CHECK(level_sum(rule, L, [](double x) { return std::exp(x); }) ==
+            Approx(std::exp(1.0) - 1).epsilon(1e-15));
     check_nested(rule, L);
   }
   // 1 / (1 + 25 x^2) on [0, 1] (Runge): converges geometrically.
   const double exact = std::atan(5.0) / 5.0;
   double err_prev = 1;
   for (std::size_t L = 1; L <= 5; ++L) {
-    const auto& x = rule.nodes(L);
-    const auto& w = rule.weights(L);
-    double s = 0;
-    for (std::size_t j = 0; j < x.size(); ++j) s += w[j] / (1 + 25 * x[j] * x[j]);
+    const double s = level_sum(rule, L, [](double x) { return 1 / (1 + 25 * x * x); });
     const double err = std::abs(s - exact);
     CHECK((err < 1e-15 || err < err_prev));
     err_prev = err;
@@ -209,13 +210,10 @@ TEST_CASE("Clenshaw-Curtis levels from n0 = 12 integrate exactly and nest", "[qu
   pendavg::ClenshawCurtisRule<double> rule(12);
   rule.ensure_level(4);
   for (std::size_t L = 0; L <= 4; ++L) {
-    const auto& x = rule.nodes(L);
-    const auto& w = rule.weights(L);
-    REQUIRE(x.size() == (std::size_t{12} << L) + 1);
+    REQUIRE(rule.nodes(L).size() == (std::size_t{12} << L) + 1);
     // exact for polynomials of degree <= n: x^n integrates to 1/(n+1)
-    const std::size_t n = x.size() - 1;
-    double s = 0;
-    for (std::size_t j = 0; j < x.size(); ++j) s += w[j] * std::pow(x[j], static_cast<double>(n));
+    const std::size_t n = rule.nodes(L).size() - 1;
+    const double s = level_sum(rule, L, [n](double x) { return std::pow(x, static_cast<double>(n)); });
     CHECK(s == Approx(1.0 / static_cast<double>(n + 1)).epsilon(1e-14));
     check_nested(rule, L);
   }

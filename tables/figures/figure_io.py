@@ -1,8 +1,25 @@
-"""Shared by the plotting scripts: reading a table (CSV with leading # lines) and atomic PNG output
-(temporary file beside the target, rename)."""
+"""Shared by the plotting scripts: the non-interactive pyplot, the table and figure directories from
+the command line, reading a table (CSV with leading # lines) and atomic PNG output (temporary file
+beside the target, rename)."""
 import csv
 import os
 import tempfile
+
+
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def table_dirs(argv):
+    """(TABLES_DIR, TABLES_DIR/figures) from the script's arguments (default: the current folder)."""
+    tables = argv[1] if len(argv) > 1 else "."
+    return tables, os.path.join(tables, "figures")
 
 
 def read_table(directory, name):

@@ -6,16 +6,11 @@ usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each ato
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import read_table, save_png  # noqa: E402
+from figure_io import pyplot, read_table, save_png, table_dirs  # noqa: E402
 
-TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
-FIGURES = os.path.join(TABLES, "figures")
+plt = pyplot()
+TABLES, FIGURES = table_dirs(sys.argv)
 
 
 def read(name):

@@ -8,17 +8,13 @@ import csv
 import os
 import sys
 
-import matplotlib
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from figure_io import pyplot, save_png, table_dirs  # noqa: E402
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+plt = pyplot()
 from matplotlib.lines import Line2D  # noqa: E402
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import save_png  # noqa: E402
-
-TABLES = sys.argv[1] if len(sys.argv) > 1 else "."
-FIGURES = os.path.join(TABLES, "figures")
+TABLES, FIGURES = table_dirs(sys.argv)
 NAME = "work_precision.png"
 STYLE = {  # method: (color, marker)
     "integral": ("tab:blue", "o"),
