@@ -1,7 +1,8 @@
 // The chain model, its validation, and the method names.
 #include "pendavg/chain.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/precision.hpp"
 #include "pendavg/result.hpp"
+#include "pendavg/version.hpp"
 
 #include <boost/math/special_functions/fpclassify.hpp>
 
@@ -77,6 +78,27 @@ const char* method_name(Method m) {
     case Method::microcanonical: return "microcanonical";
     case Method::dynamics_nve: return "dynamics-nve";
     case Method::dynamics_langevin: return "dynamics-langevin";
+  }
+  return "unknown";
+}
+
+const char* version() { return PENDAVG_VERSION; }
+
+const char* error_kind_name(ErrorKind kind) {
+  switch (kind) {
+    case ErrorKind::bound: return "bound";
+    case ErrorKind::estimate: return "estimate";
+    case ErrorKind::statistical: return "statistical";
+  }
+  return "unknown";
+}
+
+const char* work_unit_name(WorkUnit unit) {
+  switch (unit) {
+    case WorkUnit::terms: return "terms";
+    case WorkUnit::nodes: return "nodes";
+    case WorkUnit::samples: return "samples";
+    case WorkUnit::steps: return "steps";
   }
   return "unknown";
 }

@@ -3,9 +3,9 @@
 // nested Clenshaw-Curtis rule on integrals known in closed form.
 #include <catch2/catch.hpp>
 
-#include "pendavg/bessel.hpp"
-#include "pendavg/precision.hpp"
-#include "pendavg/quadrature.hpp"
+#include "engine/bessel.hpp"
+#include "engine/precision.hpp"
+#include "engine/quadrature.hpp"
 
 #include <boost/math/special_functions/bessel.hpp>
 #include <gsl/gsl_sf_bessel.h>

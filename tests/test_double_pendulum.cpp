@@ -5,8 +5,8 @@
 #include <catch2/catch.hpp>
 
 #include "pendavg/chain.hpp"
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/double_pendulum.hpp"
+#include "engine/precision.hpp"
 
 #include <gsl/gsl_mode.h>
 #include <gsl/gsl_sf_ellint.h>
@@ -41,13 +41,13 @@ void check_double_against_mpfr(double m1, double m2, double l2, double beta) {
   REQUIRE(d.converged);
   REQUIRE(m.converged);
   for (int i = 0; i < 2; ++i) {
-    const double ref = static_cast<double>(m.beta_kinetic[i]);
-    const double err = std::abs(d.beta_kinetic[i] - ref);
-    CHECK(std::isfinite(d.beta_kinetic[i]));
+    const double ref = static_cast<double>(m.beta_kinetic[i].value);
+    const double err = std::abs(d.beta_kinetic[i].value - ref);
+    CHECK(std::isfinite(d.beta_kinetic[i].value));
     CHECK(err <= 2e-15 * ref);
-    CHECK(err <= d.beta_kinetic_error[i]);
-    CHECK(std::isfinite(d.cos_angle[i]));
-    CHECK(std::isfinite(d.beta2_kinetic_variance[i]));
+    CHECK(err <= d.beta_kinetic[i].error);
+    CHECK(std::isfinite(d.cos_angle[i].value));
+    CHECK(std::isfinite(d.beta2_kinetic_variance[i].value));
   }
 }
 
@@ -59,8 +59,8 @@ TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pen
   }
   // The limit value is approached: beta<K1> ~ (mu1/2) K/E -> 0 like mu1 log(1/mu1).
   const auto r = pendavg::reduced_integral_average(chain2(1e-12, 1, 1, 1), 1e-6, 16);
-  CHECK(r.beta_kinetic[0] > 0);
-  CHECK(r.beta_kinetic[0] < 1e-10);
+  CHECK(r.beta_kinetic[0].value > 0);
+  CHECK(r.beta_kinetic[0].value < 1e-10);
 }
 
 TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]") {
@@ -73,18 +73,18 @@ TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow", "[
   pendavg::working_precision guard(30 + pendavg::guard_digits);
   const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
   CHECK(r.converged);
-  CHECK(abs(r.beta_kinetic[0] - mpfr_real(0.5)) < mpfr_real("1e-290"));
-  CHECK(abs(r.beta_kinetic[1] - mpfr_real(0.5)) < mpfr_real("1e-290"));
+  CHECK(abs(r.beta_kinetic[0].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
+  CHECK(abs(r.beta_kinetic[1].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
 }
 
 TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow", "[double_pendulum]") {
-  const auto limit = pendavg::high_temperature_limit(chain2(0.5, 0.5, 1, 1), 16);
+  const auto limit = pendavg::elliptic_high_temperature_limit(chain2(0.5, 0.5, 1, 1), 16);
   for (double beta : {1e-8, 1e-100, 1e-300}) {
     const auto r = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), beta, 16);
     INFO("beta = " << beta);
-    CHECK(r.beta_kinetic[0] == Approx(limit.beta_kinetic[0]).epsilon(1e-14));
-    CHECK(std::isfinite(r.cos_angle[0]));
-    CHECK(r.cos_angle[0] == Approx(beta / 2).epsilon(1e-6));  // <cos phi1> ~ a1/2, a1 = beta M g l1
+    CHECK(r.beta_kinetic[0].value == Approx(limit.beta_kinetic[0].value).epsilon(1e-14));
+    CHECK(std::isfinite(r.cos_angle[0].value));
+    CHECK(r.cos_angle[0].value == Approx(beta / 2).epsilon(1e-6));  // <cos phi1> ~ a1/2, a1 = beta M g l1
   }
 }
 
@@ -96,11 +96,11 @@ TEST_CASE("hard case extreme length ratios", "[double_pendulum]") {
 
 TEST_CASE("g = 0 is the beta -> 0 limit exactly, with <cos phi> = 0", "[double_pendulum]") {
   const auto r = pendavg::reduced_integral_average(chain2(0.2, 0.8, 1, 3, 0.0), 7.0, 16);
-  const auto limit = pendavg::high_temperature_limit(chain2(0.2, 0.8, 1, 3), 16);
-  CHECK(r.beta_kinetic[0] == Approx(limit.beta_kinetic[0]).epsilon(1e-15));
-  CHECK(r.cos_angle[0] == 0.0);
-  CHECK(r.cos_angle_error[0] >= 0.0);
-  CHECK(r.beta2_kinetic_variance[0] == Approx(limit.beta2_kinetic_variance[0]).epsilon(1e-14));
+  const auto limit = pendavg::elliptic_high_temperature_limit(chain2(0.2, 0.8, 1, 3), 16);
+  CHECK(r.beta_kinetic[0].value == Approx(limit.beta_kinetic[0].value).epsilon(1e-15));
+  CHECK(r.cos_angle[0].value == 0.0);
+  CHECK(r.cos_angle[0].error >= 0.0);
+  CHECK(r.beta2_kinetic_variance[0].value == Approx(limit.beta2_kinetic_variance[0].value).epsilon(1e-14));
 }
 
 TEST_CASE("exact Graf-moment sums agree with sinh-mapped quadrature at 30 digits", "[double_pendulum]") {
@@ -119,17 +119,17 @@ TEST_CASE("exact Graf-moment sums agree with sinh-mapped quadrature at 30 digits
                  << ", nodes " << quad.evaluations);
     for (int i = 0; i < 2; ++i) {
       const mpfr_real tol = pow(mpfr_real(10), -29);
-      CHECK(abs(exact.beta_kinetic[i] - quad.beta_kinetic[i]) <= tol * exact.beta_kinetic[i]);
-      CHECK(abs(exact.cos_angle[i] - quad.cos_angle[i]) <= tol * (abs(exact.cos_angle[i]) + 1e-20));
-      CHECK(abs(exact.beta2_kinetic_variance[i] - quad.beta2_kinetic_variance[i]) <=
-            tol * exact.beta2_kinetic_variance[i]);
+      CHECK(abs(exact.beta_kinetic[i].value - quad.beta_kinetic[i].value) <= tol * exact.beta_kinetic[i].value);
+      CHECK(abs(exact.cos_angle[i].value - quad.cos_angle[i].value) <= tol * (abs(exact.cos_angle[i].value) + 1e-20));
+      CHECK(abs(exact.beta2_kinetic_variance[i].value - quad.beta2_kinetic_variance[i].value) <=
+            tol * exact.beta2_kinetic_variance[i].value);
     }
   }
 }
 
 TEST_CASE("beta -> 0 limit: Boost's Carlson forms agree with GSL's Legendre forms", "[double_pendulum]") {
   for (double mu1 : {0.5, 0.25, 0.05, 1e-3, 0.9}) {
-    const auto r = pendavg::high_temperature_limit(chain2(mu1, 1 - mu1, 1, 1), 16);
+    const auto r = pendavg::elliptic_high_temperature_limit(chain2(mu1, 1 - mu1, 1, 1), 16);
     const double mu2 = (1 - mu1) / (mu1 + (1 - mu1));
     const double k = std::sqrt(mu2);
     const double K = gsl_sf_ellint_Kcomp(k, GSL_PREC_DOUBLE);
@@ -137,19 +137,24 @@ TEST_CASE("beta -> 0 limit: Boost's Carlson forms agree with GSL's Legendre form
     INFO("mu1 = " << mu1);
     // GSL takes k, which carries mu1 only to ~eps/mu1 relative: compare at that level.
     const double tol = 8e-16 + 4e-16 / mu1;
-    CHECK(r.beta_kinetic[0] == Approx(mu1 / 2 * K / E).epsilon(tol));
+    CHECK(r.beta_kinetic[0].value == Approx(mu1 / 2 * K / E).epsilon(tol));
   }
 }
 
 TEST_CASE("the beta -> infinity limit is equipartition for both particles", "[double_pendulum]") {
   const auto r = pendavg::low_temperature_limit(chain2(0.1, 0.9, 2, 0.5));
-  CHECK(r.beta_kinetic == std::vector<double>{0.5, 0.5});
-  CHECK(r.cos_angle == std::vector<double>{1.0, 1.0});
-  CHECK(r.beta2_kinetic_variance == std::vector<double>{0.5, 0.5});
+  for (std::size_t i = 0; i < 2; ++i) {
+    CHECK(r.beta_kinetic[i].value == 0.5);
+    CHECK(r.beta_kinetic[i].error == 0);
+    CHECK(r.cos_angle[i].value == 1.0);
+    CHECK(r.beta2_kinetic_variance[i].value == 0.5);
+    CHECK(r.beta2_kinetic_variance[i].error <= 1e-15);
+  }
+  CHECK(r.error_kind == pendavg::ErrorKind::bound);
   // The integral approaches it: beta = 1e8 with mu1 = 0.5.
   const auto big = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), 1e8, 16);
-  CHECK(big.beta2_kinetic_variance[0] == Approx(0.5).epsilon(1e-6));
-  CHECK(big.beta2_kinetic_variance[1] == Approx(0.5).epsilon(1e-6));
+  CHECK(big.beta2_kinetic_variance[0].value == Approx(0.5).epsilon(1e-6));
+  CHECK(big.beta2_kinetic_variance[1].value == Approx(0.5).epsilon(1e-6));
 }
 
 TEST_CASE("the model rejects invalid parameters with one-line messages", "[double_pendulum]") {
@@ -191,11 +196,11 @@ TEST_CASE("the series stops at its certified bound and reports non-convergence h
   const auto chain = chain2_mpfr(0.5, 0.5, 1, 1);
   const auto certified = pendavg::series_average(chain, mpfr_real(1), 30);
   CHECK(certified.converged);
-  CHECK(certified.beta_kinetic_error[0] <= pow(mpfr_real(10), -30) * certified.beta_kinetic[0]);
+  CHECK(certified.beta_kinetic[0].error <= pow(mpfr_real(10), -30) * certified.beta_kinetic[0].value);
   // Capped at 10 terms: the value is still bracketed by the bound, and flagged.
   const auto capped = pendavg::series_average(chain, mpfr_real(1), 30, 10);
   CHECK_FALSE(capped.converged);
-  CHECK(abs(capped.beta_kinetic[0] - certified.beta_kinetic[0]) <= capped.beta_kinetic_error[0]);
+  CHECK(abs(capped.beta_kinetic[0].value - certified.beta_kinetic[0].value) <= capped.beta_kinetic[0].error);
 }
 
 TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agree with the exact sums",
@@ -235,12 +240,12 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
         CHECK(a_err <= tol * abs(b));
       };
       for (int i = 0; i < 2; ++i) {
-        check(quad.beta_kinetic[i], quad.beta_kinetic_error[i], exact.beta_kinetic[i],
-              exact.beta_kinetic_error[i]);
-        check(quad.cos_angle[i], quad.cos_angle_error[i], exact.cos_angle[i],
-              exact.cos_angle_error[i]);
-        check(quad.beta2_kinetic_variance[i], quad.beta2_kinetic_variance_error[i],
-              exact.beta2_kinetic_variance[i], exact.beta2_kinetic_variance_error[i]);
+        check(quad.beta_kinetic[i].value, quad.beta_kinetic[i].error, exact.beta_kinetic[i].value,
+              exact.beta_kinetic[i].error);
+        check(quad.cos_angle[i].value, quad.cos_angle[i].error, exact.cos_angle[i].value,
+              exact.cos_angle[i].error);
+        check(quad.beta2_kinetic_variance[i].value, quad.beta2_kinetic_variance[i].error,
+              exact.beta2_kinetic_variance[i].value, exact.beta2_kinetic_variance[i].error);
       }
       if (digits != 30) continue;
       // The double engine on the same parameters (cut range, half-angle map, by parts; one
@@ -254,10 +259,10 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
         CHECK(err <= v_err);
       };
       for (int i = 0; i < 2; ++i) {
-        check_double(d.beta_kinetic[i], d.beta_kinetic_error[i], exact.beta_kinetic[i], true);
-        check_double(d.cos_angle[i], d.cos_angle_error[i], exact.cos_angle[i], false);
-        check_double(d.beta2_kinetic_variance[i], d.beta2_kinetic_variance_error[i],
-                     exact.beta2_kinetic_variance[i], false);
+        check_double(d.beta_kinetic[i].value, d.beta_kinetic[i].error, exact.beta_kinetic[i].value, true);
+        check_double(d.cos_angle[i].value, d.cos_angle[i].error, exact.cos_angle[i].value, false);
+        check_double(d.beta2_kinetic_variance[i].value, d.beta2_kinetic_variance[i].error,
+                     exact.beta2_kinetic_variance[i].value, false);
       }
     }
   }
@@ -266,10 +271,10 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
 // ---- product integration over the inner panel (detail/inner_panel_series.hpp) --------------
 
 #include "bench/cases.hpp"
-#include "pendavg/bessel.hpp"
-#include "pendavg/detail/inner_panel_series.hpp"
+#include "engine/bessel.hpp"
+#include "engine/detail/inner_panel_series.hpp"
 
-#include "pendavg/quadrature.hpp"
+#include "engine/quadrature.hpp"
 
 TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers its error",
           "[double_pendulum][mpfr]") {
@@ -381,14 +386,14 @@ TEST_CASE("averages through the inner-panel series: 30 and 50 digits against 80,
       const pendavg::precision_guard<mpfr_real> precision(100);
       for (std::size_t j = 0; j < 2; ++j) {
         INFO("case " << i << " digits " << digits << " component " << j);
-        const mpfr_real diff = abs(r.beta_kinetic[j] - ref.beta_kinetic[j]);
-        CHECK(diff <= r.beta_kinetic_error[j] + ref.beta_kinetic_error[j]);
+        const mpfr_real diff = abs(r.beta_kinetic[j].value - ref.beta_kinetic[j].value);
+        CHECK(diff <= r.beta_kinetic[j].error + ref.beta_kinetic[j].error);
         const mpfr_real tolerance = pow(mpfr_real(10), -digits);
-        CHECK(r.beta_kinetic_error[j] <= tolerance * (abs(r.beta_kinetic[j]) + 1));
-        CHECK(abs(r.cos_angle[j] - ref.cos_angle[j]) <=
-              r.cos_angle_error[j] + ref.cos_angle_error[j]);
-        CHECK(abs(r.beta2_kinetic_variance[j] - ref.beta2_kinetic_variance[j]) <=
-              r.beta2_kinetic_variance_error[j] + ref.beta2_kinetic_variance_error[j]);
+        CHECK(r.beta_kinetic[j].error <= tolerance * (abs(r.beta_kinetic[j].value) + 1));
+        CHECK(abs(r.cos_angle[j].value - ref.cos_angle[j].value) <=
+              r.cos_angle[j].error + ref.cos_angle[j].error);
+        CHECK(abs(r.beta2_kinetic_variance[j].value - ref.beta2_kinetic_variance[j].value) <=
+              r.beta2_kinetic_variance[j].error + ref.beta2_kinetic_variance[j].error);
       }
     }
   }

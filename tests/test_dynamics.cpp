@@ -3,11 +3,11 @@
 // independent references: dense-matrix Lagrangian mechanics (Eigen), the exact microcanonical
 // (microcanonical.hpp) and canonical (double_pendulum.hpp, torus.hpp) averages, and AR(1)
 // processes with a known variance of the mean.
-#include "pendavg/detail/blocking.hpp"
-#include "pendavg/double_pendulum.hpp"
+#include "engine/detail/blocking.hpp"
+#include "engine/double_pendulum.hpp"
 #include "pendavg/dynamics.hpp"
-#include "pendavg/microcanonical.hpp"
-#include "pendavg/torus.hpp"
+#include "engine/microcanonical.hpp"
+#include "engine/torus.hpp"
 
 #include <Eigen/Dense>
 #include <catch2/catch.hpp>
@@ -266,12 +266,12 @@ TEST_CASE("N = 2 chaotic NVE run agrees with the exact microcanonical averages",
   const MicrocanonicalAverages<double> exact = microcanonical_average(chain, r.initial_energy);
   for (std::size_t i = 0; i < 2; ++i) {
     INFO("particle " << i + 1 << ": " << r.kinetic[i].value << " +- " << r.kinetic[i].error
-                     << " vs " << exact.kinetic[i]);
-    CHECK(std::abs(r.kinetic[i].value - exact.kinetic[i]) <= 3 * r.kinetic[i].error);
-    CHECK(std::abs(r.kinetic_canonical[i].value - exact.kinetic_canonical) <=
+                     << " vs " << exact.kinetic[i].value);
+    CHECK(std::abs(r.kinetic[i].value - exact.kinetic[i].value) <= 3 * r.kinetic[i].error);
+    CHECK(std::abs(r.kinetic_canonical[i].value - exact.kinetic_canonical.value) <=
           3 * r.kinetic_canonical[i].error);
     CHECK(r.kinetic[i].error < 0.05 * r.kinetic[i].value);  // a real test, not a wide bar
-    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i]) <= 3 * r.cos_angle[i].error);
+    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i].value) <= 3 * r.cos_angle[i].error);
   }
   CHECK(r.energy_error_max < 1e-9);
   CHECK(std::abs(r.energy_trend) < 1e-11);
@@ -292,13 +292,13 @@ TEST_CASE("N = 2 constrained Langevin run agrees with the exact canonical averag
   const SimulationResult<double> r = simulate(chain, start, options);
   const Averages<double> exact = reduced_integral_average(chain, beta);
   for (std::size_t i = 0; i < 2; ++i) {
-    const double k = exact.beta_kinetic[i] / beta;
+    const double k = exact.beta_kinetic[i].value / beta;
     INFO("particle " << i + 1 << ": " << r.kinetic[i].value << " +- " << r.kinetic[i].error
                      << " vs " << k);
     CHECK(std::abs(r.kinetic[i].value - k) <= 3 * r.kinetic[i].error);
     CHECK(std::abs(r.kinetic_canonical[i].value - 0.5 / beta) <= 3 * r.kinetic_canonical[i].error);
     CHECK(r.kinetic[i].error < 0.05 * k);
-    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i]) <= 3 * r.cos_angle[i].error);
+    CHECK(std::abs(r.cos_angle[i].value - exact.cos_angle[i].value) <= 3 * r.cos_angle[i].error);
   }
   // Equipartition holds in total (sum_i beta<K_i> = N/2): the thermostat's temperature.
   CHECK(std::abs(r.kinetic_total.value - 1 / beta) <= 3 * r.kinetic_total.error);
@@ -395,9 +395,9 @@ TEST_CASE("long NVE and Langevin runs agree with the exact values (N = 2, 3)",
         n == 2 ? reduced_integral_average(c.chain, 0.7) : torus_average(c.chain, 0.7);
     for (std::size_t i = 0; i < n; ++i) {
       INFO("N = " << n << ", particle " << i + 1);
-      CHECK(std::abs(nve.kinetic[i].value - micro.kinetic[i]) <=
-            3 * std::hypot(nve.kinetic[i].error, micro.kinetic_error[i]));
-      CHECK(std::abs(nvt.kinetic[i].value - canonical.beta_kinetic[i] / 0.7) <=
+      CHECK(std::abs(nve.kinetic[i].value - micro.kinetic[i].value) <=
+            3 * std::hypot(nve.kinetic[i].error, micro.kinetic[i].error));
+      CHECK(std::abs(nvt.kinetic[i].value - canonical.beta_kinetic[i].value / 0.7) <=
             3 * nvt.kinetic[i].error);
     }
   }

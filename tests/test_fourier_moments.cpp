@@ -10,8 +10,8 @@
 // q^s > 0), and the reported relative_error must cover them.
 #include <catch2/catch.hpp>
 
-#include "pendavg/detail/fourier_moments.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/detail/fourier_moments.hpp"
+#include "engine/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 

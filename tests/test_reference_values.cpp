@@ -9,8 +9,9 @@
 #include <catch2/catch.hpp>
 
 #include "pendavg/chain.hpp"
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/double_pendulum.hpp"
+#include "engine/precision.hpp"
+#include "pendavg/average.hpp"
 #include "pendavg/result.hpp"
 
 #include <cctype>
@@ -122,7 +123,7 @@ bool parse_quantity(const std::string& q, Kind& kind, std::size_t& particle) {
 
 template <class Real>
 const Real& pick(const pendavg::Averages<Real>& a, Kind k, std::size_t i) {
-  return k == Kind::kinetic ? a.beta_kinetic.at(i) : a.cos_angle.at(i);
+  return k == Kind::kinetic ? a.beta_kinetic.at(i).value : a.cos_angle.at(i).value;
 }
 
 std::string reference_path() { return std::string(PENDAVG_TEST_DATA_DIR) + "/public_values.csv"; }
@@ -179,11 +180,15 @@ TEST_CASE("public reference values: every N = 2 row at 30 digits and in double",
       const pendavg::Chain<mpfr_real> chain = chain_from<mpfr_real>(r);
       std::vector<std::pair<std::string, pendavg::Averages<mpfr_real>>> results;
       if (limit) {
-        results.emplace_back("limit", pendavg::high_temperature_limit<mpfr_real>(chain, digits));
+        pendavg::AverageOptions options;
+        options.digits = digits;
+        results.emplace_back("limit", pendavg::high_temperature_limit<mpfr_real>(chain, options));
       } else {
         const mpfr_real beta(r.beta.c_str());
         results.emplace_back("integral", pendavg::reduced_integral_average<mpfr_real>(chain, beta, digits));
-        results.emplace_back("automatic", pendavg::average<mpfr_real>(chain, beta, digits));
+        pendavg::AverageOptions options;
+        options.digits = digits;
+        results.emplace_back("automatic", pendavg::average<mpfr_real>(chain, beta, options));
         if (kind == Kind::kinetic) {
           results.emplace_back("series", pendavg::series_average<mpfr_real>(chain, beta, digits));
         }
@@ -204,11 +209,11 @@ TEST_CASE("public reference values: every N = 2 row at 30 digits and in double",
       const pendavg::Chain<double> chain = chain_from<double>(r);
       std::vector<std::pair<std::string, pendavg::Averages<double>>> results;
       if (limit) {
-        results.emplace_back("limit", pendavg::high_temperature_limit<double>(chain, 16));
+        results.emplace_back("limit", pendavg::high_temperature_limit<double>(chain));
       } else {
         const double beta = std::stod(r.beta);
         results.emplace_back("integral", pendavg::reduced_integral_average<double>(chain, beta, 16));
-        results.emplace_back("automatic", pendavg::average<double>(chain, beta, 16));
+        results.emplace_back("automatic", pendavg::average<double>(chain, beta));
         if (kind == Kind::kinetic) results.emplace_back("series", pendavg::series_average<double>(chain, beta, 16));
       }
       for (const auto& [engine, a] : results) {

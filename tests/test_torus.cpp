@@ -22,10 +22,10 @@
 #include <catch2/catch.hpp>
 
 #include "pendavg/chain.hpp"
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/double_pendulum.hpp"
+#include "engine/precision.hpp"
 #include "pendavg/result.hpp"
-#include "pendavg/torus.hpp"
+#include "engine/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <algorithm>
@@ -47,7 +47,7 @@ namespace {
 using pendavg::Chain;
 using pendavg::mpfr_real;
 using pendavg::torus_average;
-using pendavg::torus_average_full;
+using pendavg::torus_average;
 using pendavg::TorusOptions;
 using pendavg::TorusRule;
 
@@ -141,20 +141,20 @@ TEST_CASE("torus N = 2 agrees with the 1-D reduced integral", "[torus]") {
                    << ", beta = " << beta);
       REQUIRE(torus.converged);
       for (std::size_t i = 0; i < 2; ++i) {
-        check_close(torus.beta_kinetic[i], torus.beta_kinetic_error[i], ref.beta_kinetic[i],
-                    ref.beta_kinetic_error[i], ref.beta_kinetic[i], 1e-13, "beta<K>");
-        check_close(torus.beta2_kinetic_variance[i], torus.beta2_kinetic_variance_error[i],
-                    ref.beta2_kinetic_variance[i], ref.beta2_kinetic_variance_error[i],
-                    ref.beta2_kinetic_variance[i], 1e-13, "beta^2 Var K");
+        check_close(torus.beta_kinetic[i].value, torus.beta_kinetic[i].error, ref.beta_kinetic[i].value,
+                    ref.beta_kinetic[i].error, ref.beta_kinetic[i].value, 1e-13, "beta<K>");
+        check_close(torus.beta2_kinetic_variance[i].value, torus.beta2_kinetic_variance[i].error,
+                    ref.beta2_kinetic_variance[i].value, ref.beta2_kinetic_variance[i].error,
+                    ref.beta2_kinetic_variance[i].value, 1e-13, "beta^2 Var K");
         // <cos phi> -> alpha/2 as beta -> 0: compare relative to its size, floor 1e-3.
-        check_close(torus.cos_angle[i], torus.cos_angle_error[i], ref.cos_angle[i],
-                    ref.cos_angle_error[i], std::max(std::abs(ref.cos_angle[i]), 1e-3), 1e-13,
+        check_close(torus.cos_angle[i].value, torus.cos_angle[i].error, ref.cos_angle[i].value,
+                    ref.cos_angle[i].error, std::max(std::abs(ref.cos_angle[i].value), 1e-3), 1e-13,
                     "<cos phi>");
       }
-      check_close(torus.ratio, torus.ratio_error, ref.ratio, ref.ratio_error, ref.ratio, 1e-13,
+      check_close(torus.ratio->value, torus.ratio->error, ref.ratio->value, ref.ratio->error, ref.ratio->value, 1e-13,
                   "<K1>/<K2>");
       // The error bars are honest but not wildly loose.
-      CHECK(torus.beta_kinetic_error[0] < 2e-14);
+      CHECK(torus.beta_kinetic[0].error < 2e-14);
     }
   }
 }
@@ -163,25 +163,25 @@ TEST_CASE("torus N = 2 with g = 0 is the public beta -> 0 limit", "[torus]") {
   // tests/data/public_values.csv: beta*K1 (beta->0 limit) for masses 0.5 0.5 = (mu1/2) K(k)/E(k).
   const Chain<double> chain({0.5, 0.5}, {1, 1}, 0.0);
   const auto r = torus_average(chain, 1.0);
-  CHECK(std::abs(r.beta_kinetic[0] - 0.3431834814709248549) <= 4e-16);
-  CHECK(std::abs(r.beta_kinetic[1] - 0.6568165185290751451) <= 4e-16);
-  CHECK(r.cos_angle[0] == 0.0);
-  CHECK(r.cos_angle[1] == 0.0);
+  CHECK(std::abs(r.beta_kinetic[0].value - 0.3431834814709248549) <= 4e-16);
+  CHECK(std::abs(r.beta_kinetic[1].value - 0.6568165185290751451) <= 4e-16);
+  CHECK(r.cos_angle[0].value == 0.0);
+  CHECK(r.cos_angle[1].value == 0.0);
 }
 
 TEST_CASE("torus N = 3 reproduces the public reference value", "[torus]") {
   const std::vector<std::string> values = public_n3_values();
   REQUIRE(values.size() == 3);
-  const auto r = torus_average_full(uniform_chain(3), 1.0);
-  REQUIRE(r.averages.converged);
+  const auto r = torus_average(uniform_chain(3), 1.0);
+  REQUIRE(r.converged);
   for (std::size_t i = 0; i < 3; ++i) {
     const std::string& text = values[i];
     const std::size_t decimals = text.size() - text.find('.') - 1;
     const double half_unit = 0.5 * std::pow(10.0, -static_cast<double>(decimals));
-    INFO("particle " << i + 1 << ": " << r.averages.beta_kinetic[i] << " vs " << text);
-    CHECK(std::abs(r.averages.beta_kinetic[i] - std::stod(text)) <=
-          half_unit + r.averages.beta_kinetic_error[i]);
-    CHECK(r.averages.beta_kinetic_error[i] < 1e-14);
+    INFO("particle " << i + 1 << ": " << r.beta_kinetic[i].value << " vs " << text);
+    CHECK(std::abs(r.beta_kinetic[i].value - std::stod(text)) <=
+          half_unit + r.beta_kinetic[i].error);
+    CHECK(r.beta_kinetic[i].error < 1e-14);
   }
 }
 
@@ -192,27 +192,27 @@ TEST_CASE("torus identities: equipartition sum, canonical energies, N = 1", "[to
                               std::vector<double>(n, 1.3), 1.0);
     TorusOptions options;
     options.tolerance = 1e-10;
-    const auto r = torus_average_full(chain, 0.8, options);
+    const auto r = torus_average(chain, 0.8, options);
     INFO("N = " << n);
-    REQUIRE(r.averages.converged);
+    REQUIRE(r.converged);
     double sum = 0;
-    for (double k : r.averages.beta_kinetic) sum += k;
+    for (const pendavg::Estimate<double>& k : r.beta_kinetic) sum += k.value;
     CHECK(std::abs(sum - 0.5 * static_cast<double>(n)) <= 1e-14 * static_cast<double>(n));
     CHECK(r.equipartition_residual <= 1e-14 * static_cast<double>(n));
     REQUIRE(r.beta_kinetic_canonical.size() == n);
-    for (double kc : r.beta_kinetic_canonical) CHECK(kc == 0.5);
+    for (const pendavg::Estimate<double>& kc : r.beta_kinetic_canonical) CHECK(kc.value == 0.5);
     const auto diagonal = pendavg::diagonal_approximation(chain);
     CHECK(r.diagonal_approximation == diagonal);
   }
   // N = 1: the simple pendulum. beta<K> = 1/2, beta^2 Var K = 1/2, <cos phi> = I1(a)/I0(a).
   const Chain<double> single({2.0}, {0.75}, 1.0);
   const double beta = 1.7, a = beta * 2.0 * 0.75;
-  const auto r = torus_average_full(single, beta);
-  REQUIRE(r.averages.converged);
-  CHECK(r.averages.evaluations == 1);
-  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.5) <= 1e-16);
-  CHECK(std::abs(r.averages.beta2_kinetic_variance[0] - 0.5) <= 1e-15);
-  CHECK(std::abs(r.averages.cos_angle[0] - std::cyl_bessel_i(1.0, a) / std::cyl_bessel_i(0.0, a)) <=
+  const auto r = torus_average(single, beta);
+  REQUIRE(r.converged);
+  CHECK(r.evaluations == 1);
+  CHECK(std::abs(r.beta_kinetic[0].value - 0.5) <= 1e-16);
+  CHECK(std::abs(r.beta2_kinetic_variance[0].value - 0.5) <= 1e-15);
+  CHECK(std::abs(r.cos_angle[0].value - std::cyl_bessel_i(1.0, a) / std::cyl_bessel_i(0.0, a)) <=
         1e-15);
 }
 
@@ -225,8 +225,8 @@ TEST_CASE("torus psi reduction agrees with brute force over all N angles", "[tor
   const BruteForce brute = brute_force_torus(chain, beta, 48);
   for (std::size_t i = 0; i < 3; ++i) {
     INFO("particle " << i + 1);
-    CHECK(std::abs(r.beta_kinetic[i] - brute.beta_kinetic[i]) <= 1e-13);
-    CHECK(std::abs(r.cos_angle[i] - brute.cos_angle[i]) <= 1e-13);
+    CHECK(std::abs(r.beta_kinetic[i].value - brute.beta_kinetic[i]) <= 1e-13);
+    CHECK(std::abs(r.cos_angle[i].value - brute.cos_angle[i]) <= 1e-13);
   }
 }
 
@@ -235,73 +235,73 @@ TEST_CASE("torus trapezoid and Gauss-Legendre agree", "[torus]") {
   for (double beta : {0.2, 1.0, 4.0}) {
     TorusOptions gl;
     gl.rule = TorusRule::gauss_legendre;
-    const auto t = torus_average_full(chain, beta);
-    const auto g = torus_average_full(chain, beta, gl);
+    const auto t = torus_average(chain, beta);
+    const auto g = torus_average(chain, beta, gl);
     INFO("beta = " << beta);
-    REQUIRE(t.averages.converged);
-    REQUIRE(g.averages.converged);
-    CHECK(g.rule == TorusRule::gauss_legendre);
+    REQUIRE(t.converged);
+    REQUIRE(g.converged);
+    CHECK(g.method == pendavg::Method::torus_gauss_legendre);
     // Gauss-Legendre is the weaker rule on the circle: it needs at least as many nodes.
-    CHECK(g.points_per_dim >= t.points_per_dim);
+    CHECK(g.torus->points_per_dim >= t.torus->points_per_dim);
     for (std::size_t i = 0; i < 3; ++i) {
-      const auto& x = t.averages;
-      const auto& y = g.averages;
-      check_close(x.beta_kinetic[i], x.beta_kinetic_error[i], y.beta_kinetic[i],
-                  y.beta_kinetic_error[i], x.beta_kinetic[i], 1e-13, "beta<K>");
-      check_close(x.beta2_kinetic_variance[i], x.beta2_kinetic_variance_error[i],
-                  y.beta2_kinetic_variance[i], y.beta2_kinetic_variance_error[i],
-                  x.beta2_kinetic_variance[i], 1e-13, "beta^2 Var K");
-      check_close(x.cos_angle[i], x.cos_angle_error[i], y.cos_angle[i], y.cos_angle_error[i],
-                  std::abs(x.cos_angle[i]), 1e-13, "<cos phi>");
+      const auto& x = t;
+      const auto& y = g;
+      check_close(x.beta_kinetic[i].value, x.beta_kinetic[i].error, y.beta_kinetic[i].value,
+                  y.beta_kinetic[i].error, x.beta_kinetic[i].value, 1e-13, "beta<K>");
+      check_close(x.beta2_kinetic_variance[i].value, x.beta2_kinetic_variance[i].error,
+                  y.beta2_kinetic_variance[i].value, y.beta2_kinetic_variance[i].error,
+                  x.beta2_kinetic_variance[i].value, 1e-13, "beta^2 Var K");
+      check_close(x.cos_angle[i].value, x.cos_angle[i].error, y.cos_angle[i].value, y.cos_angle[i].error,
+                  std::abs(x.cos_angle[i].value), 1e-13, "<cos phi>");
     }
   }
 }
 
 TEST_CASE("torus N = 3 at beta = 0.1 against the paper's diagonal approximation", "[torus]") {
   // MATH.md Sec. 8: the diagonal approximation gives 1/6 where the exact value is ~0.311.
-  const auto r = torus_average_full(uniform_chain(3), 0.1);
-  REQUIRE(r.averages.converged);
-  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.3114096682) <= 5e-11);
+  const auto r = torus_average(uniform_chain(3), 0.1);
+  REQUIRE(r.converged);
+  CHECK(std::abs(r.beta_kinetic[0].value - 0.3114096682) <= 5e-11);
   CHECK(std::abs(r.diagonal_approximation[0] - 1.0 / 6.0) <= 1e-16);
-  CHECK(r.averages.beta_kinetic[0] > 1.8 * r.diagonal_approximation[0]);
+  CHECK(r.beta_kinetic[0].value > 1.8 * r.diagonal_approximation[0]);
 }
 
 TEST_CASE("torus N = 4 reaches 1e-11 within seconds", "[torus]") {
   TorusOptions options;
   options.tolerance = 1e-11;
   const auto start = std::chrono::steady_clock::now();
-  const auto r = torus_average_full(uniform_chain(4), 1.0, options);
+  const auto r = torus_average(uniform_chain(4), 1.0, options);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  REQUIRE(r.averages.converged);
+  REQUIRE(r.converged);
   CHECK(seconds < 5.0);
-  CHECK(r.points_per_dim <= 64);
+  CHECK(r.torus->points_per_dim <= 64);
   double sum = 0;
   for (std::size_t i = 0; i < 4; ++i) {
-    CHECK(r.averages.beta_kinetic_error[i] <= 1e-11 * r.averages.beta_kinetic[i]);
-    sum += r.averages.beta_kinetic[i];
+    CHECK(r.beta_kinetic[i].error <= 1e-11 * r.beta_kinetic[i].value);
+    sum += r.beta_kinetic[i].value;
   }
   CHECK(std::abs(sum - 2.0) <= 1e-14);
   // Pinned by this engine at 1e-13 (trapezoid 128^3 and Gauss-Legendre agree to 1e-16).
-  CHECK(std::abs(r.averages.beta_kinetic[0] - 0.3361049374507111) <= 1e-13);
-  CHECK(std::abs(r.averages.beta_kinetic[3] - 0.6960178678347102) <= 1e-13);
+  CHECK(std::abs(r.beta_kinetic[0].value - 0.3361049374507111) <= 1e-13);
+  CHECK(std::abs(r.beta_kinetic[3].value - 0.6960178678347102) <= 1e-13);
 }
 
 TEST_CASE("torus work: mirror halving, nesting, determinism, the node guard", "[torus]") {
   // Every node of the final n^D grid is evaluated once per mirror orbit: (n^D + 2^D) / 2
   // (the 2^D fixed points have every delta_i in {0, pi}), summed over the nested levels.
-  const auto r = torus_average_full(uniform_chain(3), 1.0);
-  const std::size_t n = r.points_per_dim;
-  CHECK(r.averages.evaluations == (n * n + 4) / 2);
-  CHECK(r.grid_points == static_cast<double>(n * n));
+  const auto r = torus_average(uniform_chain(3), 1.0);
+  const std::size_t n = r.torus->points_per_dim;
+  CHECK(r.evaluations == (n * n + 4) / 2);
+  CHECK(r.torus->grid_points == static_cast<double>(n * n));
 
   // Bitwise identical results for any thread count (partials combined in a fixed order).
   TorusOptions two;
   two.threads = 2;
-  const auto s = torus_average_full(uniform_chain(3), 1.0, two);
-  CHECK(s.averages.beta_kinetic == r.averages.beta_kinetic);
-  CHECK(s.averages.cos_angle == r.averages.cos_angle);
-  CHECK(s.averages.beta2_kinetic_variance == r.averages.beta2_kinetic_variance);
+  const auto s = torus_average(uniform_chain(3), 1.0, two);
+  CHECK(s.beta_kinetic == r.beta_kinetic);
+  CHECK(s.cos_angle == r.cos_angle);
+  CHECK(s.beta2_kinetic_variance == r.beta2_kinetic_variance);
 
   // n^(N-1) > 1e9 at the first level is refused; so are bad inputs.
   CHECK_THROWS_AS(torus_average(uniform_chain(12), 1.0), pendavg::invalid_input);
@@ -324,19 +324,19 @@ TEST_CASE("torus stopped before the large-beta peak is resolved reports it hones
   TorusOptions coarse;
   coarse.max_points_per_dim = 64;
   coarse.node_map = pendavg::TorusNodeMap::none;
-  const auto c = torus_average_full(chain, 1e4, coarse);
-  CHECK_FALSE(c.averages.converged);
-  const auto f = torus_average_full(chain, 1e4);
-  CHECK(f.points_per_dim <= 256);
-  REQUIRE(f.averages.converged);
+  const auto c = torus_average(chain, 1e4, coarse);
+  CHECK_FALSE(c.converged);
+  const auto f = torus_average(chain, 1e4);
+  CHECK(f.torus->points_per_dim <= 256);
+  REQUIRE(f.converged);
   for (std::size_t i = 0; i < 3; ++i) {
     INFO("particle " << i + 1);
-    CHECK(std::abs(c.averages.beta_kinetic[i] - f.averages.beta_kinetic[i]) <=
-          c.averages.beta_kinetic_error[i]);
-    CHECK(std::abs(c.averages.cos_angle[i] - f.averages.cos_angle[i]) <=
-          c.averages.cos_angle_error[i]);
+    CHECK(std::abs(c.beta_kinetic[i].value - f.beta_kinetic[i].value) <=
+          c.beta_kinetic[i].error);
+    CHECK(std::abs(c.cos_angle[i].value - f.cos_angle[i].value) <=
+          c.cos_angle[i].error);
     // Still above its true value's distance from 1/2: the peak was seen, not resolved.
-    CHECK(std::abs(f.averages.beta_kinetic[i] - 0.5) > 1e-6);
+    CHECK(std::abs(f.beta_kinetic[i].value - 0.5) > 1e-6);
   }
 }
 
@@ -353,44 +353,44 @@ TEST_CASE("torus hard cases: light particles and large beta, mapped nodes", "[to
                                 {{1, 1}, 1e3, 128},    {{1, 1}, 1e5, 512}};
   for (const auto& h : n2) {
     const Chain<double> chain(h.masses, {1.0, 1.0}, 1.0);
-    const auto t = torus_average_full(chain, h.beta);
+    const auto t = torus_average(chain, h.beta);
     const auto ref = pendavg::reduced_integral_average(chain, h.beta);
     INFO("m1 = " << h.masses[0] << ", beta = " << h.beta);
-    REQUIRE(t.averages.converged);
-    CHECK(t.points_per_dim <= h.max_n);
+    REQUIRE(t.converged);
+    CHECK(t.torus->points_per_dim <= h.max_n);
     for (std::size_t i = 0; i < 2; ++i) {
-      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
-                  ref.beta_kinetic[i], ref.beta_kinetic_error[i], ref.beta_kinetic[i], 1e-13,
+      check_close(t.beta_kinetic[i].value, t.beta_kinetic[i].error,
+                  ref.beta_kinetic[i].value, ref.beta_kinetic[i].error, ref.beta_kinetic[i].value, 1e-13,
                   "beta<K>");
-      check_close(t.averages.cos_angle[i], t.averages.cos_angle_error[i], ref.cos_angle[i],
-                  ref.cos_angle_error[i], std::abs(ref.cos_angle[i]), 1e-13, "<cos phi>");
+      check_close(t.cos_angle[i].value, t.cos_angle[i].error, ref.cos_angle[i].value,
+                  ref.cos_angle[i].error, std::abs(ref.cos_angle[i].value), 1e-13, "<cos phi>");
     }
   }
   // N = 3, light particle first or in the middle: mapped trapezoid, mapped Gauss-Legendre and the
   // plain trapezoid (which needs 4x the nodes per dimension) agree.
   for (const auto& masses : {std::vector<double>{1e-3, 1, 1}, std::vector<double>{1, 1e-3, 1}}) {
     const Chain<double> chain(masses, {1.0, 1.0, 1.0}, 1.0);
-    const auto t = torus_average_full(chain, 1.0);
+    const auto t = torus_average(chain, 1.0);
     TorusOptions gl;
     gl.rule = TorusRule::gauss_legendre;
-    const auto g = torus_average_full(chain, 1.0, gl);
+    const auto g = torus_average(chain, 1.0, gl);
     TorusOptions plain;
     plain.node_map = pendavg::TorusNodeMap::none;
     plain.tolerance = 1e-11;
-    const auto p = torus_average_full(chain, 1.0, plain);
+    const auto p = torus_average(chain, 1.0, plain);
     INFO("masses " << masses[0] << " " << masses[1] << " " << masses[2]);
-    REQUIRE(t.averages.converged);
-    REQUIRE(g.averages.converged);
-    REQUIRE(p.averages.converged);
-    CHECK(t.points_per_dim <= 256);
-    CHECK(p.points_per_dim >= 2 * t.points_per_dim);
+    REQUIRE(t.converged);
+    REQUIRE(g.converged);
+    REQUIRE(p.converged);
+    CHECK(t.torus->points_per_dim <= 256);
+    CHECK(p.torus->points_per_dim >= 2 * t.torus->points_per_dim);
     for (std::size_t i = 0; i < 3; ++i) {
-      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
-                  g.averages.beta_kinetic[i], g.averages.beta_kinetic_error[i],
-                  t.averages.beta_kinetic[i], 1e-13, "trapezoid vs Gauss-Legendre");
-      check_close(t.averages.beta_kinetic[i], t.averages.beta_kinetic_error[i],
-                  p.averages.beta_kinetic[i], p.averages.beta_kinetic_error[i],
-                  t.averages.beta_kinetic[i], 1e-11, "mapped vs plain");
+      check_close(t.beta_kinetic[i].value, t.beta_kinetic[i].error,
+                  g.beta_kinetic[i].value, g.beta_kinetic[i].error,
+                  t.beta_kinetic[i].value, 1e-13, "trapezoid vs Gauss-Legendre");
+      check_close(t.beta_kinetic[i].value, t.beta_kinetic[i].error,
+                  p.beta_kinetic[i].value, p.beta_kinetic[i].error,
+                  t.beta_kinetic[i].value, 1e-11, "mapped vs plain");
     }
   }
 }
@@ -406,15 +406,15 @@ TEST_CASE("torus in long double and MPFR agrees with double within the error bar
   const auto mp = torus_average(chain.cast<mpfr_real>(), mpfr_real(beta), mp_options);
   REQUIRE(mp.converged);
   for (std::size_t i = 0; i < 3; ++i) {
-    const double exact = static_cast<double>(mp.beta_kinetic[i]);
+    const double exact = static_cast<double>(mp.beta_kinetic[i].value);
     INFO("particle " << i + 1);
-    CHECK(mp.beta_kinetic_error[i] < 1e-24);
-    CHECK(std::abs(d.beta_kinetic[i] - exact) <= d.beta_kinetic_error[i]);
-    CHECK(std::abs(d.beta_kinetic[i] - exact) <= 1e-15);
-    CHECK(std::abs(static_cast<double>(ld.beta_kinetic[i]) - exact) <= 1e-16);
-    CHECK(std::abs(d.cos_angle[i] - static_cast<double>(mp.cos_angle[i])) <= d.cos_angle_error[i]);
-    CHECK(std::abs(d.beta2_kinetic_variance[i] - static_cast<double>(mp.beta2_kinetic_variance[i])) <=
-          d.beta2_kinetic_variance_error[i]);
+    CHECK(mp.beta_kinetic[i].error < 1e-24);
+    CHECK(std::abs(d.beta_kinetic[i].value - exact) <= d.beta_kinetic[i].error);
+    CHECK(std::abs(d.beta_kinetic[i].value - exact) <= 1e-15);
+    CHECK(std::abs(static_cast<double>(ld.beta_kinetic[i].value) - exact) <= 1e-16);
+    CHECK(std::abs(d.cos_angle[i].value - static_cast<double>(mp.cos_angle[i].value)) <= d.cos_angle[i].error);
+    CHECK(std::abs(d.beta2_kinetic_variance[i].value - static_cast<double>(mp.beta2_kinetic_variance[i].value)) <=
+          d.beta2_kinetic_variance[i].error);
   }
 }
 
@@ -430,9 +430,9 @@ TEST_CASE("torus N = 3 at 30 digits: trapezoid, Gauss-Legendre and the public va
   REQUIRE(g.converged);
   const std::vector<std::string> values = public_n3_values();
   for (std::size_t i = 0; i < 3; ++i) {
-    CHECK(abs(t.beta_kinetic[i] - g.beta_kinetic[i]) <= t.beta_kinetic_error[i] + g.beta_kinetic_error[i]);
-    CHECK(abs(t.beta_kinetic[i] - g.beta_kinetic[i]) <= mpfr_real("1e-30"));
-    CHECK(abs(t.beta_kinetic[i] - mpfr_real(values[i])) <= mpfr_real("5e-15"));
+    CHECK(abs(t.beta_kinetic[i].value - g.beta_kinetic[i].value) <= t.beta_kinetic[i].error + g.beta_kinetic[i].error);
+    CHECK(abs(t.beta_kinetic[i].value - g.beta_kinetic[i].value) <= mpfr_real("1e-30"));
+    CHECK(abs(t.beta_kinetic[i].value - mpfr_real(values[i])) <= mpfr_real("5e-15"));
   }
 }
 
@@ -440,14 +440,14 @@ TEST_CASE("torus N = 5 reaches 1e-10", "[torus][.slow]") {
   TorusOptions options;
   options.tolerance = 1e-10;
   options.threads = 2;
-  const auto r = torus_average_full(uniform_chain(5), 1.0, options);
-  REQUIRE(r.averages.converged);
+  const auto r = torus_average(uniform_chain(5), 1.0, options);
+  REQUIRE(r.converged);
   double sum = 0;
-  for (double k : r.averages.beta_kinetic) sum += k;
+  for (const pendavg::Estimate<double>& k : r.beta_kinetic) sum += k.value;
   CHECK(std::abs(sum - 2.5) <= 1e-14);
   // beta<K_i> increases down the chain for equal masses (as for N = 2, 3, 4).
   for (std::size_t i = 0; i + 1 < 5; ++i) {
-    CHECK(r.averages.beta_kinetic[i] < r.averages.beta_kinetic[i + 1]);
+    CHECK(r.beta_kinetic[i].value < r.beta_kinetic[i + 1].value);
   }
 }
 
@@ -469,14 +469,14 @@ double check_qmc_coverage(const Chain<double>& chain, double beta, pendavg::QmcP
     options.shifts = 16;
     options.seed = seed;
     options.proposal = proposal;
-    const auto q = pendavg::qmc_average(chain, beta, options).averages;
+    const auto q = pendavg::qmc_average(chain, beta, options);
     REQUIRE(q.evaluations == 1024 * 16);
     for (std::size_t i = 0; i < n; ++i) {
-      kinetic[i] += std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]) <= q.beta_kinetic_error[i];
-      cosine[i] += std::abs(q.cos_angle[i] - exact.cos_angle[i]) <= q.cos_angle_error[i];
-      variance[i] += std::abs(q.beta2_kinetic_variance[i] - exact.beta2_kinetic_variance[i]) <=
-                     q.beta2_kinetic_variance_error[i];
-      largest_error = std::max(largest_error, std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]));
+      kinetic[i] += std::abs(q.beta_kinetic[i].value - exact.beta_kinetic[i].value) <= q.beta_kinetic[i].error;
+      cosine[i] += std::abs(q.cos_angle[i].value - exact.cos_angle[i].value) <= q.cos_angle[i].error;
+      variance[i] += std::abs(q.beta2_kinetic_variance[i].value - exact.beta2_kinetic_variance[i].value) <=
+                     q.beta2_kinetic_variance[i].error;
+      largest_error = std::max(largest_error, std::abs(q.beta_kinetic[i].value - exact.beta_kinetic[i].value));
     }
   }
   for (std::size_t i = 0; i < n; ++i) {
@@ -513,18 +513,18 @@ TEST_CASE("qmc: the pivot and von Mises proposals agree at N = 8; identities at 
   options.proposal = pendavg::QmcProposal::von_mises;
   const auto plain = pendavg::qmc_average(chain, 1.0, options);
   // The pivot law keeps the weights even; the von Mises law leaves all of sqrt(det A) to them.
-  CHECK(pivot.effective_sample_fraction > 0.8);
-  CHECK(pivot.effective_sample_fraction > 2 * plain.effective_sample_fraction);
+  CHECK(pivot.qmc->effective_sample_fraction > 0.8);
+  CHECK(pivot.qmc->effective_sample_fraction > 2 * plain.qmc->effective_sample_fraction);
   for (std::size_t i = 0; i < 8; ++i) {
-    const auto& a = pivot.averages;
-    const auto& b = plain.averages;
+    const auto& a = pivot;
+    const auto& b = plain;
     INFO("particle " << i + 1);
-    CHECK(std::abs(a.beta_kinetic[i] - b.beta_kinetic[i]) <=
-          a.beta_kinetic_error[i] + b.beta_kinetic_error[i]);
-    CHECK(std::abs(a.cos_angle[i] - b.cos_angle[i]) <= a.cos_angle_error[i] + b.cos_angle_error[i]);
-    CHECK(std::abs(a.beta2_kinetic_variance[i] - b.beta2_kinetic_variance[i]) <=
-          a.beta2_kinetic_variance_error[i] + b.beta2_kinetic_variance_error[i]);
-    CHECK(a.beta_kinetic_error[i] < 2e-4);
+    CHECK(std::abs(a.beta_kinetic[i].value - b.beta_kinetic[i].value) <=
+          a.beta_kinetic[i].error + b.beta_kinetic[i].error);
+    CHECK(std::abs(a.cos_angle[i].value - b.cos_angle[i].value) <= a.cos_angle[i].error + b.cos_angle[i].error);
+    CHECK(std::abs(a.beta2_kinetic_variance[i].value - b.beta2_kinetic_variance[i].value) <=
+          a.beta2_kinetic_variance[i].error + b.beta2_kinetic_variance[i].error);
+    CHECK(a.beta_kinetic[i].error < 2e-4);
   }
 
   // N = 64, beta = 1 (the issue's case) on the built-in table: the identity, even weights, and
@@ -534,11 +534,11 @@ TEST_CASE("qmc: the pivot and von Mises proposals agree at N = 8; identities at 
   long_options.shifts = 8;
   const auto r = pendavg::qmc_average(uniform_chain(64), 1.0, long_options);
   CHECK(r.equipartition_residual <= 1e-12);
-  CHECK(r.effective_sample_fraction > 0.6);
-  CHECK(r.averages.beta_kinetic.front() < r.averages.beta_kinetic.back());
+  CHECK(r.qmc->effective_sample_fraction > 0.6);
+  CHECK(r.beta_kinetic.front().value < r.beta_kinetic.back().value);
   for (std::size_t i = 0; i < 64; ++i) {
-    CHECK(r.averages.beta_kinetic[i] > 0);
-    CHECK(r.averages.beta_kinetic_error[i] < 0.05);
+    CHECK(r.beta_kinetic[i].value > 0);
+    CHECK(r.beta_kinetic[i].error < 0.05);
   }
 }
 
@@ -552,21 +552,23 @@ TEST_CASE("qmc is deterministic per seed and honours the identities", "[torus][q
   const auto b = pendavg::qmc_average(chain, 2.0, options);
   options.threads = 2;
   const auto c = pendavg::qmc_average(chain, 2.0, options);
-  CHECK(a.averages.beta_kinetic == b.averages.beta_kinetic);
-  CHECK(a.averages.beta_kinetic == c.averages.beta_kinetic);
-  CHECK(a.averages.beta_kinetic_error == c.averages.beta_kinetic_error);
+  CHECK(a.beta_kinetic == b.beta_kinetic);
+  for (std::size_t i = 0; i < a.beta_kinetic.size(); ++i) {
+    CHECK(a.beta_kinetic[i].value == c.beta_kinetic[i].value);
+    CHECK(a.beta_kinetic[i].error == c.beta_kinetic[i].error);
+  }
   options.seed = 43;
   const auto d = pendavg::qmc_average(chain, 2.0, options);
-  CHECK(a.averages.beta_kinetic != d.averages.beta_kinetic);
+  CHECK(a.beta_kinetic != d.beta_kinetic);
   double sum = 0;
-  for (double k : a.averages.beta_kinetic) sum += k;
+  for (const pendavg::Estimate<double>& k : a.beta_kinetic) sum += k.value;
   CHECK(std::abs(sum - 2.5) <= 1e-14);
   CHECK(a.equipartition_residual <= 1e-14);
-  for (double kc : a.beta_kinetic_canonical) CHECK(kc == 0.5);
+  for (const pendavg::Estimate<double>& kc : a.beta_kinetic_canonical) CHECK(kc.value == 0.5);
   CHECK(a.diagonal_approximation == pendavg::diagonal_approximation(chain));
   // The Best-Fisher acceptance ratio and sqrt(det A) keep the weights even.
-  CHECK(a.effective_sample_fraction > 0.3);
-  CHECK(a.effective_sample_fraction <= 1.0);
+  CHECK(a.qmc->effective_sample_fraction > 0.3);
+  CHECK(a.qmc->effective_sample_fraction <= 1.0);
 }
 
 TEST_CASE("qmc built-in lattices are the CBC construction; options are checked", "[torus][qmc]") {
@@ -621,9 +623,9 @@ TEST_CASE("qmc built-in lattices are the CBC construction; options are checked",
   own.generating_vector = q::fast_cbc_generating_vector(10, 300, gamma, 2);
   const auto long_chain = pendavg::qmc_average(uniform_chain(300), 1.0, own);
   double sum = 0;
-  for (double k : long_chain.averages.beta_kinetic) sum += k;
+  for (const pendavg::Estimate<double>& k : long_chain.beta_kinetic) sum += k.value;
   CHECK(std::abs(sum - 150.0) <= 1e-11);
-  CHECK(long_chain.effective_sample_fraction > 0.1);
+  CHECK(long_chain.qmc->effective_sample_fraction > 0.1);
 }
 
 TEST_CASE("qmc N = 5 agrees with the exact torus value", "[torus][qmc][.slow]") {
@@ -636,12 +638,12 @@ TEST_CASE("qmc N = 5 agrees with the exact torus value", "[torus][qmc][.slow]") 
   pendavg::QmcOptions options;
   options.points = std::size_t(1) << 16;
   options.threads = 2;
-  const auto q = pendavg::qmc_average(chain, 1.5, options).averages;
+  const auto q = pendavg::qmc_average(chain, 1.5, options);
   for (std::size_t i = 0; i < 5; ++i) {
     INFO("particle " << i + 1);
-    CHECK(std::abs(q.beta_kinetic[i] - exact.beta_kinetic[i]) <= q.beta_kinetic_error[i]);
-    CHECK(std::abs(q.cos_angle[i] - exact.cos_angle[i]) <= q.cos_angle_error[i]);
-    CHECK(q.beta_kinetic_error[i] < 1e-5);
+    CHECK(std::abs(q.beta_kinetic[i].value - exact.beta_kinetic[i].value) <= q.beta_kinetic[i].error);
+    CHECK(std::abs(q.cos_angle[i].value - exact.cos_angle[i].value) <= q.cos_angle[i].error);
+    CHECK(q.beta_kinetic[i].error < 1e-5);
   }
 }
 
@@ -649,19 +651,19 @@ TEST_CASE("limits for any N: beta -> 0 and beta -> infinity", "[torus][limits]")
   using pendavg::Chain;
   // N = 2: the torus limit reproduces the paper's elliptic K/E formula (an independent method).
   const Chain<double> pair({0.3, 0.7}, {1.0, 2.0}, 1.0);
-  const pendavg::Averages<double> elliptic = pendavg::high_temperature_limit(pair, 16);
+  const pendavg::Averages<double> elliptic = pendavg::elliptic_high_temperature_limit(pair, 16);
   const pendavg::Averages<double> any2 = pendavg::high_temperature_limit_any(pair);
   for (std::size_t i = 0; i < 2; ++i) {
-    CHECK(std::abs(any2.beta_kinetic[i] - elliptic.beta_kinetic[i]) <=
-          any2.beta_kinetic_error[i] + elliptic.beta_kinetic_error[i] + 1e-15);
-    CHECK(std::abs(any2.beta2_kinetic_variance[i] - elliptic.beta2_kinetic_variance[i]) <= 1e-12);
-    CHECK(any2.cos_angle[i] == 0.0);
+    CHECK(std::abs(any2.beta_kinetic[i].value - elliptic.beta_kinetic[i].value) <=
+          any2.beta_kinetic[i].error + elliptic.beta_kinetic[i].error + 1e-15);
+    CHECK(std::abs(any2.beta2_kinetic_variance[i].value - elliptic.beta2_kinetic_variance[i].value) <= 1e-12);
+    CHECK(any2.cos_angle[i].value == 0.0);
   }
   const pendavg::Averages<double> low2 = pendavg::low_temperature_limit_any(pair);
   const pendavg::Averages<double> low2_ref = pendavg::low_temperature_limit(pair);
   for (std::size_t i = 0; i < 2; ++i) {
-    CHECK(low2.beta_kinetic[i] == 0.5);
-    CHECK(std::abs(low2.beta2_kinetic_variance[i] - low2_ref.beta2_kinetic_variance[i]) <= 1e-15);
+    CHECK(low2.beta_kinetic[i].value == 0.5);
+    CHECK(std::abs(low2.beta2_kinetic_variance[i].value - low2_ref.beta2_kinetic_variance[i].value) <= 1e-15);
   }
   // N = 3 with unequal masses and lengths: the limits are approached by the finite-beta torus.
   const Chain<double> chain({1.0, 0.4, 2.0}, {1.0, 0.6, 1.3}, 1.0);
@@ -673,14 +675,14 @@ TEST_CASE("limits for any N: beta -> 0 and beta -> infinity", "[torus][limits]")
   const pendavg::Averages<double> cold = pendavg::torus_average(chain, 1e4, cold_options);
   double sum = 0;
   for (std::size_t i = 0; i < 3; ++i) {
-    sum += high.beta_kinetic[i];
-    CHECK(std::abs(high.beta_kinetic[i] - hot.beta_kinetic[i]) <= 1e-8);  // O(beta) corrections
-    CHECK(std::abs(high.beta2_kinetic_variance[i] - hot.beta2_kinetic_variance[i]) <= 1e-8);
-    CHECK(std::abs(hot.cos_angle[i]) <= 1e-8);
+    sum += high.beta_kinetic[i].value;
+    CHECK(std::abs(high.beta_kinetic[i].value - hot.beta_kinetic[i].value) <= 1e-8);  // O(beta) corrections
+    CHECK(std::abs(high.beta2_kinetic_variance[i].value - hot.beta2_kinetic_variance[i].value) <= 1e-8);
+    CHECK(std::abs(hot.cos_angle[i].value) <= 1e-8);
     // beta = 1e4: the corrections are O(1/beta) ~ 1e-4.
-    CHECK(std::abs(cold.beta_kinetic[i] - low.beta_kinetic[i]) <= 1e-3);
-    CHECK(std::abs(cold.beta2_kinetic_variance[i] - low.beta2_kinetic_variance[i]) <= 1e-3);
-    CHECK(std::abs(cold.cos_angle[i] - 1) <= 1e-3);
+    CHECK(std::abs(cold.beta_kinetic[i].value - low.beta_kinetic[i].value) <= 1e-3);
+    CHECK(std::abs(cold.beta2_kinetic_variance[i].value - low.beta2_kinetic_variance[i].value) <= 1e-3);
+    CHECK(std::abs(cold.cos_angle[i].value - 1) <= 1e-3);
   }
   CHECK(std::abs(sum - 1.5) <= 1e-13);  // sum_i beta<K_i> = N/2 holds in the limit too
   // N = 8: the QMC branch, within its bars of the identity sum = N/2.
@@ -689,8 +691,8 @@ TEST_CASE("limits for any N: beta -> 0 and beta -> infinity", "[torus][limits]")
   CHECK(high8.method == pendavg::Method::qmc);
   double sum8 = 0, bars8 = 0;
   for (std::size_t i = 0; i < 8; ++i) {
-    sum8 += high8.beta_kinetic[i];
-    bars8 += high8.beta_kinetic_error[i];
+    sum8 += high8.beta_kinetic[i].value;
+    bars8 += high8.beta_kinetic[i].error;
   }
   CHECK(std::abs(sum8 - 4) <= bars8);
 }

@@ -4,7 +4,7 @@
 // (eqs. detA, trA1Ainv-dp), and against exact identities (MATH.md Secs. 1, 2, 4, 8).
 #include "oracle/dense_traces.hpp"
 #include "pendavg/chain.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/precision.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <catch2/catch.hpp>

@@ -55,6 +55,14 @@ class Chain {
   Real g_;
 };
 
+/// Smallest and largest significant digits a caller may request: 16 runs in double, 17..1000 in
+/// MPFR (Real = mpfr_real, pendavg/mpfr.hpp).
+inline constexpr int min_digits = 16;
+inline constexpr int max_digits = 1000;
+
+/// Guard digits carried beyond the requested ones in every MPFR computation.
+inline constexpr int guard_digits = 12;
+
 /// Validates an inverse temperature: finite and > 0. Throws invalid_input otherwise.
 template <class Real>
 void check_beta(const Real& beta);

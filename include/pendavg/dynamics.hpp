@@ -66,7 +66,7 @@
 // at N = 16 per step: yoshida4 0.45 us, yoshida6 0.87 us, kahan_li6 1.1 us; linear in N
 // (25-35 ns per particle per yoshida4 step for N >= 16).
 //
-// Generic over Real (double and long double are instantiated in src/dynamics.cpp). The model
+// Generic over Real (double and long double are instantiated in src/engine/dynamics.cpp). The model
 // (Chain) is kept apart from the state (ChainState) and the workspace (DynamicsWorkspace). The
 // library does no I/O: progress, trajectories and interruption go through DynamicsObserver.
 #pragma once
@@ -273,11 +273,12 @@ struct DynamicsObserver {
   const std::atomic<bool>* stop = nullptr;
 };
 
-/// A time average with its statistical error bar.
+/// A time average with its statistical error bar: the mean and one standard error (1 sigma)
+/// from blocking (kind statistical), and the integrated autocorrelation time they imply.
 template <class Real>
-struct TimeAverage {
-  Real value{}, error{};               ///< mean; one standard error from blocking
-  Real autocorrelation_time{};         ///< integrated autocorrelation time (time units)
+struct TimeAverage : Estimate<Real> {
+  TimeAverage() { this->kind = ErrorKind::statistical; }
+  Real autocorrelation_time{};  ///< integrated autocorrelation time (time units)
 };
 
 template <class Real>
@@ -307,6 +308,11 @@ template <class Real>
 SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> initial,
                                 const SimulationOptions& options,
                                 const DynamicsObserver<Real>& observer = {});
+
+/// "x86-64-v3" (AVX2 + FMA) or "base": the instruction set the dynamics kernels run with on this
+/// CPU, chosen at the first call (PENDAVG_DYNAMICS_ISA=base in the environment forces the
+/// baseline). Results agree to rounding (fused multiply-adds).
+const char* dynamics_instruction_set();
 
 // ---------------------------------------------------------------- Poincare section (N = 2)
 

@@ -1,12 +1,21 @@
-// pendavg/result.hpp -- what every average comes back as: value + error estimate + work + method.
+// pendavg/result.hpp -- what every average comes back as: value + error + kind of error, work,
+// method.
 //
-// Following GSL's {value, error} and Arb's balls: each value carries an absolute error
-// estimate that is meant to cover the true error (tests look for estimates that do not).
-// "Did not converge" is a status with a still-valid estimate, never a silent wrong value.
+// Following GSL's {val, err} and Arb's balls, every observable is an Estimate: a value and an
+// absolute error that is meant to cover the true error. What the error promises is machine
+// readable (ErrorKind):
+//   * bound       -- a rigorous bound (the series' certified tail bound; exact formulas, whose
+//                    error is rounding only);
+//   * estimate    -- a deterministic error estimate from refinement (quadrature levels), checked
+//                    against independent methods in the tests but not a proof;
+//   * statistical -- a statistical error bar (randomized QMC: 3 sigma from random shifts; time
+//                    averages: 1 sigma from blocking).
+// Tests look for estimates that fail to cover the truth. "Did not converge" is a status with a
+// still-valid estimate (converged = false), never a silent wrong value.
 #pragma once
 
 #include <cstddef>
-#include <string>
+#include <optional>
 #include <vector>
 
 namespace pendavg {
@@ -27,27 +36,81 @@ enum class Method {
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).
 const char* method_name(Method m);
 
-/// One number with its absolute error estimate.
+/// What an error promises (see the header comment).
+enum class ErrorKind { bound, estimate, statistical };
+
+/// "bound", "estimate" or "statistical".
+const char* error_kind_name(ErrorKind kind);
+
+/// What `evaluations` counts.
+enum class WorkUnit {
+  terms,    ///< series terms (or exact finite-sum terms)
+  nodes,    ///< quadrature nodes (integrand evaluations)
+  samples,  ///< QMC points summed over the random shifts
+  steps,    ///< time steps of a trajectory
+};
+
+/// "terms", "nodes", "samples" or "steps".
+const char* work_unit_name(WorkUnit unit);
+
+/// One number with its absolute error and what that error promises.
 template <class Real>
 struct Estimate {
   Real value{};
   Real error{};
+  ErrorKind kind = ErrorKind::estimate;
 };
 
-/// Thermal averages of one chain at one beta. Arrays have one entry per particle.
+/// The torus rules' refinement (method torus_trapezoid or torus_gauss_legendre).
+template <class Real>
+struct TorusDiagnostics {
+  std::size_t points_per_dim = 0;  ///< n of the final level
+  double grid_points = 0;          ///< n^(N-1) of the final level (before the mirror halving)
+  std::size_t levels = 0;          ///< refinement levels evaluated
+  /// Z = <exp(log sqrt det A - log_hadamard - S) I0(R)> over the uniform torus (the partition
+  /// function up to known factors), with its error.
+  Estimate<Real> mean_weight;
+};
+
+/// The randomized lattice QMC run (method qmc).
+template <class Real>
+struct QmcDiagnostics {
+  std::size_t points = 0;  ///< lattice points per shift
+  std::size_t shifts = 0;  ///< independent random shifts
+  /// Jackknife standard errors (1 sigma) over the shifts; the reported errors are `sigmas` times
+  /// these plus a rounding allowance.
+  std::vector<Real> beta_kinetic_standard_error, cos_angle_standard_error,
+      beta2_kinetic_variance_standard_error;
+  double sigmas = 3;
+  /// Kish's effective sample size of the pooled weights over points * shifts.
+  Real effective_sample_fraction{};
+};
+
+/// Thermal averages of one chain at one inverse temperature (or in one of its limits). Arrays have
+/// one entry per particle, index i = particle i + 1 of the paper.
 template <class Real>
 struct Averages {
-  std::vector<Real> beta_kinetic;         ///< beta <K_i>
-  std::vector<Real> beta_kinetic_error;   ///< absolute error estimates of beta <K_i>
-  std::vector<Real> cos_angle;            ///< <cos phi_i>
-  std::vector<Real> cos_angle_error;
-  std::vector<Real> beta2_kinetic_variance;  ///< beta^2 Var K_i
-  std::vector<Real> beta2_kinetic_variance_error;
-  Real ratio{};        ///< <K_1>/<K_2> (N = 2)
-  Real ratio_error{};
+  std::vector<Estimate<Real>> beta_kinetic;            ///< beta <K_i>
+  std::vector<Estimate<Real>> cos_angle;               ///< <cos phi_i>
+  std::vector<Estimate<Real>> beta2_kinetic_variance;  ///< beta^2 Var K_i
+  /// <K_1>/<K_2>; empty for a single pendulum (N = 1).
+  std::optional<Estimate<Real>> ratio;
+  /// beta <K_i^(c)>, K_i^(c) = p_i phidot_i / 2: 1/2 exactly for every chain (MATH.md Sec. 4,
+  /// generalized equipartition), reported as the built-in check it is (error 0, kind bound).
+  std::vector<Estimate<Real>> beta_kinetic_canonical;
+  /// The paper's diagonal approximation, eq. ke-linear-tave-1 (MATH.md Sec. 8): beside the exact
+  /// values, never instead of them. An approximation, not an estimate of the average: no error.
+  std::vector<Real> diagonal_approximation;
+  /// |sum_i beta<K_i> - N/2|: the trace identity sum_i tr X_i = N after the computation.
+  Real equipartition_residual{};
   Method method{Method::reduced_integral};
-  std::size_t evaluations = 0;  ///< series terms or quadrature nodes actually used
-  bool converged = true;        ///< false: the requested tolerance was not reached
+  /// The kind of the errors of beta_kinetic and ratio (the other observables carry their own).
+  ErrorKind error_kind = ErrorKind::estimate;
+  std::size_t evaluations = 0;  ///< work done, in `work_unit`
+  WorkUnit work_unit = WorkUnit::nodes;
+  bool converged = true;  ///< false: the requested accuracy was not reached (errors still hold)
+  std::optional<TorusDiagnostics<Real>> torus;  ///< torus methods only
+  std::optional<QmcDiagnostics<Real>> qmc;      ///< qmc only
 };
 
 }  // namespace pendavg

@@ -53,7 +53,6 @@
 #pragma once
 
 #include "pendavg/chain.hpp"
-#include "pendavg/precision.hpp"
 
 #include <cstddef>
 #include <vector>

@@ -1,7 +1,7 @@
 // src/cli/args.cpp -- strict parsing of the pendavg command line, numbers and cases files.
 #include "args.hpp"
 
-#include "pendavg/precision.hpp"
+#include "engine/precision.hpp"
 
 #include <algorithm>
 #include <charconv>

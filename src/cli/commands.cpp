@@ -1,18 +1,18 @@
-// src/cli/commands.cpp -- the pendavg commands: options -> Chain<Real> and beta -> library call ->
-// formatted string. `digits` == 16 runs in double, more digits in MPFR under a working_precision
-// guard that is installed before any number is parsed.
+// src/cli/commands.cpp -- the pendavg commands average, limit and series: options -> Chain<Real>
+// and beta -> one library call (pendavg::average, the limits, series_convergence) -> formatted
+// string. `digits` == 16 runs in double, more digits in MPFR under a working_precision held
+// while the numbers are parsed (a parallel loop takes one per row instead).
 #include "commands.hpp"
 
 #include "args.hpp"
 #include "files.hpp"
 #include "format.hpp"
-#include "qmc_options.hpp"
+#include "average_options.hpp"
 #include "simulate.hpp"
 #include "table.hpp"
 
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/torus.hpp"
-#include "pendavg/trace_formula.hpp"
+#include "pendavg/mpfr.hpp"
+#include "pendavg/pendavg.hpp"
 
 #include <algorithm>
 #include <array>
@@ -30,10 +30,6 @@
 
 #if defined(_OPENMP)
 #include <omp.h>
-#endif
-
-#ifndef PENDAVG_VERSION
-#define PENDAVG_VERSION "unknown"
 #endif
 
 namespace pendavg::cli {
@@ -81,11 +77,17 @@ constexpr std::string_view average_usage =
     "Options of a method that is not run are rejected.\n"
     "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
     "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
-    "eq. ke-linear-tave-1) and beta_Kc (beta<K_i^(c)> = 1/2).\n"
+    "eq. ke-linear-tave-1), beta_Kc (beta<K_i^(c)> = 1/2), then every other error: error_kind\n"
+    "(bound | estimate | statistical: what the errors of beta_K and ratio promise), K_error,\n"
+    "ratio_error, cos_phi_error, var_K_error, error_kinds (per observable), work_unit (terms,\n"
+    "nodes or samples: what evaluations counts), equipartition_residual (|sum beta<K_i> - N/2|)\n"
+    "and run (the torus grid or the qmc points, shifts and effective sample fraction). Printed\n"
+    "errors include half a unit in the last printed digit of their value.\n"
     "--cases reads a CSV with the columns beta,g,m1..mN,l1..lN (any order, N from the header;\n"
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
     "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
-    "evaluations. Rows run on all cores; the output does not depend on the thread count.\n"
+    "evaluations, ratio_error, cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind,\n"
+    "converged. Rows run on all cores; the output does not depend on the thread count.\n"
     "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
     "and worst thread CPU time per row in microseconds (from parsing the row to its formatted\n"
     "output line; the timer's own cost, timer_us, is measured and subtracted), the worst row\n"
@@ -115,15 +117,14 @@ constexpr std::string_view series_usage =
 // ---------------------------------------------------------------- shared helpers
 
 /// Runs `body.operator()<Real>()` with Real = double for 16 digits and Real = mpfr_real (under a
-/// working_precision guard held for the whole call, parsing included) for more.
+/// working_precision held for the whole call, parsing included) for more. Not for commands whose
+/// rows run in a parallel loop: each row holds its own working precision there.
 template <class Body>
 std::string with_number_type(int digits, Body&& body) {
   if (digits == min_digits) return body.template operator()<double>();
   const working_precision guard(digits + guard_digits);
   return body.template operator()<mpfr_real>();
 }
-
-int digits_option(const Options& options) { return parse_digits(options.get("digits", "16")); }
 
 Format format_option(const Options& options, std::string_view fallback,
                      std::span<const std::string_view> allowed) {
@@ -163,170 +164,9 @@ class Stopwatch {
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
-/// Appends each value and a trailing comma.
-template <class Real>
-void append_csv_values(std::string& out, const std::vector<Real>& values, int digits) {
-  for (const Real& value : values) {
-    append_decimal(out, value, digits);
-    out += ',';
-  }
-}
-
-// ---------------------------------------------------------------- average: methods and options
-
-enum class AverageMethod { automatic, series, integral, torus_trapezoid, torus_gauss, qmc };
-constexpr std::array<std::string_view, 6> average_method_names{
-    "auto", "series", "integral", "torus-trapezoid", "torus-gauss", "qmc"};
-
-/// --method auto runs the torus trapezoid up to this N (n^(N-1) nodes: milliseconds for N <= 4,
-/// seconds for N = 5 at the default tolerance) and qmc beyond.
-constexpr std::size_t auto_torus_max_particles = 4;
-
-/// --tol: the torus rules' relative tolerance in double.
-constexpr double default_tolerance = 1e-13;
-
-/// What runs: the double-pendulum engine (N = 2), a torus rule or QMC.
-enum class Solver { pendulum, torus, qmc };
-
-/// The options of `average` that do not depend on N, parsed and range-checked.
-struct AverageSettings {
-  AverageMethod method = AverageMethod::automatic;
-  int digits = min_digits;
-  std::optional<double> tolerance;            ///< --tol, when given
-  std::vector<std::string> qmc_options;  ///< which of --samples, --shifts, --seed were given
-  QmcOptions qmc;                             ///< points, shifts, seed
-};
-
-/// The settings resolved for N particles: which solver and its options.
-struct AveragePlan {
-  Solver solver = Solver::pendulum;
-  Engine engine = Engine::automatic;  ///< for Solver::pendulum
-  TorusOptions torus;
-  QmcOptions qmc;
-};
-
-int hardware_threads() {
-#if defined(_OPENMP)
-  return omp_get_max_threads();
-#else
-  return 1;
-#endif
-}
-
-AverageSettings average_settings(const Options& options) {
-  AverageSettings s;
-  s.digits = digits_option(options);
-  s.method = static_cast<AverageMethod>(
-      parse_choice(options.get("method", "auto"), "method", average_method_names));
-  if (options.has("tol")) {
-    const std::string_view text = options.required("tol");
-    s.tolerance = parse_real<double>(text, "--tol", Domain::positive);
-    if (!(*s.tolerance < 1)) throw usage_error("--tol: '" + std::string(text) + "' must be < 1");
-  }
-  s.qmc_options = parse_qmc_options(options, s.qmc);
-  return s;
-}
-
-/// Resolves --method for N particles and rejects options the chosen solver does not use.
-/// `threads`: OpenMP threads for the torus and QMC engines (double only).
-AveragePlan average_plan(const AverageSettings& s, std::size_t n, int threads) {
-  AveragePlan plan;
-  const std::string particles = "N = " + std::to_string(n);
-  const std::string name(average_method_names[static_cast<std::size_t>(s.method)]);
-  std::string chosen = "--method " + name;  // names the solver in error messages
-  switch (s.method) {
-    case AverageMethod::automatic:
-      plan.solver = n == 2                           ? Solver::pendulum
-                    : n <= auto_torus_max_particles ? Solver::torus
-                                                     : Solver::qmc;
-      chosen += std::string(", which runs ") +
-                (plan.solver == Solver::pendulum ? "the double-pendulum engine"
-                 : plan.solver == Solver::torus  ? "torus-trapezoid"
-                                                 : "qmc") +
-                " for " + particles;
-      break;
-    case AverageMethod::series:
-    case AverageMethod::integral:
-      if (n != 2)
-        throw usage_error("average: --method " + name + " is a double-pendulum engine (N = 2), "
-                          "not for " + particles + " (use auto, torus-trapezoid, torus-gauss "
-                          "or qmc)");
-      plan.solver = Solver::pendulum;
-      plan.engine = s.method == AverageMethod::series ? Engine::series : Engine::integral;
-      break;
-    case AverageMethod::torus_trapezoid:
-    case AverageMethod::torus_gauss:
-      plan.solver = Solver::torus;
-      plan.torus.rule = s.method == AverageMethod::torus_gauss ? TorusRule::gauss_legendre
-                                                               : TorusRule::trapezoid;
-      break;
-    case AverageMethod::qmc: plan.solver = Solver::qmc; break;
-  }
-
-  if (s.tolerance && plan.solver != Solver::torus)
-    throw usage_error("average: --tol is used by the torus methods only, not by " + chosen);
-  for (const std::string& option : s.qmc_options)
-    if (plan.solver != Solver::qmc)
-      throw usage_error("average: --" + std::string(option) + " is used by qmc only, not by " +
-                        chosen);
-  if (plan.solver == Solver::torus) {
-    if (s.tolerance && s.digits != min_digits)
-      throw usage_error("average: --tol is for double runs (--digits 16); with --digits " +
-                        std::to_string(s.digits) + " the torus tolerance is 1e-" +
-                        std::to_string(s.digits));
-    const double nodes = std::pow(static_cast<double>(plan.torus.min_points_per_dim),
-                                  static_cast<double>(n - 1));
-    if (nodes > plan.torus.max_grid_points)
-      throw usage_error("average: " + particles + " is too long for a torus grid (" +
-                        std::to_string(plan.torus.min_points_per_dim) + "^" +
-                        std::to_string(n - 1) + " = " + decimal(nodes, 2) +
-                        " nodes at the first level, over the cap of " +
-                        decimal(plan.torus.max_grid_points, 1) + "); use --method qmc");
-    plan.torus.tolerance = s.tolerance.value_or(default_tolerance);
-    plan.torus.digits = s.digits == min_digits ? 0 : s.digits;
-    plan.torus.threads = threads;
-  }
-  if (plan.solver == Solver::qmc) {
-    if (s.digits != min_digits)
-      throw usage_error("average: --digits " + std::to_string(s.digits) +
-                        " is not available with " + chosen + " (qmc runs in double only)");
-    if (n > detail::qmc::lattice_max_dimension)
-      throw usage_error("average: qmc's built-in lattices cover N <= " +
-                        std::to_string(detail::qmc::lattice_max_dimension) + ", not " +
-                        particles + " (" + chosen + ")");
-    plan.qmc = s.qmc;
-    plan.qmc.threads = threads;
-  }
-  return plan;
-}
-
-/// The averages of one case and the any-N extras every solver reports.
-template <class Real>
-struct AverageResult {
-  Averages<Real> averages;
-  std::vector<Real> diagonal_approximation;  ///< eq. ke-linear-tave-1
-  std::vector<Real> beta_kinetic_canonical;  ///< beta<K_i^(c)> = 1/2
-};
-
-template <class Real>
-AverageResult<Real> compute_average(const Chain<Real>& chain, const Real& beta, int digits,
-                                    const AveragePlan& plan) {
-  switch (plan.solver) {
-    case Solver::torus: {
-      TorusAverages<Real> r = torus_average_full(chain, beta, plan.torus);
-      return {std::move(r.averages), std::move(r.diagonal_approximation),
-              std::move(r.beta_kinetic_canonical)};
-    }
-    case Solver::qmc: {
-      QmcAverages<Real> r = qmc_average(chain, beta, plan.qmc);
-      return {std::move(r.averages), std::move(r.diagonal_approximation),
-              std::move(r.beta_kinetic_canonical)};
-    }
-    case Solver::pendulum: break;
-  }
-  // The double-pendulum engines: beta<K_i^(c)> = 1/2 holds exactly for every chain.
-  return {pendavg::average(chain, beta, digits, plan.engine), diagonal_approximation(chain),
-          std::vector<Real>(chain.size(), Real(1) / 2)};
+/// `average`'s options (method, digits, tol, samples, shifts, seed).
+AverageOptions average_settings(const Options& options) {
+  return parse_average_options(options, average_option_names);
 }
 
 // ---------------------------------------------------------------- average: output
@@ -336,39 +176,50 @@ struct AverageReport {
   std::string_view beta;
   int digits;
   AveragesText values;
-  std::vector<std::string> diagonal_approx, beta_kinetic_canonical;
+  std::string run;  ///< the torus or qmc run as a JSON object, or "null"
   double seconds;
 };
 
 std::string average_json(const AverageReport& r) {
+  const AveragesText& v = r.values;
   JsonObject json;
   json.integer("N", static_cast<long long>(r.particles))
       .string("beta", r.beta)
       .integer("digits", r.digits)
-      .string("method", r.values.method)
-      .strings("beta_K", r.values.beta_kinetic)
-      .strings("K", r.values.kinetic)
-      .strings("error", r.values.error);
-  if (r.particles >= 2) {
-    json.string("ratio", r.values.ratio);
-  } else {
-    json.raw("ratio", "null");  // <K1>/<K2> needs a second particle
-  }
-  return json.strings("cos_phi", r.values.cos_angle)
-             .strings("var_K", r.values.variance)
-             .integer("evaluations", static_cast<long long>(r.values.evaluations))
-             .raw("seconds", seconds_text(r.seconds))
-             .boolean("converged", r.values.converged)
-             .strings("diagonal_approx", r.diagonal_approx)
-             .strings("beta_Kc", r.beta_kinetic_canonical)
-             .str() +
-         "\n";
+      .string("method", v.method)
+      .strings("beta_K", v.beta_kinetic)
+      .strings("K", v.kinetic)
+      .strings("error", v.error)
+      .raw("ratio", json_nullable(v.ratio))  // <K1>/<K2> needs a second particle
+      .strings("cos_phi", v.cos_angle)
+      .strings("var_K", v.variance)
+      .integer("evaluations", static_cast<long long>(v.evaluations))
+      .raw("seconds", seconds_text(r.seconds))
+      .boolean("converged", v.converged)
+      .strings("diagonal_approx", v.diagonal_approximation)
+      .strings("beta_Kc", v.beta_kinetic_canonical)
+      .string("error_kind", v.error_kind)
+      .strings("K_error", v.kinetic_error)
+      .raw("ratio_error", json_nullable(v.ratio_error))
+      .strings("cos_phi_error", v.cos_angle_error)
+      .strings("var_K_error", v.variance_error)
+      .raw("error_kinds", JsonObject()
+                              .string("beta_K", v.error_kind)
+                              .string("ratio", v.error_kind)
+                              .string("cos_phi", v.cos_angle_error_kind)
+                              .string("var_K", v.variance_error_kind)
+                              .str())
+      .string("work_unit", v.work_unit)
+      .string("equipartition_residual", v.equipartition_residual)
+      .raw("run", r.run);
+  return json.str() + "\n";
 }
 
 std::string average_csv(const AverageReport& r) {
   const std::size_t n = r.particles;
+  const AveragesText& v = r.values;
   std::vector<std::string> header{"N", "beta", "digits", "method"}, row{
-      std::to_string(n), std::string(r.beta), std::to_string(r.digits), r.values.method};
+      std::to_string(n), std::string(r.beta), std::to_string(r.digits), v.method};
   const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
     const auto names = indexed_names(stem, values.size());
     header.insert(header.end(), names.begin(), names.end());
@@ -378,17 +229,26 @@ std::string average_csv(const AverageReport& r) {
     header.push_back(std::move(name));
     row.push_back(std::move(value));
   };
-  add_array("beta_K", r.values.beta_kinetic);
-  add_array("K", r.values.kinetic);
-  add_array("error_K", r.values.error);
-  add("ratio", n >= 2 ? r.values.ratio : "");
-  add_array("cos_phi", r.values.cos_angle);
-  add_array("var_K", r.values.variance);
-  add("evaluations", std::to_string(r.values.evaluations));
+  add_array("beta_K", v.beta_kinetic);
+  add_array("K", v.kinetic);
+  add_array("error_K", v.error);
+  add("ratio", v.ratio);
+  add_array("cos_phi", v.cos_angle);
+  add_array("var_K", v.variance);
+  add("evaluations", std::to_string(v.evaluations));
   add("seconds", seconds_text(r.seconds));
-  add("converged", r.values.converged ? "true" : "false");
-  add_array("diagonal_approx", r.diagonal_approx);
-  add_array("beta_Kc", r.beta_kinetic_canonical);
+  add("converged", v.converged ? "true" : "false");
+  add_array("diagonal_approx", v.diagonal_approximation);
+  add_array("beta_Kc", v.beta_kinetic_canonical);
+  add("error_kind", v.error_kind);
+  add_array("K_error", v.kinetic_error);
+  add("ratio_error", v.ratio_error);
+  add_array("cos_phi_error", v.cos_angle_error);
+  add_array("var_K_error", v.variance_error);
+  add("cos_phi_error_kind", v.cos_angle_error_kind);
+  add("var_K_error_kind", v.variance_error_kind);
+  add("work_unit", v.work_unit);
+  add("equipartition_residual", v.equipartition_residual);
   std::string out;
   append_csv_line(out, header);
   append_csv_line(out, row);
@@ -396,46 +256,60 @@ std::string average_csv(const AverageReport& r) {
 }
 
 std::string average_text(const AverageReport& r) {
+  const AveragesText& v = r.values;
   std::vector<std::vector<std::string>> table{{"i", "beta<K_i>", "error", "<K_i>", "<cos phi_i>",
-                                               "Var K_i", "diagonal approx", "beta<K_i^c>"}};
-  for (std::size_t i = 0; i < r.values.beta_kinetic.size(); ++i)
-    table.push_back({std::to_string(i + 1), r.values.beta_kinetic[i], r.values.error[i],
-                     r.values.kinetic[i], r.values.cos_angle[i], r.values.variance[i],
-                     r.diagonal_approx[i], r.beta_kinetic_canonical[i]});
+                                               "error", "Var K_i", "error", "diagonal approx",
+                                               "beta<K_i^c>"}};
+  for (std::size_t i = 0; i < v.beta_kinetic.size(); ++i)
+    table.push_back({std::to_string(i + 1), v.beta_kinetic[i], v.error[i], v.kinetic[i],
+                     v.cos_angle[i], v.cos_angle_error[i], v.variance[i], v.variance_error[i],
+                     v.diagonal_approximation[i], v.beta_kinetic_canonical[i]});
   return "N = " + std::to_string(r.particles) + ", beta = " + std::string(r.beta) +
-         ", digits = " + std::to_string(r.digits) + ", method = " + r.values.method + "\n" +
+         ", digits = " + std::to_string(r.digits) + ", method = " + v.method + "\n" +
          aligned_table(table) +
-         (r.particles >= 2 ? "<K1>/<K2> = " + r.values.ratio + "\n" : std::string()) +
-         "evaluations = " + std::to_string(r.values.evaluations) +
+         (r.particles >= 2 ? "<K1>/<K2> = " + v.ratio + " +- " + v.ratio_error + "\n"
+                           : std::string()) +
+         "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
+         v.cos_angle_error_kind + ", Var K_i " + v.variance_error_kind + "\n" +
+         "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
          ", seconds = " + seconds_text(r.seconds) +
-         ", converged = " + (r.values.converged ? "yes" : "no") + "\n";
+         ", converged = " + (v.converged ? "yes" : "no") + "\n";
+}
+
+/// The torus grid or the qmc run of `a` as a JSON object, "null" for the other methods.
+template <class Real>
+std::string run_json(const Averages<Real>& a) {
+  if (a.torus)
+    return JsonObject()
+        .integer("points_per_dim", static_cast<long long>(a.torus->points_per_dim))
+        .integer("levels", static_cast<long long>(a.torus->levels))
+        .raw("grid_points", seconds_text(a.torus->grid_points))
+        .str();
+  if (a.qmc)
+    return JsonObject()
+        .integer("points", static_cast<long long>(a.qmc->points))
+        .integer("shifts", static_cast<long long>(a.qmc->shifts))
+        .raw("sigmas", seconds_text(a.qmc->sigmas))
+        .string("effective_sample_fraction",
+                decimal(a.qmc->effective_sample_fraction, error_digits))
+        .str();
+  return "null";
 }
 
 template <class Real>
-std::vector<std::string> decimals(const std::vector<Real>& values, int digits) {
-  std::vector<std::string> out;
-  out.reserve(values.size());
-  for (const Real& value : values) out.push_back(decimal(value, digits));
-  return out;
-}
-
-template <class Real>
-std::string average_one(const Options& options, const AverageSettings& settings, Format format) {
+std::string average_one(const Options& options, const AverageOptions& settings, Format format) {
   const std::string_view beta_text = options.required("beta");
   const Chain<Real> chain = chain_option<Real>(options, true);
-  const AveragePlan plan = average_plan(settings, chain.size(), hardware_threads());
+  AverageOptions run = settings;
+  run.threads = hardware_threads();
+  resolve_average_method(chain.size(), run);  // every option checked before any work
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
   const int digits = settings.digits;
   const Stopwatch stopwatch;
-  const AverageResult<Real> result = compute_average(chain, beta, digits, plan);
+  const Averages<Real> result = average(chain, beta, run);
   const double seconds = stopwatch.seconds();
-  const AverageReport report{chain.size(),
-                             beta_text,
-                             digits,
-                             averages_text(result.averages, digits, &beta),
-                             decimals(result.diagonal_approximation, digits),
-                             decimals(result.beta_kinetic_canonical, digits),
-                             seconds};
+  const AverageReport report{chain.size(), beta_text, digits,
+                             averages_text(result, digits, &beta), run_json(result), seconds};
   switch (format) {
     case Format::csv: return average_csv(report);
     case Format::text: return average_text(report);
@@ -445,14 +319,18 @@ std::string average_one(const Options& options, const AverageSettings& settings,
 }
 
 /// Per-thread scratch of `average --cases`: reused from row to row.
+template <class Real>
 struct CaseScratch {
   std::vector<std::string_view> fields;  ///< the row's fields in canonical order
+  std::vector<Real> masses, lengths;
+  AverageWorkspace<Real> workspace;
 };
 
 /// Longest output line of a cases row: the row's text and a comma per field (at most one per
-/// character), 3N + 1 numbers and their commas, the method (<= 24), the count and a newline.
+/// character), 6N + 2 numbers and their commas, the method and error kind (<= 24 each), the
+/// count, "false" and a newline.
 std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digits) {
-  return 2 * row.size + 1 + (3 * particles + 1) * (decimal_max_length(digits) + 1) + 24 + 24;
+  return 2 * row.size + 1 + (6 * particles + 2) * (decimal_max_length(digits) + 1) + 3 * 24 + 8;
 }
 
 /// One output row of `average --cases`: the input fields as written, then the averages.
@@ -460,56 +338,59 @@ std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digit
 /// `p` (room for case_line_bound characters); returns its end.
 template <class Real>
 char* write_case(char* p, const CasesFile& file, const CaseRow& row,
-                 const std::vector<std::string>& columns, int digits, const AveragePlan& plan,
-                 CaseScratch& scratch) {
+                 const std::vector<std::string>& columns, const AverageOptions& options,
+                 CaseScratch<Real>& scratch) {
+  std::optional<working_precision> precision;  // each row of an MPFR run holds its own
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
   auto& fields = scratch.fields;
   fields.resize(columns.size());
   case_fields(file, row, fields);
   const std::size_t n = file.particles;
+  const int digits = options.digits;
   const Real beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
-  std::vector<Real> masses, lengths;
-  masses.reserve(n);
-  lengths.reserve(n);
+  std::vector<Real>& masses = scratch.masses;
+  std::vector<Real>& lengths = scratch.lengths;
+  masses.clear();
+  lengths.clear();
   for (std::size_t i = 0; i < n; ++i)
     masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
   for (std::size_t i = 0; i < n; ++i)
     lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
   const Chain<Real> chain = make_chain<Real>(
-      std::move(masses), std::move(lengths),
-      parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
-  // The double-pendulum engines directly: the any-N extras (diagonal approximation,
-  // beta<K_i^(c)>) are not printed here.
-  const Averages<Real> averages = plan.solver == Solver::pendulum
-                                      ? pendavg::average(chain, beta, digits, plan.engine)
-                                      : compute_average(chain, beta, digits, plan).averages;
-  const std::string_view method = method_name(averages.method);
+      masses, lengths, parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
+  const Averages<Real> averages = average(chain, beta, options, scratch.workspace);
   const auto put = [&p](std::string_view text) {
     std::memcpy(p, text.data(), text.size());
     p += text.size();
+  };
+  const auto number = [&](const Real& value, int significant) {
+    p = write_decimal(p, value, significant);
+    *p++ = ',';
+  };
+  const auto error = [&](const Estimate<Real>& e) {
+    number(printed_error(e.value, e.error, digits), error_digits);
   };
   for (const std::string_view field : fields) {
     put(field);
     *p++ = ',';
   }
-  for (const Real& value : averages.beta_kinetic) {
-    p = write_decimal(p, value, digits);
-    *p++ = ',';
-  }
-  for (std::size_t i = 0; i < averages.beta_kinetic.size(); ++i) {
-    p = write_decimal(
-        p, printed_error(averages.beta_kinetic[i], averages.beta_kinetic_error[i], digits),
-        error_digits);
-    *p++ = ',';
-  }
-  if (n >= 2) p = write_decimal(p, averages.ratio, digits);
+  for (const Estimate<Real>& k : averages.beta_kinetic) number(k.value, digits);
+  for (const Estimate<Real>& k : averages.beta_kinetic) error(k);
+  if (averages.ratio) p = write_decimal(p, averages.ratio->value, digits);
   *p++ = ',';
-  for (const Real& value : averages.cos_angle) {
-    p = write_decimal(p, value, digits);
-    *p++ = ',';
-  }
-  put(method);
+  for (const Estimate<Real>& c : averages.cos_angle) number(c.value, digits);
+  put(method_name(averages.method));
   *p++ = ',';
   p = std::to_chars(p, p + 24, averages.evaluations).ptr;
+  *p++ = ',';
+  if (averages.ratio) p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits), error_digits);
+  *p++ = ',';
+  for (const Estimate<Real>& c : averages.cos_angle) error(c);
+  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) number(v.value, digits);
+  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) error(v);
+  put(error_kind_name(averages.error_kind));
+  *p++ = ',';
+  put(averages.converged ? "true" : "false");
   *p++ = '\n';
   return p;
 }
@@ -559,22 +440,24 @@ void report_case_timing(const std::vector<double>& row_us, const CasesFile& file
 }
 
 /// Rows are independent: they are evaluated on all cores in blocks, each block into its own
-/// stretch of the output, joined in file order (the output does not depend on the thread count). The first
-/// bad row (in file order) is reported. Blocks hold 256 rows for the fast double-pendulum
-/// engines and one row for the torus and QMC engines; a single block runs on one thread and
-/// lets those engines use every core instead. `timing`: see report_case_timing.
+/// stretch of the output, joined in file order (the output does not depend on the thread count).
+/// The first bad row (in file order) is reported. Blocks hold 256 rows for the fast double-
+/// pendulum engines and one row for the torus and QMC methods; a single block runs on one
+/// thread and lets those methods use every core instead. `timing`: see report_case_timing.
 template <class Real>
 std::string average_cases(const CasesFile& file, const std::string& path,
-                          const AverageSettings& settings, bool timing,
+                          const AverageOptions& settings, bool timing,
                           const std::string& timing_rows_path) {
   const std::vector<CaseRow>& rows = file.rows;
   const std::size_t n = file.particles;
   const std::vector<std::string> columns = case_columns(n);
   const int digits = settings.digits;
-  AveragePlan plan = average_plan(settings, n, 1);
-  const std::size_t block = plan.solver == Solver::pendulum ? 256 : 1;
+  AverageOptions options = settings;
+  const AverageMethod method = resolve_average_method(n, options);  // checked before any row
+  const bool fast = method == AverageMethod::integral || method == AverageMethod::series;
+  const std::size_t block = fast ? 256 : 1;
   const std::size_t blocks = (rows.size() + block - 1) / block;
-  if (blocks == 1) plan.torus.threads = plan.qmc.threads = hardware_threads();
+  if (blocks == 1) options.threads = hardware_threads();
 
   std::string out;
   append_csv_line(out, columns);
@@ -586,7 +469,11 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   add_names("error_K");
   out += ",ratio";
   add_names("cos_phi");
-  out += ",method,evaluations\n";
+  out += ",method,evaluations,ratio_error";
+  add_names("cos_phi_error");
+  add_names("var_K");
+  add_names("var_K_error");
+  out += ",error_kind,converged\n";
 
   // One output buffer: each block writes into its own stretch (the sum of its rows' longest
   // lines), sized and zero-filled here, before any row runs; the blocks' texts are then moved
@@ -607,7 +494,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   int threads = 1;
 #pragma omp parallel if (blocks > 1)
   {
-    CaseScratch scratch;
+    CaseScratch<Real> scratch;
 #if defined(_OPENMP)
 #pragma omp single nowait
     threads = omp_get_num_threads();
@@ -622,10 +509,10 @@ std::string average_cases(const CasesFile& file, const std::string& path,
         try {
           if (timing) {
             const double start = thread_cpu_microseconds();
-            p = write_case<Real>(p, file, rows[i], columns, digits, plan, scratch);
+            p = write_case<Real>(p, file, rows[i], columns, options, scratch);
             row_us[i] = thread_cpu_microseconds() - start - timer_us;
           } else {
-            p = write_case<Real>(p, file, rows[i], columns, digits, plan, scratch);
+            p = write_case<Real>(p, file, rows[i], columns, options, scratch);
           }
         } catch (...) {
           errors[bu] = std::current_exception();
@@ -668,7 +555,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
 }
 
 std::string average_command(const Options& options) {
-  const AverageSettings settings = average_settings(options);
+  const AverageOptions settings = average_settings(options);
   if (!options.has("cases")) {
     for (const std::string_view timing : {"timing", "timing-rows"})
       if (options.has(timing))
@@ -690,10 +577,10 @@ std::string average_command(const Options& options) {
     throw usage_error("average: --timing-rows needs a file name");
   if (!timing_rows.empty()) probe_output(timing_rows, "average");
   const CasesFile file = read_cases_file(path);
-  return with_number_type(settings.digits, [&]<class Real>() {
-    return average_cases<Real>(file, path, settings,
-                               options.has("timing") || !timing_rows.empty(), timing_rows);
-  });
+  const bool timing = options.has("timing") || !timing_rows.empty();
+  if (settings.digits == min_digits)
+    return average_cases<double>(file, path, settings, timing, timing_rows);
+  return average_cases<mpfr_real>(file, path, settings, timing, timing_rows);
 }
 
 // ---------------------------------------------------------------- limit
@@ -702,8 +589,22 @@ std::string limit_json(const AveragesText& limit) {
   return JsonObject()
       .strings("beta_K", limit.beta_kinetic)
       .strings("error", limit.error)
-      .string("ratio", limit.ratio)
+      .raw("ratio", json_nullable(limit.ratio))
       .strings("var_K_beta2", limit.beta2_variance)
+      .string("method", limit.method)
+      .string("error_kind", limit.error_kind)
+      .raw("ratio_error", json_nullable(limit.ratio_error))
+      .strings("cos_phi", limit.cos_angle)
+      .strings("cos_phi_error", limit.cos_angle_error)
+      .strings("var_K_beta2_error", limit.beta2_variance_error)
+      .raw("error_kinds", JsonObject()
+                              .string("beta_K", limit.error_kind)
+                              .string("ratio", limit.error_kind)
+                              .string("cos_phi", limit.cos_angle_error_kind)
+                              .string("var_K_beta2", limit.variance_error_kind)
+                              .str())
+      .integer("evaluations", static_cast<long long>(limit.evaluations))
+      .string("work_unit", limit.work_unit)
       .str();
 }
 
@@ -711,39 +612,24 @@ void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_vi
                     const AveragesText& limit) {
   for (std::size_t i = 0; i < limit.beta_kinetic.size(); ++i)
     table.push_back({std::string(name), std::to_string(i + 1), limit.beta_kinetic[i],
-                     limit.error[i], limit.beta2_variance[i], i == 0 ? limit.ratio : ""});
+                     limit.error[i], limit.beta2_variance[i], limit.beta2_variance_error[i],
+                     i == 0 ? limit.ratio : "", limit.error_kind});
 }
 
 template <class Real>
 std::string limit_report(const Options& options, int digits, Format format) {
   const Chain<Real> chain = chain_option<Real>(options, false);
-  const std::size_t n = chain.size();
-  constexpr std::size_t max_tensor_particles = 5;
-  if (n > max_tensor_particles && digits != min_digits)
-    throw usage_error("limit: N = " + std::to_string(n) + " > " +
-                      std::to_string(max_tensor_particles) +
-                      " uses qmc for beta -> 0, in double only (--digits 16)");
-  Averages<Real> high_values, low_values;
-  if (n == 2) {
-    high_values = high_temperature_limit(chain, digits);  // elliptic K/E (paper eq. aveK1-beta0)
-    low_values = low_temperature_limit(chain);
-  } else {
-    TorusOptions torus;
-    torus.digits = digits == min_digits ? 0 : digits;
-#ifdef _OPENMP
-    torus.threads = omp_get_max_threads();
-#endif
-    QmcOptions qmc;
-    qmc.threads = torus.threads;
-    high_values = high_temperature_limit_any(chain, torus, qmc, max_tensor_particles);
-    low_values = low_temperature_limit_any(chain);
-  }
-  const AveragesText high =
-      averages_text(high_values, digits, static_cast<const Real*>(nullptr));
+  AverageOptions settings;
+  settings.digits = digits;
+  settings.threads = hardware_threads();
+  const Averages<Real> high_values = high_temperature_limit(chain, settings);
+  const Averages<Real> low_values = low_temperature_limit(chain, settings);
+  const AveragesText high = averages_text(high_values, digits, static_cast<const Real*>(nullptr));
   const AveragesText low = averages_text(low_values, digits, static_cast<const Real*>(nullptr));
   if (format == Format::text) {
-    std::vector<std::vector<std::string>> table{
-        {"limit", "i", "beta<K_i>", "error", "beta^2 Var K_i", "<K1>/<K2>"}};
+    std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
+                                                 "beta^2 Var K_i", "error", "<K1>/<K2>",
+                                                 "error kind"}};
     add_limit_rows(table, "beta -> 0", high);
     add_limit_rows(table, "beta -> inf", low);
     return "N = " + std::to_string(chain.size()) + ", digits = " + std::to_string(digits) +
@@ -759,7 +645,7 @@ std::string limit_report(const Options& options, int digits, Format format) {
 }
 
 std::string limit_command(const Options& options) {
-  const int digits = digits_option(options);
+  const int digits = parse_digits(options.get("digits", "16"));
   constexpr std::array<std::string_view, 2> formats{"json", "text"};
   const Format format = format_option(options, "json", formats);
   return with_number_type(
@@ -786,7 +672,7 @@ bool certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
 }
 
 std::string series_command(const Options& options) {
-  const int digits = digits_option(options);
+  const int digits = parse_digits(options.get("digits", "16"));
   constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
   const Format format = format_option(options, "text", formats);
   const auto terms = static_cast<std::size_t>(
@@ -875,7 +761,7 @@ std::string run(std::span<const std::string_view> args) {
   if (name == "--help" || name == "-h" || (name == "help" && rest.empty()))
     return std::string(general_usage);
   if (name == "help") return std::string(find_command(rest.front()).usage);
-  if (name == "--version") return PENDAVG_VERSION "\n";
+  if (name == "--version") return std::string(version()) + "\n";
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
   return command.run(Options(name, rest, command.options, command.flags));

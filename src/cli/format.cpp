@@ -3,7 +3,7 @@
 
 #include "decimal.hpp"
 
-#include "pendavg/precision.hpp"
+#include "engine/precision.hpp"
 
 #include <algorithm>
 #include <array>
@@ -70,41 +70,54 @@ Real printed_error(const Real& value, const Real& error, int digits) {
 }
 
 template <class Real>
-std::vector<Real> printed_errors(const std::vector<Real>& values, const std::vector<Real>& errors,
-                                 int digits) {
-  std::vector<Real> out(errors);
-  for (std::size_t i = 0; i < values.size() && i < out.size(); ++i)
-    out[i] = printed_error(values[i], errors[i], digits);
-  return out;
-}
-
-template <class Real>
 AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta) {
-  const auto strings = [](const std::vector<Real>& values, int significant, auto scale) {
-    std::vector<std::string> out;
-    out.reserve(values.size());
-    for (const Real& value : values) out.push_back(decimal(scale(value), significant));
-    return out;
-  };
   // <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i / beta^2 leave double's range for
   // beta < 1e-154 (the library returns the beta-scaled values); divide in long double.
   using Wide = std::conditional_t<is_mpfr_v<Real>, Real, long double>;
+  // Values with `digits` digits; errors (scaled like their values) with error_digits, plus half a
+  // unit in the last place of the printed value.
+  const auto put = [digits](const std::vector<Estimate<Real>>& estimates, auto scale,
+                            std::vector<std::string>& values, std::vector<std::string>& errors) {
+    values.reserve(estimates.size());
+    errors.reserve(estimates.size());
+    for (const Estimate<Real>& e : estimates) {
+      const auto value = scale(e.value);
+      values.push_back(decimal(value, digits));
+      errors.push_back(decimal(printed_error(value, scale(e.error), digits), error_digits));
+    }
+  };
   const auto same = [](const Real& value) { return value; };
   AveragesText text;
-  text.beta_kinetic = strings(averages.beta_kinetic, digits, same);
-  text.error = strings(printed_errors(averages.beta_kinetic, averages.beta_kinetic_error, digits),
-                       error_digits, same);
-  text.cos_angle = strings(averages.cos_angle, digits, same);
-  text.beta2_variance = strings(averages.beta2_kinetic_variance, digits, same);
+  put(averages.beta_kinetic, same, text.beta_kinetic, text.error);
+  put(averages.cos_angle, same, text.cos_angle, text.cos_angle_error);
+  put(averages.beta2_kinetic_variance, same, text.beta2_variance, text.beta2_variance_error);
   if (beta) {
     const Wide b = Wide(*beta);
-    text.kinetic = strings(averages.beta_kinetic, digits,
-                           [b](const Real& value) -> Wide { return Wide(value) / b; });
-    text.variance = strings(averages.beta2_kinetic_variance, digits,
-                            [b](const Real& value) -> Wide { return Wide(value) / (b * b); });
+    put(averages.beta_kinetic, [b](const Real& value) -> Wide { return Wide(value) / b; },
+        text.kinetic, text.kinetic_error);
+    put(averages.beta2_kinetic_variance,
+        [b](const Real& value) -> Wide { return Wide(value) / (b * b); }, text.variance,
+        text.variance_error);
   }
-  text.ratio = decimal<Real>(averages.ratio, digits);
+  for (const Estimate<Real>& c : averages.beta_kinetic_canonical)
+    text.beta_kinetic_canonical.push_back(decimal(c.value, digits));
+  for (const Real& d : averages.diagonal_approximation)
+    text.diagonal_approximation.push_back(decimal(d, digits));
+  if (averages.ratio) {
+    text.ratio = decimal(averages.ratio->value, digits);
+    text.ratio_error = decimal(printed_error(averages.ratio->value, averages.ratio->error, digits),
+                               error_digits);
+  }
+  text.equipartition_residual = decimal(averages.equipartition_residual, error_digits);
   text.method = method_name(averages.method);
+  text.error_kind = error_kind_name(averages.error_kind);
+  const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
+    return std::string(error_kind_name(estimates.empty() ? averages.error_kind
+                                                         : estimates.front().kind));
+  };
+  text.cos_angle_error_kind = kind_of(averages.cos_angle);
+  text.variance_error_kind = kind_of(averages.beta2_kinetic_variance);
+  text.work_unit = work_unit_name(averages.work_unit);
   text.evaluations = averages.evaluations;
   text.converged = averages.converged;
   return text;
@@ -116,10 +129,7 @@ template char* write_decimal<double>(char*, const double&, int);
 template char* write_decimal<mpfr_real>(char*, const mpfr_real&, int);
 template double printed_error<double>(const double&, const double&, int);
 template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int);
-template std::vector<double> printed_errors<double>(const std::vector<double>&,
-                                                    const std::vector<double>&, int);
-template std::vector<mpfr_real> printed_errors<mpfr_real>(const std::vector<mpfr_real>&,
-                                                          const std::vector<mpfr_real>&, int);
+template long double printed_error<long double>(const long double&, const long double&, int);
 template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
 template AveragesText averages_text<double>(const Averages<double>&, int, const double*);
 template AveragesText averages_text<mpfr_real>(const Averages<mpfr_real>&, int,
@@ -151,11 +161,19 @@ JsonObject& JsonObject::string(std::string_view key, std::string_view value) {
   return raw(key, json_quoted(value));
 }
 
-JsonObject& JsonObject::strings(std::string_view key, const std::vector<std::string>& values) {
+std::string json_strings(const std::vector<std::string>& values) {
   std::string array = "[";
   for (std::size_t i = 0; i < values.size(); ++i)
     array += (i ? ", " : "") + json_quoted(values[i]);
-  return raw(key, array + "]");
+  return array + "]";
+}
+
+std::string json_nullable(const std::string& text) {
+  return text.empty() ? std::string("null") : json_quoted(text);
+}
+
+JsonObject& JsonObject::strings(std::string_view key, const std::vector<std::string>& values) {
+  return raw(key, json_strings(values));
 }
 
 JsonObject& JsonObject::integer(std::string_view key, long long value) {

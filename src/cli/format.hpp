@@ -36,11 +36,6 @@ char* write_decimal(char* out, const Real& x, int digits);
 template <class Real>
 Real printed_error(const Real& value, const Real& error, int digits);
 
-/// The errors of values printed with `digits` significant digits: each computed error plus
-/// half a unit in the last printed place, so that the printed error covers the printed value.
-template <class Real>
-std::vector<Real> printed_errors(const std::vector<Real>& values, const std::vector<Real>& errors,
-                                 int digits);
 
 template <class Real>
 std::string decimal(const Real& x, int digits) {
@@ -49,24 +44,40 @@ std::string decimal(const Real& x, int digits) {
   return out;
 }
 
-/// The averages of one run as decimal strings, converted once and shared by every format.
+/// The averages of one run as decimal strings, converted once and shared by every format. Every
+/// printed error covers its printed value: the computed error plus half a unit in the value's
+/// last printed place (printed_error).
 struct AveragesText {
-  std::vector<std::string> beta_kinetic;    ///< beta <K_i>
-  std::vector<std::string> error;           ///< absolute error estimates of beta <K_i>
-  std::vector<std::string> cos_angle;       ///< <cos phi_i>
-  std::vector<std::string> beta2_variance;  ///< beta^2 Var K_i
-  std::vector<std::string> kinetic;         ///< <K_i> = beta<K_i>/beta (empty without beta)
-  std::vector<std::string> variance;        ///< Var K_i (empty without beta)
-  std::string ratio;
-  std::string method;
+  std::vector<std::string> beta_kinetic;          ///< beta <K_i>
+  std::vector<std::string> error;                 ///< errors of beta <K_i>
+  std::vector<std::string> cos_angle;             ///< <cos phi_i>
+  std::vector<std::string> cos_angle_error;
+  std::vector<std::string> beta2_variance;        ///< beta^2 Var K_i
+  std::vector<std::string> beta2_variance_error;
+  std::vector<std::string> kinetic;               ///< <K_i> = beta<K_i>/beta (empty without beta)
+  std::vector<std::string> kinetic_error;
+  std::vector<std::string> variance;              ///< Var K_i (empty without beta)
+  std::vector<std::string> variance_error;
+  std::vector<std::string> beta_kinetic_canonical;  ///< beta <K_i^(c)> = 1/2
+  std::vector<std::string> diagonal_approximation;  ///< eq. ke-linear-tave-1
+  std::string ratio, ratio_error;  ///< empty for N = 1
+  std::string equipartition_residual;
+  std::string method, error_kind, cos_angle_error_kind, variance_error_kind, work_unit;
   std::size_t evaluations = 0;
   bool converged = true;
 };
 
-/// Converts `averages` to strings with `digits` significant digits; `beta` (may be null, as for
-/// the limits) adds <K_i> and Var K_i.
+/// Converts `averages` to strings with `digits` significant digits (errors with error_digits);
+/// `beta` (may be null, as for the limits) adds <K_i> and Var K_i.
 template <class Real>
 AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta);
+
+/// A JSON array of strings.
+std::string json_strings(const std::vector<std::string>& values);
+
+/// A JSON string, or null for an empty text (a value that does not exist, e.g. <K1>/<K2> for
+/// N = 1).
+std::string json_nullable(const std::string& text);
 
 /// A JSON object written key by key, in insertion order.
 class JsonObject {

@@ -5,14 +5,12 @@
 // still printed (with "interrupted": true); files are written atomically.
 #include "simulate.hpp"
 
+#include "average_options.hpp"
 #include "files.hpp"
-#include "interrupt.hpp"
 #include "format.hpp"
+#include "interrupt.hpp"
 
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/dynamics.hpp"
-#include "pendavg/microcanonical.hpp"
-#include "pendavg/torus.hpp"
+#include "pendavg/pendavg.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -95,14 +93,6 @@ class Progress {
   double last_ = 0;
 };
 
-int available_threads() {
-#ifdef _OPENMP
-  return std::max(1, omp_get_max_threads());
-#else
-  return 1;
-#endif
-}
-
 Chain<double> parse_chain(const Options& options) {
   auto masses = parse_real_list<double>(options.required("masses"), "--masses", Domain::positive);
   auto lengths =
@@ -142,41 +132,44 @@ std::vector<double> parse_angle_list(std::string_view text, std::string_view wha
 struct ExactValues {
   std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
   double kinetic_canonical = 0, kinetic_canonical_error = 0;
-  std::string method;
+  std::string method, error_kind;
 };
 
 ExactValues microcanonical_values(const Chain<double>& chain, double energy) {
   MicrocanonicalOptions options;
-  options.threads = available_threads();
+  options.threads = hardware_threads();
   const MicrocanonicalAverages<double> r = microcanonical_average(chain, energy, options);
-  return {r.kinetic, r.kinetic_error, r.cos_angle, r.cos_angle_error, r.kinetic_canonical,
-          r.kinetic_canonical_error,
-          std::string(method_name(r.method)) + "/" + method_name(r.quadrature)};
+  ExactValues out;
+  for (const Estimate<double>& k : r.kinetic) {
+    out.kinetic.push_back(k.value);
+    out.kinetic_error.push_back(k.error);
+  }
+  for (const Estimate<double>& c : r.cos_angle) {
+    out.cos_angle.push_back(c.value);
+    out.cos_angle_error.push_back(c.error);
+  }
+  out.kinetic_canonical = r.kinetic_canonical.value;
+  out.kinetic_canonical_error = r.kinetic_canonical.error;
+  out.method = std::string(method_name(r.method)) + "/" + method_name(r.quadrature);
+  out.error_kind = error_kind_name(r.error_kind);
+  return out;
 }
 
 ExactValues canonical_values(const Chain<double>& chain, double beta) {
-  const std::size_t n = chain.size();
-  Averages<double> a;
-  if (n == 2) {
-    a = average(chain, beta, 16, Engine::automatic);
-  } else if (n <= 4) {
-    TorusOptions options;
-    options.threads = available_threads();
-    a = torus_average_full(chain, beta, options).averages;
-  } else {
-    QmcOptions options;
-    options.threads = available_threads();
-    a = qmc_average(chain, beta, options).averages;
-  }
+  AverageOptions options;
+  options.threads = hardware_threads();
+  const Averages<double> a = average(chain, beta, options);
   ExactValues out;
-  for (std::size_t i = 0; i < n; ++i) {
-    out.kinetic.push_back(a.beta_kinetic[i] / beta);
-    out.kinetic_error.push_back(a.beta_kinetic_error[i] / beta);
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    out.kinetic.push_back(a.beta_kinetic[i].value / beta);
+    out.kinetic_error.push_back(a.beta_kinetic[i].error / beta);
+    out.cos_angle.push_back(a.cos_angle[i].value);
+    out.cos_angle_error.push_back(a.cos_angle[i].error);
   }
-  out.cos_angle = a.cos_angle;
-  out.cos_angle_error = a.cos_angle_error;
-  out.kinetic_canonical = 0.5 / beta;  // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4)
+  // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4).
+  out.kinetic_canonical = a.beta_kinetic_canonical.front().value / beta;
   out.method = method_name(a.method);
+  out.error_kind = error_kind_name(a.error_kind);
   return out;
 }
 
@@ -335,7 +328,8 @@ std::string simulate_command(const Options& options) {
       .raw("Kc_error", number_array(kc_error))
       .raw("K_autocorrelation_time", number_array(tau))
       .raw("cos_phi", number_array(cosine))
-      .raw("cos_phi_error", number_array(cosine_error));
+      .raw("cos_phi_error", number_array(cosine_error))
+      .string("error_kind", error_kind_name(ErrorKind::statistical));
   if (reference) {
     std::vector<double> deviation(n);
     for (std::size_t i = 0; i < n; ++i)
@@ -346,7 +340,10 @@ std::string simulate_command(const Options& options) {
         .raw("exact_Kc", number(reference->kinetic_canonical))
         .raw("exact_cos_phi", number_array(reference->cos_angle))
         .raw("K_deviation_sigmas", number_array(deviation))
-        .string("exact_method", reference->method);
+        .string("exact_method", reference->method)
+        .raw("exact_Kc_error", number(reference->kinetic_canonical_error))
+        .raw("exact_cos_phi_error", number_array(reference->cos_angle_error))
+        .string("exact_error_kind", reference->error_kind);
   } else {
     json.raw("exact_K", "null");
   }
@@ -372,7 +369,7 @@ std::string poincare_command(const Options& options) {
   run.points = static_cast<std::size_t>(
       parse_integer(options.get("points", "500"), "--points", 1, 100000000));
   run.time_step = parse_real<double>(options.get("dt", "1e-3"), "--dt", Domain::positive);
-  run.threads = available_threads();
+  run.threads = hardware_threads();
   std::optional<std::string> output;
   if (options.has("output")) {
     output = std::string(options.required("output"));

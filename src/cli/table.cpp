@@ -3,14 +3,13 @@
 // thread count), rows in a fixed order, written atomically (temporary file + rename).
 #include "table.hpp"
 
+#include "average_options.hpp"
 #include "files.hpp"
-#include "interrupt.hpp"
-#include "qmc_options.hpp"
 #include "format.hpp"
+#include "interrupt.hpp"
 
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/torus.hpp"
-#include "pendavg/trace_formula.hpp"
+#include "pendavg/mpfr.hpp"
+#include "pendavg/pendavg.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -23,16 +22,14 @@
 #include <ctime>
 #include <exception>
 #include <filesystem>
+#include <optional>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#ifndef PENDAVG_VERSION
-#define PENDAVG_VERSION "unknown"
-#endif
 
 namespace pendavg::cli {
 
@@ -64,8 +61,9 @@ const std::string_view table_usage =
     "Rows: the loops nest N, digits, mu1, l1, l2, g, beta (outermost first), except that\n"
     "variables given as log:/lin: ranges are moved innermost, so a range varies fastest.\n"
     "Columns (M = the largest N): N, digits, beta, g, m1..mM, l1..lM, beta_K1..M, error_K1..M,\n"
-    "ratio, cos_phi1..M, var_K1..M, diagonal_approx1..M, method, evaluations, converged. A row\n"
-    "with N < M leaves its cells for particles N+1..M empty.\n"
+    "ratio, cos_phi1..M, var_K1..M, diagonal_approx1..M, method, evaluations, converged,\n"
+    "error_kind (bound | estimate | statistical), ratio_error, cos_phi_error1..M,\n"
+    "var_K_error1..M. A row with N < M leaves its cells for particles N+1..M empty.\n"
     "The CSV starts with '#' lines naming every swept value, the method (and qmc's samples,\n"
     "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
@@ -168,31 +166,41 @@ Sweep parse_integer_sweep(std::string_view name, std::string_view spec, long low
   return sweep;
 }
 
-/// What computes one row: the double-pendulum engine (N = 2), the torus trapezoid or QMC.
-enum class Solver { pendulum, torus, qmc };
-
-/// --method auto runs the torus trapezoid for chains up to this N (n^(N-1) nodes) and qmc beyond,
-/// as `pendavg average` does.
-constexpr std::size_t auto_torus_max_particles = 4;
 /// The longest chain qmc's built-in lattices cover.
-constexpr long max_chain_particles = static_cast<long>(detail::qmc::lattice_max_dimension);
-
+constexpr long max_chain_particles = 256;
 
 /// The sweep's settings that hold for every row.
 struct TablePlan {
-  bool chain = false;                   ///< --chain: unit masses and lengths
-  std::string method = "auto";          ///< as given
-  Engine engine = Engine::automatic;    ///< double pendulum
-  QmcOptions qmc;                       ///< points, shifts, seed (threads = 1)
-  std::vector<std::string> qmc_options; ///< which of --samples, --shifts, --seed were given
-  std::size_t columns_particles = 2;    ///< the largest N: the per-particle columns
+  bool chain = false;                    ///< --chain: unit masses and lengths
+  std::string method = "auto";           ///< as given
+  AverageOptions options;                ///< method and the qmc options, as given
+  std::size_t columns_particles = 2;     ///< the largest N: the per-particle columns
 };
 
-Solver solver_for(const TablePlan& plan, std::size_t particles) {
-  if (!plan.chain) return Solver::pendulum;
-  if (plan.method == "torus-trapezoid") return Solver::torus;
-  if (plan.method == "qmc") return Solver::qmc;
-  return particles <= auto_torus_max_particles ? Solver::torus : Solver::qmc;
+/// What runs for N particles (the library's rule) and the options a row of N passes: the qmc
+/// options go to qmc rows only.
+struct RowMethod {
+  AverageMethod method;
+  AverageOptions options;
+};
+RowMethod row_method(const TablePlan& plan, std::size_t particles, int digits) {
+  AverageOptions options = plan.options;
+  options.digits = min_digits;
+  const bool qmc = resolve_average_method(particles, [&] {
+                     AverageOptions bare = options;
+                     bare.samples.reset();
+                     bare.shifts.reset();
+                     bare.seed.reset();
+                     return bare;
+                   }()) == AverageMethod::qmc;
+  if (!qmc) {
+    options.samples.reset();
+    options.shifts.reset();
+    options.seed.reset();
+  }
+  options.digits = digits;
+  options.threads = 1;  // one thread per row: the numbers do not depend on the thread count
+  return {resolve_average_method(particles, options), options};
 }
 
 std::string join_values(const std::vector<std::string>& values) {
@@ -204,14 +212,13 @@ std::string join_values(const std::vector<std::string>& values) {
 /// One row's parameters, as decimal strings (used exactly, also in MPFR).
 struct Point {
   std::size_t particles = 2;
-  int digits = min_digits;
-  Solver solver = Solver::pendulum;
+  AverageOptions options;  ///< digits, method and its options for this row
   std::string beta, g;
   std::vector<std::string> masses, lengths;
 
   std::string describe() const {
     const auto join = join_values;
-    return "N = " + std::to_string(particles) + ", digits = " + std::to_string(digits) +
+    return "N = " + std::to_string(particles) + ", digits = " + std::to_string(options.digits) +
            ", beta = " + beta + ", g = " + g + ", masses " + join(masses) + ", lengths " +
            join(lengths);
   }
@@ -226,8 +233,10 @@ void add_padded(std::vector<std::string>& fields, const std::vector<std::string>
 
 template <class Real>
 std::string table_row(const Point& point, const TablePlan& plan) {
+  std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
   const std::size_t n = point.particles;
-  const int digits = point.digits;
+  const int digits = point.options.digits;
   const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
   const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
   std::vector<Real> masses, lengths;
@@ -236,35 +245,8 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   for (const std::string& length : point.lengths)
     lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
   const Chain<Real> chain(std::move(masses), std::move(lengths), g);
-
-  Averages<Real> averages;
-  std::vector<Real> diagonal;
-  switch (point.solver) {
-    case Solver::pendulum:
-      averages = pendavg::average(chain, beta, digits, plan.engine);
-      diagonal = diagonal_approximation(chain);
-      break;
-    case Solver::torus: {
-      TorusOptions options;
-      options.digits = digits == min_digits ? 0 : digits;
-      options.threads = 1;  // one thread per row: the numbers do not depend on the thread count
-      TorusAverages<Real> r = torus_average_full(chain, beta, options);
-      averages = std::move(r.averages);
-      diagonal = std::move(r.diagonal_approximation);
-      break;
-    }
-    case Solver::qmc: {
-      QmcOptions options = plan.qmc;
-      options.threads = 1;
-      QmcAverages<Real> r = qmc_average(chain, beta, options);
-      averages = std::move(r.averages);
-      diagonal = std::move(r.diagonal_approximation);
-      break;
-    }
-  }
+  const Averages<Real> averages = average(chain, beta, point.options);
   const AveragesText text = averages_text(averages, digits, &beta);
-  std::vector<std::string> diagonal_text;
-  for (const Real& value : diagonal) diagonal_text.push_back(decimal(value, digits));
 
   const std::size_t width = plan.columns_particles;
   std::vector<std::string> fields{std::to_string(n), std::to_string(digits), point.beta, point.g};
@@ -275,10 +257,14 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   fields.push_back(text.ratio);
   add_padded(fields, text.cos_angle, width);
   add_padded(fields, text.variance, width);
-  add_padded(fields, diagonal_text, width);
+  add_padded(fields, text.diagonal_approximation, width);
   fields.push_back(text.method);
   fields.push_back(std::to_string(text.evaluations));
   fields.push_back(text.converged ? "true" : "false");
+  fields.push_back(text.error_kind);
+  fields.push_back(text.ratio_error);
+  add_padded(fields, text.cos_angle_error, width);
+  add_padded(fields, text.variance_error, width);
   std::string out;
   append_csv_line(out, fields);
   return out;
@@ -305,8 +291,8 @@ struct Progress {
   }
 };
 
-/// Evaluates the points `indices` (all of one digits value, so one MPFR precision, which is
-/// process-wide) on all cores, one thread per point; each row lands in its slot of `rows`.
+/// Evaluates the points `indices` (all of one digits value) on all cores, one thread per point;
+/// each row lands in its slot of `rows`.
 template <class Real>
 void table_rows(const std::vector<Point>& points, const std::vector<std::size_t>& indices,
                 const TablePlan& plan, std::vector<std::string>& rows,
@@ -334,17 +320,16 @@ std::vector<std::string> compute_rows(const std::vector<Point>& points, const Ta
   Progress progress;
   progress.count = count;
   std::vector<int> digit_groups;
-  for (const Point& point : points) digit_groups.push_back(point.digits);
+  for (const Point& point : points) digit_groups.push_back(point.options.digits);
   std::ranges::sort(digit_groups);
   digit_groups.erase(std::unique(digit_groups.begin(), digit_groups.end()), digit_groups.end());
   for (const int digits : digit_groups) {
     std::vector<std::size_t> indices;
     for (std::size_t k = 0; k < count; ++k)
-      if (points[k].digits == digits) indices.push_back(k);
+      if (points[k].options.digits == digits) indices.push_back(k);
     if (digits == min_digits) {
       table_rows<double>(points, indices, plan, rows, errors, progress);
     } else {
-      const working_precision guard(digits + guard_digits);
       table_rows<mpfr_real>(points, indices, plan, rows, errors, progress);
     }
   }
@@ -417,8 +402,8 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
 std::string table_command(const Options& options) {
   TablePlan plan;
   plan.chain = options.has("chain");
-  plan.qmc_options = parse_qmc_options(options, plan.qmc);
-  plan.qmc.threads = 1;  // one thread per point
+  constexpr std::array<std::string_view, 3> qmc_names{"samples", "shifts", "seed"};
+  plan.options = parse_average_options(options, qmc_names);
 
   // Swept variables in their default nesting (outermost first); ranges are moved innermost.
   std::vector<Sweep> sweeps;
@@ -432,10 +417,9 @@ std::string table_command(const Options& options) {
     sweeps.push_back(parse_integer_sweep("chain", options.required("chain"), 3, max_chain_particles));
   } else {
     constexpr std::array<std::string_view, 3> methods{"auto", "integral", "series"};
-    const std::size_t m = parse_choice(options.get("method", "auto"), "method", methods);
-    plan.method = std::string(methods[m]);
-    plan.engine = m == 0 ? Engine::automatic : m == 1 ? Engine::integral : Engine::series;
+    plan.method = std::string(methods[parse_choice(options.get("method", "auto"), "method", methods)]);
   }
+  plan.options.method = parse_average_method(plan.method.c_str());
   sweeps.push_back(parse_integer_sweep("digits", options.get("digits", "16"), min_digits, max_digits));
   if (!plan.chain) {
     sweeps.push_back(parse_sweep("mu1", options.get("mu1", "0.5"), Domain::positive));
@@ -457,7 +441,8 @@ std::string table_command(const Options& options) {
     return found == sweeps.end() ? nullptr : &*found;
   };
 
-  // Which solver runs each N; which N and digits pair up (qmc is double only).
+  // Which method runs each N (the library's rule, checked here for every N before any work);
+  // qmc is double only, so its N get rows at digits 16 only.
   std::vector<std::size_t> particle_values{2};
   if (plan.chain) {
     particle_values.clear();
@@ -466,21 +451,18 @@ std::string table_command(const Options& options) {
   }
   plan.columns_particles = std::ranges::max(particle_values);
   std::vector<std::string> torus_n, qmc_n;  // as listed, for messages and the header
+  const auto is_qmc = [&](std::size_t n) {
+    return row_method(plan, n, min_digits).method == AverageMethod::qmc;
+  };
   for (const std::size_t n : particle_values) {
-    const Solver solver = solver_for(plan, n);
-    if (solver == Solver::torus) {
-      const TorusOptions torus;
-      const double nodes = std::pow(static_cast<double>(torus.min_points_per_dim),
-                                    static_cast<double>(n - 1));
-      if (nodes > torus.max_grid_points)
-        throw usage_error("table: N = " + std::to_string(n) + " is too long for a torus grid (" +
-                          std::to_string(torus.min_points_per_dim) + "^" +
-                          std::to_string(n - 1) + " = " + decimal(nodes, 2) +
-                          " nodes at the first level, over the cap of " +
-                          decimal(torus.max_grid_points, 1) + "); use --method qmc or auto");
+    try {
+      row_method(plan, n, min_digits);
+    } catch (const invalid_input& bad) {
+      throw usage_error(std::string("table: ") + bad.what());
     }
-    std::vector<std::string>& names = solver == Solver::qmc ? qmc_n : torus_n;
-    if (solver != Solver::pendulum && std::ranges::find(names, std::to_string(n)) == names.end())
+    if (!plan.chain) continue;
+    std::vector<std::string>& names = is_qmc(n) ? qmc_n : torus_n;
+    if (std::ranges::find(names, std::to_string(n)) == names.end())
       names.push_back(std::to_string(n));
   }
   const std::string chosen =
@@ -489,11 +471,22 @@ std::string table_command(const Options& options) {
           ? "--method " + plan.method
           : "--method auto, which runs torus-trapezoid for N = " + join_values(torus_n);
   if (qmc_n.empty())
-    for (const std::string& option : plan.qmc_options)
-      throw usage_error("table: --" + option + " is used by qmc only, not by " + chosen);
+    for (const std::string_view option : qmc_names)
+      if (options.has(option))
+        throw usage_error("table: --" + std::string(option) + " is used by qmc only, not by " +
+                          chosen);
   const std::vector<std::string>& digit_values = sweep_named("digits")->values;
   for (const std::string& digits : digit_values) {
-    if (digits == std::to_string(min_digits) || !torus_n.empty() || !plan.chain) continue;
+    const int d = std::stoi(digits);
+    for (const std::size_t n : particle_values) {
+      if (is_qmc(n)) continue;  // qmc N: MPFR digits are skipped (below)
+      try {
+        row_method(plan, n, d);
+      } catch (const invalid_input& bad) {
+        throw usage_error(std::string("table: ") + bad.what());
+      }
+    }
+    if (d == min_digits || !torus_n.empty() || !plan.chain) continue;
     throw usage_error("table: --digits " + digits + " is not available with qmc (double only; N = " +
                       join_values(qmc_n) + (plan.method == "auto" ? " with --method auto" : "") +
                       " runs qmc)");
@@ -514,6 +507,7 @@ std::string table_command(const Options& options) {
   std::vector<std::size_t> index(sweeps.size(), 0);
   for (std::size_t k = 0; k < combinations; ++k) {
     Point point;
+    int digits = min_digits;
     std::string mu1 = "0.5", l1 = "1", l2 = "1";
     for (std::size_t s = 0; s < sweeps.size(); ++s) {
       const std::string& value = sweeps[s].values[index[s]];
@@ -521,12 +515,11 @@ std::string table_command(const Options& options) {
       if (name == "beta") point.beta = value;
       else if (name == "g") point.g = value;
       else if (name == "chain") point.particles = std::stoul(value);
-      else if (name == "digits") point.digits = std::stoi(value);
+      else if (name == "digits") digits = std::stoi(value);
       else if (name == "mu1") mu1 = value;
       else if (name == "l1") l1 = value;
       else l2 = value;
     }
-    point.solver = solver_for(plan, point.particles);
     if (plan.chain) {
       point.masses.assign(point.particles, "1");
       point.lengths.assign(point.particles, "1");
@@ -534,8 +527,10 @@ std::string table_command(const Options& options) {
       point.masses = {mu1, one_minus_decimal(mu1, "--mu1")};
       point.lengths = {l1, l2};
     }
-    if (point.solver != Solver::qmc || point.digits == min_digits)
+    if (digits == min_digits || !is_qmc(point.particles)) {
+      point.options = row_method(plan, point.particles, digits).options;
       points.push_back(std::move(point));
+    }
     for (std::size_t s = sweeps.size(); s-- > 0;) {
       if (++index[s] < sweeps[s].values.size()) break;
       index[s] = 0;
@@ -562,18 +557,19 @@ std::string table_command(const Options& options) {
     out += "; qmc is double only, so N = " + join_values(qmc_n) + " has rows at digits = 16 only";
   out += "\n# method = " + plan.method;
   if (plan.chain) {
-    const std::string torus = "torus-trapezoid (tolerance " + shortest(TorusOptions{}.tolerance) +
+    const std::string torus = "torus-trapezoid (tolerance " + shortest(default_torus_tolerance) +
                               " in double, 1e-D at D > 16 digits)";
     if (plan.method == "auto")
-      out += ": " + torus + " for N <= " + std::to_string(auto_torus_max_particles) +
-             ", qmc for N > " + std::to_string(auto_torus_max_particles);
+      out += ": " + torus + " for N <= " + std::to_string(automatic_torus_max_particles) +
+             ", qmc for N > " + std::to_string(automatic_torus_max_particles);
     else if (plan.method == "torus-trapezoid")
       out += ": " + torus;
     out += "\n";
     if (!qmc_n.empty())
-      out += "# qmc (N = " + join_values(qmc_n) + "): " + std::to_string(plan.qmc.points) +
-             " points x " + std::to_string(plan.qmc.shifts) + " shifts, seed " +
-             std::to_string(plan.qmc.seed) +
+      out += "# qmc (N = " + join_values(qmc_n) + "): " +
+             std::to_string(plan.options.samples.value_or(default_qmc_samples)) + " points x " +
+             std::to_string(plan.options.shifts.value_or(default_qmc_shifts)) + " shifts, seed " +
+             std::to_string(plan.options.seed.value_or(default_qmc_seed)) +
              " (the same shifts for every row), double only, 3-sigma error bars\n";
   } else {
     out += " (the double-pendulum engines)\n";
@@ -582,7 +578,7 @@ std::string table_command(const Options& options) {
       std::ranges::min(particle_values) < plan.columns_particles)
     out += "# per-particle columns run to N = " + std::to_string(plan.columns_particles) +
            "; a row of a shorter chain leaves the cells beyond its N empty\n";
-  out += "# pendavg " PENDAVG_VERSION ", generated " + utc_now() + " (UTC)\n";
+  out += "# pendavg " + std::string(version()) + ", generated " + utc_now() + " (UTC)\n";
   std::vector<std::string> header{"N", "digits"};
   const std::vector<std::string> cases = case_columns(plan.columns_particles);
   header.insert(header.end(), cases.begin(), cases.end());
@@ -594,7 +590,11 @@ std::string table_command(const Options& options) {
     const auto names = indexed_names(stem, plan.columns_particles);
     header.insert(header.end(), names.begin(), names.end());
   }
-  header.insert(header.end(), {"method", "evaluations", "converged"});
+  header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "ratio_error"});
+  for (const std::string_view stem : {std::string_view("cos_phi_error"), std::string_view("var_K_error")}) {
+    const auto names = indexed_names(stem, plan.columns_particles);
+    header.insert(header.end(), names.begin(), names.end());
+  }
   append_csv_line(out, header);
 
   std::vector<std::string> rows;

@@ -14,7 +14,7 @@
 #include <benchmark/benchmark.h>
 
 #include "pendavg/chain.hpp"
-#include "pendavg/torus.hpp"
+#include "engine/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <algorithm>
@@ -41,7 +41,7 @@ void BM_torus_trapezoid(benchmark::State& state) {
   }
   state.counters["tolerance"] = tol;
   state.counters["nodes"] = static_cast<double>(r.evaluations);
-  state.counters["error_K1"] = r.beta_kinetic_error[0];
+  state.counters["error_K1"] = r.beta_kinetic[0].error;
   state.counters["converged"] = r.converged;
 }
 BENCHMARK(BM_torus_trapezoid)->Arg(3)->Arg(4)->Unit(benchmark::kMillisecond);
@@ -68,9 +68,9 @@ void BM_node_traces(benchmark::State& state) {
 }
 BENCHMARK(BM_node_traces)->RangeMultiplier(8)->Range(8, 4096);
 
-double largest_bar(const pendavg::QmcAverages<double>& r) {
+double largest_bar(const pendavg::Averages<double>& r) {
   double bar = 0;
-  for (double e : r.averages.beta_kinetic_error) bar = std::max(bar, e);
+  for (const pendavg::Estimate<double>& k : r.beta_kinetic) bar = std::max(bar, k.error);
   return bar;
 }
 
@@ -82,7 +82,7 @@ void BM_qmc_to_target(benchmark::State& state) {
   options.shifts = 16;
   options.seed = 1;
   options.threads = 2;
-  pendavg::QmcAverages<double> r;
+  pendavg::Averages<double> r;
   std::size_t points = 0;
   for (auto _ : state) {
     for (points = std::size_t(1) << 12; points <= (std::size_t(1) << 20); points *= 2) {
@@ -90,14 +90,14 @@ void BM_qmc_to_target(benchmark::State& state) {
       r = pendavg::qmc_average(chain, beta, options);
       if (largest_bar(r) <= 1e-4) break;
     }
-    benchmark::DoNotOptimize(r.averages.beta_kinetic.data());
+    benchmark::DoNotOptimize(r.beta_kinetic.data());
   }
   state.counters["N"] = static_cast<double>(n);
   state.counters["beta"] = beta;
   state.counters["points_per_shift"] = static_cast<double>(std::min(points, std::size_t(1) << 20));
   state.counters["max_bar"] = largest_bar(r);
-  state.counters["error_K1"] = r.averages.beta_kinetic_error[0];
-  state.counters["effective_fraction"] = r.effective_sample_fraction;
+  state.counters["error_K1"] = r.beta_kinetic[0].error;
+  state.counters["effective_fraction"] = r.qmc->effective_sample_fraction;
 }
 BENCHMARK(BM_qmc_to_target)
     ->Args({8, 10})
@@ -120,14 +120,14 @@ void BM_qmc_fixed(benchmark::State& state) {
   options.threads = 2;
   options.proposal = state.range(2) == 0 ? pendavg::QmcProposal::pivot_sequential
                                          : pendavg::QmcProposal::von_mises;
-  pendavg::QmcAverages<double> r;
+  pendavg::Averages<double> r;
   for (auto _ : state) {
     r = pendavg::qmc_average(chain, 1.0, options);
-    benchmark::DoNotOptimize(r.averages.beta_kinetic.data());
+    benchmark::DoNotOptimize(r.beta_kinetic.data());
   }
   state.counters["N"] = static_cast<double>(n);
   state.counters["max_bar"] = largest_bar(r);
-  state.counters["effective_fraction"] = r.effective_sample_fraction;
+  state.counters["effective_fraction"] = r.qmc->effective_sample_fraction;
   state.counters["per_particle_point_ns"] =
       benchmark::Counter(static_cast<double>(state.iterations() * n * options.points * 16),
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);

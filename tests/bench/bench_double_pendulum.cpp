@@ -35,8 +35,8 @@
 #include "cases.hpp"
 
 #include "pendavg/chain.hpp"
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/double_pendulum.hpp"
+#include "engine/precision.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -112,7 +112,7 @@ void check_result(const pendavg::Averages<Real>& r, const char* bench, std::size
                   const Case& c, Problems& problems) {
   using std::isfinite;
   bool finite = r.beta_kinetic.size() == 2;
-  for (const Real& v : r.beta_kinetic) finite = finite && isfinite(v);
+  for (const pendavg::Estimate<Real>& k : r.beta_kinetic) finite = finite && isfinite(k.value);
   if (!finite) {
     ++problems.nonfinite;
     report_problem(bench, index, c, "non-finite beta<K_i>");

@@ -15,8 +15,8 @@
 #include <benchmark/benchmark.h>
 
 #include "pendavg/chain.hpp"
-#include "pendavg/double_pendulum.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/double_pendulum.hpp"
+#include "engine/precision.hpp"
 
 #include <cstdlib>
 #include <exception>

@@ -148,6 +148,8 @@ bad "cases --format json"    average --cases "$work/bad_row.csv" --format json
 
 # ---------------------------------------------------------------- good input
 json_keys='N beta digits method beta_K K error ratio cos_phi var_K evaluations seconds converged'
+# Keys added after the original ones (issue 10: every error the library computes, and its kind).
+json_added='error_kind K_error ratio_error cos_phi_error var_K_error error_kinds work_unit equipartition_residual run'
 check_average_json() { # DIGITS
   "$python" -c '
 import json, sys
@@ -173,7 +175,7 @@ good "average csv" \
 good "average text"          'grep -q "beta<K_i>" "$work/out"' average "${pendulum[@]}" --beta 1 --format text
 
 printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
-cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations'
+cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'
 good "cases shuffled" \
   '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$cases_header" ] && [ "$(sed -n 3p "$work/out" | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
   average --cases "$work/cases.csv"
@@ -227,16 +229,21 @@ OMP_NUM_THREADS=2 "$pendavg" average --cases "$work/many.csv" >"$work/many2.csv"
 check_any_n_json() { # N
   "$python" -c '
 import json, sys
-keys = sys.argv[1].split() + ["diagonal_approx", "beta_Kc"]
+keys = sys.argv[1].split() + ["diagonal_approx", "beta_Kc"] + sys.argv[4].split()
 n = int(sys.argv[2])
 o = json.loads(open(sys.argv[3]).read())
 assert list(o) == keys, list(o)
+assert o["error_kind"] in ("bound", "estimate", "statistical"), o["error_kind"]
+for k in ("K_error", "cos_phi_error", "var_K_error"):
+    assert isinstance(o[k], list) and len(o[k]) == n and all(float(e) >= 0 for e in o[k]), k
+assert (o["ratio_error"] is None) == (n == 1), o["ratio_error"]
+assert set(o["error_kinds"]) == {"beta_K", "ratio", "cos_phi", "var_K"}, o["error_kinds"]
 assert o["N"] == n and o["converged"] is True
 for k in ("beta_K", "K", "error", "cos_phi", "var_K", "diagonal_approx", "beta_Kc"):
     assert isinstance(o[k], list) and len(o[k]) == n, k
 assert all(v == "5.000000000000000e-01" for v in o["beta_Kc"]), o["beta_Kc"]
 assert abs(sum(map(float, o["beta_K"])) - n / 2) < 1e-12, "sum_i beta<K_i> = N/2"
-' "$json_keys" "$1" "$work/out"
+' "$json_keys" "$1" "$work/out" "$json_added"
 }
 # beta<K_i> of the unit 3-link chain at g = beta = 1 (published reference values)
 check_unit3() {
@@ -260,7 +267,7 @@ good "N = 3 torus-gauss, digits 20" \
 good "N = 1"                 \
   'check_any_n_json 1 && "$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"ratio\"] is None and o[\"beta_K\"] == [\"5.000000000000000e-01\"], o" "$work/out"' \
   average --masses 2 --lengths 3 --beta 0.7
-good "N = 4 csv"             '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",beta_Kc4$"' \
+good "N = 4 csv"             '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",beta_Kc4,error_kind," && head -1 "$work/out" | grep -q ",equipartition_residual$"' \
   average --masses 1,2,3,4 --lengths 1,1,1,1 --beta 1 --format csv
 good "N = 3 text"            'grep -q "diagonal approx" "$work/out" && [ "$(grep -c "^ *[123]  " "$work/out")" -eq 3 ]' \
   average "${unit3[@]}" --beta 1 --format text
@@ -313,7 +320,7 @@ good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(stri
 # --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
 # match the single-case command.
 printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
-cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations'
+cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'
 check_cases3() {
   [ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(head -1 "$work/out")" = "$cases3_header" ] &&
     [ "$(sed -n 3p "$work/out" | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
@@ -346,7 +353,8 @@ check_limit() {
 import json, sys, decimal
 o = json.loads(open(sys.argv[1]).read())
 for part in ("high_temperature", "low_temperature"):
-    assert list(o[part]) == ["beta_K", "error", "ratio", "var_K_beta2"], list(o[part])
+    assert list(o[part])[:4] == ["beta_K", "error", "ratio", "var_K_beta2"], list(o[part])
+    assert o[part]["error_kind"] == "bound", o[part]
 value = format(decimal.Decimal(o["high_temperature"]["beta_K"][0]), "f")
 assert value.startswith("0.3431834814709"), value
 ' "$work/out"
@@ -376,7 +384,7 @@ good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged'
+table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'
 check_table() {
   "$python" -c '
 import csv, sys
@@ -386,7 +394,7 @@ data = [l for l in lines if not l.startswith("#")]
 assert lines[0].startswith("# pendavg table"), lines[0]
 assert all(not l.startswith("#") for l in lines[len(comments):]), "comments after data"
 text = "\n".join(comments)
-for needle in ("beta = log:1e-3:1e3:7", "mu1 = 0.05,0.95", "l2 = 0.5,2", "method = auto", "digits = 16", "pendavg 0.1", "UTC"):
+for needle in ("beta = log:1e-3:1e3:7", "mu1 = 0.05,0.95", "l2 = 0.5,2", "method = auto", "digits = 16", "pendavg 0.2", "UTC"):
     assert needle in text, needle
 assert data[0] == sys.argv[2], data[0]
 rows = list(csv.DictReader(data))
@@ -459,7 +467,8 @@ header = data[0].split(",")
 per = lambda stem: [f"{stem}{i}" for i in range(1, 6)]
 expected = (["N", "digits", "beta", "g"] + per("m") + per("l") + per("beta_K") + per("error_K") +
             ["ratio"] + per("cos_phi") + per("var_K") + per("diagonal_approx") +
-            ["method", "evaluations", "converged"])
+            ["method", "evaluations", "converged", "error_kind", "ratio_error"] +
+            per("cos_phi_error") + per("var_K_error"))
 assert header == expected, header
 assert all(len(l.split(",")) == len(header) for l in data), "ragged rows"
 rows = list(csv.DictReader(data))

@@ -77,8 +77,8 @@
 // Higham, Accuracy and Stability, ch. 4 (compensated summation).
 #pragma once
 
-#include "pendavg/detail/elliptic.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/detail/elliptic.hpp"
+#include "engine/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 #include <boost/math/special_functions/bernoulli.hpp>
@@ -738,12 +738,14 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
     }
   };
   if constexpr (is_mpfr_v<Real>) {
-    working_precision guard(p_real + plan.extra_digits);
+    // Values of the caller's precision and of this wider one meet here, and Boost 1.74 switches
+    // the process-wide precision inside such operations: run alone (exclusive_precision).
+    exclusive_precision guard(p_real + plan.extra_digits);
     body();
   } else {
     body();
   }
-  out.relative_error = bound;
+  out.relative_error = at_working_precision(bound);
   return out;
 }
 

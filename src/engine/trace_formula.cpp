@@ -2,6 +2,8 @@
 // stable are described in include/pendavg/trace_formula.hpp.
 #include "pendavg/trace_formula.hpp"
 
+#include "engine/precision.hpp"
+
 #include <cmath>
 #include <string>
 

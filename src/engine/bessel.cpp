@@ -1,12 +1,14 @@
 // Scaled modified Bessel functions: GSL in double, series/asymptotic generic, Miller tables.
-#include "pendavg/bessel.hpp"
+#include "engine/bessel.hpp"
 
-#include "pendavg/precision.hpp"
+#include "engine/constant_cache.hpp"
+#include "engine/precision.hpp"
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_sf_bessel.h>
 
 #include <algorithm>
+#include <memory>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -113,66 +115,72 @@ bool forward_recurrence_is_stable(double a, std::size_t count) {
   return c * c <= max_exponent * a && a > 4.0 * log_inverse_roundoff<Real>();
 }
 
-/// Hankel's series in MPFR as polynomials in y = 1/x with coefficients cached per precision
-/// (per thread): c_k = prod_{j<=k} (2j-1)^2/(8j) (nu = 0) and d_k = -c_k (2k+1)/(2k-1) (nu = 1;
-/// the ratio of the two products telescopes). Horner's rule then costs two multiplications and
-/// two additions per term instead of a division-laden recurrence. The number of terms n is the
-/// first with c_n y^n <= u/16 (|d_n| <= 3 c_n), found in double from cached ln c_k: the same
-/// stopping rule as the term-by-term loop, one term later at most.
-struct HankelMpfrCache {
-  unsigned precision = 0;
+/// Hankel's series in MPFR as polynomials in y = 1/x with coefficients tabulated once per
+/// precision (shared by all threads, never changed): c_k = prod_{j<=k} (2j-1)^2/(8j) (nu = 0)
+/// and d_k = -c_k (2k+1)/(2k-1) (nu = 1; the ratio of the two products telescopes). Horner's
+/// rule then costs two multiplications and two additions per term instead of a division-laden
+/// recurrence. The number of terms n is the first with c_n y^n <= u/16 (|d_n| <= 3 c_n), found
+/// in double from the tabulated ln c_k: the same stopping rule as the term-by-term loop, one term
+/// later at most. The table runs to the count needed at the smallest argument the series is used
+/// for (asymptotic_threshold), plus a margin.
+struct HankelMpfrTable {
   std::vector<mpfr_real> c, d;
   std::vector<double> log_c;
-  void extend(std::size_t n) {
-    while (c.size() <= n) {
-      const std::size_t k = c.size();
-      if (k == 0) {
-        c.emplace_back(1);
-        d.emplace_back(1);
-        log_c.push_back(0.0);
-        continue;
+
+  HankelMpfrTable() {
+    const double target = -log_inverse_roundoff<mpfr_real>() - std::log(16.0);
+    const double log_x = std::log(asymptotic_threshold<mpfr_real>());
+    for (std::size_t k = 0;; ++k) {
+      append(k);
+      if (log_c[k] - static_cast<double>(k) * log_x <= target) {
+        for (std::size_t extra = 1; extra <= 16; ++extra) append(k + extra);
+        break;
       }
-      const unsigned long odd = 2 * k - 1;
-      mpfr_real ck = c.back();
-      ck *= odd * odd;
-      ck /= 8 * k;
-      mpfr_real dk = ck;
-      dk *= 2 * k + 1;
-      dk /= odd;
-      dk = -dk;
-      log_c.push_back(log_c.back() + std::log(static_cast<double>(odd * odd) / (8.0 * k)));
-      c.push_back(std::move(ck));
-      d.push_back(std::move(dk));
+      if (k > 100000) throw std::domain_error("scaled_bessel_i01: Hankel series did not converge");
     }
+  }
+
+ private:
+  void append(std::size_t k) {
+    if (k == 0) {
+      c.emplace_back(1);
+      d.emplace_back(1);
+      log_c.push_back(0.0);
+      return;
+    }
+    const unsigned long odd = 2 * k - 1;
+    mpfr_real ck = c.back();
+    ck *= odd * odd;
+    ck /= 8 * k;
+    mpfr_real dk = ck;
+    dk *= 2 * k + 1;
+    dk /= odd;
+    dk = -dk;
+    log_c.push_back(log_c.back() + std::log(static_cast<double>(odd * odd) / (8.0 * k)));
+    c.push_back(std::move(ck));
+    d.push_back(std::move(dk));
   }
 };
 
-HankelMpfrCache& hankel_mpfr_cache() {
-  thread_local HankelMpfrCache cache;
-  const unsigned precision = mpfr_real::default_precision();
-  if (cache.precision != precision) {
-    cache = HankelMpfrCache{};
-    cache.precision = precision;
-  }
-  return cache;
+std::shared_ptr<const HankelMpfrTable> hankel_mpfr_table() {
+  static ConstantCache<HankelMpfrTable> cache;
+  return cache.get(0, mpfr_real::default_precision());
 }
 
-/// Hankel terms for x: the first n with c_n x^{-n} <= u/16.
-std::size_t hankel_mpfr_terms(HankelMpfrCache& cache, const mpfr_real& x) {
+/// Hankel terms for x >= asymptotic_threshold: the first n with c_n x^{-n} <= u/16.
+std::size_t hankel_mpfr_terms(const HankelMpfrTable& table, const mpfr_real& x) {
   const double target = -log_inverse_roundoff<mpfr_real>() - std::log(16.0);
   const double xd = static_cast<double>(x);
   const double log_x = std::isfinite(xd) ? std::log(xd) : 710.0;
-  std::size_t n = 1;
-  for (;; ++n) {
-    if (cache.log_c.size() <= n) cache.extend(n + 16);
-    if (cache.log_c[n] - static_cast<double>(n) * log_x <= target) break;
-    if (n > 100000) throw std::domain_error("scaled_bessel_i01: Hankel series did not converge");
+  for (std::size_t n = 1; n < table.log_c.size(); ++n) {
+    if (table.log_c[n] - static_cast<double>(n) * log_x <= target) return n;
   }
-  return n;
+  throw std::domain_error("scaled_bessel_i01: Hankel series did not converge");
 }
 
 ScaledBesselI01<mpfr_real> hankel_mpfr(const mpfr_real& x) {
-  auto& cache = hankel_mpfr_cache();
+  const auto table = hankel_mpfr_table();
+  const HankelMpfrTable& cache = *table;
   const std::size_t n = hankel_mpfr_terms(cache, x);
   const mpfr_real y = 1 / x;
   mpfr_real s0 = cache.c[n], s1 = cache.d[n];
@@ -197,7 +205,8 @@ ScaledBesselI01Range<Real> scaled_bessel_i01_range(const Real& x_min, const Real
   ScaledBesselI01Range<Real> out;
   if constexpr (is_mpfr_v<Real>) {
     if (!(x_min >= Real(asymptotic_threshold<Real>())) || !(x_max >= x_min)) return out;
-    auto& cache = hankel_mpfr_cache();
+    const auto table = hankel_mpfr_table();
+    const HankelMpfrTable& cache = *table;
     // Hankel's polynomials of degree n in y = 1/x (the term count of scaled_bessel_i01 at
     // x_min, hence at least as many terms as it takes anywhere in the range).
     const std::size_t n = hankel_mpfr_terms(cache, x_min);

@@ -1,15 +1,13 @@
-// Explicit instantiations of the any-N torus and QMC engines (include/pendavg/torus.hpp).
-#include "pendavg/torus.hpp"
+// Explicit instantiations of the any-N torus and QMC engines (engine/torus.hpp).
+#include "engine/torus.hpp"
 
 namespace pendavg {
 
 #define PENDAVG_TORUS_INSTANTIATE(Real)                                                  \
-  template TorusAverages<Real> torus_average_full<Real>(const Chain<Real>&, const Real&, \
-                                                        const TorusOptions&);            \
   template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,           \
                                               const TorusOptions&);                      \
-  template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,          \
-                                               const QmcOptions&);                        \
+  template Averages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,             \
+                                            const QmcOptions&);                          \
   template Averages<Real> high_temperature_limit_any<Real>(                              \
       const Chain<Real>&, const TorusOptions&, const QmcOptions&, std::size_t);          \
   template Averages<Real> low_temperature_limit_any<Real>(const Chain<Real>&);

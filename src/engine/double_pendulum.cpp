@@ -14,14 +14,14 @@
 //   mu1 J_{-3/2} = J_{1/2} - mu2 int_0^T sin t cos t q^{-1/2} W' dt + mu2 B(T),
 //   B(t) = sin t cos t q^{-1/2} W(t),   W' = -a1 a2 sin t e^{-A} I1(R)/R <= 0,
 // so both integrand terms are >= 0 and only q^{-1/2}'s branch point at q = 0 remains.
-#include "pendavg/double_pendulum.hpp"
+#include "engine/double_pendulum.hpp"
 
-#include "pendavg/bessel.hpp"
-#include "pendavg/quadrature.hpp"
+#include "engine/bessel.hpp"
+#include "engine/quadrature.hpp"
 
 #include <boost/math/constants/constants.hpp>
-#include "pendavg/detail/fourier_moments.hpp"
-#include "pendavg/detail/inner_panel_series.hpp"
+#include "engine/detail/fourier_moments.hpp"
+#include "engine/detail/inner_panel_series.hpp"
 #include <boost/math/special_functions/fpclassify.hpp>
 
 #include <algorithm>
@@ -67,7 +67,7 @@ using std::sin;
 using std::sinh;
 using std::sqrt;
 
-constexpr std::size_t integral_count = 5;  // J_{1/2}, J_{-1/2}, J_{-3/2}, C_1, C_2
+constexpr std::size_t integral_count = integral::count;
 template <class Real>
 using Integrands = std::array<Real, integral_count>;
 
@@ -293,21 +293,6 @@ struct DirectWeights {
 };
 
 template <class Real>
-struct IntegralWorkspace {
-  ClenshawCurtisRule<Real> rule{8};
-  ClenshawCurtisRule<Real> rule12{12};  // levels 12 2^L: for integrands predicted to need ~100 nodes
-  std::vector<std::vector<Integrands<Real>>> values;  // [0]: this level, [1]: the previous one
-};
-
-template <class Real>
-IntegralWorkspace<Real>& integral_workspace() {
-  thread_local std::unique_ptr<IntegralWorkspace<Real>> ws;
-  const int digits = is_mpfr_v<Real> ? current_digits10<Real>() : 0;
-  if (!ws || ws->rule.digits() != digits || ws->rule12.digits() != digits) ws = std::make_unique<IntegralWorkspace<Real>>();
-  return *ws;
-}
-
-template <class Real>
 struct LevelResult {
   Integrands<Real> value{}, error{};
   std::size_t nodes = 0;
@@ -321,10 +306,10 @@ struct LevelResult {
 template <class Real, class Weights>
 LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, const Real& mu2,
                                    const Weights& weights, const Real& tol,
-                                   std::size_t max_level, bool base12 = false) {
-  auto& ws0 = integral_workspace<Real>();
-  auto& rule = base12 ? ws0.rule12 : ws0.rule;
-  auto& ws = ws0;
+                                   std::size_t max_level, bool base12,
+                                   IntegralWorkspace<Real>& ws) {
+  const auto shared_rule = shared_clenshaw_curtis_rule<Real>(base12 ? 12 : 8);
+  const ClenshawCurtisRule<Real>& rule = *shared_rule;
   const Real u = unit_roundoff<Real>();
   LevelResult<Real> out;
   Integrands<Real> previous{}, previous_diff{};
@@ -334,7 +319,6 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
   const Real inv_mu1 = 1 / mu1;
   if (ws.values.size() < 2) ws.values.resize(2);
   for (std::size_t level = 0; level <= max_level; ++level) {
-    rule.ensure_level(level);
     const auto& x = rule.nodes(level);
     const auto& w = rule.weights(level);
     // The nodes of the previous level are the even nodes of this one: move their values.
@@ -788,6 +772,7 @@ bool moment_sum_accepted(const LevelResult<Real>& r, const Real& tol) {
 template <class Real>
 Averages<Real> finish_averages(const DoublePendulumParameters<Real>& p,
                                const LevelResult<Real>& r) {
+  using namespace integral;
   const Real u = unit_roundoff<Real>();
   const auto& I = r.value;
   const auto& e = r.error;
@@ -798,48 +783,50 @@ Averages<Real> finish_averages(const DoublePendulumParameters<Real>& p,
   };
   Averages<Real> out;
   out.method = Method::reduced_integral;
+  out.error_kind = ErrorKind::estimate;
+  out.work_unit = WorkUnit::nodes;
   out.evaluations = r.nodes;
   out.converged = r.converged;
+  constexpr ErrorKind kind = ErrorKind::estimate;
   Real q, q_err;
-  ratio(1, 0, q, q_err);  // J_{-1/2} / J_{1/2}
+  ratio(J_minus_half, J_half, q, q_err);
   const Real k1 = p.mu1 / 2 * q;
   const Real k1_err = p.mu1 / 2 * q_err + 2 * u * k1;
   const Real k2 = 1 - k1;
   const Real k2_err = k1_err + 2 * u * k2;
-  out.beta_kinetic = {k1, k2};
-  out.beta_kinetic_error = {k1_err, k2_err};
+  out.beta_kinetic = {{k1, k1_err, kind}, {k2, k2_err, kind}};
   Real cos1, cos1_err, cos2, cos2_err;
-  ratio(3, 0, cos1, cos1_err);
-  ratio(4, 0, cos2, cos2_err);
-  out.cos_angle = {cos1, cos2};
-  out.cos_angle_error = {cos1_err, cos2_err};
+  ratio(C_1, J_half, cos1, cos1_err);
+  ratio(C_2, J_half, cos2, cos2_err);
+  out.cos_angle = {{cos1, cos1_err, kind}, {cos2, cos2_err, kind}};
   Real x2, x2_err;
-  ratio(2, 0, x2, x2_err);  // <x^2> / mu1^2
+  ratio(J_minus_three_halves, J_half, x2, x2_err);  // <x^2> / mu1^2
   x2 *= p.mu1 * p.mu1;
   x2_err *= p.mu1 * p.mu1;
   const Real x1 = 2 * k1, x1_err = 2 * k1_err;  // <x> = <tr X_1>
   const Real var1 = Real(3) / 4 * x2 - x1 * x1 / 4;
   const Real var2 = (1 - x1) + x1 * x1 / 2 + Real(3) / 4 * (x2 - x1 * x1);
-  out.beta2_kinetic_variance = {var1, var2};
   // |d var1/d x1| = x1/2, |d var2/d x1| = 1 + x1/2, d var/d x2 = 3/4; x1 <= 1.
-  out.beta2_kinetic_variance_error = {Real(3) / 4 * x2_err + x1 / 2 * x1_err + 8 * u,
-                                      Real(3) / 4 * x2_err + (1 + x1 / 2) * x1_err + 8 * u};
-  out.ratio = k1 / k2;
-  out.ratio_error = k1_err / k2 + out.ratio * (k2_err / k2 + 4 * u);
+  out.beta2_kinetic_variance = {{var1, Real(3) / 4 * x2_err + x1 / 2 * x1_err + 8 * u, kind},
+                                {var2, Real(3) / 4 * x2_err + (1 + x1 / 2) * x1_err + 8 * u, kind}};
+  const Real k_ratio = k1 / k2;
+  out.ratio = Estimate<Real>{k_ratio, k1_err / k2 + k_ratio * (k2_err / k2 + 4 * u), kind};
   return out;
 }
 
 }  // namespace
 
 template <class Real>
-Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
-                                        int digits) {
-  return reduced_integral_average(chain, beta, digits, IntegralOptions{});
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
+                                        const IntegralOptions& options) {
+  IntegralWorkspace<Real> workspace;
+  return reduced_integral_average(chain, beta, digits, options, workspace);
 }
 
 template <class Real>
-Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
-                                        int digits, const IntegralOptions& options) {
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
+                                        const IntegralOptions& options,
+                                        IntegralWorkspace<Real>& ws) {
   check_digits<Real>(digits);
   const precision_guard<Real> precision(digits + guard_digits);
   const auto p = double_pendulum_parameters(chain, beta);
@@ -977,7 +964,7 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
         !is_mpfr_v<Real> && !graf_nodes && map.use_sinh && map.sigma > 3.8 && map.sigma < 8.4;
     if (graf_nodes) {
       r = integrate_levels(map, p.mu1, p.mu2, graf_weights(p.a1, p.a2, L_graf, graf_terms), tol,
-                           max_level, base12);
+                           max_level, base12, ws);
     } else {
       DirectWeights<Real> dw{p.a1, p.a2, A, 4 * p.a1 * p.a2, fold};
       dw.by_parts = !fold;
@@ -1036,7 +1023,7 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
             outer.eps = s1;
             outer.v0 = asinh(Real(1));
             outer.sigma = asinh(sin(map.T / 2) / s1) - outer.v0;
-            const auto r2 = integrate_levels(outer, p.mu1, p.mu2, dw, tol, max_level, base12);
+            const auto r2 = integrate_levels(outer, p.mu1, p.mu2, dw, tol, max_level, base12, ws);
             for (std::size_t k = 0; k < integral_count; ++k) {
               r.value[k] = inner.value[k] + r2.value[k];
               r.error[k] = inner.error[k] + r2.error[k];
@@ -1065,8 +1052,8 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
         outer.eps = s1;
         outer.v0 = asinh(Real(1));
         outer.sigma = asinh(sin(map.T / 2) / s1) - outer.v0;
-        const auto r1 = integrate_levels(inner, p.mu1, p.mu2, dw, tol, max_level, base12);
-        const auto r2 = integrate_levels(outer, p.mu1, p.mu2, dw, tol, max_level, base12);
+        const auto r1 = integrate_levels(inner, p.mu1, p.mu2, dw, tol, max_level, base12, ws);
+        const auto r2 = integrate_levels(outer, p.mu1, p.mu2, dw, tol, max_level, base12, ws);
         // Both panels' integrands are positive (t <= T < pi/2): relative tolerances add up.
         for (std::size_t k = 0; k < integral_count; ++k) {
           r.value[k] = r1.value[k] + r2.value[k];
@@ -1075,7 +1062,7 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
         r.nodes = r1.nodes + r2.nodes;
         r.converged = r1.converged && r2.converged;
       } else {
-        r = integrate_levels(map, p.mu1, p.mu2, dw, tol, max_level, base12);
+        r = integrate_levels(map, p.mu1, p.mu2, dw, tol, max_level, base12, ws);
       }
       if (dw.by_parts) {
         // By parts on [0, T] (MATH.md Sec. 2 integrands; q' = 2 mu2 sin t cos t, mu1 + mu2 = 1):
@@ -1101,23 +1088,14 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
   return finish_averages(p, r);
 }
 
-template <class Real>
-Averages<Real> average(const Chain<Real>& chain, const Real& beta, int digits, Engine engine) {
-  switch (engine) {
-    case Engine::series: return series_average(chain, beta, digits);
-    case Engine::automatic:
-    case Engine::integral: return reduced_integral_average(chain, beta, digits);
-  }
-  return reduced_integral_average(chain, beta, digits);
-}
-
 #define PENDAVG_INSTANTIATE(Real)                                                           \
   template DoublePendulumParameters<Real> double_pendulum_parameters<Real>(const Chain<Real>&, \
                                                                            const Real&);    \
-  template Averages<Real> reduced_integral_average<Real>(const Chain<Real>&, const Real&, int); \
   template Averages<Real> reduced_integral_average<Real>(const Chain<Real>&, const Real&, int,  \
                                                          const IntegralOptions&);            \
-  template Averages<Real> average<Real>(const Chain<Real>&, const Real&, int, Engine);
+  template Averages<Real> reduced_integral_average<Real>(const Chain<Real>&, const Real&, int,  \
+                                                         const IntegralOptions&,              \
+                                                         IntegralWorkspace<Real>&);
 PENDAVG_INSTANTIATE(double)
 PENDAVG_INSTANTIATE(mpfr_real)
 #undef PENDAVG_INSTANTIATE

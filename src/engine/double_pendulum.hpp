@@ -1,6 +1,7 @@
-// pendavg/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2).
+// engine/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2); the public
+// entry point is average() (pendavg/average.hpp).
 //
-// Four engines, one result type (Averages<Real>):
+// Three engines, one result type (Averages<Real>):
 //  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (MATH.md Sec. 2),
 //      folded onto [0, pi/2]. The default engine, in double and in MPFR. Two evaluations:
 //      - exact finite sums: Graf's addition theorem expands the Boltzmann weight
@@ -25,9 +26,9 @@
 //      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.
 //      Evaluated in MPFR (its coefficients leave double's range); gives beta<K_i> only, and
 //      takes <cos phi_i>, Var K_i from the integral. O(M^2) work for M terms.
-//  * high_temperature_limit -- beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2
+//  * elliptic_high_temperature_limit -- beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2
 //      (paper eq. aveK1-beta0), via Carlson's R_F, R_G with k'^2 = mu1 given directly.
-//  * low_temperature_limit -- beta -> infinity: beta<K_i> = 1/2 for both particles.
+// (beta -> infinity, closed form for any N, is in engine/torus.hpp.)
 //
 // Observables: beta<K_i> (K_2 from beta<K1> + beta<K2> = 1), <cos phi_i>, beta^2 Var K_i
 // (MATH.md Sec. 4: for N = 2 X_1 has rank one, so <K1^2|phi> = 3 <K1|phi>^2).
@@ -38,9 +39,11 @@
 #pragma once
 
 #include "pendavg/chain.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/precision.hpp"
 #include "pendavg/result.hpp"
+#include "pendavg/series.hpp"
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -58,10 +61,6 @@ template <class Real>
 DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& chain,
                                                           const Real& beta);
 
-/// Engine choice for `average`. `automatic` picks the reduced integral (it has no mu1 -> 0
-/// slowdown); the series stays available as the paper's method and as an independent check.
-enum class Engine { automatic, series, integral };
-
 /// How the reduced integral is evaluated. `automatic`: when a1, a2 are moderate (few Graf
 /// terms), exactly, as a finite sum of Graf coefficients times the Fourier moments of q^s
 /// (three-term recurrence from K and E; no nodes at all); otherwise by sinh-mapped nested
@@ -75,42 +74,44 @@ struct IntegralOptions {
   IntegralEvaluation evaluation = IntegralEvaluation::automatic;
 };
 
-template <class Real>
-Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
-                                        int digits = 16);
-template <class Real>
-Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
-                                        const IntegralOptions& options);
+/// The five integrals of the reduced form (t = phi2 - phi1 folded onto [0, pi/2], q(t) = mu1 +
+/// mu2 sin^2 t, W(t) = e^{-(a1+a2)} I0(R(t)) + the same at pi - t):
+namespace integral {
+enum Index : std::size_t {
+  J_half,                ///< int q^{1/2} W          (the normalizer)
+  J_minus_half,          ///< int q^{-1/2} W         (beta<K1> = (mu1/2) J_{-1/2} / J_{1/2})
+  J_minus_three_halves,  ///< int q^{-3/2} W         (<(tr X_1)^2>, the variances)
+  C_1,                   ///< int q^{1/2} dW/da_1    (<cos phi_1> = C_1 / J_{1/2})
+  C_2,                   ///< int q^{1/2} dW/da_2    (<cos phi_2> = C_2 / J_{1/2})
+  count
+};
+}  // namespace integral
 
+/// Buffers of reduced_integral_average, reused from call to call (one per thread).
 template <class Real>
-Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int digits = 16,
-                              std::size_t max_terms = 0 /* 0: no cap */);
-
-template <class Real>
-Averages<Real> high_temperature_limit(const Chain<Real>& chain, int digits = 16);
-
-template <class Real>
-Averages<Real> low_temperature_limit(const Chain<Real>& chain);
-
-template <class Real>
-Averages<Real> average(const Chain<Real>& chain, const Real& beta, int digits = 16,
-                       Engine engine = Engine::automatic);
-
-/// One row of the series convergence check (paper eq. ave-K1-result, MATH.md Sec. 5).
-template <class Real>
-struct SeriesRow {
-  std::size_t n = 0;
-  Real R_n;            ///< R_n(a1, a2), scaled by exp(-(a1 + a2))
-  Real term;           ///< c_n mu2^n R_n, the n-th numerator term (scaled)
-  Real numerator;      ///< partial sum  sum_{k<=n} c_k mu2^k R_k  (scaled)
-  Real denominator;    ///< partial sum  R_0 - sum_{1<=k<=n} d_k mu2^k R_k  (scaled)
-  Real beta_kinetic1;  ///< (mu1/2) numerator / denominator
-  Real bound;          ///< rigorous bound on |beta<K1> - beta_kinetic1| from the tails
+struct IntegralWorkspace {
+  /// The integrands at the nodes of this level ([0]) and of the previous one ([1]).
+  std::vector<std::vector<std::array<Real, integral::count>>> values;
 };
 
-/// The series, term by term, up to `terms` terms (0: until the requested digits are certified).
+/// The exact 1-D reduced integral (MATH.md Secs. 2, 4): beta<K_i>, <cos phi_i>, beta^2 Var K_i.
+/// `digits`: 16 for double, 16..1000 for MPFR (computed at digits + guard_digits).
 template <class Real>
-std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
-                                                int digits = 16, std::size_t terms = 0);
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
+                                        const IntegralOptions& options,
+                                        IntegralWorkspace<Real>& workspace);
+template <class Real>
+Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta,
+                                        int digits = 16, const IntegralOptions& options = {});
+
+/// The paper's series (eq. ave-K1-result) for beta<K_i> with its certified truncation bound
+/// (error kind bound); <cos phi_i> and Var K_i from the reduced integral. max_terms = 0: no cap.
+template <class Real>
+Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int digits = 16,
+                              std::size_t max_terms = 0);
+
+/// beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2 (paper eq. aveK1-beta0), N = 2.
+template <class Real>
+Averages<Real> elliptic_high_temperature_limit(const Chain<Real>& chain, int digits = 16);
 
 }  // namespace pendavg

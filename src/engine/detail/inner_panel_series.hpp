@@ -33,8 +33,8 @@
 // panel quadrature otherwise (ok == false).
 #pragma once
 
-#include "pendavg/bessel.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/bessel.hpp"
+#include "engine/precision.hpp"
 
 #include <array>
 #include <cmath>

@@ -1,7 +1,8 @@
 // Nested Clenshaw-Curtis rules (Waldvogel's explicit cosine-sum weights, built per level).
-#include "pendavg/quadrature.hpp"
+#include "engine/quadrature.hpp"
 
-#include "pendavg/precision.hpp"
+#include "engine/constant_cache.hpp"
+#include "engine/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 
@@ -17,18 +18,24 @@ ClenshawCurtisRule<Real>::ClenshawCurtisRule(std::size_t n0)
 }
 
 template <class Real>
-void ClenshawCurtisRule<Real>::ensure_level(std::size_t level) {
+void ClenshawCurtisRule<Real>::ensure_level(std::size_t level) const {
   using std::cos;
+  if (level >= max_levels) throw std::length_error("Clenshaw-Curtis: too many levels");
+  if (level < ready_.load(std::memory_order_acquire)) return;
+  const std::lock_guard lock(mutex_);
   const Real pi = boost::math::constants::pi<Real>();
-  while (nodes_.size() <= level) {
-    const std::size_t L = nodes_.size();
+  for (std::size_t L = ready_.load(std::memory_order_relaxed); L <= level; ++L) {
     const std::size_t n = n0_ << L;
     // cos(pi m / n), m = 0..2n-1, from the first quarter by symmetry.
     std::vector<Real> cosines(2 * n);
     for (std::size_t m = 0; m <= n / 2; ++m) cosines[m] = cos(pi * Real(m) / Real(n));
     for (std::size_t m = n / 2 + 1; m <= n; ++m) cosines[m] = -cosines[n - m];
     for (std::size_t m = n + 1; m < 2 * n; ++m) cosines[m] = cosines[2 * n - m];
-    std::vector<Real> x(n + 1), w(n + 1);
+    auto built = std::make_unique<Level>();
+    std::vector<Real>& x = built->nodes;
+    std::vector<Real>& w = built->weights;
+    x.resize(n + 1);
+    w.resize(n + 1);
     for (std::size_t j = 0; j <= n; ++j) x[j] = (1 - cosines[j]) / 2;
     x.front() = 0;
     x.back() = 1;
@@ -47,12 +54,23 @@ void ClenshawCurtisRule<Real>::ensure_level(std::size_t level) {
       w[j] = (1 - s) * c / (2 * n);
       w[n - j] = w[j];
     }
-    nodes_.push_back(std::move(x));
-    weights_.push_back(std::move(w));
+    level_[L] = std::move(built);
+    ready_.store(L + 1, std::memory_order_release);
   }
+}
+
+template <class Real>
+std::shared_ptr<const ClenshawCurtisRule<Real>> shared_clenshaw_curtis_rule(std::size_t n0) {
+  static ConstantCache<ClenshawCurtisRule<Real>> cache;
+  const unsigned precision = is_mpfr_v<Real> ? mpfr_real::default_precision() : 0;
+  return cache.get(n0, precision, n0);
 }
 
 template class ClenshawCurtisRule<double>;
 template class ClenshawCurtisRule<mpfr_real>;
+template std::shared_ptr<const ClenshawCurtisRule<double>> shared_clenshaw_curtis_rule<double>(
+    std::size_t);
+template std::shared_ptr<const ClenshawCurtisRule<mpfr_real>>
+shared_clenshaw_curtis_rule<mpfr_real>(std::size_t);
 
 }  // namespace pendavg

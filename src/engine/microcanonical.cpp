@@ -1,6 +1,6 @@
 // Microcanonical averages (pendavg/microcanonical.hpp): the three rules and their explicit
 // instantiations (double, long double).
-#include "pendavg/microcanonical.hpp"
+#include "engine/microcanonical.hpp"
 
 #include <cmath>
 #include <string>
@@ -408,22 +408,18 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     out.proposal_beta = beta_star;
     out.effective_sample_fraction =
         total_w * total_w / (total_w2 * Real(static_cast<double>(points * shifts)));
+    constexpr ErrorKind kind = ErrorKind::statistical;
+    out.error_kind = kind;
     out.kinetic.resize(n);
-    out.kinetic_error.resize(n);
     out.cos_angle.resize(n);
-    out.cos_angle_error.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      out.kinetic[i] = est[i];
-      out.kinetic_error[i] = sig * se[i] + rounding * abs(est[i]);
-      out.cos_angle[i] = est[n + i];
-      out.cos_angle_error[i] = sig * se[n + i] + rounding;
+      out.kinetic[i] = {est[i], sig * se[i] + rounding * abs(est[i]), kind};
+      out.cos_angle[i] = {est[n + i], sig * se[n + i] + rounding, kind};
     }
-    out.kinetic_total = est[2 * n];
-    out.kinetic_total_error = sig * se[2 * n] + rounding * abs(est[2 * n]);
+    out.kinetic_total = {est[2 * n], sig * se[2 * n] + rounding * abs(est[2 * n]), kind};
     const Real z = est[2 * n + 1], z_error = sig * se[2 * n + 1] + rounding * z;
     const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
-    out.density_of_states = exp(log_factor) * z;
-    out.density_of_states_error = exp(log_factor) * z_error;
+    out.density_of_states = {exp(log_factor) * z, exp(log_factor) * z_error, kind};
   } else {
     const ShellSums<Real> sums = rule == Rule::integral ? integral_sums(chain, setup, options)
                                                         : torus_sums(chain, setup, options);
@@ -433,34 +429,36 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     const Real z = sums.value[0], z_error = sums.error[0];
     if (!(z > 0)) throw invalid_input("microcanonical: the accessible region was not resolved");
     const Real z_rel = z_error / z;
+    constexpr ErrorKind kind = ErrorKind::estimate;
+    out.error_kind = kind;
     out.kinetic.resize(n);
-    out.kinetic_error.resize(n);
     out.cos_angle.resize(n);
-    out.cos_angle_error.resize(n);
     Real numerator = 0, numerator_error = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const Real kn = sums.value[1 + i], ke = sums.error[1 + i];
       numerator += kn;
       numerator_error += ke;
-      out.kinetic[i] = setup.scale * kn / (nn * z);
-      out.kinetic_error[i] = abs(out.kinetic[i]) * (z_rel + rounding) + setup.scale * ke / (nn * z);
-      out.cos_angle[i] = sums.value[1 + n + i] / z;
-      out.cos_angle_error[i] =
-          (sums.error[1 + n + i] + abs(sums.value[1 + n + i]) * z_rel) / z + rounding;
+      const Real kinetic = setup.scale * kn / (nn * z);
+      out.kinetic[i] = {kinetic, abs(kinetic) * (z_rel + rounding) + setup.scale * ke / (nn * z),
+                        kind};
+      out.cos_angle[i] = {sums.value[1 + n + i] / z,
+                          (sums.error[1 + n + i] + abs(sums.value[1 + n + i]) * z_rel) / z +
+                              rounding,
+                          kind};
     }
-    out.kinetic_total = setup.scale * numerator / (nn * z);
-    out.kinetic_total_error =
-        out.kinetic_total * (z_rel + rounding) + setup.scale * numerator_error / (nn * z);
+    const Real kinetic_total = setup.scale * numerator / (nn * z);
+    out.kinetic_total = {kinetic_total,
+                         kinetic_total * (z_rel + rounding) + setup.scale * numerator_error / (nn * z),
+                         kind};
     if (sums.converged) {
       // the budget was tolerance; report converged only if the propagated errors stay within it
       out.converged = z_rel <= Real(2 * options.tolerance);
     }
     const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
-    out.density_of_states = exp(log_factor) * z;
-    out.density_of_states_error = exp(log_factor) * (z_error + rounding * z);
+    out.density_of_states = {exp(log_factor) * z, exp(log_factor) * (z_error + rounding * z), kind};
   }
-  out.kinetic_canonical = out.kinetic_total / nn;
-  out.kinetic_canonical_error = out.kinetic_total_error / nn;
+  out.kinetic_canonical = {out.kinetic_total.value / nn, out.kinetic_total.error / nn,
+                           out.kinetic_total.kind};
   return out;
 }
 

@@ -66,7 +66,7 @@
 // MATH.md Sec. 6; see the comment above QmcOptions).
 //
 // Result type. Averages<Real> carries the common fields (method torus_trapezoid,
-// torus_gauss_legendre or qmc); the any-N extras come back in TorusAverages / QmcAverages.
+// torus_gauss_legendre or qmc) and the any-N extras; Averages::torus / ::qmc describe the run.
 //
 // Precision: generic over Real (double, long double, mpfr_real). With options.digits > 0 (MPFR:
 // 16..1000) the call runs at digits + guard_digits and the tolerance becomes 10^-digits. The
@@ -75,10 +75,11 @@
 // MPFR always runs on the calling thread.
 #pragma once
 
-#include "pendavg/bessel.hpp"
+#include "engine/bessel.hpp"
+#include "engine/estimates.hpp"
 #include "pendavg/chain.hpp"
-#include "pendavg/detail/qmc_lattices.hpp"
-#include "pendavg/precision.hpp"
+#include "engine/detail/qmc_lattices.hpp"
+#include "engine/precision.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/trace_formula.hpp"
 
@@ -130,24 +131,6 @@ struct TorusOptions {
   /// true: once the successive differences contract by >= 10 per level, the error of the last
   /// level is estimated as d_n (d_n / d_{n/2}) (geometric convergence); false: d_n itself.
   bool extrapolate_error = true;
-};
-
-/// The any-N fields that Averages<Real> has no room for.
-template <class Real>
-struct TorusAverages {
-  Averages<Real> averages;  ///< method = torus_trapezoid or torus_gauss_legendre
-  /// beta <K_i^(c)> = <p_i phidot_i>/2 beta: 1/2 at every node, so 1/2 exactly (MATH.md Sec. 4).
-  std::vector<Real> beta_kinetic_canonical;
-  /// The paper's eq. ke-linear-tave-1 (MATH.md Sec. 8), beside the exact beta <K_i>.
-  std::vector<Real> diagonal_approximation;
-  /// |sum_i beta<K_i> - N/2|: the trace identity sum_i tr X_i = N after quadrature (rounding).
-  Real equipartition_residual{};
-  /// Z = <exp(log sqrt det A - log_hadamard - S) I0(R)> over the uniform torus, with its error.
-  Real mean_weight{}, mean_weight_error{};
-  TorusRule rule = TorusRule::trapezoid;
-  std::size_t points_per_dim = 0;  ///< n of the final level
-  double grid_points = 0;          ///< n^(N-1) of the final level (before the mirror halving)
-  std::size_t levels = 0;          ///< refinement levels evaluated
 };
 
 namespace detail::torus {
@@ -658,12 +641,13 @@ Real rounding_ulps(const WeightConstants<Real>& k, std::size_t n) {
 
 }  // namespace detail::torus
 
-/// The averages and the any-N extras (canonical kinetic energies, diagonal approximation,
-/// equipartition residual, mean weight, final grid). Throws invalid_input for a bad beta,
-/// digits or options, or when the first level would exceed options.max_grid_points nodes.
+/// The averages, the any-N extras (canonical kinetic energies, diagonal approximation,
+/// equipartition residual) and the refinement (Averages::torus: mean weight, final grid).
+/// Throws invalid_input for a bad beta, digits or options, or when the first level would exceed
+/// options.max_grid_points nodes.
 template <class Real>
-TorusAverages<Real> torus_average_full(const Chain<Real>& chain, const Real& beta,
-                                       const TorusOptions& options = {}) {
+Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
+                             const TorusOptions& options = {}) {
   using namespace detail::torus;
   check_beta(beta);
   if (options.digits != 0) check_digits<Real>(options.digits);
@@ -698,12 +682,13 @@ TorusAverages<Real> torus_average_full(const Chain<Real>& chain, const Real& bet
     maps = automatic_node_maps(chain, constants.alpha);
   }
 
-  TorusAverages<Real> out;
-  out.rule = options.rule;
-  Averages<Real>& a = out.averages;
+  Averages<Real> a;
   a.method = options.rule == TorusRule::gauss_legendre ? Method::torus_gauss_legendre
                                                        : Method::torus_trapezoid;
+  a.error_kind = ErrorKind::estimate;
+  a.work_unit = WorkUnit::nodes;
   a.converged = false;
+  TorusDiagnostics<Real>& diagnostics = a.torus.emplace();
 
   // Quantities in one flat vector: Z, then beta<K_i>, beta^2 Var K_i, <cos phi_i> (i = 1..N).
   // Scales of the stopping test: Z, beta<K_i>, beta^2 <K_i^2>, <|I1/I0 cos(theta_i - arg z)|>_w.
@@ -742,9 +727,9 @@ TorusAverages<Real> torus_average_full(const Chain<Real>& chain, const Real& bet
     } else {
       current = level_values(fresh, Real(1));
     }
-    out.levels = level + 1;
-    out.points_per_dim = n;
-    out.grid_points = grid_size(n);
+    diagnostics.levels = level + 1;
+    diagnostics.points_per_dim = n;
+    diagnostics.grid_points = grid_size(n);
     flatten(current);
     if (dims == 0) {  // one node: exact up to rounding
       std::fill(estimate.begin(), estimate.end(), Real(0));
@@ -789,39 +774,23 @@ TorusAverages<Real> torus_average_full(const Chain<Real>& chain, const Real& bet
     }
   }
 
-  a.beta_kinetic = current.beta_kinetic;
-  a.cos_angle = current.cosine;
-  a.beta2_kinetic_variance = current.variance;
-  a.beta_kinetic_error.resize(n_particles);
-  a.cos_angle_error.resize(n_particles);
-  a.beta2_kinetic_variance_error.resize(n_particles);
-  Real kinetic_sum = 0;
+  a.beta_kinetic.resize(n_particles);
+  a.cos_angle.resize(n_particles);
+  a.beta2_kinetic_variance.resize(n_particles);
+  constexpr ErrorKind kind = ErrorKind::estimate;
   for (std::size_t i = 0; i < n_particles; ++i) {
-    a.beta_kinetic_error[i] = estimate[1 + i] + rounding * scale[1 + i];
-    a.beta2_kinetic_variance_error[i] =
-        estimate[1 + n_particles + i] + 2 * rounding * scale[1 + n_particles + i];
-    a.cos_angle_error[i] = estimate[1 + 2 * n_particles + i] + rounding * scale[1 + 2 * n_particles + i];
-    kinetic_sum += current.beta_kinetic[i];
+    a.beta_kinetic[i] = {current.beta_kinetic[i], estimate[1 + i] + rounding * scale[1 + i], kind};
+    a.beta2_kinetic_variance[i] = {
+        current.variance[i],
+        estimate[1 + n_particles + i] + 2 * rounding * scale[1 + n_particles + i], kind};
+    a.cos_angle[i] = {current.cosine[i],
+                      estimate[1 + 2 * n_particles + i] + rounding * scale[1 + 2 * n_particles + i],
+                      kind};
   }
-  if (n_particles >= 2) {
-    a.ratio = a.beta_kinetic[0] / a.beta_kinetic[1];
-    a.ratio_error = a.beta_kinetic_error[0] / a.beta_kinetic[1] +
-                    a.ratio * (a.beta_kinetic_error[1] / a.beta_kinetic[1] + 4 * u);
-  }
-  out.mean_weight = current.mean_weight;
-  out.mean_weight_error = estimate[0] + rounding * scale[0];
-  out.beta_kinetic_canonical.assign(n_particles, Real(1) / 2);
-  out.diagonal_approximation = diagonal_approximation(chain);
-  out.equipartition_residual = abs(kinetic_sum - Real(static_cast<double>(n_particles)) / 2);
-  return out;
-}
-
-/// The averages only (Averages<Real>; method = reduced_integral, evaluations = nodes evaluated
-/// after the mirror halving, summed over the levels). See torus_average_full.
-template <class Real>
-Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
-                             const TorusOptions& options = {}) {
-  return torus_average_full(chain, beta, options).averages;
+  if (n_particles >= 2) a.ratio = kinetic_ratio(a.beta_kinetic[0], a.beta_kinetic[1], u);
+  diagnostics.mean_weight = {current.mean_weight, estimate[0] + rounding * scale[0], kind};
+  add_chain_extras(a, chain);
+  return a;
 }
 
 // ============================================================================ randomized QMC
@@ -914,21 +883,6 @@ struct QmcOptions {
   QmcProposal proposal = QmcProposal::automatic;
   /// Nodes of the tabulated conditional law per angle (pivot_sequential), >= 4.
   std::size_t proposal_grid = 32;
-};
-
-/// qmc_average's result: the averages (errors = sigmas standard errors + rounding) and extras.
-template <class Real>
-struct QmcAverages {
-  Averages<Real> averages;  ///< evaluations = points * shifts
-  std::vector<Real> beta_kinetic_standard_error, cos_angle_standard_error,
-      beta2_kinetic_variance_standard_error;
-  std::vector<Real> beta_kinetic_canonical;  ///< 1/2 exactly (MATH.md Sec. 4)
-  std::vector<Real> diagonal_approximation;  ///< eq. ke-linear-tave-1 (MATH.md Sec. 8)
-  Real equipartition_residual{};             ///< |sum_i beta<K_i> - N/2|
-  /// Kish's effective sample size of the pooled weights over (points * shifts): near the total
-  /// when sqrt(det A) and the Best-Fisher ratio vary little.
-  Real effective_sample_fraction{};
-  std::size_t points = 0, shifts = 0;
 };
 
 namespace detail::qmc {
@@ -1410,8 +1364,8 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
 /// Randomized lattice QMC estimate of the averages (see the comment above QmcOptions).
 /// Throws invalid_input for a bad beta or options, or N > 256 without options.generating_vector.
 template <class Real>
-QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
-                              const QmcOptions& options = {}) {
+Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
+                           const QmcOptions& options = {}) {
   using namespace detail::qmc;
   check_beta(beta);
   const std::size_t n = chain.size();
@@ -1518,41 +1472,34 @@ QmcAverages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const Real u = unit_roundoff<Real>();
   const Real rounding = detail::torus::rounding_ulps(constants, n) * u;
   const Real sigmas = Real(options.sigmas);
-  QmcAverages<Real> out;
-  out.points = points;
-  out.shifts = shifts;
-  Averages<Real>& a = out.averages;
+  Averages<Real> a;
+  QmcDiagnostics<Real>& diagnostics = a.qmc.emplace();
+  diagnostics.points = points;
+  diagnostics.shifts = shifts;
+  diagnostics.sigmas = options.sigmas;
   a.method = Method::qmc;
+  a.error_kind = ErrorKind::statistical;
+  a.work_unit = WorkUnit::samples;
   a.evaluations = points * shifts;
   a.converged = true;
-  a.beta_kinetic.assign(value.begin(), value.begin() + n);
-  a.beta2_kinetic_variance.assign(value.begin() + n, value.begin() + 2 * n);
-  a.cos_angle.assign(value.begin() + 2 * n, value.end());
-  out.beta_kinetic_standard_error.assign(standard_error.begin(), standard_error.begin() + n);
-  out.beta2_kinetic_variance_standard_error.assign(standard_error.begin() + n,
-                                                   standard_error.begin() + 2 * n);
-  out.cos_angle_standard_error.assign(standard_error.begin() + 2 * n, standard_error.end());
-  a.beta_kinetic_error.resize(n);
-  a.beta2_kinetic_variance_error.resize(n);
-  a.cos_angle_error.resize(n);
-  Real kinetic_sum = 0;
+  diagnostics.beta_kinetic_standard_error.assign(standard_error.begin(), standard_error.begin() + n);
+  diagnostics.beta2_kinetic_variance_standard_error.assign(standard_error.begin() + n,
+                                                           standard_error.begin() + 2 * n);
+  diagnostics.cos_angle_standard_error.assign(standard_error.begin() + 2 * n, standard_error.end());
+  a.beta_kinetic.resize(n);
+  a.beta2_kinetic_variance.resize(n);
+  a.cos_angle.resize(n);
+  constexpr ErrorKind kind = ErrorKind::statistical;
   for (std::size_t i = 0; i < n; ++i) {
-    a.beta_kinetic_error[i] = sigmas * standard_error[i] + rounding * abs(value[i]);
-    a.beta2_kinetic_variance_error[i] = sigmas * standard_error[n + i] + rounding;
-    a.cos_angle_error[i] = sigmas * standard_error[2 * n + i] + rounding;
-    kinetic_sum += value[i];
+    a.beta_kinetic[i] = {value[i], sigmas * standard_error[i] + rounding * abs(value[i]), kind};
+    a.beta2_kinetic_variance[i] = {value[n + i], sigmas * standard_error[n + i] + rounding, kind};
+    a.cos_angle[i] = {value[2 * n + i], sigmas * standard_error[2 * n + i] + rounding, kind};
   }
-  if (n >= 2) {
-    a.ratio = a.beta_kinetic[0] / a.beta_kinetic[1];
-    a.ratio_error = a.beta_kinetic_error[0] / a.beta_kinetic[1] +
-                    a.ratio * (a.beta_kinetic_error[1] / a.beta_kinetic[1] + 4 * u);
-  }
-  out.beta_kinetic_canonical.assign(n, Real(1) / 2);
-  out.diagonal_approximation = diagonal_approximation(chain);
-  out.equipartition_residual = abs(kinetic_sum - Real(static_cast<double>(n)) / 2);
-  out.effective_sample_fraction =
+  if (n >= 2) a.ratio = kinetic_ratio(a.beta_kinetic[0], a.beta_kinetic[1], u);
+  add_chain_extras(a, chain);
+  diagnostics.effective_sample_fraction =
       total_w * total_w / (total_w2 * Real(static_cast<double>(points * shifts)));
-  return out;
+  return a;
 }
 
 // ============================================================================ limits, any N
@@ -1574,12 +1521,12 @@ Averages<Real> high_temperature_limit_any(const Chain<Real>& chain, const TorusO
   const Chain<Real> free(chain.masses(), chain.lengths(), Real(0));
   Averages<Real> out = chain.size() <= max_tensor_particles
                            ? torus_average(free, Real(1), torus)
-                           : qmc_average(free, Real(1), qmc).averages;
+                           : qmc_average(free, Real(1), qmc);
   // At g = 0 the cosine averages vanish by symmetry (phi -> phi + const); report exact zeros.
   for (std::size_t i = 0; i < chain.size(); ++i) {
-    out.cos_angle[i] = 0;
-    out.cos_angle_error[i] = 0;
+    out.cos_angle[i] = {Real(0), Real(0), ErrorKind::bound};
   }
+  out.diagonal_approximation = diagonal_approximation(chain);
   return out;
 }
 
@@ -1590,34 +1537,32 @@ Averages<Real> low_temperature_limit_any(const Chain<Real>& chain) {
   TraceWorkspace<Real> ws(chain);
   const std::vector<Real> zero(n > 1 ? n - 1 : 1, Real(0));
   const NodeTraces<Real>& t = node_traces_relative(chain, zero.data(), ws);
+  constexpr ErrorKind bound = ErrorKind::bound;
   Averages<Real> out;
-  out.beta_kinetic.assign(n, Real(1) / 2);
-  out.beta_kinetic_error.assign(n, Real(0));
-  out.cos_angle.assign(n, Real(1));
-  out.cos_angle_error.assign(n, Real(0));
+  out.beta_kinetic.assign(n, Estimate<Real>{Real(1) / 2, Real(0), bound});
+  out.cos_angle.assign(n, Estimate<Real>{Real(1), Real(0), bound});
   out.beta2_kinetic_variance.resize(n);
-  out.beta2_kinetic_variance_error.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    out.beta2_kinetic_variance[i] = t.trace_X_squared[i] / 2;
+    const Real variance = t.trace_X_squared[i] / 2;
     // tr X_i^2 from the O(N) sweeps is accurate to a few ulps (trace_formula.hpp).
-    out.beta2_kinetic_variance_error[i] =
-        16 * std::numeric_limits<Real>::epsilon() * out.beta2_kinetic_variance[i];
+    out.beta2_kinetic_variance[i] = {variance,
+                                     16 * std::numeric_limits<Real>::epsilon() * variance, bound};
   }
-  out.ratio = n >= 2 ? Real(1) : Real(0);
-  out.ratio_error = 0;
+  if (n >= 2) out.ratio = Estimate<Real>{Real(1), Real(0), bound};
   out.method = Method::low_temperature_limit;
+  out.error_kind = bound;
+  out.work_unit = WorkUnit::nodes;
   out.evaluations = 1;
+  add_chain_extras(out, chain);
   return out;
 }
 
-// Explicit instantiations live in src/torus.cpp (double, long double, mpfr_real).
+// Explicit instantiations live in src/engine/torus.cpp (double, long double, mpfr_real).
 #define PENDAVG_TORUS_EXTERN(Real)                                                          \
-  extern template TorusAverages<Real> torus_average_full<Real>(const Chain<Real>&, const Real&, \
-                                                               const TorusOptions&);        \
   extern template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,        \
                                                      const TorusOptions&);                  \
-  extern template QmcAverages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,       \
-                                                      const QmcOptions&);                   \
+  extern template Averages<Real> qmc_average<Real>(const Chain<Real>&, const Real&,          \
+                                                   const QmcOptions&);                      \
   extern template Averages<Real> high_temperature_limit_any<Real>(                          \
       const Chain<Real>&, const TorusOptions&, const QmcOptions&, std::size_t);             \
   extern template Averages<Real> low_temperature_limit_any<Real>(const Chain<Real>&);

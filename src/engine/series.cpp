@@ -16,9 +16,9 @@
 // Bound: R_n is positive and non-increasing and c_n, d_n <= c_{M+1} for n > M, so both tails
 // are at most T_M = c_{M+1} R_{M+1} mu2^{M+1} / (1 - mu2). Hence
 //   (mu1/2) N_M/D_M <= beta<K1> <= (mu1/2) (N_M + T_M)/(D_M - T_M).
-#include "pendavg/double_pendulum.hpp"
+#include "engine/double_pendulum.hpp"
 
-#include "pendavg/bessel.hpp"
+#include "engine/bessel.hpp"
 
 #include <boost/math/special_functions/fpclassify.hpp>
 
@@ -26,6 +26,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace pendavg {
 namespace {
@@ -167,9 +168,12 @@ constexpr std::size_t max_automatic_terms = 6000;
 }  // namespace
 
 template <class Real>
-std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
-                                                int digits, std::size_t terms) {
+std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argument,
+                                                const Real& beta_argument, int digits,
+                                                std::size_t terms) {
   if constexpr (!is_mpfr_v<Real>) {
+    const Chain<Real>& chain = chain_argument;
+    const Real& beta = beta_argument;
     // The series' coefficients (2n)!/(2j)! and derivatives f_k leave double's range after a
     // hundred terms: evaluate in MPFR at 16 digits and round the rows to double.
     working_precision precision(16 + guard_digits);
@@ -187,6 +191,10 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
     return out;
   }
   check_digits<Real>(digits);
+  // The rows come back at the caller's precision, digits + guard_digits; so do the inputs.
+  const precision_guard<Real> caller_precision(digits + guard_digits);
+  const Chain<Real> chain = at_working_precision(chain_argument);
+  const Real beta = at_working_precision(beta_argument);
   double_pendulum_parameters(chain, beta);  // validates N = 2 and beta
   const double log_tol = is_mpfr_v<Real> ? -(digits + 1) * std::log(10.0)
                                          : std::log(4 * std::numeric_limits<double>::epsilon());
@@ -199,12 +207,18 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
   // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
   // limbs make this O(M^2) loop faster).
   const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
-  const precision_guard<Real> precision(digits + series_guard);
+  std::vector<SeriesRow<Real>> rows;
+  {
+  // The inputs keep the caller's precision while the sums run at digits + series_guard; Boost
+  // 1.74 switches the process-wide precision inside such mixed operations, so the sums run with
+  // MPFR to themselves (exclusive_precision), and the rows are rounded to the caller's precision
+  // (exactly: it is the higher one) when they are done.
+  std::optional<exclusive_precision> precision;
+  if constexpr (is_mpfr_v<Real>) precision.emplace(digits + series_guard);
   const auto p = double_pendulum_parameters(chain, beta);
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());
   const auto R = paper_R(p.a1, p.a2, M + 1);  // R_0 .. R_M (R_M for the bound after M-1)
-  std::vector<SeriesRow<Real>> rows;
   Real c = 1, mu2n = 1, N = 0, D = 0;
   for (std::size_t n = 0; n + 1 <= M; ++n) {
     if (n > 0) {
@@ -236,6 +250,12 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const 
     rows.push_back(std::move(row));
     if (done) break;
   }
+  }
+  for (SeriesRow<Real>& row : rows) {
+    for (Real* x : {&row.R_n, &row.term, &row.numerator, &row.denominator, &row.beta_kinetic1,
+                    &row.bound})
+      *x = at_working_precision(*x);
+  }
   return rows;
 }
 
@@ -247,23 +267,24 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
     working_precision precision(16 + guard_digits);
     const auto m = series_average(chain.template cast<mpfr_real>(), mpfr_real(beta), 16, max_terms);
     const Real u = unit_roundoff<Real>();
-    auto convert = [u](const std::vector<mpfr_real>& values, const std::vector<mpfr_real>& errors,
-                       std::vector<Real>& v, std::vector<Real>& e) {
-      v.resize(values.size());
-      e.resize(values.size());
-      for (std::size_t i = 0; i < values.size(); ++i) {
-        v[i] = static_cast<Real>(values[i]);
-        e[i] = static_cast<Real>(errors[i]) + u * std::abs(v[i]);
+    auto convert = [u](const std::vector<Estimate<mpfr_real>>& from,
+                       std::vector<Estimate<Real>>& to) {
+      to.resize(from.size());
+      for (std::size_t i = 0; i < from.size(); ++i) {
+        const Real v = static_cast<Real>(from[i].value);
+        to[i] = {v, static_cast<Real>(from[i].error) + u * std::abs(v), from[i].kind};
       }
     };
     Averages<Real> out;
-    convert(m.beta_kinetic, m.beta_kinetic_error, out.beta_kinetic, out.beta_kinetic_error);
-    convert(m.cos_angle, m.cos_angle_error, out.cos_angle, out.cos_angle_error);
-    convert(m.beta2_kinetic_variance, m.beta2_kinetic_variance_error, out.beta2_kinetic_variance,
-            out.beta2_kinetic_variance_error);
-    out.ratio = static_cast<Real>(m.ratio);
-    out.ratio_error = static_cast<Real>(m.ratio_error) + u * std::abs(out.ratio);
+    convert(m.beta_kinetic, out.beta_kinetic);
+    convert(m.cos_angle, out.cos_angle);
+    convert(m.beta2_kinetic_variance, out.beta2_kinetic_variance);
+    const Real ratio = static_cast<Real>(m.ratio->value);
+    out.ratio = Estimate<Real>{ratio, static_cast<Real>(m.ratio->error) + u * std::abs(ratio),
+                               m.ratio->kind};
     out.method = m.method;
+    out.error_kind = m.error_kind;
+    out.work_unit = m.work_unit;
     out.evaluations = m.evaluations;
     out.converged = m.converged;
     return out;
@@ -280,11 +301,13 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
   const Real rounding = 16 * u * Real(rows.size()) * k1;
   const Real k1_err = half_width + rounding;
   const Real k2 = 1 - k1;
-  out.beta_kinetic = {k1, k2};
-  out.beta_kinetic_error = {k1_err, k1_err + 2 * u};
-  out.ratio = k1 / k2;
-  out.ratio_error = out.ratio * (k1_err / k1 + k1_err / k2 + 4 * u);
+  constexpr ErrorKind bound = ErrorKind::bound;
+  out.beta_kinetic = {{k1, k1_err, bound}, {k2, k1_err + 2 * u, bound}};
+  const Real ratio = k1 / k2;
+  out.ratio = Estimate<Real>{ratio, ratio * (k1_err / k1 + k1_err / k2 + 4 * u), bound};
   out.method = Method::series;
+  out.error_kind = bound;
+  out.work_unit = WorkUnit::terms;
   out.evaluations = rows.size();
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());

@@ -1,0 +1,122 @@
+// pendavg/average.hpp -- the one entry point for canonical averages of any chain (N = 1..256):
+// beta<K_i>, <cos phi_i>, beta^2 Var K_i, <K_1>/<K_2>, beta<K_i^(c)> and the paper's diagonal
+// approximation, each with its error and the kind of guarantee the error carries
+// (result.hpp), and the beta -> 0 and beta -> infinity limits.
+//
+// Methods (AverageMethod; `automatic` picks for you):
+//   * integral         N = 2: the exact 1-D reduced integral (MATH.md Sec. 2), by finite Graf
+//                      sums or sinh-mapped Clenshaw-Curtis nodes; about 1 us in double, any
+//                      digits in MPFR. Error kind: estimate. automatic for N = 2.
+//   * series           N = 2: the paper's series (eq. ave-K1-result) in MPFR with its rigorous
+//                      tail bound (kind bound for beta<K_i>; <cos phi_i>, Var K_i come from the
+//                      integral). Slow when mu1 = m1/M is small (geometric in mu2).
+//   * torus_trapezoid  any N: the periodic trapezoid rule on the reduced (N-1)-torus, refined
+//                      until `tolerance` (double) or 10^-digits (MPFR); cost n^(N-1), so N <= ~6.
+//                      automatic for N = 1, 3, 4. Error kind: estimate.
+//   * torus_gauss      the same with Gauss-Legendre nodes: an independent check.
+//   * qmc              any N <= 256: randomized rank-1 lattice QMC, 3-sigma statistical bars
+//                      (double only). automatic for N >= 5.
+// Options a method does not use are refused (invalid_input), so a typo cannot silently change
+// nothing. `digits` selects the precision: 16 is double (Real = double); 17..1000 need
+// Real = mpfr_real (include pendavg/mpfr.hpp), computed at digits + guard_digits.
+//
+// Workspaces. average() with an AverageWorkspace reuses its buffers from call to call (one
+// workspace per thread; Pinocchio's Data); the overload without one makes a temporary. Constant
+// tables (quadrature rules, Bessel coefficients) are shared, immutable, by every call.
+// Calls are thread-safe and give the same bits on any thread; the torus and QMC methods use
+// `threads` OpenMP threads inside one call with results independent of their number.
+#pragma once
+
+#include "pendavg/chain.hpp"
+#include "pendavg/result.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+namespace pendavg {
+
+enum class AverageMethod { automatic, integral, series, torus_trapezoid, torus_gauss, qmc };
+
+/// "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc" (the CLI's names).
+const char* average_method_name(AverageMethod method);
+
+/// Parses one of average_method_name's names; throws invalid_input for anything else.
+AverageMethod parse_average_method(const char* name);
+
+/// The defaults of AverageOptions' unset optionals, and the automatic rule's torus limit.
+inline constexpr double default_torus_tolerance = 1e-13;
+inline constexpr std::size_t default_qmc_samples = std::size_t(1) << 16;
+inline constexpr std::size_t default_qmc_shifts = 16;
+inline constexpr std::uint64_t default_qmc_seed = 1;
+/// automatic: torus_trapezoid for N = 1 and 3..automatic_torus_max_particles, qmc beyond.
+inline constexpr std::size_t automatic_torus_max_particles = 4;
+
+/// How average() computes. Unset optionals mean "the method's default"; setting one that the
+/// chosen method does not use is an error.
+struct AverageOptions {
+  AverageMethod method = AverageMethod::automatic;
+  /// Significant digits requested: 16 (double) or 17..1000 (mpfr_real).
+  int digits = 16;
+  /// torus methods in double: relative tolerance (default default_torus_tolerance; with
+  /// digits > 16 it is 10^-digits and may not be set).
+  std::optional<double> tolerance;
+  /// qmc: lattice points per shift, a power of two in [2^10, 2^20] (default 2^16).
+  std::optional<std::size_t> samples;
+  /// qmc: independent random shifts, 4..1024 (default 16).
+  std::optional<std::size_t> shifts;
+  /// qmc: seed of the shifts (default 1).
+  std::optional<std::uint64_t> seed;
+  /// OpenMP threads for the torus and qmc methods in double (results do not depend on it).
+  int threads = 1;
+};
+
+/// Which method average() runs for N particles under `options`, after checking every option
+/// against it (invalid_input otherwise, naming the option and the method). Pure; cheap.
+AverageMethod resolve_average_method(std::size_t particles, const AverageOptions& options);
+
+namespace detail {
+template <class Real>
+struct AverageWorkspaceData;
+}
+
+/// Buffers of average(), reused from call to call. Not thread-safe: one per thread.
+template <class Real>
+class AverageWorkspace {
+ public:
+  AverageWorkspace();
+  ~AverageWorkspace();
+  AverageWorkspace(AverageWorkspace&&) noexcept;
+  AverageWorkspace& operator=(AverageWorkspace&&) noexcept;
+  AverageWorkspace(const AverageWorkspace&) = delete;
+  AverageWorkspace& operator=(const AverageWorkspace&) = delete;
+
+  detail::AverageWorkspaceData<Real>& data() { return *data_; }
+
+ private:
+  std::unique_ptr<detail::AverageWorkspaceData<Real>> data_;
+};
+
+/// The canonical averages of `chain` at inverse temperature `beta` (finite, > 0).
+/// Throws invalid_input for bad input or options.
+template <class Real>
+Averages<Real> average(const Chain<Real>& chain, const Real& beta,
+                       const AverageOptions& options = {});
+template <class Real>
+Averages<Real> average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options,
+                       AverageWorkspace<Real>& workspace);
+
+/// beta -> 0 (MATH.md Sec. 2): N = 2 the paper's elliptic K/E formula (eq. aveK1-beta0, kind
+/// bound); any N the torus average of the same chain at g = 0 (tensor trapezoid for N <= 5, to
+/// `tolerance` or 10^-digits; qmc beyond, double only). <cos phi_i> -> 0 exactly.
+/// `options.method` must be automatic; the torus or qmc options apply as for average().
+template <class Real>
+Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options = {});
+
+/// beta -> infinity: beta<K_i> -> 1/2, <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2) / 2 in
+/// closed form (kind bound). Only `digits` (and method automatic) may be set.
+template <class Real>
+Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOptions& options = {});
+
+}  // namespace pendavg

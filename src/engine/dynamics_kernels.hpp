@@ -1,0 +1,59 @@
+// engine/dynamics_kernels.hpp -- the dynamics kernels, declared once per instruction set they are
+// compiled for (src/engine/dynamics_kernels.cpp): dynamics_base (baseline x86-64, any CPU) and
+// dynamics_x86_64_v3 (AVX2 + FMA). The public functions of pendavg/dynamics.hpp pick one at run
+// time (src/engine/dynamics.cpp); the same definitions give the same results up to fused
+// multiply-adds.
+#pragma once
+
+#include "pendavg/dynamics.hpp"
+
+#include <random>
+#include <vector>
+
+#define PENDAVG_DECLARE_DYNAMICS_KERNELS(isa)                                                    \
+  namespace pendavg::isa {                                                                       \
+  template <class Real>                                                                          \
+  void project_momenta_kernel(const Chain<Real>&, ChainState<Real>&, DynamicsWorkspace<Real>&); \
+  template <class Real>                                                                          \
+  void rattle_step_kernel(const Chain<Real>&, ChainState<Real>&, const Real&,                    \
+                          DynamicsWorkspace<Real>&);                                             \
+  template <class Real>                                                                          \
+  void composition_step_kernel(const Chain<Real>&, ChainState<Real>&, const Real&, Integrator,   \
+                               DynamicsWorkspace<Real>&);                                        \
+  template <class Real>                                                                          \
+  void yoshida4_step_kernel(const Chain<Real>&, ChainState<Real>&, const Real&,                  \
+                            DynamicsWorkspace<Real>&);                                           \
+  template <class Real>                                                                          \
+  void baoab_step_kernel(const Chain<Real>&, ChainState<Real>&, const Real&, const Real&,        \
+                         const Real&, std::mt19937_64&, DynamicsWorkspace<Real>&);               \
+  template <class Real>                                                                          \
+  SimulationResult<Real> simulate_kernel(const Chain<Real>&, ChainState<Real>,                   \
+                                         const SimulationOptions&, const DynamicsObserver<Real>&); \
+  template <class Real>                                                                          \
+  PoincareSection<Real> poincare_section_kernel(const Chain<Real>&, const Real&,                 \
+                                                const PoincareOptions&,                          \
+                                                const DynamicsObserver<Real>&);                  \
+  }
+
+PENDAVG_DECLARE_DYNAMICS_KERNELS(dynamics_base)
+#if defined(PENDAVG_HAVE_DYNAMICS_X86_64_V3)
+PENDAVG_DECLARE_DYNAMICS_KERNELS(dynamics_x86_64_v3)
+#endif
+
+#define PENDAVG_DYNAMICS_KERNELS_INSTANTIATE(Real)                                              \
+  template void project_momenta_kernel<Real>(const Chain<Real>&, ChainState<Real>&,            \
+                                             DynamicsWorkspace<Real>&);                         \
+  template void rattle_step_kernel<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,   \
+                                         DynamicsWorkspace<Real>&);                             \
+  template void composition_step_kernel<Real>(const Chain<Real>&, ChainState<Real>&,           \
+                                              const Real&, Integrator, DynamicsWorkspace<Real>&); \
+  template void yoshida4_step_kernel<Real>(const Chain<Real>&, ChainState<Real>&, const Real&, \
+                                           DynamicsWorkspace<Real>&);                           \
+  template void baoab_step_kernel<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,    \
+                                        const Real&, const Real&, std::mt19937_64&,             \
+                                        DynamicsWorkspace<Real>&);                              \
+  template SimulationResult<Real> simulate_kernel<Real>(const Chain<Real>&, ChainState<Real>,   \
+                                                        const SimulationOptions&,               \
+                                                        const DynamicsObserver<Real>&);         \
+  template PoincareSection<Real> poincare_section_kernel<Real>(                                \
+      const Chain<Real>&, const Real&, const PoincareOptions&, const DynamicsObserver<Real>&);

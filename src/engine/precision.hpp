@@ -1,0 +1,102 @@
+// engine/precision.hpp -- the engines' view of the number types: which Real is MPFR, its unit
+// roundoff at the working precision, a guard for the entry points, and the rounding of inputs to
+// the working precision (include/pendavg/mpfr.hpp explains the working precision).
+//
+// The library is generic over the number type `Real`. Instantiated: double (the fast path,
+// microseconds per parameter set), long double where an engine gains from it, and mpfr_real
+// (Boost.Multiprecision's MPFR float, 16..1000 requested digits, computed at digits +
+// guard_digits).
+#pragma once
+
+#include "pendavg/chain.hpp"
+#include "pendavg/mpfr.hpp"
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <type_traits>
+#include <vector>
+
+namespace pendavg {
+
+template <class Real>
+inline constexpr bool is_mpfr_v = std::is_same_v<Real, mpfr_real>;
+
+/// A working precision held alone: while it lives no other thread computes in MPFR. For code
+/// that mixes values of several precisions, where Boost 1.74 switches the process-wide default
+/// inside single operations (a shared epoch would let other threads see that). Nested working
+/// precisions of this thread then set the default directly.
+class exclusive_precision {
+ public:
+  explicit exclusive_precision(int digits10);
+  ~exclusive_precision();
+  exclusive_precision(const exclusive_precision&) = delete;
+  exclusive_precision& operator=(const exclusive_precision&) = delete;
+};
+
+/// The entry points' guard: a working_precision for MPFR, nothing for other number types.
+template <class Real>
+class precision_guard {
+ public:
+  explicit precision_guard(int digits10) {
+    if constexpr (is_mpfr_v<Real>) guard_.emplace(digits10);
+  }
+
+ private:
+  std::optional<working_precision> guard_;
+};
+
+/// Unit roundoff of `Real` at the current working precision.
+template <class Real>
+Real unit_roundoff() {
+  if constexpr (is_mpfr_v<Real>) {
+    // 2^(1 - p) with p the current precision in bits.
+    const long bits = static_cast<long>(
+        boost::multiprecision::detail::digits10_2_2(mpfr_real::default_precision()));
+    Real one = 1;
+    return ldexp(one, static_cast<int>(1 - bits));
+  } else {
+    return std::numeric_limits<Real>::epsilon();
+  }
+}
+
+/// Decimal digits carried by `Real` at the current working precision.
+template <class Real>
+int current_digits10() {
+  if constexpr (is_mpfr_v<Real>) {
+    return static_cast<int>(mpfr_real::default_precision());
+  } else {
+    return std::numeric_limits<Real>::digits10 + 1;
+  }
+}
+
+/// x rounded to the working precision (MPFR: a value of another precision would make Boost
+/// switch the process-wide precision inside every operation it enters); x itself otherwise.
+template <class Real>
+Real at_working_precision(const Real& x) {
+  if constexpr (is_mpfr_v<Real>) {
+    return Real(x, mpfr_real::default_precision());
+  } else {
+    return x;
+  }
+}
+
+/// The chain with every parameter rounded to the working precision (see at_working_precision).
+template <class Real>
+Chain<Real> at_working_precision(const Chain<Real>& chain) {
+  if constexpr (is_mpfr_v<Real>) {
+    std::vector<Real> masses, lengths;
+    masses.reserve(chain.size());
+    lengths.reserve(chain.size());
+    for (std::size_t i = 0; i < chain.size(); ++i) {
+      masses.push_back(at_working_precision(chain.mass(i)));
+      lengths.push_back(at_working_precision(chain.length(i)));
+    }
+    return Chain<Real>(std::move(masses), std::move(lengths),
+                       at_working_precision(chain.gravity()));
+  } else {
+    return chain;
+  }
+}
+
+}  // namespace pendavg
