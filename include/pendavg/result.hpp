@@ -59,6 +59,7 @@ struct Estimate {
   Real value{};
   Real error{};
   ErrorKind kind = ErrorKind::estimate;
+  bool operator==(const Estimate&) const = default;
 };
 
 /// The torus rules' refinement (method torus_trapezoid or torus_gauss_legendre).

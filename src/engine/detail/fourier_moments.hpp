@@ -77,11 +77,11 @@
 // Higham, Accuracy and Stability, ch. 4 (compensated summation).
 #pragma once
 
+#include "engine/bernoulli.hpp"
 #include "engine/detail/elliptic.hpp"
 #include "engine/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
-#include <boost/math/special_functions/bernoulli.hpp>
 #include <boost/math/special_functions/digamma.hpp>
 #include <boost/math/special_functions/log1p.hpp>
 
@@ -133,19 +133,30 @@ W digamma_minus_log(const W& x, const W& u) {
   using std::abs;
   using std::log;
   if constexpr (is_mpfr_v<W>) {
+    // DLMF 5.11.2 at x + m >= x0: psi(y) ~ ln y - 1/(2y) - sum_j B_{2j} / (2j y^{2j}), with the
+    // coefficients of engine/bernoulli.hpp (per precision, not Boost's process-wide cache), and
+    // below x0 the recurrence psi(x) = psi(x + m) - sum_{i<m} 1/(x + i) (which cancels at most
+    // ~log10(x0 ln x0) digits, inside the moments' extra digits).
     const double x0 = 1.2 * log_inv(u) / (2 * 3.141592653589793) + 2.0;
-    if (x < x0) return boost::math::digamma(x) - log(x);
-    // DLMF 5.11.2: psi(x) ~ ln x - 1/(2x) - sum_j B_{2j} / (2j x^{2j}).
-    const W x2inv = 1 / (x * x);
-    W sum = -1 / (2 * x);
-    W p = x2inv;
-    for (int j = 1; j < 100000; ++j) {
-      const W term = boost::math::bernoulli_b2n<W>(j) / (2 * j) * p;
+    W y = x, shift = 0;
+    if (x < x0) {
+      const auto m = static_cast<unsigned long>(std::ceil(x0 - static_cast<double>(x)));
+      for (unsigned long i = 0; i < m; ++i) shift -= 1 / (x + i);
+      y = x + m;
+      shift += log(y / x);
+    }
+    const auto table = digamma_series_coefficients();
+    const std::vector<W>& c = *table;
+    const W y2inv = 1 / (y * y);
+    W sum = -1 / (2 * y);
+    W p = y2inv;
+    for (std::size_t j = 1; j < c.size(); ++j) {
+      const W term = c[j] * p;
       sum -= term;
       if (abs(term) <= u * abs(sum)) break;
-      p *= x2inv;
+      p *= y2inv;
     }
-    return sum;
+    return sum + shift;
   } else {
     // B_{2j}/(2j), j = 1..10 (exact rationals rounded to W); for x >= 16 the omitted terms
     // are below 1e-21 relative.

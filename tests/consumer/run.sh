@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# tests/consumer/run.sh BUILD_DIR -- the package test of issue 10. Installs BUILD_DIR into a
+# temporary prefix, builds tests/consumer (a separate project) against it with CMake's
+# find_package(pendavg 0.2) and again with pkg-config, checks that a double-only program's
+# #include <pendavg/pendavg.hpp> pulls in no Boost.Multiprecision, GSL or omp.h, and compares the
+# consumers' numbers with those the installed pendavg command prints.
+set -euo pipefail
+build=$(realpath "$1")
+here=$(cd "$(dirname "$0")" && pwd)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+prefix="$work/prefix"
+cmake --install "$build" --prefix "$prefix" >"$work/install.log" || fail "cmake --install"
+cli="$prefix/bin/pendavg"
+[ -x "$cli" ] || fail "the installed prefix has no bin/pendavg"
+
+# 1. find_package(pendavg 0.2) + target_link_libraries(... pendavg::pendavg)
+cmake -S "$here" -B "$work/build" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release \
+  >"$work/configure.log" 2>&1 || { cat "$work/configure.log" >&2; fail "configure against the prefix"; }
+cmake --build "$work/build" -j 2 >"$work/build.log" 2>&1 || { tail -30 "$work/build.log" >&2; fail "build the consumer"; }
+"$work/build/consumer_double" >"$work/double.txt" || fail "consumer_double"
+"$work/build/consumer_mpfr" >"$work/mpfr.txt" || fail "consumer_mpfr"
+
+# 2. pkg-config --cflags --libs pendavg
+pc_dir=$(dirname "$(find "$prefix" -name pendavg.pc | head -1)")
+flags=$(PKG_CONFIG_PATH="$pc_dir" pkg-config --cflags --libs pendavg) || fail "pkg-config pendavg"
+c++ -std=c++20 -O1 "$here/consumer_double.cpp" $flags -o "$work/pc_double" 2>"$work/pc.log" ||
+  { cat "$work/pc.log" >&2; fail "compile and link with pkg-config's flags: $flags"; }
+"$work/pc_double" >"$work/pc_double.txt" || fail "the pkg-config build runs"
+cmp -s "$work/double.txt" "$work/pc_double.txt" || fail "pkg-config and CMake builds print different numbers"
+
+# 3. what a double-only consumer's include pulls in
+echo '#include <pendavg/pendavg.hpp>' >"$work/include.cpp"
+c++ -std=c++20 -H -fsyntax-only -I"$prefix/include" "$work/include.cpp" 2>"$work/includes.txt"
+if grep -E "boost/multiprecision|gsl/|omp\.h|Eigen" "$work/includes.txt" >&2; then
+  fail "#include <pendavg/pendavg.hpp> pulls in the files above"
+fi
+
+# 4. the same numbers as the installed CLI
+python3 - "$work" "$cli" <<'PY'
+import json, subprocess, sys
+from decimal import Decimal
+work, cli = sys.argv[1], sys.argv[2]
+lines = {l.split()[0]: l.split() for l in open(f"{work}/double.txt").read().splitlines()}
+lines.update({l.split()[0]: l.split() for l in open(f"{work}/mpfr.txt").read().splitlines()})
+def cli_json(*args):
+    return json.loads(subprocess.run([cli, "average", *args], capture_output=True, text=True, check=True).stdout)
+cases = {
+    "N2": ["--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1"],
+    "N3": ["--masses", "1,2,0.5", "--lengths", "1,0.5,2", "--g", "9.81", "--beta", "0.3"],
+    "N8": ["--masses", ",".join(["1"] * 8), "--lengths", ",".join(["1"] * 8), "--beta", "1", "--samples", "4096"],
+}
+for label, args in cases.items():
+    o = cli_json(*args)
+    got = lines[label]
+    assert got[1] == o["method"] and got[2] == o["error_kind"], (label, got, o["method"], o["error_kind"])
+    assert got[3:] == o["beta_K"], (label, got[3:], o["beta_K"])
+o = cli_json(*cases["N2"], "--digits", "30")
+got = lines["N2_30"]
+assert got[1] == o["method"] and got[2] == o["error_kind"], (got, o)
+for mine, theirs, err in zip(got[3:], o["beta_K"], o["error"]):
+    assert abs(Decimal(mine) - Decimal(theirs)) <= Decimal(err), (mine, theirs, err)
+    assert Decimal(err) < Decimal("1e-29"), err
+assert lines["bad"][1:] and "beta" in " ".join(lines["bad"]), lines["bad"]
+print("consumer: find_package, pkg-config, include hygiene and the CLI's numbers agree")
+PY

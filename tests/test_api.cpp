@@ -1,0 +1,280 @@
+// tests/test_api.cpp -- the public API (issue 10): one entry point for any N, options checked
+// against the method they select, error kinds, workspaces, and thread safety across precisions.
+#include <catch2/catch.hpp>
+
+#include "pendavg/mpfr.hpp"
+#include "pendavg/pendavg.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using pendavg::AverageMethod;
+using pendavg::AverageOptions;
+using pendavg::Chain;
+using pendavg::ErrorKind;
+using pendavg::mpfr_real;
+
+AverageOptions with_method(AverageMethod m) {
+  AverageOptions o;
+  o.method = m;
+  return o;
+}
+
+/// Every value and error of `a`, in full precision, as one string (for bitwise comparisons).
+template <class Real>
+std::string fingerprint(const pendavg::Averages<Real>& a) {
+  std::ostringstream out;
+  out.precision(std::numeric_limits<double>::max_digits10);
+  const auto put = [&](const Real& x) {
+    if constexpr (std::is_same_v<Real, double>) {
+      out << x << ' ';
+    } else {
+      out << x.str(0, std::ios::scientific) << ' ';
+    }
+  };
+  for (const auto* group : {&a.beta_kinetic, &a.cos_angle, &a.beta2_kinetic_variance}) {
+    for (const auto& e : *group) {
+      put(e.value);
+      put(e.error);
+    }
+  }
+  if (a.ratio) put(a.ratio->value);
+  out << pendavg::method_name(a.method) << ' ' << a.evaluations;
+  return out.str();
+}
+
+}  // namespace
+
+TEST_CASE("api: automatic picks the documented method for every N", "[api]") {
+  const AverageOptions automatic;
+  CHECK(pendavg::resolve_average_method(1, automatic) == AverageMethod::torus_trapezoid);
+  CHECK(pendavg::resolve_average_method(2, automatic) == AverageMethod::integral);
+  CHECK(pendavg::resolve_average_method(3, automatic) == AverageMethod::torus_trapezoid);
+  CHECK(pendavg::resolve_average_method(4, automatic) == AverageMethod::torus_trapezoid);
+  CHECK(pendavg::resolve_average_method(5, automatic) == AverageMethod::qmc);
+  CHECK(pendavg::resolve_average_method(256, automatic) == AverageMethod::qmc);
+  CHECK_THROWS_AS(pendavg::resolve_average_method(257, automatic), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::resolve_average_method(0, automatic), pendavg::invalid_input);
+  for (const char* name : {"auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc"})
+    CHECK(std::string(pendavg::average_method_name(pendavg::parse_average_method(name))) == name);
+  CHECK_THROWS_AS(pendavg::parse_average_method("simpson"), pendavg::invalid_input);
+}
+
+TEST_CASE("api: an option the chosen method does not use is refused with one line", "[api]") {
+  const auto refused = [](std::size_t n, const AverageOptions& o, const std::string& needle) {
+    try {
+      pendavg::resolve_average_method(n, o);
+    } catch (const pendavg::invalid_input& bad) {
+      const std::string message = bad.what();
+      INFO(message);
+      CHECK(message.find('\n') == std::string::npos);
+      CHECK(message.find(needle) != std::string::npos);
+      return true;
+    }
+    return false;
+  };
+  AverageOptions o;
+  o.tolerance = 1e-10;
+  CHECK(refused(2, o, "tol"));  // the double-pendulum engine has no tolerance to set
+  CHECK_NOTHROW(pendavg::resolve_average_method(3, o));
+  o.digits = 30;
+  CHECK(refused(3, o, "digits 30"));  // the torus tolerance is 10^-digits in MPFR
+  o = with_method(AverageMethod::torus_trapezoid);
+  o.samples = 4096;
+  CHECK(refused(3, o, "samples"));
+  o = AverageOptions{};
+  o.seed = 3;
+  CHECK(refused(4, o, "seed"));  // auto runs the torus for N = 4
+  CHECK_NOTHROW(pendavg::resolve_average_method(5, o));
+  o.samples = 3000;
+  CHECK(refused(5, o, "power of two"));
+  o = with_method(AverageMethod::qmc);
+  o.digits = 20;
+  CHECK(refused(3, o, "double only"));
+  o = with_method(AverageMethod::series);
+  CHECK(refused(3, o, "N = 2"));
+  o = AverageOptions{};
+  o.digits = 1001;
+  CHECK(refused(2, o, "digits"));
+  o = with_method(AverageMethod::torus_trapezoid);
+  CHECK(refused(12, o, "too long"));
+  // Real and digits must match.
+  const Chain<double> pendulum({1.0, 1.0}, {1.0, 1.0});
+  AverageOptions thirty;
+  thirty.digits = 30;
+  CHECK_THROWS_AS(pendavg::average(pendulum, 1.0, thirty), pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::average(pendulum, 0.0), pendavg::invalid_input);
+}
+
+TEST_CASE("api: every method returns one result type with the kind of its errors", "[api]") {
+  const Chain<double> pendulum({0.3, 0.7}, {1.0, 2.0}, 1.0);
+  const double beta = 1.5;
+  const auto integral = pendavg::average(pendulum, beta);
+  const auto series = pendavg::average(pendulum, beta, with_method(AverageMethod::series));
+  const auto torus = pendavg::average(pendulum, beta, with_method(AverageMethod::torus_trapezoid));
+  const auto gauss = pendavg::average(pendulum, beta, with_method(AverageMethod::torus_gauss));
+  AverageOptions qmc_options = with_method(AverageMethod::qmc);
+  qmc_options.samples = 4096;
+  const auto qmc = pendavg::average(pendulum, beta, qmc_options);
+  CHECK(integral.method == pendavg::Method::reduced_integral);
+  CHECK(integral.error_kind == ErrorKind::estimate);
+  CHECK(integral.work_unit == pendavg::WorkUnit::nodes);
+  CHECK(series.method == pendavg::Method::series);
+  CHECK(series.error_kind == ErrorKind::bound);  // the certified tail bound
+  CHECK(series.work_unit == pendavg::WorkUnit::terms);
+  CHECK(series.cos_angle[0].kind == ErrorKind::estimate);  // from the integral
+  CHECK(torus.torus.has_value());
+  CHECK(torus.error_kind == ErrorKind::estimate);
+  CHECK(gauss.method == pendavg::Method::torus_gauss_legendre);
+  CHECK(qmc.error_kind == ErrorKind::statistical);
+  CHECK(qmc.work_unit == pendavg::WorkUnit::samples);
+  REQUIRE(qmc.qmc.has_value());
+  CHECK(qmc.evaluations == 4096 * qmc.qmc->shifts);
+  for (const auto* r : {&integral, &series, &torus, &gauss, &qmc}) {
+    INFO(pendavg::method_name(r->method));
+    REQUIRE(r->beta_kinetic.size() == 2);
+    REQUIRE(r->ratio.has_value());
+    CHECK(r->beta_kinetic_canonical.size() == 2);
+    CHECK(r->beta_kinetic_canonical[0].value == 0.5);
+    CHECK(r->diagonal_approximation == pendavg::diagonal_approximation(pendulum));
+    CHECK(r->equipartition_residual <= 1e-12);
+    for (std::size_t i = 0; i < 2; ++i) {
+      // Every method agrees with the integral within the two errors.
+      CHECK(std::abs(r->beta_kinetic[i].value - integral.beta_kinetic[i].value) <=
+            r->beta_kinetic[i].error + integral.beta_kinetic[i].error);
+      CHECK(std::abs(r->cos_angle[i].value - integral.cos_angle[i].value) <=
+            r->cos_angle[i].error + integral.cos_angle[i].error);
+      CHECK(std::abs(r->beta2_kinetic_variance[i].value -
+                     integral.beta2_kinetic_variance[i].value) <=
+            r->beta2_kinetic_variance[i].error + integral.beta2_kinetic_variance[i].error);
+    }
+  }
+  // N = 1 has no ratio; beta<K_1> = 1/2 exactly.
+  const auto single = pendavg::average(Chain<double>({2.0}, {3.0}), 0.7);
+  CHECK_FALSE(single.ratio.has_value());
+  CHECK(single.beta_kinetic[0].value == Approx(0.5).epsilon(1e-15));
+}
+
+TEST_CASE("api: the limits through the one API", "[api]") {
+  const Chain<double> pendulum({0.5, 0.5}, {1.0, 1.0});
+  const auto high = pendavg::high_temperature_limit(pendulum);
+  CHECK(high.method == pendavg::Method::high_temperature_limit);
+  CHECK(high.error_kind == ErrorKind::bound);
+  CHECK(high.beta_kinetic[0].value == Approx(0.3431834814709248549).epsilon(2e-15));
+  const Chain<double> three({1.0, 2.0, 3.0}, {1.0, 1.0, 2.0});
+  const auto high3 = pendavg::high_temperature_limit(three);
+  CHECK(high3.method == pendavg::Method::torus_trapezoid);
+  CHECK(high3.cos_angle[1].value == 0);
+  const auto low3 = pendavg::low_temperature_limit(three);
+  CHECK(low3.method == pendavg::Method::low_temperature_limit);
+  for (const auto& k : low3.beta_kinetic) CHECK(k.value == 0.5);
+  // The limits choose their own method and take no torus tolerance in MPFR.
+  CHECK_THROWS_AS(pendavg::high_temperature_limit(three, with_method(AverageMethod::qmc)),
+                  pendavg::invalid_input);
+  AverageOptions seed;
+  seed.seed = 2;
+  CHECK_THROWS_AS(pendavg::low_temperature_limit(three, seed), pendavg::invalid_input);
+}
+
+TEST_CASE("api: a workspace reused across calls gives the bits of fresh calls", "[api]") {
+  pendavg::AverageWorkspace<double> workspace;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> log_beta(-3, 4), mu(0.01, 0.99), log_l(-2, 2);
+  for (int k = 0; k < 200; ++k) {
+    const double m1 = mu(rng);
+    const Chain<double> chain({m1, 1 - m1}, {1.0, std::pow(10.0, log_l(rng))});
+    const double beta = std::pow(10.0, log_beta(rng));
+    CHECK(fingerprint(pendavg::average(chain, beta, {}, workspace)) ==
+          fingerprint(pendavg::average(chain, beta)));
+  }
+}
+
+TEST_CASE("api: working precisions nest and are restored", "[api][mpfr]") {
+  const int before = pendavg::current_mpfr_digits();
+  {
+    const pendavg::working_precision outer(40);
+    CHECK(pendavg::current_mpfr_digits() == 40);
+    {
+      const pendavg::working_precision inner(80);
+      CHECK(pendavg::current_mpfr_digits() == 80);
+      CHECK(mpfr_real(1).precision() == 80);
+      const pendavg::working_precision same(80);
+      CHECK(pendavg::current_mpfr_digits() == 80);
+    }
+    CHECK(pendavg::current_mpfr_digits() == 40);
+  }
+  CHECK(pendavg::current_mpfr_digits() == before);
+}
+
+// The epoch lock of pendavg/mpfr.hpp: calls of several threads at different digits give the
+// same bits as the same calls one after another. The calls cover the double engine (which takes
+// an MPFR working precision inside its long-double moments), the exact-sum and quadrature paths
+// of the MPFR double pendulum (whose Fourier moments run at extra digits), the series (its own
+// guard digits) and the torus in MPFR.
+TEST_CASE("api: concurrent calls at 16, 30 and 60 digits give the bits of serial calls",
+          "[api][mpfr][threads]") {
+  struct Call {
+    int digits;
+    AverageMethod method;
+    std::vector<const char*> masses, lengths;
+    const char* beta;
+  };
+  std::vector<Call> calls;
+  const std::vector<std::pair<const char*, const char*>> pendulums{
+      {"0.5", "0.5"}, {"0.05", "0.95"}, {"0.999", "0.001"}, {"1e-7", "0.9999999"}, {"0.3", "0.7"}};
+  for (const int digits : {16, 30, 60}) {
+    for (const auto& [m1, m2] : pendulums) {
+      for (const char* beta : {"0.01", "1", "30", "2000"}) {
+        calls.push_back({digits, AverageMethod::automatic, {m1, m2}, {"1", "0.7"}, beta});
+      }
+    }
+    calls.push_back({digits, AverageMethod::series, {"0.5", "0.5"}, {"1", "1"}, "2"});
+    if (digits <= 30)
+      calls.push_back({digits, AverageMethod::torus_trapezoid, {"1", "2", "3"}, {"1", "1", "1"}, "1"});
+  }
+  const auto run = [](const Call& c) -> std::string {
+    AverageOptions options;
+    options.method = c.method;
+    options.digits = c.digits;
+    if (c.digits == 16) {
+      std::vector<double> m, l;
+      for (const char* x : c.masses) m.push_back(std::stod(x));
+      for (const char* x : c.lengths) l.push_back(std::stod(x));
+      return fingerprint(pendavg::average(Chain<double>(m, l), std::stod(c.beta), options));
+    }
+    const pendavg::working_precision precision(c.digits + pendavg::guard_digits);
+    std::vector<mpfr_real> m, l;
+    for (const char* x : c.masses) m.emplace_back(x);
+    for (const char* x : c.lengths) l.emplace_back(x);
+    return fingerprint(pendavg::average(Chain<mpfr_real>(m, l), mpfr_real(c.beta), options));
+  };
+  std::vector<std::string> serial;
+  for (const Call& c : calls) serial.push_back(run(c));
+
+  constexpr int threads = 4;
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::size_t> order(calls.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), std::mt19937_64(round + 1));
+    std::vector<std::string> concurrent(calls.size());
+    std::atomic<std::size_t> next{0};
+    std::vector<std::thread> team;
+    for (int t = 0; t < threads; ++t) {
+      team.emplace_back([&] {
+        for (std::size_t k; (k = next++) < order.size();) concurrent[order[k]] = run(calls[order[k]]);
+      });
+    }
+    for (std::thread& t : team) t.join();
+    for (std::size_t i = 0; i < calls.size(); ++i) {
+      INFO("call " << i << ": digits " << calls[i].digits << ", beta " << calls[i].beta);
+      CHECK(concurrent[i] == serial[i]);
+    }
+  }
+}
