@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <limits>
 #include <string>
 #include <vector>
@@ -397,4 +398,87 @@ TEST_CASE("averages through the inner-panel series: 30 and 50 digits against 80,
       }
     }
   }
+}
+
+// ---------------------------------------------------------------- the cost model (plan)
+
+namespace {
+
+template <class Real>
+struct Planned {
+  pendavg::IntegralPlan<Real> plan;
+  pendavg::NodePlan<Real> nodes;
+};
+
+template <class Real>
+Planned<Real> planned(double m1, double beta, double l2, int digits,
+                      pendavg::IntegralEvaluation evaluation = pendavg::IntegralEvaluation::automatic) {
+  const pendavg::Chain<Real> chain({Real(m1), Real(1 - m1)}, {Real(1), Real(l2)});
+  const auto p = pendavg::double_pendulum_parameters(chain, Real(beta));
+  const auto plan = pendavg::plan_reduced_integral(p, digits, evaluation);
+  return {plan, pendavg::plan_nodes(p, plan)};
+}
+
+}  // namespace
+
+TEST_CASE("N = 2 cost model: exact sums for moderate weights, nodes for sharp peaks", "[double_pendulum][plan]") {
+  using Sums = pendavg::IntegralPlan<double>::Sums;
+  // No peak (a1 a2/(a1 + a2) = 1/3): the sums in double, long double if rejected; short Graf rows.
+  const auto flat = planned<double>(0.5, 1, 1, 16);
+  CHECK(flat.plan.sums == Sums::double_then_long_double);
+  CHECK(flat.plan.graf_nodes);
+  CHECK(flat.nodes.fold);
+  CHECK(flat.nodes.T == Approx(std::numbers::pi / 2));
+  // q's zero very close to t = 0 (mu1 = 1e-7), a mild peak: long double sums, and (if they were
+  // rejected) nodes clustered at t = 0 by the sinh map.
+  const auto light = planned<double>(1e-7, 10, 1, 16);
+  CHECK(light.plan.sums == Sums::long_double);
+  CHECK(light.nodes.use_sinh);
+  CHECK_FALSE(light.nodes.half_angle);
+  CHECK(light.nodes.eps == Approx(std::asinh(std::sqrt(1e-7 / (1 - 1e-7)))));
+  // A sharp peak (harmonic 3333): no sums; Bessel nodes on a range cut where the weight decayed.
+  const auto sharp = planned<double>(0.5, 1e4, 1, 16);
+  CHECK(sharp.plan.sums == Sums::none);
+  CHECK_FALSE(sharp.plan.graf_nodes);
+  CHECK_FALSE(sharp.nodes.fold);
+  CHECK(sharp.nodes.T < 0.2);
+  // Both: the sinh map on sin(t/2) over the cut range, and the 12 2^L levels for its span.
+  const auto both = planned<double>(1e-6, 1e3, 1, 16);
+  CHECK(both.nodes.half_angle);
+  CHECK(both.nodes.sigma > 3.8);
+  CHECK(both.nodes.sigma < 8.4);
+  CHECK(both.nodes.base12);
+  CHECK_FALSE(both.nodes.inner_series);  // panels are for MPFR only
+  // The evaluation option forces either path.
+  CHECK(planned<double>(0.5, 1, 1, 16, pendavg::IntegralEvaluation::quadrature).plan.sums == Sums::none);
+  CHECK(planned<double>(0.5, 1e4, 1, 16, pendavg::IntegralEvaluation::graf_sums).plan.sums ==
+        Sums::long_double);
+  // Pure: the same input gives the same plan.
+  const auto again = planned<double>(1e-6, 1e3, 1, 16);
+  CHECK(again.plan.graf_terms == both.plan.graf_terms);
+  CHECK(again.nodes.sigma == both.nodes.sigma);
+}
+
+TEST_CASE("N = 2 cost model in MPFR: sums while the Graf orders are cheap, panels for close zeros", "[double_pendulum][plan][mpfr]") {
+  using Sums = pendavg::IntegralPlan<pendavg::mpfr_real>::Sums;
+  {
+    const pendavg::working_precision guard(38 + pendavg::guard_digits);
+    CHECK(planned<pendavg::mpfr_real>(0.5, 1, 1, 38).plan.sums == Sums::working);
+    const auto sharp = planned<pendavg::mpfr_real>(0.5, 1e6, 1, 38);
+    CHECK(sharp.plan.sums == Sums::none);
+    CHECK_FALSE(sharp.nodes.half_angle);
+  }
+  const pendavg::working_precision guard(77 + pendavg::guard_digits);
+  // q's zero far inside the peak: product integration over [0, t1] first; with the longest
+  // spans also two sinh-mapped panels as its fallback.
+  const auto close = planned<pendavg::mpfr_real>(1e-7, 1e5, 1, 77);
+  CHECK(close.plan.sums == Sums::none);
+  CHECK(close.nodes.half_angle);
+  CHECK(close.nodes.inner_series);
+  CHECK_FALSE(close.nodes.two_panels);
+  CHECK(close.nodes.t1 == Approx(2 / std::sqrt(close.plan.harmonic)));
+  const auto closer = planned<pendavg::mpfr_real>(1e-8, 3e4, 1, 77);
+  CHECK(closer.nodes.inner_series);
+  CHECK(closer.nodes.two_panels);
+  CHECK_FALSE(closer.nodes.base12);
 }

@@ -94,6 +94,49 @@ struct IntegralWorkspace {
   std::vector<std::vector<std::array<Real, integral::count>>> values;
 };
 
+/// The cost model of reduced_integral_average (pure; README "The N = 2 cost model" has the
+/// measurements behind its thresholds): whether the exact finite sums run first, and in which
+/// number type, and which per-node weights the quadrature uses when they do not (or are
+/// rejected: their own error bound decides).
+template <class Real>
+struct IntegralPlan {
+  double ln_inv_tol = 0;  ///< ln(1/tol), tol = the integrals' relative tolerance
+  double L_graf = 0;      ///< Graf rows are cut below e^{-L_graf} of their leading term
+  double graf_terms = 0;  ///< double's estimate of the Graf terms of a row
+  double harmonic = 0;    ///< a1 a2 / (a1 + a2): how sharp the Boltzmann peak at t = 0 is
+  Real zero_distance{};   ///< asinh(sqrt(mu1/mu2)): distance of q's zero from the real axis
+  /// The exact sums: not tried; in double and, if rejected, in long double; in long double;
+  /// at the working precision (MPFR).
+  enum class Sums { none, double_then_long_double, long_double, working } sums = Sums::none;
+  /// The nodes' weights: per-node Graf rows (short rows) or scaled Bessel functions.
+  bool graf_nodes = false;
+  std::size_t max_level = 7;  ///< Clenshaw-Curtis levels n = 8 .. 8 2^max_level
+};
+
+template <class Real>
+IntegralPlan<Real> plan_reduced_integral(const DoublePendulumParameters<Real>& p, int digits,
+                                         IntegralEvaluation evaluation);
+
+/// Where the nodes go when they run (pure): the range [0, T] (pi/2 with the reflected node
+/// pi - t folded in, or cut where the weight has decayed), the sinh map clustering nodes at
+/// t = 0, the level base, and in MPFR the split of [0, T] at t1 (twice the peak's width) into
+/// an inner panel by product integration (or nodes) and an outer panel by nodes.
+template <class Real>
+struct NodePlan {
+  Real T{};                   ///< upper end of t
+  bool fold = true;           ///< add the reflected node pi - t (T = pi/2)
+  bool use_sinh = false;      ///< t = eps sinh(sigma x) (or sin(t/2), half_angle); else t = T x
+  bool half_angle = false;    ///< the map acts on sin(t/2) (cut ranges)
+  Real eps{}, sigma{};
+  bool base12 = false;        ///< levels of 12 2^L intervals instead of 8 2^L
+  bool inner_series = false;  ///< MPFR: try product integration over the inner panel first
+  bool two_panels = false;    ///< MPFR: otherwise two sinh-mapped panels
+  double t1 = 0;              ///< where the panels meet
+};
+
+template <class Real>
+NodePlan<Real> plan_nodes(const DoublePendulumParameters<Real>& p, const IntegralPlan<Real>& plan);
+
 /// The exact 1-D reduced integral (MATH.md Secs. 2, 4): beta<K_i>, <cos phi_i>, beta^2 Var K_i.
 /// `digits`: 16 for double, 16..1000 for MPFR (computed at digits + guard_digits).
 template <class Real>

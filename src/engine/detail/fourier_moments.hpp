@@ -67,10 +67,8 @@
 // error (tracked term by term in the series) + recursion/normalisation roundings + the Q_0
 // mismatch + final rounding; it exceeded the measured error in every test case (typically
 // 3-30x).
-// COST (2.6 GHz Xeon, count = 50): double ~0.7-0.9 us for mu1 <~ 1e-5 or mu1 >~ 0.05, up to
-// ~3 us in between (Miller or x87 series); long double ~3 us (up to ~45 us near mu1 ~ 1e-4);
-// O(count) recursion steps (~6 ns double, ~35 ns long double) plus, in the worst mid range
-// (Kd ~ 2), a Miller run of <~ 5 count extra steps.
+// COST: O(count) recursion steps plus, in the worst mid range (Kd ~ 2), a Miller run of
+// <~ 5 count extra steps (timings: README, "The N = 2 cost model").
 //
 // References: DLMF 15.6.1, 15.8.10 (A&S 15.3.10-15.3.12), 14.3, 14.10 (recurrences), 5.7.6 /
 // 5.11.2 (digamma), 19.25 (Carlson K, E); Gautschi, SIAM Rev. 9 (1967) (minimal solutions);

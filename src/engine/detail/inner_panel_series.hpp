@@ -53,9 +53,8 @@ struct InnerPanelSeries {
 /// The inner panel's end s1 = sin(t1/2) for the peak's choice s_peak = sin(w) (t1 = 2 w):
 /// moved out to eps / 0.45^{1/2} when q's zero is at or beyond the peak's width, so that
 /// e = eps^2 / z1 <= 0.45 (the moments' recurrence damps by e; the series checks e < 1/2).
-/// The weight's series then grows (y1 = 2 h z1 up to ~9, N ~ 90-135 at 77 digits), still
-/// far cheaper than the single 513-node panel these cases took before (benchmark cases 700,
-/// 620, 354, 816, 116 at 77 digits: e = 0.57-2.0 at t1 = 2 w; 6.3-6.5 -> 3.8-4.2 ms).
+/// The weight's series then grows (y1 = 2 h z1 up to ~9, N ~ 90-135 at 77 digits), still far
+/// cheaper than the single long panel of nodes it replaces.
 template <class Real>
 Real inner_panel_end(const Real& s_peak, const Real& eps) {
   constexpr double e_max = 0.45;
