@@ -249,10 +249,15 @@ std::string simulate_command(const Options& options) {
     buffer += "\n";
     observer.trajectory = [&](const ChainState<double>& state) {
       const ChainObservables<double> o = observables(chain, state);
-      std::string row = decimal(state.time, 12) + "," + decimal(o.energy, 15);
-      for (double v : o.phi) row += "," + decimal(v, 15);
-      for (double v : o.phidot) row += "," + decimal(v, 15);
-      buffer += row + "\n";
+      const auto add = [&](double value) {
+        buffer += ',';
+        append_decimal(buffer, value, 15);
+      };
+      append_decimal(buffer, state.time, 12);
+      add(o.energy);
+      for (const double v : o.phi) add(v);
+      for (const double v : o.phidot) add(v);
+      buffer += '\n';
       if (buffer.size() > (1 << 20)) {
         trajectory->append(buffer);
         buffer.clear();
