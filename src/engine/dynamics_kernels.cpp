@@ -1,21 +1,35 @@
-// The constrained-dynamics kernels (RATTLE stages, compositions, BAOAB, runs, the Poincare
-// section); see include/pendavg/dynamics.hpp. This file is compiled once per instruction set
-// (CMake: PENDAVG_DYNAMICS_ISA names the namespace, e.g. dynamics_base for baseline x86-64 and
-// dynamics_x86_64_v3 for AVX2 + FMA); src/engine/dynamics.cpp picks one at run time.
+// The constrained-dynamics kernels (states, observables, RATTLE stages, compositions, BAOAB,
+// runs, the Poincare section); see include/pendavg/dynamics.hpp. This file is compiled once per
+// instruction set (CMake: PENDAVG_DYNAMICS_ISA names the namespace, e.g. dynamics_base for
+// baseline x86-64 and dynamics_x86_64_v3 for AVX2 + FMA); src/engine/dynamics.cpp picks one at
+// run time.
+//
+// The wider instruction set is switched on by a pragma after the includes, not by -march for the
+// whole file: the library templates this file instantiates (std::vector, Eigen, ...) are then
+// compiled for baseline x86-64 in every object, so whichever copy the linker keeps is safe to run
+// on any CPU; only the functions of this file's own namespace use AVX2 and FMA (checked by
+// tests/consumer/isa.sh).
 #include "engine/dynamics_kernels.hpp"
 
-#include "engine/detail/blocking.hpp"
-
+#include <Eigen/Dense>
 #include <boost/math/constants/constants.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <string>
 
 #ifndef PENDAVG_DYNAMICS_ISA
 #error "compile with -DPENDAVG_DYNAMICS_ISA=<namespace> (see CMakeLists.txt)"
 #endif
+#if defined(PENDAVG_DYNAMICS_TARGET_X86_64_V3)
+#pragma GCC target("arch=x86-64-v3")
+#endif
+
+// The blocking averager, in this instruction set's namespace (it runs at every step).
+#define PENDAVG_BLOCKING_NAMESPACE PENDAVG_DYNAMICS_ISA
+#include "engine/detail/blocking.hpp"
 
 namespace pendavg::PENDAVG_DYNAMICS_ISA {
 
@@ -503,6 +517,43 @@ void advance_composition(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, 
 }
 
 /// One constrained BAOAB step on the link frame (see baoab_step).
+/// Standard normal deviates from a 64-bit engine by Marsaglia's polar method (pairs), uniform
+/// variates u = k / 2^64 (k the engine's output, below 1): the textbook algorithm, written here so
+/// that a seed gives the same trajectory with any C++ standard library (std::normal_distribution
+/// is implementation-defined) and so that it is compiled with this file's instruction set. Not
+/// inlined: every deviate is then rounded the same way whatever code surrounds the call.
+class StandardNormal {
+ public:
+  [[gnu::noinline]] double operator()(std::mt19937_64& engine) {
+    double value;
+    if (saved_available_) {
+      saved_available_ = false;
+      value = saved_;
+    } else {
+      double x, y, r2;
+      do {
+        x = 2.0 * uniform(engine) - 1.0;
+        y = 2.0 * uniform(engine) - 1.0;
+        r2 = x * x + y * y;
+      } while (r2 > 1.0 || r2 == 0.0);
+      const double mult = std::sqrt(-2 * std::log(r2) / r2);
+      saved_ = x * mult;
+      saved_available_ = true;
+      value = y * mult;
+    }
+    return value * stddev_ + mean_;  // as a general N(mean, stddev) sampler computes it
+  }
+
+ private:
+  static double uniform(std::mt19937_64& engine) {
+    const double u = static_cast<double>(engine() - std::mt19937_64::min()) / 0x1p64;
+    return u < 1.0 ? u : std::nextafter(1.0, 0.0);
+  }
+  double saved_ = 0;
+  bool saved_available_ = false;
+  double mean_ = 0, stddev_ = 1;
+};
+
 template <class Real>
 void advance_baoab(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const Real& h,
                    const Real& beta, const Real& friction, std::mt19937_64& rng) {
@@ -516,7 +567,7 @@ void advance_baoab(const Chain<Real>& chain, DynamicsWorkspace<Real>& ws, const 
   // cotangent space.
   const Real c1 = exp(-friction * h);
   const Real noise = sqrt(-expm1(-2 * friction * h) / beta);
-  std::normal_distribution<double> normal(0.0, 1.0);
+  StandardNormal normal;
   LinkFrame<Real> lf(ws);
   Real vx = 0, vy = 0, vx_new_prev = 0, vy_new_prev = 0;
   for (std::size_t k = 0; k < n; ++k) {
@@ -584,6 +635,157 @@ Real link_constraint_residual(DynamicsWorkspace<Real>& ws) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------- states
+
+template <class Real>
+ChainState<Real> state_from_angles_kernel(const Chain<Real>& chain, const std::vector<Real>& phi,
+                                   const std::vector<Real>& phidot) {
+  const std::size_t n = chain.size();
+  if (phi.size() != n) throw invalid_input("need one angle per particle");
+  if (phidot.size() != n) throw invalid_input("need one angular velocity per particle");
+  check_finite_vector(phi, "angles");
+  check_finite_vector(phidot, "angular velocities");
+  ChainState<Real> st;
+  st.position.assign(2 * n, Real(0));
+  st.momentum.assign(2 * n, Real(0));
+  Real x = 0, y = 0, vx = 0, vy = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real l = chain.length(i), s = sin(phi[i]), c = cos(phi[i]);
+    x += l * s;
+    y -= l * c;
+    vx += l * c * phidot[i];
+    vy += l * s * phidot[i];
+    st.position[2 * i] = x;
+    st.position[2 * i + 1] = y;
+    st.momentum[2 * i] = chain.mass(i) * vx;
+    st.momentum[2 * i + 1] = chain.mass(i) * vy;
+  }
+  return st;
+}
+
+template <class Real>
+ChainState<Real> state_from_canonical_kernel(const Chain<Real>& chain, const std::vector<Real>& phi,
+                                      const std::vector<Real>& p_phi) {
+  const std::size_t n = chain.size();
+  if (phi.size() != n || p_phi.size() != n)
+    throw invalid_input("need one angle and one momentum per particle");
+  check_finite_vector(phi, "angles");
+  check_finite_vector(p_phi, "momenta");
+  // A_jk = S_max(j,k) l_j l_k cos(phi_j - phi_k) (paper eq. a-ij); dense solve (setup only).
+  using Matrix = Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic>;
+  using Vector = Eigen::Matrix<Real, Eigen::Dynamic, 1>;
+  Matrix a(n, n);
+  Vector rhs(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    rhs(j) = p_phi[j];
+    for (std::size_t k = 0; k < n; ++k)
+      a(j, k) = chain.tail_mass(std::max(j, k)) * chain.length(j) * chain.length(k) *
+                cos(phi[j] - phi[k]);
+  }
+  const Vector phidot = a.ldlt().solve(rhs);
+  std::vector<Real> rates(n);
+  for (std::size_t j = 0; j < n; ++j) rates[j] = phidot(j);
+  return state_from_angles_kernel(chain, phi, rates);
+}
+
+template <class Real>
+ChainObservables<Real> observables_kernel(const Chain<Real>& chain, const ChainState<Real>& st) {
+  const std::size_t n = chain.size();
+  ChainObservables<Real> o;
+  o.phi.resize(n);
+  o.phidot.resize(n);
+  o.p_phi.resize(n);
+  o.kinetic.resize(n);
+  o.kinetic_canonical.resize(n);
+  const std::vector<Real>& x = st.position;
+  const std::vector<Real>& p = st.momentum;
+  // Tail momenta P_i = sum_{k >= i} p_k: p_phi_i = l_i e_i . P_i, e_i = (cos phi_i, sin phi_i).
+  Real px = 0, py = 0;
+  std::vector<Real> tail_x(n), tail_y(n);
+  for (std::size_t i = n; i-- > 0;) {
+    px += p[2 * i];
+    py += p[2 * i + 1];
+    tail_x[i] = px;
+    tail_y[i] = py;
+  }
+  Real xprev = 0, yprev = 0, vxprev = 0, vyprev = 0;
+  o.kinetic_total = 0;
+  o.potential = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real m = chain.mass(i);
+    const Real rx = x[2 * i] - xprev, ry = x[2 * i + 1] - yprev;
+    const Real vx = p[2 * i] / m, vy = p[2 * i + 1] / m;
+    o.phi[i] = atan2(rx, -ry);
+    // l e_i = (-r_y, r_x)
+    const Real ex = -ry, ey = rx;
+    const Real l2 = rx * rx + ry * ry;
+    o.p_phi[i] = ex * tail_x[i] + ey * tail_y[i];
+    o.phidot[i] = (ex * (vx - vxprev) + ey * (vy - vyprev)) / l2;
+    o.kinetic[i] = (p[2 * i] * p[2 * i] + p[2 * i + 1] * p[2 * i + 1]) / (2 * m);
+    o.kinetic_canonical[i] = o.p_phi[i] * o.phidot[i] / 2;
+    o.kinetic_total += o.kinetic[i];
+    o.potential += m * chain.gravity() * x[2 * i + 1];
+    xprev = x[2 * i];
+    yprev = x[2 * i + 1];
+    vxprev = vx;
+    vyprev = vy;
+  }
+  o.energy = o.kinetic_total + o.potential;
+  return o;
+}
+
+template <class Real>
+Real potential_energy_kernel(const Chain<Real>& chain, const ChainState<Real>& st) {
+  Real u = 0;
+  for (std::size_t k = 0; k < chain.size(); ++k) u += chain.mass(k) * st.position[2 * k + 1];
+  return u * chain.gravity();
+}
+
+template <class Real>
+Real total_energy_kernel(const Chain<Real>& chain, const ChainState<Real>& st) {
+  Real kinetic = 0;
+  for (std::size_t k = 0; k < chain.size(); ++k)
+    kinetic += (st.momentum[2 * k] * st.momentum[2 * k] +
+                st.momentum[2 * k + 1] * st.momentum[2 * k + 1]) /
+               (2 * chain.mass(k));
+  return kinetic + potential_energy_kernel(chain, st);
+}
+
+template <class Real>
+Real constraint_residual_kernel(const Chain<Real>& chain, const ChainState<Real>& st) {
+  Real worst = 0, xprev = 0, yprev = 0;
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    const Real rx = st.position[2 * i] - xprev, ry = st.position[2 * i + 1] - yprev;
+    using std::hypot;
+    worst = std::max(worst, abs(hypot(rx, ry) - chain.length(i)) / chain.length(i));
+    xprev = st.position[2 * i];
+    yprev = st.position[2 * i + 1];
+  }
+  return worst;
+}
+
+template <class Real>
+Real velocity_constraint_residual_kernel(const Chain<Real>& chain, const ChainState<Real>& st) {
+  Real worst = 0, scale = 0, xprev = 0, yprev = 0, vxprev = 0, vyprev = 0;
+  std::vector<Real> dots(chain.size());
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    const Real m = chain.mass(i);
+    const Real rx = st.position[2 * i] - xprev, ry = st.position[2 * i + 1] - yprev;
+    const Real ux = st.momentum[2 * i] / m - vxprev, uy = st.momentum[2 * i + 1] / m - vyprev;
+    dots[i] = abs(rx * ux + ry * uy) / chain.length(i);
+    using std::hypot;
+    scale = std::max(scale, hypot(ux, uy));
+    xprev = st.position[2 * i];
+    yprev = st.position[2 * i + 1];
+    vxprev = st.momentum[2 * i] / m;
+    vyprev = st.momentum[2 * i + 1] / m;
+  }
+  for (const Real& d : dots) worst = std::max(worst, d);
+  return scale > 0 ? worst / scale : worst;
+}
+
+// ---------------------------------------------------------------- steps
 
 template <class Real>
 void project_momenta_kernel(const Chain<Real>&, ChainState<Real>& state, DynamicsWorkspace<Real>& ws) {
@@ -706,7 +908,7 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
   // Finest blocks: as short as max_blocks allows for the planned samples (>= block_samples).
   const std::size_t block_length =
       std::max(options.block_samples, (steps + options.max_blocks - 1) / options.max_blocks);
-  detail::BlockAverager<Real> blocks(width, block_length, options.max_blocks);
+  BlockAverager<Real> blocks(width, block_length, options.max_blocks);
   Real energy_error_max = 0, energy_error_squares = 0;
   std::size_t done = 0;
   if (observer.trajectory) {
@@ -881,10 +1083,10 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
     Real disc = det * (2 * a3 * (energy - u) - p2 * p2);
     if (disc < 0) disc = 0;
     const Real p1 = (a2 * p2 + sqrt(disc)) / a3;
-    ChainState<Real> st = state_from_canonical(chain, {Real(0), phi2}, {p1, p2});
+    ChainState<Real> st = state_from_canonical_kernel(chain, {Real(0), phi2}, {p1, p2});
     DynamicsWorkspace<Real> ws(chain);
     project_momenta_kernel(chain, st, ws);
-    const Real e0 = total_energy(chain, st);
+    const Real e0 = total_energy_kernel(chain, st);
     Real worst = abs(e0 - energy);
     std::vector<SectionPoint<Real>>& points = per_orbit[k];
     ChainState<Real> previous = st;
@@ -894,7 +1096,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       yoshida4_step_kernel(chain, st, h, ws);
       ++step;
       if ((step & 1023) == 0) {
-        worst = std::max(worst, abs(total_energy(chain, st) - energy));
+        worst = std::max(worst, abs(total_energy_kernel(chain, st) - energy));
         if (observer.stop != nullptr && observer.stop->load(std::memory_order_relaxed)) {
           interrupted[k] = 1;
           break;
@@ -917,7 +1119,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
         tau += correction;
         if (abs(correction) <= 4 * std::numeric_limits<Real>::epsilon() * h) break;
       }
-      const ChainObservables<Real> o = observables(chain, on);
+      const ChainObservables<Real> o = observables_kernel(chain, on);
       SectionPoint<Real> point;
       point.orbit = k;
       point.phi2 = o.phi[1];
@@ -925,7 +1127,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       point.time = on.time;
       points.push_back(point);
     }
-    worst = std::max(worst, abs(total_energy(chain, st) - energy));
+    worst = std::max(worst, abs(total_energy_kernel(chain, st) - energy));
     energy_error[k] = worst / scale;
     steps_taken[k] = step;
     const std::size_t now = ++finished;

@@ -13,6 +13,22 @@
 #define PENDAVG_DECLARE_DYNAMICS_KERNELS(isa)                                                    \
   namespace pendavg::isa {                                                                       \
   template <class Real>                                                                          \
+  ChainState<Real> state_from_angles_kernel(const Chain<Real>&, const std::vector<Real>&,        \
+                                            const std::vector<Real>&);                           \
+  template <class Real>                                                                          \
+  ChainState<Real> state_from_canonical_kernel(const Chain<Real>&, const std::vector<Real>&,     \
+                                               const std::vector<Real>&);                        \
+  template <class Real>                                                                          \
+  ChainObservables<Real> observables_kernel(const Chain<Real>&, const ChainState<Real>&);        \
+  template <class Real>                                                                          \
+  Real potential_energy_kernel(const Chain<Real>&, const ChainState<Real>&);                     \
+  template <class Real>                                                                          \
+  Real total_energy_kernel(const Chain<Real>&, const ChainState<Real>&);                         \
+  template <class Real>                                                                          \
+  Real constraint_residual_kernel(const Chain<Real>&, const ChainState<Real>&);                  \
+  template <class Real>                                                                          \
+  Real velocity_constraint_residual_kernel(const Chain<Real>&, const ChainState<Real>&);         \
+  template <class Real>                                                                          \
   void project_momenta_kernel(const Chain<Real>&, ChainState<Real>&, DynamicsWorkspace<Real>&); \
   template <class Real>                                                                          \
   void rattle_step_kernel(const Chain<Real>&, ChainState<Real>&, const Real&,                    \
@@ -41,6 +57,17 @@ PENDAVG_DECLARE_DYNAMICS_KERNELS(dynamics_x86_64_v3)
 #endif
 
 #define PENDAVG_DYNAMICS_KERNELS_INSTANTIATE(Real)                                              \
+  template ChainState<Real> state_from_angles_kernel<Real>(                                    \
+      const Chain<Real>&, const std::vector<Real>&, const std::vector<Real>&);                  \
+  template ChainState<Real> state_from_canonical_kernel<Real>(                                 \
+      const Chain<Real>&, const std::vector<Real>&, const std::vector<Real>&);                  \
+  template ChainObservables<Real> observables_kernel<Real>(const Chain<Real>&,                 \
+                                                           const ChainState<Real>&);            \
+  template Real potential_energy_kernel<Real>(const Chain<Real>&, const ChainState<Real>&);    \
+  template Real total_energy_kernel<Real>(const Chain<Real>&, const ChainState<Real>&);        \
+  template Real constraint_residual_kernel<Real>(const Chain<Real>&, const ChainState<Real>&); \
+  template Real velocity_constraint_residual_kernel<Real>(const Chain<Real>&,                  \
+                                                          const ChainState<Real>&);            \
   template void project_momenta_kernel<Real>(const Chain<Real>&, ChainState<Real>&,            \
                                              DynamicsWorkspace<Real>&);                         \
   template void rattle_step_kernel<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,   \

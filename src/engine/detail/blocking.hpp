@@ -26,7 +26,13 @@
 #include <cstddef>
 #include <vector>
 
-namespace pendavg::detail {
+// The dynamics kernels include this header once per instruction set with
+// PENDAVG_BLOCKING_NAMESPACE set to their own namespace (src/engine/dynamics_kernels.cpp), so that
+// each gets its own copy compiled for it.
+#ifndef PENDAVG_BLOCKING_NAMESPACE
+#define PENDAVG_BLOCKING_NAMESPACE detail
+#endif
+namespace pendavg::PENDAVG_BLOCKING_NAMESPACE {
 
 /// Standard error of the mean of `means` (equal-length block means) by blocking, and the
 /// number of levels examined.
@@ -148,4 +154,4 @@ class BlockAverager {
   std::size_t in_block_ = 0, samples_ = 0;
 };
 
-}  // namespace pendavg::detail
+}  // namespace pendavg::PENDAVG_BLOCKING_NAMESPACE
