@@ -7,12 +7,18 @@
 #include "engine/double_pendulum.hpp"
 #include "engine/estimates.hpp"
 #include "engine/precision.hpp"
+#include "engine/text.hpp"
 #include "engine/torus.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <functional>
+#include <limits>
 #include <string>
+#include <tuple>
+#include <vector>
 
 namespace pendavg {
 
@@ -120,6 +126,117 @@ QmcOptions qmc_options(const AverageOptions& o) {
   return qmc;
 }
 
+// ---------------------------------------------------------------- large beta (any N)
+//
+// The Boltzmann weight is a peak in each relative angle delta_i of squared width 1/kappa_i,
+// kappa_i = H_i T_i / S with H_i, T_i the sums of alpha_j = beta g S_j l_j above and below joint
+// i and S their total (the torus' node maps, engine/torus.hpp). The torus and qmc methods resolve
+// peaks down to kappa ~ 1e13 in double. When every joint is stiff the chain is near its beta ->
+// infinity limit V_inf (beta<K_i> = 1/2, <cos phi_i> = 1, beta^2 Var K_i = tr X_i(0)^2 / 2), and
+// every average is a series in 1/beta, V = V_inf + c/beta + d/beta^2 + e/beta^3 + ... (Laplace).
+// The values at three lower temperatures beta_k = 2^k beta_1 (k = 0, 1, 2), where the smallest
+// stiffness is 1e4 (fast, to ~1e-13), fix the polynomial y(x) = (V - V_inf)/x in x = 1/beta
+// through them (Richardson), and V(beta) = V_inf + x y(x). Its error is estimated by the change
+// from the two-point (linear) to the three-point (quadratic) fit, plus the references' errors
+// carried by the extrapolation (sum_k |L_k(x)| x beta_k err_k, L_k the Lagrange basis) and
+// rounding.
+/// Smallest and largest kappa_i over the joints (0 for a single pendulum), in double.
+struct JointStiffness {
+  double smallest = 0, largest = 0;
+};
+
+template <class Real>
+JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
+  const std::size_t n = chain.size();
+  JointStiffness k;
+  if (n < 2) return k;
+  const double b = static_cast<double>(beta);
+  std::vector<double> alpha(n);
+  double total = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    alpha[j] = b * static_cast<double>(chain.potential_coefficient(j));
+    total += alpha[j];
+  }
+  std::vector<double> below(n + 1, 0.0);  // below[i] = sum of alpha_j for j >= i, summed directly
+  for (std::size_t j = n; j-- > 0;) below[j] = below[j + 1] + alpha[j];
+  k.smallest = std::numeric_limits<double>::infinity();
+  double head = 0;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    head += alpha[i];
+    const double kappa = total > 0 ? head * (below[i + 1] / total) : 0.0;
+    k.smallest = std::min(k.smallest, kappa);
+    k.largest = std::max(k.largest, kappa);
+  }
+  return k;
+}
+
+constexpr double stiffness_extrapolated = 1e7;  ///< every joint stiffer: extrapolate
+constexpr double stiffness_reference = 1e4;     ///< the reference runs' smallest stiffness
+constexpr double stiffness_resolved = 1e13;     ///< the torus and qmc resolve peaks to here
+constexpr double stiffness_resolved_mpfr = 1e9;  ///< in MPFR (~1 minute at 30 digits and 1e8)
+
+/// V(beta) from V at beta_k = 2^k beta_1 (k = 0, 1, 2) and V_inf (see above).
+template <class Real>
+Estimate<Real> extrapolated(const std::array<const Estimate<Real>*, 3>& v, const Real& limit,
+                            const Real& beta1, const Real& beta, ErrorKind kind) {
+  using std::abs;
+  const Real x = 1 / beta;
+  std::array<Real, 3> xs, ys;
+  for (std::size_t k = 0; k < 3; ++k) {
+    xs[k] = 1 / (beta1 * Real(1 << k));
+    ys[k] = (v[k]->value - limit) / xs[k];
+  }
+  // Lagrange bases at x: linear through the last two points, quadratic through all three.
+  const Real l1 = (x - xs[2]) / (xs[1] - xs[2]), l2 = (x - xs[1]) / (xs[2] - xs[1]);
+  const Real linear = l1 * ys[1] + l2 * ys[2];
+  std::array<Real, 3> lq;
+  for (std::size_t k = 0; k < 3; ++k) {
+    lq[k] = 1;
+    for (std::size_t j = 0; j < 3; ++j)
+      if (j != k) lq[k] *= (x - xs[j]) / (xs[k] - xs[j]);
+  }
+  const Real quadratic = lq[0] * ys[0] + lq[1] * ys[1] + lq[2] * ys[2];
+  const Real value = limit + x * quadratic;
+  Real carried = 0;
+  for (std::size_t k = 0; k < 3; ++k) carried += abs(lq[k]) * v[k]->error / xs[k];
+  const Real error = x * (abs(quadratic - linear) + carried) +
+                     4 * std::numeric_limits<Real>::epsilon() * abs(value);
+  return {value, error, kind};
+}
+
+template <class Real>
+Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Real& beta,
+                                             const JointStiffness& stiffness,
+                                             const std::function<Averages<Real>(const Real&)>& run) {
+  const Real beta1 = beta * Real(stiffness_reference / stiffness.smallest);
+  const std::array<Averages<Real>, 3> a{run(beta1), run(2 * beta1), run(4 * beta1)};
+  const Averages<Real> limit = low_temperature_limit_any(chain);
+  Averages<Real> out;
+  const ErrorKind kind = a[2].error_kind;
+  const std::size_t n = chain.size();
+  using Field = std::vector<Estimate<Real>> Averages<Real>::*;
+  for (Field field : {&Averages<Real>::beta_kinetic, &Averages<Real>::cos_angle,
+                      &Averages<Real>::beta2_kinetic_variance}) {
+    (out.*field).resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      (out.*field)[i] = extrapolated<Real>({&(a[0].*field)[i], &(a[1].*field)[i], &(a[2].*field)[i]},
+                                           (limit.*field)[i].value, beta1, beta, kind);
+  }
+  if (n >= 2) {
+    out.ratio = kinetic_ratio(out.beta_kinetic[0], out.beta_kinetic[1],
+                              Real(std::numeric_limits<Real>::epsilon()));
+  }
+  out.method = Method::low_temperature_extrapolation;
+  out.error_kind = kind;
+  out.work_unit = a[2].work_unit;
+  out.evaluations = a[0].evaluations + a[1].evaluations + a[2].evaluations;
+  out.converged = a[0].converged && a[1].converged && a[2].converged;
+  out.torus = a[2].torus;
+  out.qmc = a[2].qmc;
+  add_chain_extras(out, chain);
+  return out;
+}
+
 /// The engines, for a chain and beta already at the working precision.
 template <class Real>
 Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& o,
@@ -133,8 +250,35 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
     case AverageMethod::series: out = series_average(chain, beta, o.digits); break;
     case AverageMethod::torus_trapezoid:
     case AverageMethod::torus_gauss:
-      return torus_average(chain, beta, torus_options(o, method, chain.size(), "average"));
-    case AverageMethod::qmc: return qmc_average(chain, beta, qmc_options(o));
+    case AverageMethod::qmc: {
+      const std::function<Averages<Real>(const Real&)> run = [&](const Real& b) {
+        return method == AverageMethod::qmc
+                   ? qmc_average(chain, b, qmc_options(o))
+                   : torus_average(chain, b, torus_options(o, method, chain.size(), "average"));
+      };
+      const JointStiffness stiffness = joint_stiffness(chain, beta);
+      if constexpr (!is_mpfr_v<Real>) {
+        if (stiffness.smallest >= stiffness_extrapolated) {
+          if (stiffness.largest / stiffness.smallest * stiffness_reference > stiffness_resolved)
+            throw invalid_input(
+                "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.smallest) +
+                " to " + short_decimal(stiffness.largest) + ") differ by more than 1e9, beyond "
+                "what the low-temperature extrapolation resolves; outside pendavg's domain");
+          return low_temperature_extrapolation(chain, beta, stiffness, run);
+        }
+        if (stiffness.largest > stiffness_resolved)
+          throw invalid_input("average: a joint's stiffness beta g S l = " +
+                              short_decimal(stiffness.largest) + " is beyond what the torus and "
+                              "qmc methods resolve (1e13) while another joint is soft (" +
+                              short_decimal(stiffness.smallest) + "); outside pendavg's domain");
+      } else if (stiffness.largest > stiffness_resolved_mpfr) {
+        throw invalid_input("average: a joint's stiffness beta g S l = " +
+                            short_decimal(stiffness.largest) + " is beyond what the torus "
+                            "resolves in MPFR (1e9); at 16 digits pendavg extrapolates to low "
+                            "temperature (every joint stiffer than 1e7)");
+      }
+      return run(beta);
+    }
     case AverageMethod::automatic: break;  // resolved before
   }
   add_chain_extras(out, chain);

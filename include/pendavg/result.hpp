@@ -28,6 +28,9 @@ enum class Method {
   torus_trapezoid,          ///< any N: periodic trapezoid on the reduced (N-1)-torus
   torus_gauss_legendre,     ///< any N: Gauss-Legendre tensor rule on the reduced torus
   qmc,                      ///< any N: randomized lattice QMC over the von Mises law
+  /// any N at large beta: Richardson extrapolation in 1/beta of a torus or qmc method's values
+  /// at two lower temperatures towards the beta -> infinity limit (src/average.cpp)
+  low_temperature_extrapolation,
   microcanonical,           ///< exact microcanonical averages at fixed energy (MATH.md Sec. 7)
   dynamics_nve,             ///< time averages along a RATTLE + Yoshida-4 trajectory (fixed energy)
   dynamics_langevin,        ///< time averages along constrained Langevin (BAOAB + RATTLE)

@@ -700,6 +700,7 @@ std::string series_command(const Options& options) {
                .integer("terms", static_cast<long long>(rows.size()))
                .boolean("certified", certified)
                .raw("rows", "[" + json_rows + "]")
+               .string("error_kind", error_kind_name(ErrorKind::bound))  // each row's bound
                .str() +
            "\n";
   }

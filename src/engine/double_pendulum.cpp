@@ -18,6 +18,7 @@
 
 #include "engine/bessel.hpp"
 #include "engine/quadrature.hpp"
+#include "engine/text.hpp"
 
 #include <boost/math/constants/constants.hpp>
 #include "engine/detail/fourier_moments.hpp"
@@ -47,9 +48,14 @@ DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& cha
   p.mu2 = chain.mass_fraction(1);
   p.a1 = beta * chain.total_mass() * chain.gravity() * chain.length(0);
   p.a2 = beta * chain.mass(1) * chain.gravity() * chain.length(1);
-  // a1 * a2 must stay representable (the integral forms 4 a1 a2).
-  if (!(boost::math::isfinite)(p.a1 * p.a2) || !(boost::math::isfinite)(p.a1 + p.a2)) {
-    throw invalid_input("beta * M g l is too large for this number type; request more digits");
+  // a1 * a2 must stay representable (the integral forms 4 a1 a2), and in hardware floats the
+  // weights' scaled Bessel functions over R ~ a1 + a2 (and R^2) must too: a1, a2 <= 1e150.
+  if (!(boost::math::isfinite)(p.a1 * p.a2) || !(boost::math::isfinite)(p.a1 + p.a2) ||
+      (!is_mpfr_v<Real> && !(p.a1 + p.a2 <= Real(1e150)))) {
+    throw invalid_input("beta g M l1 + beta g m2 l2 = " +
+                        short_decimal(static_cast<double>(p.a1 + p.a2)) +
+                        " is beyond the double engine's range (1e150); request 17 or more "
+                        "digits (MPFR)");
   }
   return p;
 }

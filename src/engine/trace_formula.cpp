@@ -87,9 +87,13 @@ const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain, const Rea
     tr2[i] = (one_plus_u * one_plus_u + u_plus_w * u_plus_w + 2 * w_cos2) * (inv_d * inv_d);
 
     Real factor = l[i] * l[i] * m[i] * pivot_ratio;
-    if (!(factor <= ws.scale_hi_ && factor >= ws.scale_lo_)) {  // rare: extreme units
-      factor = frexp(factor, &e);
-      det_exponent += e;
+    if (!(factor <= ws.scale_hi_ && factor >= ws.scale_lo_)) {
+      // Rare: extreme units. The product may have left the range (l_i^2 underflows for
+      // l_i < 1e-154): take it apart into mantissas and a binary exponent.
+      int el = 0, em = 0, ep = 0;
+      const Real ml = frexp(l[i], &el), mm = frexp(m[i], &em), mp = frexp(pivot_ratio, &ep);
+      factor = frexp(ml * ml * mm * mp, &e);
+      det_exponent += e + 2L * el + em + ep;
     }
     det_product *= factor;
     if (!(det_product <= ws.scale_hi_ && det_product >= ws.scale_lo_)) {
@@ -117,12 +121,20 @@ const NodeTraces<Real>& node_traces(const Chain<Real>& chain, const Real* phi,
 
 template <class Real>
 std::vector<Real> diagonal_approximation(const Chain<Real>& chain) {
+  using std::isfinite;
   const std::size_t n = chain.size();
   std::vector<Real> beta_kinetic(n);
   Real inverse_tail_sum = 0;  // sum_{j <= i} 1 / S_j
   for (std::size_t i = 0; i < n; ++i) {
     inverse_tail_sum += 1 / chain.tail_mass(i);
     beta_kinetic[i] = chain.mass(i) * inverse_tail_sum / 2;
+    if (!isfinite(beta_kinetic[i])) {
+      // Tail masses near the bottom of the range (1/S_j overflows): the same sum as mass
+      // ratios m_i / S_j <= 1 (S_j >= m_i for j <= i), which cannot overflow.
+      Real ratios = 0;
+      for (std::size_t j = 0; j <= i; ++j) ratios += chain.mass(i) / chain.tail_mass(j);
+      beta_kinetic[i] = ratios / 2;
+    }
   }
   return beta_kinetic;
 }
