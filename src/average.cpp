@@ -135,35 +135,41 @@ QmcOptions qmc_options(const AverageOptions& o) {
 // infinity limit V_inf (beta<K_i> = 1/2, <cos phi_i> = 1, beta^2 Var K_i = tr X_i(0)^2 / 2), and
 // every average is a series in 1/beta, V = V_inf + c/beta + d/beta^2 + e/beta^3 + ... (Laplace).
 // The values at three lower temperatures beta_k = 2^k beta_1 (k = 0, 1, 2), where the smallest
-// stiffness is 1e4 (fast, to ~1e-13), fix the polynomial y(x) = (V - V_inf)/x in x = 1/beta
+// stiffness is 1e3 (fast, to ~1e-13), fix the polynomial y(x) = (V - V_inf)/x in x = 1/beta
 // through them (Richardson), and V(beta) = V_inf + x y(x). Its error is estimated by the change
 // from the two-point (linear) to the three-point (quadratic) fit, plus the references' errors
 // carried by the extrapolation (sum_k |L_k(x)| x beta_k err_k, L_k the Lagrange basis) and
 // rounding.
-/// Smallest and largest kappa_i over the joints (0 for a single pendulum), in double.
+/// Smallest and largest kappa_i over the joints (for a single pendulum kappa = alpha_1 itself,
+/// its peak's squared inverse width), in long double: alpha_j = beta g S_j l_j and their products
+/// may leave double's range, which is what the callers check for.
 struct JointStiffness {
-  double smallest = 0, largest = 0;
+  long double smallest = 0, largest = 0;
 };
 
 template <class Real>
 JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
+  using Wide = long double;
   const std::size_t n = chain.size();
-  JointStiffness k;
-  if (n < 2) return k;
-  const double b = static_cast<double>(beta);
-  std::vector<double> alpha(n);
-  double total = 0;
+  const Wide b = static_cast<Wide>(static_cast<double>(beta)), g = static_cast<double>(chain.gravity());
+  std::vector<Wide> alpha(n);
+  Wide total = 0;
   for (std::size_t j = 0; j < n; ++j) {
-    alpha[j] = b * static_cast<double>(chain.potential_coefficient(j));
+    alpha[j] = b * g * static_cast<double>(chain.tail_mass(j)) * static_cast<double>(chain.length(j));
     total += alpha[j];
   }
-  std::vector<double> below(n + 1, 0.0);  // below[i] = sum of alpha_j for j >= i, summed directly
+  JointStiffness k;
+  if (n == 1) {
+    k.smallest = k.largest = total;
+    return k;
+  }
+  std::vector<Wide> below(n + 1, 0);  // below[i] = sum of alpha_j for j >= i, summed directly
   for (std::size_t j = n; j-- > 0;) below[j] = below[j + 1] + alpha[j];
-  k.smallest = std::numeric_limits<double>::infinity();
-  double head = 0;
+  k.smallest = std::numeric_limits<Wide>::infinity();
+  Wide head = 0;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     head += alpha[i];
-    const double kappa = total > 0 ? head * (below[i + 1] / total) : 0.0;
+    const Wide kappa = total > 0 ? head * (below[i + 1] / total) : 0;
     k.smallest = std::min(k.smallest, kappa);
     k.largest = std::max(k.largest, kappa);
   }
@@ -171,9 +177,22 @@ JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
 }
 
 constexpr double stiffness_extrapolated = 1e7;  ///< every joint stiffer: extrapolate
-constexpr double stiffness_reference = 1e4;     ///< the reference runs' smallest stiffness
+constexpr double stiffness_reference = 1e3;     ///< the reference runs' smallest stiffness
 constexpr double stiffness_resolved = 1e13;     ///< the torus and qmc resolve peaks to here
 constexpr double stiffness_resolved_mpfr = 1e9;  ///< in MPFR (~1 minute at 30 digits and 1e8)
+
+/// The trace formula's pivots carry ratios up to M / m_min and their squares (MATH.md Sec. 4):
+/// in double they stay finite only for M / m_min <= 1e150.
+template <class Real>
+void check_double_mass_range(const Chain<Real>& chain) {
+  const auto lightest = *std::min_element(chain.masses().begin(), chain.masses().end());
+  const long double ratio = static_cast<long double>(static_cast<double>(chain.total_mass())) /
+                            static_cast<double>(lightest);
+  if (ratio > 1e150L)
+    throw invalid_input("average: the total mass is " + short_decimal(ratio) +
+                        " times the lightest mass, beyond double's range for the torus and qmc "
+                        "methods (1e150); request 17 or more digits (MPFR)");
+}
 
 /// V(beta) from V at beta_k = 2^k beta_1 (k = 0, 1, 2) and V_inf (see above).
 template <class Real>
@@ -208,7 +227,8 @@ template <class Real>
 Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Real& beta,
                                              const JointStiffness& stiffness,
                                              const std::function<Averages<Real>(const Real&)>& run) {
-  const Real beta1 = beta * Real(stiffness_reference / stiffness.smallest);
+  const Real beta1 =
+      Real(static_cast<long double>(static_cast<double>(beta)) * stiffness_reference / stiffness.smallest);
   const std::array<Averages<Real>, 3> a{run(beta1), run(2 * beta1), run(4 * beta1)};
   const Averages<Real> limit = low_temperature_limit_any(chain);
   Averages<Real> out;
@@ -258,6 +278,7 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
       };
       const JointStiffness stiffness = joint_stiffness(chain, beta);
       if constexpr (!is_mpfr_v<Real>) {
+        check_double_mass_range(chain);
         if (stiffness.smallest >= stiffness_extrapolated) {
           if (stiffness.largest / stiffness.smallest * stiffness_reference > stiffness_resolved)
             throw invalid_input(
@@ -337,6 +358,28 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
   return average(chain, beta, options, workspace);
 }
 
+/// The last line of defence: every value and error an engine returns is finite. The domain
+/// checks before the work are meant to make this unreachable; if an engine still meets a case
+/// they miss, the caller gets one clear error instead of a NaN (never converged = true with it).
+template <class Real>
+const Averages<Real>& finite_or_thrown(const Averages<Real>& a, const char* command) {
+  using std::isfinite;
+  const auto bad = [](const Estimate<Real>& e) { return !isfinite(e.value) || !isfinite(e.error); };
+  const char* which = nullptr;
+  for (auto [name, field] : {std::pair{"beta<K_i>", &a.beta_kinetic},
+                             std::pair{"<cos phi_i>", &a.cos_angle},
+                             std::pair{"Var K_i", &a.beta2_kinetic_variance}}) {
+    for (const Estimate<Real>& e : *field)
+      if (!which && bad(e)) which = name;
+  }
+  if (!which && a.ratio && bad(*a.ratio)) which = "<K1>/<K2>";
+  if (which)
+    throw invalid_input(std::string(command) + ": " + method_name(a.method) +
+                        " produced a non-finite " + which + " for this input, outside its domain "
+                        "(try more --digits or another --method, and please report it)");
+  return a;
+}
+
 template <class Real>
 Averages<Real> average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options,
                        AverageWorkspace<Real>& workspace) {
@@ -345,10 +388,11 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
   check_beta(beta);
   if constexpr (is_mpfr_v<Real>) {
     const working_precision precision(options.digits + guard_digits);
-    return run_average(at_working_precision(chain), at_working_precision(beta), options, method,
-                       workspace);
+    return finite_or_thrown(run_average(at_working_precision(chain), at_working_precision(beta),
+                                        options, method, workspace),
+                            "average");
   } else {
-    return run_average(chain, beta, options, method, workspace);
+    return finite_or_thrown(run_average(chain, beta, options, method, workspace), "average");
   }
 }
 

@@ -274,7 +274,9 @@ struct DynamicsObserver {
 };
 
 /// A time average with its statistical error bar: the mean and one standard error (1 sigma)
-/// from blocking (kind statistical), and the integrated autocorrelation time they imply.
+/// from blocking (kind statistical), and the integrated autocorrelation time they imply. The
+/// error is NaN (unknown, never 0) when fewer than 16 blocks finished: a run interrupted early
+/// or shorter than its block length.
 template <class Real>
 struct TimeAverage : Estimate<Real> {
   TimeAverage() { this->kind = ErrorKind::statistical; }

@@ -173,7 +173,16 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
   return out;
 }
 
-std::string number(double x) { return decimal(x, 10); }
+/// A JSON number; null for a value that does not exist (an unknown error bar).
+std::string number(double x) { return std::isfinite(x) ? decimal(x, 10) : std::string("null"); }
+
+/// An error-sized JSON number (3 digits); null when it does not exist.
+std::string error_number(double x) {
+  return std::isfinite(x) ? decimal(x, 3) : std::string("null");
+}
+
+/// A CSV cell: empty for a value that does not exist.
+std::string cell(double x, int digits) { return std::isfinite(x) ? decimal(x, digits) : std::string(); }
 
 std::string number_array(const std::vector<double>& values) {
   std::string out = "[";
@@ -267,6 +276,12 @@ std::string simulate_command(const Options& options) {
 
   ChainState<double> initial = state_from_angles(chain, phi, phidot);
   const double energy = total_energy(chain, initial);
+  // The exact values first: a request they cannot serve (e.g. the chain at rest at the bottom,
+  // no accessible states) is refused before any integration, and a run stopped by a signal
+  // still prints them.
+  std::optional<ExactValues> reference;
+  if (exact) reference = langevin ? canonical_values(chain, run.beta)
+                                  : microcanonical_values(chain, energy);
   Progress progress("simulate");
   observer.progress = [&](double fraction) { progress(fraction); };
   StopOnSignal signals;
@@ -280,10 +295,6 @@ std::string simulate_command(const Options& options) {
   if (r.interrupted)
     std::fprintf(stderr, "[simulate] interrupted at t = %.6g: averages of the run so far\n",
                  r.simulated_time);
-
-  std::optional<ExactValues> reference;
-  if (exact) reference = langevin ? canonical_values(chain, run.beta)
-                                  : microcanonical_values(chain, energy);
 
   std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -310,13 +321,13 @@ std::string simulate_command(const Options& options) {
                       (reference ? ", exact " + reference->method : std::string()) + "\n";
     out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time\n";
     for (std::size_t i = 0; i < n; ++i) {
-      out += std::to_string(i + 1) + "," + number(k[i]) + "," + decimal(k_error[i], 3) + "," +
-             number(kc[i]) + "," + decimal(kc_error[i], 3) + "," +
+      out += std::to_string(i + 1) + "," + cell(k[i], 10) + "," + cell(k_error[i], 3) + "," +
+             cell(kc[i], 10) + "," + cell(kc_error[i], 3) + "," +
              (reference ? number(reference->kinetic[i]) + "," +
                               decimal(reference->kinetic_error[i], 3) + "," +
                               number(reference->kinetic_canonical)
                         : std::string(",,")) +
-             "," + decimal(tau[i], 3) + "\n";
+             "," + cell(tau[i], 3) + "\n";
     }
     return out;
   }
@@ -352,11 +363,15 @@ std::string simulate_command(const Options& options) {
   } else {
     json.raw("exact_K", "null");
   }
+  if (std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); }))
+    json.string("error_reason",
+                "fewer than 16 averaging blocks finished (interrupted early, or --time too short "
+                "for the block length): the error bars are unknown");
   if (langevin) json.raw("beta", number(run.beta)).raw("friction", number(run.friction));
-  json.raw("energy_drift", decimal(r.energy_drift, 3))
-      .raw("energy_error_max", decimal(r.energy_error_max, 3))
-      .raw("energy_error_rms", decimal(r.energy_error_rms, 3))
-      .raw("constraint_residual", decimal(r.constraint_residual, 3))
+  json.raw("energy_drift", error_number(r.energy_drift))
+      .raw("energy_error_max", error_number(r.energy_error_max))
+      .raw("energy_error_rms", error_number(r.energy_error_rms))
+      .raw("constraint_residual", error_number(r.constraint_residual))
       .integer("steps", static_cast<long long>(r.steps))
       .integer("newton_solves", static_cast<long long>(r.newton_solves))
       .boolean("interrupted", r.interrupted)

@@ -57,6 +57,13 @@ DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& cha
                         " is beyond the double engine's range (1e150); request 17 or more "
                         "digits (MPFR)");
   }
+  // The variances' integral J_{-3/2} grows like mu1^(-3/2) times the weight's peak: below
+  // mu1 = 1e-150 it overflows double at large beta.
+  if (!is_mpfr_v<Real> && !(p.mu1 >= Real(1e-150))) {
+    throw invalid_input("the top mass is mu1 = m1/M = " + short_decimal(static_cast<double>(p.mu1)) +
+                        " of the total, below the double engine's range (1e-150); request 17 "
+                        "or more digits (MPFR)");
+  }
   return p;
 }
 

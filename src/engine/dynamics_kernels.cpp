@@ -10,6 +10,8 @@
 // on any CPU; only the functions of this file's own namespace use AVX2 and FMA (checked by
 // tests/consumer/isa.sh).
 #include "engine/dynamics_kernels.hpp"
+#include "engine/parallel.hpp"
+#include "engine/text.hpp"
 
 #include <Eigen/Dense>
 #include <boost/math/constants/constants.hpp>
@@ -830,6 +832,37 @@ void baoab_step_kernel(const Chain<Real>& chain, ChainState<Real>& state, const 
 
 // ---------------------------------------------------------------- runs
 
+/// Refuses a time step beyond the integrators' stability limit, before any work. The fastest
+/// motion is estimated per particle as a transverse oscillation between its two links:
+/// omega_i^2 = (T_i / l_i + T_{i+1} / l_{i+1}) / m_i with the links' tensions T_j up to the weight
+/// below, g S_j, plus the centrifugal share of the kinetic energy available, 2 K / l_j. The
+/// compositions (Yoshida, Suzuki, Kahan-Li) and BAOAB are linearly stable for h omega below ~1.5;
+/// h omega > 1 is refused.
+template <class Real>
+void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
+                            const char* command) {
+  using Wide = long double;
+  const std::size_t n = chain.size();
+  Wide omega2 = 0;
+  const Wide g = static_cast<Wide>(chain.gravity());
+  const Wide k = std::max<Wide>(kinetic, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Wide li = static_cast<Wide>(chain.length(i));
+    Wide stiffness = (g * static_cast<Wide>(chain.tail_mass(i)) + 2 * k / li) / li;
+    if (i + 1 < n) {
+      const Wide lj = static_cast<Wide>(chain.length(i + 1));
+      stiffness += (g * static_cast<Wide>(chain.tail_mass(i + 1)) + 2 * k / lj) / lj;
+    }
+    omega2 = std::max(omega2, stiffness / static_cast<Wide>(chain.mass(i)));
+  }
+  const Wide omega = std::sqrt(omega2);
+  if (!(static_cast<Wide>(time_step) * omega <= 1))
+    throw invalid_input(std::string(command) + ": a time step of " + short_decimal(time_step) +
+                        " is beyond the integrator's stability limit (the fastest motion has "
+                        "angular frequency ~" + short_decimal(omega) + "); use --dt " +
+                        short_decimal(Wide(0.05) / omega) + " or smaller");
+}
+
 template <class Real>
 SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real> state,
                                 const SimulationOptions& options,
@@ -887,6 +920,16 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     if (!(out.energy_scale > 0)) out.energy_scale = 1;
   }
   out.constraint_residual = link_constraint_residual(ws);
+  {
+    // Kinetic energy the motion can reach: E - U_min for NVE; for Langevin also ~ N/beta
+    // (thermal), with a wide margin (20 N / beta).
+    const long double u_min = -static_cast<long double>(chain.gravity()) * static_cast<long double>(mass_sum) *
+                        static_cast<long double>(length_sum);
+    long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
+    if (langevin)
+      kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(options.beta));
+    check_stable_time_step(chain, options.time_step, kinetic, "simulate");
+  }
 
   auto advance = [&]() {
     if (langevin) {
@@ -1062,18 +1105,36 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
   }
   const double max_time =
       options.max_time > 0 ? options.max_time : 200.0 * static_cast<double>(options.points);
-  const auto max_steps = static_cast<std::size_t>(std::ceil(max_time / options.time_step));
+  // Bounded work, decided before any: at most 1e12 steps per orbit.
+  const double steps_needed = std::ceil(max_time / options.time_step);
+  if (!(steps_needed <= 1e12))
+    throw invalid_input("poincare: a time step of " + short_decimal(options.time_step) +
+                        " needs " + short_decimal(steps_needed) + " steps per orbit (over 1e12)"
+                        "; use a larger --dt or a shorter --max-time");
+  const auto max_steps = static_cast<std::size_t>(steps_needed);
   const Real h(options.time_step);
   Real mass_sum = chain.mass(0) + chain.mass(1), length_sum = chain.length(0) + chain.length(1);
   const Real scale = mass_sum * chain.gravity() * length_sum;
+  check_stable_time_step(chain, options.time_step,
+                         static_cast<long double>(energy) + static_cast<long double>(scale),
+                         "poincare");
+  using std::isfinite;
+  if (!isfinite(scale) || !isfinite(energy * mass_sum * length_sum * length_sum))
+    throw invalid_input("poincare: the energy and inertia scales (M g L = " +
+                        short_decimal(static_cast<long double>(mass_sum) * static_cast<long double>(chain.gravity()) *
+                                      static_cast<long double>(length_sum)) + ", E M L^2 = " +
+                        short_decimal(static_cast<long double>(energy) * static_cast<long double>(mass_sum) *
+                                      static_cast<long double>(length_sum) * static_cast<long double>(length_sum)) +
+                        ") overflow double; choose units nearer 1");
 
   std::vector<std::vector<SectionPoint<Real>>> per_orbit(orbits);
   std::vector<Real> energy_error(orbits, Real(0));
   std::vector<std::size_t> steps_taken(orbits, 0);
   std::vector<char> interrupted(orbits, 0);
   std::atomic<std::size_t> finished{0};
+  ParallelErrors errors;  // an exception may not leave the parallel region
 #pragma omp parallel for schedule(dynamic, 1) num_threads(options.threads) if (options.threads > 1)
-  for (std::size_t k = 0; k < orbits; ++k) {
+  for (std::size_t k = 0; k < orbits; ++k) errors.capture([&] {
     const Real phi2 = out.start_phi2[k], p2 = out.start_p2[k];
     // p1 from (A_3 p1 - A_2 p2)^2 = det A (2 A_3 (E - U) - p2^2), positive root (Appendix E).
     const Real u = -g1 - g2 * cos(phi2);
@@ -1135,7 +1196,8 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
 #pragma omp critical(pendavg_poincare_progress)
       observer.progress(static_cast<double>(now) / static_cast<double>(orbits));
     }
-  }
+  });
+  errors.rethrow();
   for (std::size_t k = 0; k < orbits; ++k) {
     out.points.insert(out.points.end(), per_orbit[k].begin(), per_orbit[k].end());
     out.energy_error_max = std::max(out.energy_error_max, energy_error[k]);

@@ -7,9 +7,9 @@
 namespace pendavg {
 
 /// x with 3 significant digits ("2e+303", "0.125"), for messages.
-inline std::string short_decimal(double x) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.3g", x);
+inline std::string short_decimal(long double x) {
+  char buffer[48];
+  std::snprintf(buffer, sizeof buffer, "%.3Lg", x);
   return buffer;
 }
 

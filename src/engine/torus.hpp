@@ -80,6 +80,7 @@
 #include "pendavg/chain.hpp"
 #include "engine/detail/qmc_lattices.hpp"
 #include "engine/precision.hpp"
+#include "engine/parallel.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/trace_formula.hpp"
 
@@ -380,17 +381,20 @@ std::vector<NodeMap<Real>> automatic_node_maps(const Chain<Real>& chain,
                                                const std::vector<Real>& alpha) {
   const std::size_t n = chain.size();
   std::vector<NodeMap<Real>> maps(n > 0 ? n - 1 : 0);
-  Real total = 0;
-  for (const Real& x : alpha) total += x;
+  // Tail sums summed directly (total - head cancels when a root link dominates), and the width
+  // as sqrt((S / H) / T), which cannot overflow.
+  std::vector<Real> below(n + 1, Real(0));
+  for (std::size_t j = n; j-- > 0;) below[j] = below[j + 1] + alpha[j];
+  const Real& total = below[0];
   Real head = 0;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     head += alpha[i];
-    const Real tail = total - head;
+    const Real& tail = below[i + 1];
     const Real mass_scale = sqrt(chain.mass(i) / chain.tail_mass(i));
     Real eps = mass_scale;
     int p = 2;
     if (head > 0 && tail > 0) {
-      const Real width = sqrt(total / (head * tail));
+      const Real width = sqrt(total / head / tail);
       if (width < eps) {
         eps = width;
         p = 1;
@@ -409,12 +413,16 @@ std::vector<NodeMap<Real>> automatic_node_maps(const Chain<Real>& chain,
 template <class Real>
 struct TorusSums {
   CompensatedSum<Real> weight;
+  /// sum of w sum_j alpha_j |sin(theta_j - arg z)|: the weight's exponent S - R carries a
+  /// rounding error of a few u times that lever at each node (see rounding_ulps).
+  CompensatedSum<Real> exponent_lever;
   std::vector<CompensatedSum<Real>> trace, second_moment, cosine, cosine_abs;
   std::size_t evaluations = 0;
   explicit TorusSums(std::size_t n = 0)
       : trace(n), second_moment(n), cosine(n), cosine_abs(n) {}
   void merge(const TorusSums& other) {
     weight.add(other.weight.value());
+    exponent_lever.add(other.exponent_lever.value());
     for (std::size_t i = 0; i < trace.size(); ++i) {
       trace[i].add(other.trace[i].value());
       second_moment[i].add(other.second_moment[i].value());
@@ -467,7 +475,7 @@ class ReducedIntegrand {
       zx += k_.alpha[j] * unit_cos_[j];
       zy += k_.alpha[j] * unit_sin_[j];
     }
-    Real radius = 0, s_minus_r = k_.alpha_sum;
+    Real radius = 0, s_minus_r = k_.alpha_sum, lever = 0;
     if (k_.alpha_sum > 0) {
       const Real sx = zx / k_.alpha_sum, sy = zy / k_.alpha_sum;  // |.| <= 1: no overflow
       radius = k_.alpha_sum * sqrt(sx * sx + sy * sy);
@@ -481,6 +489,7 @@ class ReducedIntegrand {
         const Real s = unit_sin_[j] * ux - unit_cos_[j] * uy;
         cos_offset_[j] = c;
         s_minus_r += k_.alpha[j] * (c >= 0 ? Real(s * s / (1 + c)) : Real(1 - c));
+        lever += k_.alpha[j] * abs(s);
       }
     } else {
       for (std::size_t j = 0; j < n; ++j) cos_offset_[j] = 0;
@@ -490,6 +499,7 @@ class ReducedIntegrand {
         node_weight * exp(traces.log_sqrt_det_A - k_.log_hadamard - s_minus_r) * bessel.i0e;
     const Real bessel_ratio_w = w * (bessel.i1e / bessel.i0e);
     sums.weight.add(w);
+    sums.exponent_lever.add(w * lever);
     for (std::size_t i = 0; i < n; ++i) {
       const Real& t = traces.trace_X[i];
       sums.trace[i].add(w * t);
@@ -576,24 +586,33 @@ TorusSums<Real> level_sums(const Chain<Real>& chain, const WeightConstants<Real>
   const std::size_t n_particles = chain.size();
   const std::size_t outer = dims == 0 ? 1 : rules[0].n;
   std::vector<TorusSums<Real>> partial(outer, TorusSums<Real>(n_particles));
+  ParallelErrors errors;  // an exception may not leave the parallel region
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(threads, 1);
 #if defined(_OPENMP)
 #pragma omp parallel num_threads(team) if (team > 1)
 #endif
   {
-    ReducedIntegrand<Real> integrand(chain, constants);
-    GridWalker<Real> walker(rules, dims, integrand);
+    std::optional<ReducedIntegrand<Real>> integrand;
+    std::optional<GridWalker<Real>> walker;
     TorusSums<Real> local(n_particles);  // per thread: no false sharing between tasks
+    errors.capture([&] {
+      integrand.emplace(chain, constants);
+      walker.emplace(rules, dims, *integrand);
+    });
 #if defined(_OPENMP)
 #pragma omp for schedule(dynamic, 1)
 #endif
     for (std::ptrdiff_t k0 = 0; k0 < static_cast<std::ptrdiff_t>(outer); ++k0) {
-      local = TorusSums<Real>(n_particles);
-      walker.walk_outer(static_cast<std::size_t>(k0), local);
-      partial[static_cast<std::size_t>(k0)] = local;
+      errors.capture([&] {
+        if (!walker) return;
+        local = TorusSums<Real>(n_particles);
+        walker->walk_outer(static_cast<std::size_t>(k0), local);
+        partial[static_cast<std::size_t>(k0)] = local;
+      });
     }
   }
+  errors.rethrow();
   (void)team;
   TorusSums<Real> total(n_particles);
   for (const auto& p : partial) total.merge(p);
@@ -630,13 +649,15 @@ LevelValues<Real> level_values(const TorusSums<Real>& s, const Real& normalizati
 
 /// Rounding budget, in ulps of each quantity's scale: per node, the traces carry ~8 ulps
 /// (trace_formula.hpp), the weight's exponent an absolute error of ~u (|log sqrt det A| +
-/// log_hadamard + sqrt(alpha)), and the N-term rotation products ~N ulps; compensated summation
-/// adds nothing that grows with the node count.
+/// log_hadamard + lever), and the N-term rotation products ~N ulps; compensated summation adds
+/// nothing that grows with the node count. The lever is sum_j alpha_j |sin(theta_j - arg z)|
+/// (the angles' rounding times the exponent's slope), typically ~ sum_j sqrt(alpha_j) at the
+/// nodes that carry the weight: the torus measures its weighted mean, qmc passes sqrt(S). A link
+/// much stiffer than the rest (a root link 1e300 times longer) is aligned with z to within
+/// the others' share, so its lever stays small where the typical sqrt(alpha) would be absurd.
 template <class Real>
-Real rounding_ulps(const WeightConstants<Real>& k, std::size_t n) {
-  using std::sqrt;
-  return Real(32) + Real(4 * static_cast<double>(n)) + 2 * abs(k.log_hadamard) +
-         2 * sqrt(k.alpha_sum);
+Real rounding_ulps(const WeightConstants<Real>& k, std::size_t n, const Real& lever) {
+  return Real(32) + Real(4 * static_cast<double>(n)) + 2 * abs(k.log_hadamard) + 2 * lever;
 }
 
 }  // namespace detail::torus
@@ -676,7 +697,6 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
   const Real u = unit_roundoff<Real>();
 
   const WeightConstants<Real> constants(chain, beta);
-  const Real rounding = rounding_ulps(constants, n_particles) * u;
   std::vector<NodeMap<Real>> maps(dims);
   if (options.node_map == TorusNodeMap::automatic) {
     maps = automatic_node_maps(chain, constants.alpha);
@@ -710,6 +730,7 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 
   std::size_t n = options.min_points_per_dim;
   TorusSums<Real> cumulative(n_particles);  // trapezoid: sums over every node of the level
+  TorusSums<Real> fresh_last(n_particles);  // Gauss-Legendre: the last level's sums
   LevelValues<Real> current;
   for (std::size_t level = 0;; ++level) {
     const bool trapezoid = options.rule == TorusRule::trapezoid;
@@ -721,6 +742,7 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
     }
     const TorusSums<Real> fresh = level_sums(chain, constants, rules, dims, options.threads);
     a.evaluations += fresh.evaluations;
+    fresh_last = fresh;
     if (trapezoid) {
       cumulative.merge(fresh);
       current = level_values(cumulative, Real(grid_size(n)));
@@ -774,6 +796,10 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
     }
   }
 
+  const TorusSums<Real>& last = options.rule == TorusRule::trapezoid ? cumulative : fresh_last;
+  const Real lever = last.weight.value() > 0 ? Real(last.exponent_lever.value() / last.weight.value())
+                                            : Real(sqrt(constants.alpha_sum));
+  const Real rounding = rounding_ulps(constants, n_particles, lever) * u;
   a.beta_kinetic.resize(n_particles);
   a.cos_angle.resize(n_particles);
   a.beta2_kinetic_variance.resize(n_particles);
@@ -1406,16 +1432,20 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const std::size_t shifts = options.shifts;
   const std::vector<std::vector<Real>> shift = random_shifts<Real>(shifts, n, options.seed);
   std::vector<ShiftSums<Real>> sums(shifts, ShiftSums<Real>(n));
+  ParallelErrors errors;  // an exception may not leave the parallel region
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(options.threads, 1);
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
 #endif
   for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
-    sums[static_cast<std::size_t>(r)] =
-        shifted_lattice_sums(chain, constants, sampler, shift[static_cast<std::size_t>(r)],
-                             points, generator);
+    errors.capture([&] {
+      sums[static_cast<std::size_t>(r)] =
+          shifted_lattice_sums(chain, constants, sampler, shift[static_cast<std::size_t>(r)],
+                               points, generator);
+    });
   }
+  errors.rethrow();
   (void)team;
 
   // Totals and delete-one-shift totals; every quantity is a function of sums, so the jackknife
@@ -1470,7 +1500,8 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const std::vector<Real> standard_error = jackknife_standard_errors(leave_out, count);
 
   const Real u = unit_roundoff<Real>();
-  const Real rounding = detail::torus::rounding_ulps(constants, n) * u;
+  const Real rounding =
+      detail::torus::rounding_ulps(constants, n, Real(sqrt(constants.alpha_sum))) * u;
   const Real sigmas = Real(options.sigmas);
   Averages<Real> a;
   QmcDiagnostics<Real>& diagnostics = a.qmc.emplace();

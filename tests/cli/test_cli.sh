@@ -669,6 +669,25 @@ wait "$pid"
 rc=$?
 if [ "$rc" -eq 0 ] && "$python" -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['interrupted'] and 0 < d['steps'] < 10**9 and len(d['K']) == 4" "$work/out" \
    && grep -q "interrupted" "$work/err"; then pass; else fail "simulate SIGINT"; fi
+# Issue 11: interrupted long before its blocks fill, a run reports unknown error bars (null and
+# a reason), never 0; the exact values are still printed.
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --time 1e9 >"$work/out" 2>"$work/err" &
+pid=$!
+sleep 1
+kill -INT "$pid"
+wait "$pid"
+rc=$?
+if [ "$rc" -eq 0 ] && "$python" -c "
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['interrupted'] and d['K_error'] == [None, None] and 'error_reason' in d, d
+assert d['K_deviation_sigmas'] == [None, None] and len(d['exact_K']) == 2
+assert 'nan' not in open(sys.argv[1]).read().lower()
+" "$work/out"; then pass; else fail "simulate SIGINT before the blocks fill"; fi
+# Refused before any integration: an unstable time step, a flung chain, no accessible states.
+bad "simulate dt 10"           simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --dt 10 --time 100
+bad "simulate phidot 1e10"     simulate --masses 1,1 --lengths 1,1 --phi 0,0 --phidot 1e10,0 --time 1
+bad "simulate at rest, bottom" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 3000000
 
 # SIGINT ends a long table sweep cleanly: exit 0, the finished rows written after an
 # '# interrupted' line, atomically to --output.
@@ -703,6 +722,13 @@ bad "poincare no energy"       poincare --masses 1,1 --lengths 1,1
 bad "poincare zero orbits"     poincare --masses 1,1 --lengths 1,1 --energy 0 --orbits 0
 bad "poincare g = 0"           poincare --masses 1,1 --lengths 1,1 --energy 1 --g 0
 bad "poincare unwritable"      poincare --masses 1,1 --lengths 1,1 --energy 0 --output /nonexistent/p.csv
+# Issue 11: inputs that once aborted inside the parallel region or never ended.
+for extreme in "--energy 1e308" "--energy 1 --g 1e308" "--energy 1 --g 1e300" ; do
+  bad "poincare $extreme"      poincare --masses 1,1 --lengths 1,1 $extreme --orbits 2 --points 5
+done
+bad "poincare heavy mass"      poincare --masses 1,1e308 --lengths 1,1 --energy 1 --orbits 2 --points 5
+bad "poincare long link"       poincare --masses 1,1 --lengths 1,1e308 --energy 1 --orbits 2 --points 5
+bad "poincare dt 1e-320"       poincare --masses 1,1 --lengths 1,1 --energy -2.5 --dt 1e-320 --orbits 2 --points 5
 
 for command in average limit series simulate poincare; do
   good "$command --help"     'grep -q "usage" "$work/out"' "$command" --help

@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 // The dynamics kernels include this header once per instruction set with
@@ -36,9 +37,13 @@ namespace pendavg::PENDAVG_BLOCKING_NAMESPACE {
 
 /// Standard error of the mean of `means` (equal-length block means) by blocking, and the
 /// number of levels examined.
+/// Fewer than minimum_blocks finished blocks (a run interrupted early, or too short for its
+/// block length) leave the error unknown: NaN, which callers report as such (never 0).
 template <class Real>
 Real blocking_standard_error(std::vector<Real> means, std::size_t* level_out = nullptr) {
   using std::sqrt;
+  constexpr std::size_t minimum_blocks = 16;
+  if (means.size() < minimum_blocks) return std::numeric_limits<Real>::quiet_NaN();
   Real largest = 0;
   std::size_t level = 0, chosen = 0;
   // Levels with at least 32 blocks (or the finest one when there are fewer).

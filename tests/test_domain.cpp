@@ -1,0 +1,205 @@
+// tests/test_domain.cpp -- issue 11: every accepted input gives a finite answer with an honest
+// error, or one clear error before any work. Each engine's domain check by name:
+//  * large beta (any N): the low-temperature extrapolation (src/average.cpp) against the torus
+//    run directly where it still resolves the peaks, and against the exact beta -> infinity
+//    limit far beyond; single pendulums with overflowing alpha;
+//  * extreme length ratios: a root link 1e300 times longer than the rest (the node maps' tail
+//    sums, the measured rounding lever) against MPFR;
+//  * inputs outside double's range (subnormals, mass ratios beyond 1e150, mu1 < 1e-150 for
+//    N = 2, stiffness ratios beyond 1e9) are refused with a message that says what to do, and
+//    the advice works where it points to MPFR.
+#include <catch2/catch.hpp>
+
+#include "engine/torus.hpp"
+#include "pendavg/mpfr.hpp"
+#include "pendavg/pendavg.hpp"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace {
+
+using pendavg::AverageMethod;
+using pendavg::AverageOptions;
+using pendavg::Averages;
+using pendavg::Chain;
+using pendavg::Estimate;
+using pendavg::Method;
+using pendavg::mpfr_real;
+
+/// Every value and error finite.
+template <class Real>
+bool all_finite(const Averages<Real>& a) {
+  using std::isfinite;
+  for (const auto* group : {&a.beta_kinetic, &a.cos_angle, &a.beta2_kinetic_variance})
+    for (const Estimate<Real>& e : *group)
+      if (!isfinite(e.value) || !isfinite(e.error)) return false;
+  return true;
+}
+
+/// |a - b| <= the two errors, for every observable.
+void require_agree(const Averages<double>& a, const Averages<double>& b) {
+  for (auto field : {&Averages<double>::beta_kinetic, &Averages<double>::cos_angle,
+                     &Averages<double>::beta2_kinetic_variance}) {
+    REQUIRE((a.*field).size() == (b.*field).size());
+    for (std::size_t i = 0; i < (a.*field).size(); ++i) {
+      const Estimate<double>& x = (a.*field)[i];
+      const Estimate<double>& y = (b.*field)[i];
+      INFO("i = " << i << ": " << x.value << " +- " << x.error << " vs " << y.value << " +- "
+                  << y.error);
+      CHECK(std::abs(x.value - y.value) <= x.error + y.error);
+    }
+  }
+}
+
+/// The message of the invalid_input thrown by `f` ("" when none).
+template <class F>
+std::string rejection(F&& f) {
+  try {
+    f();
+  } catch (const pendavg::invalid_input& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("domain: large beta, the low-temperature extrapolation against the direct torus",
+          "[domain]") {
+  // Every joint just stiffer than 1e7 (extrapolated), where the torus still resolves the peaks
+  // directly (to kappa ~ 1e13): two independent routes to the same numbers.
+  struct Case {
+    std::vector<double> masses, lengths;
+    double beta;
+  };
+  for (const Case& c : {Case{{1, 1, 1}, {1, 1, 1}, 2e7},
+                        Case{{1, 0.3, 2}, {0.5, 1.5, 1}, 5e7},
+                        Case{{1, 1}, {1, 1}, 3e7}}) {
+    const Chain<double> chain(c.masses, c.lengths);
+    AverageOptions o;
+    o.method = AverageMethod::torus_trapezoid;
+    const Averages<double> extrapolated = pendavg::average(chain, c.beta, o);
+    INFO("N = " << chain.size() << ", beta = " << c.beta);
+    REQUIRE(extrapolated.method == Method::low_temperature_extrapolation);
+    REQUIRE(extrapolated.converged);
+    const Averages<double> direct = pendavg::torus_average(chain, c.beta);
+    REQUIRE(direct.converged);
+    require_agree(extrapolated, direct);
+    for (const Estimate<double>& e : extrapolated.beta_kinetic) CHECK(e.error < 1e-11);
+  }
+}
+
+TEST_CASE("domain: beta -> infinity for any N is finite and reaches the exact limit", "[domain]") {
+  // N = 1 with alpha = beta g m l beyond double (1e315), N = 3 at beta = 1e300, N = 6 (qmc).
+  struct Case {
+    std::vector<double> masses, lengths;
+    double beta;
+  };
+  for (const Case& c : {Case{{1e300}, {1}, 1e15}, Case{{1}, {1}, 1e300},
+                        Case{{1, 1, 1}, {1, 1, 1}, 1e300}, Case{{1, 2, 3}, {3, 2, 1}, 1e50},
+                        Case{{1, 1, 1, 1, 1, 1}, {1, 1, 1, 1, 1, 1}, 1e35}}) {
+    const Chain<double> chain(c.masses, c.lengths);
+    AverageOptions o;
+    if (chain.size() >= 5) {
+      o.samples = 1024;
+      o.shifts = 8;
+    }
+    const Averages<double> a = pendavg::average(chain, c.beta, o);
+    const Averages<double> limit = pendavg::low_temperature_limit(chain);
+    INFO("N = " << chain.size() << ", beta = " << c.beta);
+    REQUIRE(all_finite(a));
+    REQUIRE(a.converged);
+    require_agree(a, limit);
+  }
+}
+
+TEST_CASE("domain: a root link 1e300 times longer than the rest, against MPFR", "[domain]") {
+  // The node maps once lost the other links' stiffness (total - head cancelled) and the
+  // rounding budget grew like sqrt(alpha_1) ~ 1e150: no convergence and an absurd error.
+  const Chain<double> chain({1, 1, 1}, {1e300, 1, 1});
+  const Averages<double> a = pendavg::average(chain, 1.0);
+  REQUIRE(a.converged);
+  for (const Estimate<double>& e : a.beta_kinetic) CHECK(e.error < 1e-12);
+  AverageOptions o20;
+  o20.digits = 20;
+  const Averages<mpfr_real> reference =
+      pendavg::average(chain.cast<mpfr_real>(), mpfr_real(1), o20);
+  for (std::size_t i = 0; i < 3; ++i) {
+    INFO("i = " << i);
+    CHECK(std::abs(a.beta_kinetic[i].value - static_cast<double>(reference.beta_kinetic[i].value)) <=
+          a.beta_kinetic[i].error);
+    CHECK(std::abs(a.beta2_kinetic_variance[i].value -
+                   static_cast<double>(reference.beta2_kinetic_variance[i].value)) <=
+          a.beta2_kinetic_variance[i].error);
+  }
+  // N = 4 at beta = 1e3: converges to the torus' tolerance like the unit chain.
+  const Averages<double> four = pendavg::average(Chain<double>({1, 1, 1, 1}, {1e300, 1, 1, 1}), 1e3);
+  CHECK(four.converged);
+  for (const Estimate<double>& e : four.beta_kinetic) CHECK(e.error < 1e-12);
+}
+
+TEST_CASE("domain: inputs beyond double's range are refused with advice that works", "[domain]") {
+  const auto in_double = [](std::vector<double> m, std::vector<double> l, double beta) {
+    return rejection([&] { pendavg::average(Chain<double>(m, l), beta); });
+  };
+  const auto in_mpfr = [](std::vector<double> m, std::vector<double> l, double beta) {
+    AverageOptions o;
+    o.digits = 20;
+    const Chain<mpfr_real> chain(std::vector<mpfr_real>(m.begin(), m.end()),
+                                 std::vector<mpfr_real>(l.begin(), l.end()));
+    return pendavg::average(chain, mpfr_real(beta), o);
+  };
+  const std::string mpfr_advice = "request 17 or more digits (MPFR)";
+  SECTION("a subnormal mass") {
+    CHECK_THAT(in_double({1, 1e-320}, {1, 1}, 1), Catch::Contains(mpfr_advice));
+    CHECK(all_finite(in_mpfr({1, 1e-320}, {1, 1}, 1)));
+  }
+  SECTION("N = 2: mu1 = m1/M below 1e-150 (the variances' integral overflows)") {
+    CHECK_THAT(in_double({1e-300, 1}, {1, 1}, 1e10), Catch::Contains(mpfr_advice));
+    const Averages<mpfr_real> a = in_mpfr({1e-300, 1}, {1, 1}, 1e10);
+    REQUIRE(all_finite(a));
+    // The light top particle carries almost nothing: beta<K_2> -> 1.
+    CHECK(static_cast<double>(a.beta_kinetic[1].value) == Approx(1.0).epsilon(1e-12));
+    CHECK(in_double({1e-150, 1}, {1, 1}, 1e10).empty());
+  }
+  SECTION("N = 2: beta g M l beyond 1e150") {
+    CHECK_THAT(in_double({1, 1}, {1, 1e308}, 1), Catch::Contains(mpfr_advice));
+    CHECK(all_finite(in_mpfr({1, 1}, {1, 1e308}, 1)));
+  }
+  SECTION("N = 3: the total mass beyond 1e150 times the lightest") {
+    CHECK_THAT(in_double({1, 1, 1e300}, {1, 1, 1}, 1e-3), Catch::Contains(mpfr_advice));
+    CHECK_THAT(in_double({1e-200, 1, 1}, {1, 1, 1}, 1), Catch::Contains(mpfr_advice));
+    CHECK(in_double({1, 1, 1e140}, {1, 1, 1}, 1e-200).empty());
+  }
+}
+
+TEST_CASE("domain: a mass ratio beyond double's range in MPFR (~15 s)", "[domain][.slow]") {
+  AverageOptions o;
+  o.digits = 17;
+  const Chain<double> chain({1, 1, 1e160}, {1, 1, 1});
+  const Averages<mpfr_real> a = pendavg::average(chain.cast<mpfr_real>(), mpfr_real(1e-200), o);
+  REQUIRE(all_finite(a));
+  REQUIRE(a.converged);
+  // beta -> 0 with g beta S l -> 0: sum_i beta<K_i> = N/2 (equipartition of the total).
+  mpfr_real total = 0;
+  for (const auto& e : a.beta_kinetic) total += e.value;
+  CHECK(abs(total - mpfr_real(1.5)) <= 1e-16);
+}
+
+TEST_CASE("domain: stiffness beyond what the torus resolves is refused in one line", "[domain]") {
+  // Joint stiffnesses 1.2 beta and 1e-10 beta: at beta = 1e20 every joint is stiff but they
+  // differ by 1.2e10, beyond the extrapolation's reference runs.
+  const Chain<double> uneven({1, 1, 1}, {1, 1, 1e-10});
+  const std::string uneven_message = rejection([&] { pendavg::average(uneven, 1e20); });
+  CHECK_THAT(uneven_message, Catch::Contains("differ by more than 1e9"));
+  CHECK(uneven_message.find('\n') == std::string::npos);
+  // In MPFR the torus resolves kappa <= 1e9; at 16 digits the same chain is extrapolated.
+  AverageOptions o30;
+  o30.digits = 30;
+  const Chain<double> unit({1, 1, 1}, {1, 1, 1});
+  CHECK_THAT(rejection([&] { pendavg::average(unit.cast<mpfr_real>(), mpfr_real(1e20), o30); }),
+             Catch::Contains("at 16 digits pendavg extrapolates"));
+  CHECK(all_finite(pendavg::average(unit, 1e20)));
+}
