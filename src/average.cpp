@@ -114,6 +114,7 @@ TorusOptions torus_options(const AverageOptions& o, AverageMethod method, std::s
   torus.tolerance = o.tolerance.value_or(default_torus_tolerance);
   torus.digits = o.digits == min_digits ? 0 : o.digits;
   torus.threads = o.threads;
+  torus.control = &o.control;
   return torus;
 }
 
@@ -251,6 +252,7 @@ Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Rea
   out.work_unit = a[2].work_unit;
   out.evaluations = a[0].evaluations + a[1].evaluations + a[2].evaluations;
   out.converged = a[0].converged && a[1].converged && a[2].converged;
+  out.interrupted = a[0].interrupted || a[1].interrupted || a[2].interrupted;
   out.torus = a[2].torus;
   out.qmc = a[2].qmc;
   add_chain_extras(out, chain);

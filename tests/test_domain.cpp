@@ -14,6 +14,7 @@
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
 
+#include <atomic>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -202,4 +203,41 @@ TEST_CASE("domain: stiffness beyond what the torus resolves is refused in one li
   CHECK_THAT(rejection([&] { pendavg::average(unit.cast<mpfr_real>(), mpfr_real(1e20), o30); }),
              Catch::Contains("at 16 digits pendavg extrapolates"));
   CHECK(all_finite(pendavg::average(unit, 1e20)));
+}
+
+TEST_CASE("run control: a stopped torus reports its last finished level honestly", "[domain]") {
+  // Stop once the second level has begun: the first level's values come back, interrupted,
+  // not converged, with errors that still cover the converged answer.
+  const Chain<double> chain({1, 1, 1}, {1, 1, 1});
+  const Averages<double> converged = pendavg::average(chain, 2.0);
+  std::atomic<bool> stop{false};
+  AverageOptions o;
+  int calls = 0;
+  o.control.stop = &stop;
+  o.control.progress = [&](double fraction) {
+    CHECK(fraction > 0);
+    CHECK(fraction <= 1);
+    if (++calls > 40) stop = true;  // levels have 8, 16, 32, ... outer indices
+  };
+  const Averages<double> stopped = pendavg::average(chain, 2.0, o);
+  CHECK(stopped.interrupted);
+  CHECK_FALSE(stopped.converged);
+  CHECK(stopped.evaluations < converged.evaluations);
+  require_agree(stopped, converged);
+  // Stopped before anything finished: no value at all, an `interrupted` exception.
+  stop = true;
+  o.control.progress = nullptr;
+  CHECK_THROWS_AS(pendavg::average(chain, 2.0, o), pendavg::interrupted);
+}
+
+TEST_CASE("run control: the series refuses unbounded work and stops on request", "[domain]") {
+  const Chain<mpfr_real> slow(std::vector<mpfr_real>{1, 1000}, std::vector<mpfr_real>{1, 1});
+  CHECK_THAT(rejection([&] { pendavg::series_convergence(slow, mpfr_real(1), 16); }),
+             Catch::Contains("beyond the automatic cap"));
+  const Chain<mpfr_real> chain(std::vector<mpfr_real>{1, 50}, std::vector<mpfr_real>{1, 1});
+  std::atomic<bool> stop{true};
+  pendavg::RunControl control;
+  control.stop = &stop;
+  CHECK_THROWS_AS(pendavg::series_convergence(chain, mpfr_real(1), 16, 0, control),
+                  pendavg::interrupted);
 }

@@ -70,6 +70,10 @@ struct AverageOptions {
   std::optional<std::uint64_t> seed;
   /// OpenMP threads for the torus and qmc methods in double (results do not depend on it).
   int threads = 1;
+  /// Progress of each torus level and a stop request (RunControl, pendavg/result.hpp): a torus
+  /// run stopped after its first level returns that level's values (interrupted = true,
+  /// converged = false, errors still hold); before it, average() throws `interrupted`.
+  RunControl control;
 };
 
 /// Which method average() runs for N particles under `options`, after checking every option

@@ -64,7 +64,7 @@ extern template Averages<mpfr_real> low_temperature_limit<mpfr_real>(const Chain
 extern template void check_beta<mpfr_real>(const mpfr_real&);
 extern template void check_digits<mpfr_real>(int);
 extern template std::vector<SeriesRow<mpfr_real>> series_convergence<mpfr_real>(
-    const Chain<mpfr_real>&, const mpfr_real&, int, std::size_t);
+    const Chain<mpfr_real>&, const mpfr_real&, int, std::size_t, const RunControl&);
 extern template class TraceWorkspace<mpfr_real>;
 
 }  // namespace pendavg

@@ -14,11 +14,33 @@
 // still-valid estimate (converged = false), never a silent wrong value.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <vector>
 
 namespace pendavg {
+
+/// Progress reports and cancellation of a long computation (the library does no I/O): both
+/// optional. `progress` receives the estimated fraction done of the current stage (a torus
+/// level, the series' Bessel table); `stop` is polled between units of work, and when it reads
+/// true the run ends early: with what it finished (converged = false, interrupted = true) when
+/// that is a valid result, or by throwing `interrupted` when nothing reportable is finished.
+struct RunControl {
+  std::function<void(double fraction)> progress;
+  const std::atomic<bool>* stop = nullptr;
+  bool stop_requested() const { return stop != nullptr && stop->load(std::memory_order_relaxed); }
+  void report(double fraction) const {
+    if (progress) progress(fraction);
+  }
+};
+
+/// A run stopped through RunControl::stop before it finished anything it could report.
+struct interrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 enum class Method {
   series,                   ///< the paper's series, eq. ave-K1-result (N = 2)
@@ -113,6 +135,9 @@ struct Averages {
   std::size_t evaluations = 0;  ///< work done, in `work_unit`
   WorkUnit work_unit = WorkUnit::nodes;
   bool converged = true;  ///< false: the requested accuracy was not reached (errors still hold)
+  /// true: stopped early through RunControl::stop; the values are those of the work finished
+  /// (converged = false, errors still hold).
+  bool interrupted = false;
   std::optional<TorusDiagnostics<Real>> torus;  ///< torus methods only
   std::optional<QmcDiagnostics<Real>> qmc;      ///< qmc only
 };

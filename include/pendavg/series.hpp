@@ -30,10 +30,13 @@ struct SeriesRow {
   Real bound;          ///< rigorous bound on |beta<K1> - beta_kinetic1| from the tails
 };
 
-/// The series, term by term, up to `terms` terms (0: until the requested digits are certified,
-/// or the automatic cap of 6000 terms). N = 2 only; throws invalid_input otherwise.
+/// The series, term by term, up to `terms` terms (0: until the requested digits are certified;
+/// refused before any work when that needs more than the automatic cap of 6000 terms). N = 2
+/// only; throws invalid_input otherwise. `control` reports the Bessel table's progress and may
+/// stop it (throws `interrupted`: no row exists before the table is complete).
 template <class Real>
 std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
-                                                int digits = 16, std::size_t terms = 0);
+                                                int digits = 16, std::size_t terms = 0,
+                                                const RunControl& control = {});
 
 }  // namespace pendavg

@@ -8,6 +8,7 @@
 #include "files.hpp"
 #include "format.hpp"
 #include "average_options.hpp"
+#include "interrupt.hpp"
 #include "simulate.hpp"
 #include "table.hpp"
 
@@ -306,8 +307,14 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
   const int digits = settings.digits;
   const Stopwatch stopwatch;
+  Progress progress("average");
+  StopOnSignal signals;  // a torus run stopped after its first level reports the last one
+  run.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
+  run.control.stop = &stop_flag();
   const Averages<Real> result = average(chain, beta, run);
   const double seconds = stopwatch.seconds();
+  if (result.interrupted)
+    std::fprintf(stderr, "[average] interrupted: the last finished torus level is reported\n");
   const AverageReport report{chain.size(), beta_text, digits,
                              averages_text(result, digits, &beta), run_json(result), seconds};
   switch (format) {
@@ -315,7 +322,9 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
     case Format::text: return average_text(report);
     case Format::json: break;
   }
-  return average_json(report);
+  std::string json = average_json(report);
+  if (result.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
+  return json;
 }
 
 /// Per-thread scratch of `average --cases`: reused from row to row.
@@ -622,7 +631,13 @@ std::string limit_report(const Options& options, int digits, Format format) {
   AverageOptions settings;
   settings.digits = digits;
   settings.threads = hardware_threads();
+  Progress progress("limit");
+  StopOnSignal signals;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
+  settings.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
+  settings.control.stop = &stop_flag();
   const Averages<Real> high_values = high_temperature_limit(chain, settings);
+  if (high_values.interrupted)
+    std::fprintf(stderr, "[limit] interrupted: the last finished torus level is reported\n");
   const Averages<Real> low_values = low_temperature_limit(chain, settings);
   const AveragesText high = averages_text(high_values, digits, static_cast<const Real*>(nullptr));
   const AveragesText low = averages_text(low_values, digits, static_cast<const Real*>(nullptr));
@@ -681,7 +696,12 @@ std::string series_command(const Options& options) {
   const std::string_view beta_text = options.required("beta");
   const Chain<mpfr_real> chain = chain_option<mpfr_real>(options, true);
   const mpfr_real beta = parse_real<mpfr_real>(beta_text, "--beta", Domain::positive);
-  const auto rows = series_convergence(chain, beta, digits, terms);
+  Progress progress("series");
+  StopOnSignal signals;
+  RunControl control;
+  control.progress = [&](double fraction) { progress(fraction, "Bessel table "); };
+  control.stop = &stop_flag();
+  const auto rows = series_convergence(chain, beta, digits, terms, control);
   const bool certified = certifies(rows, digits);
 
   if (format == Format::json) {

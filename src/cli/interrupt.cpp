@@ -2,6 +2,7 @@
 #include "interrupt.hpp"
 
 #include <csignal>
+#include <cstdio>
 
 namespace pendavg::cli {
 
@@ -21,6 +22,14 @@ StopOnSignal::StopOnSignal() {
 StopOnSignal::~StopOnSignal() {
   std::signal(SIGINT, previous_int_);
   std::signal(SIGTERM, previous_term_);
+}
+
+void Progress::operator()(double fraction, const std::string& detail) {
+  const double elapsed = seconds();
+  if (elapsed - last_ < 2) return;
+  last_ = elapsed;
+  std::fprintf(stderr, "[%s] %3.0f%% %s(%.0f s)\n", command_.c_str(), 100 * fraction,
+               detail.c_str(), elapsed);
 }
 
 }  // namespace pendavg::cli

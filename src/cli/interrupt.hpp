@@ -4,6 +4,8 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
+#include <string>
 
 namespace pendavg::cli {
 
@@ -22,6 +24,21 @@ class StopOnSignal {
  private:
   void (*previous_int_)(int);
   void (*previous_term_)(int);
+};
+
+/// Prints "[command] ..." to stderr at most every 2 s, starting after 2 s.
+class Progress {
+ public:
+  explicit Progress(std::string command) : command_(std::move(command)) {}
+  void operator()(double fraction, const std::string& detail = "");
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  std::string command_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  double last_ = 0;
 };
 
 }  // namespace pendavg::cli

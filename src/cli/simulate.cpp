@@ -71,28 +71,6 @@ constexpr std::array<std::string_view, 2> thermostat_names{"none", "langevin"};
 constexpr std::array<std::string_view, 2> yes_no{"yes", "no"};
 constexpr std::array<std::string_view, 2> simulate_formats{"json", "csv"};
 
-/// Prints "[command] ..." to stderr at most every 2 s, starting after 2 s.
-class Progress {
- public:
-  explicit Progress(std::string command) : command_(std::move(command)) {}
-  void operator()(double fraction, const std::string& detail = "") {
-    const double elapsed =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    if (elapsed - last_ < 2) return;
-    last_ = elapsed;
-    std::fprintf(stderr, "[%s] %3.0f%% %s(%.0f s)\n", command_.c_str(), 100 * fraction,
-                 detail.c_str(), elapsed);
-  }
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
- private:
-  std::string command_;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-  double last_ = 0;
-};
-
 Chain<double> parse_chain(const Options& options) {
   auto masses = parse_real_list<double>(options.required("masses"), "--masses", Domain::positive);
   auto lengths =

@@ -17,6 +17,7 @@
 // are at most T_M = c_{M+1} R_{M+1} mu2^{M+1} / (1 - mu2). Hence
 //   (mu1/2) N_M/D_M <= beta<K1> <= (mu1/2) (N_M + T_M)/(D_M - T_M).
 #include "engine/double_pendulum.hpp"
+#include "engine/text.hpp"
 
 #include "engine/bessel.hpp"
 
@@ -85,7 +86,8 @@ struct SeriesKernel<mpfr_real> {
 };
 
 template <class Real>
-std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count) {
+std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
+                          const RunControl& control) {
   using K = SeriesKernel<Real>;
   const std::size_t Mx = count - 1;      // highest n
   const std::size_t width = 2 * Mx + 1;  // row d needs k = 0 .. 2 Mx - d
@@ -99,10 +101,12 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count) {
     for (auto& row : per_argument) row.assign(width + 1, Real(0));
   // The two arguments' tables are independent: one thread each; the accumulation (~15% of
   // the work) runs on one thread in a fixed order, so results do not depend on threads.
+  bool stopped = false;  // written in `omp single` only; read after its barrier
 #pragma omp parallel num_threads(2) if (Mx > 48)
   {
     Real tmp = 0, coef = 0;
     for (std::size_t d = 0; d <= 2 * Mx; ++d) {
+      if (stopped) break;  // every thread sees the same value at the same d
       const std::size_t kmax = 2 * Mx - d;
 #pragma omp for schedule(static, 1)
       for (int arg = 0; arg < 2; ++arg) {
@@ -134,10 +138,15 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count) {
             }
             K::accumulate(R[j + k], coef, e1[k], e2[k], tmp);
           }
+          // Row d costs ~ (2 Mx - d): the fraction done is 1 - ((2 Mx - d) / 2 Mx)^2.
+          const double left = Mx > 0 ? double(2 * Mx - d) / double(2 * Mx) : 0.0;
+          control.report(1 - left * left);
+          if (control.stop_requested()) stopped = true;
         }
       }
     }
   }
+  if (stopped) throw interrupted("series: stopped while building the Bessel table (no term is complete)");
   return R;
 }
 
@@ -170,14 +179,15 @@ constexpr std::size_t max_automatic_terms = 6000;
 template <class Real>
 std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argument,
                                                 const Real& beta_argument, int digits,
-                                                std::size_t terms) {
+                                                std::size_t terms, const RunControl& control) {
   if constexpr (!is_mpfr_v<Real>) {
     const Chain<Real>& chain = chain_argument;
     const Real& beta = beta_argument;
     // The series' coefficients (2n)!/(2j)! and derivatives f_k leave double's range after a
     // hundred terms: evaluate in MPFR at 16 digits and round the rows to double.
     working_precision precision(16 + guard_digits);
-    const auto rows = series_convergence(chain.template cast<mpfr_real>(), mpfr_real(beta), 16, terms);
+    const auto rows =
+        series_convergence(chain.template cast<mpfr_real>(), mpfr_real(beta), 16, terms, control);
     std::vector<SeriesRow<Real>> out(rows.size());
     for (std::size_t i = 0; i < rows.size(); ++i) {
       out[i] = {rows[i].n,
@@ -200,8 +210,16 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
                                          : std::log(4 * std::numeric_limits<double>::epsilon());
   const double log_mu1 = static_cast<double>(log(chain.mass_fraction(0)));
   const double log_mu2 = static_cast<double>(log(chain.mass_fraction(1)));
-  const std::size_t M =
-      terms > 0 ? terms : std::min(a_priori_terms(log_mu1, log_mu2, log_tol), max_automatic_terms);
+  const std::size_t needed = terms > 0 ? terms : a_priori_terms(log_mu1, log_mu2, log_tol);
+  if (terms == 0 && needed > max_automatic_terms)
+    throw invalid_input("series: mu2 = " + short_decimal(std::exp(log_mu2)) +
+                        " converges like mu2^n: about " + std::to_string(needed) +
+                        " terms for " + std::to_string(is_mpfr_v<Real> ? digits : 16) +
+                        " digits, beyond the automatic cap of " +
+                        std::to_string(max_automatic_terms) +
+                        " (work grows like terms^2); use the integral method, or give the "
+                        "number of terms explicitly");
+  const std::size_t M = needed;
   if (M > 200000) throw invalid_input("at most 200000 series terms can be requested");
   // Every term of the series and of R_n is positive, so rounding errors only add up along the
   // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
@@ -218,7 +236,7 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
   const auto p = double_pendulum_parameters(chain, beta);
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());
-  const auto R = paper_R(p.a1, p.a2, M + 1);  // R_0 .. R_M (R_M for the bound after M-1)
+  const auto R = paper_R(p.a1, p.a2, M + 1, control);  // R_0 .. R_M (R_M for the bound after M-1)
   Real c = 1, mu2n = 1, N = 0, D = 0;
   for (std::size_t n = 0; n + 1 <= M; ++n) {
     if (n > 0) {
@@ -317,7 +335,8 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
 
 #define PENDAVG_INSTANTIATE(Real)                                                             \
   template std::vector<SeriesRow<Real>> series_convergence<Real>(const Chain<Real>&, const Real&, \
-                                                                 int, std::size_t);           \
+                                                                 int, std::size_t,            \
+                                                                 const RunControl&);          \
   template Averages<Real> series_average<Real>(const Chain<Real>&, const Real&, int, std::size_t);
 PENDAVG_INSTANTIATE(double)
 PENDAVG_INSTANTIATE(mpfr_real)

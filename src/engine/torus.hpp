@@ -132,6 +132,9 @@ struct TorusOptions {
   /// true: once the successive differences contract by >= 10 per level, the error of the last
   /// level is estimated as d_n (d_n / d_{n/2}) (geometric convergence); false: d_n itself.
   bool extrapolate_error = true;
+  /// Progress within each level and a stop request (may be null): a stopped level is discarded
+  /// and the previous one reported (interrupted = true); none finished throws `interrupted`.
+  const RunControl* control = nullptr;
 };
 
 namespace detail::torus {
@@ -582,7 +585,9 @@ class GridWalker {
 template <class Real>
 TorusSums<Real> level_sums(const Chain<Real>& chain, const WeightConstants<Real>& constants,
                            const std::vector<CircleRule<Real>>& rules, std::size_t dims,
-                           int threads) {
+                           int threads, const RunControl* control, bool& stopped) {
+  std::atomic<bool> stop_seen{false};
+  std::size_t done = 0;
   const std::size_t n_particles = chain.size();
   const std::size_t outer = dims == 0 ? 1 : rules[0].n;
   std::vector<TorusSums<Real>> partial(outer, TorusSums<Real>(n_particles));
@@ -605,14 +610,22 @@ TorusSums<Real> level_sums(const Chain<Real>& chain, const WeightConstants<Real>
 #endif
     for (std::ptrdiff_t k0 = 0; k0 < static_cast<std::ptrdiff_t>(outer); ++k0) {
       errors.capture([&] {
-        if (!walker) return;
+        if (!walker || stop_seen.load(std::memory_order_relaxed)) return;
         local = TorusSums<Real>(n_particles);
         walker->walk_outer(static_cast<std::size_t>(k0), local);
         partial[static_cast<std::size_t>(k0)] = local;
+        if (control != nullptr) {
+#if defined(_OPENMP)
+#pragma omp critical(pendavg_torus_progress)
+#endif
+          control->report(static_cast<double>(++done) / static_cast<double>(outer));
+          if (control->stop_requested()) stop_seen.store(true, std::memory_order_relaxed);
+        }
       });
     }
   }
   errors.rethrow();
+  stopped = stop_seen.load();
   (void)team;
   TorusSums<Real> total(n_particles);
   for (const auto& p : partial) total.merge(p);
@@ -740,7 +753,16 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
     for (std::size_t d = 0; d < std::max<std::size_t>(dims, 1); ++d) {
       rules.push_back(d < maps.size() ? mapped_rule(base, maps[d]) : base);
     }
-    const TorusSums<Real> fresh = level_sums(chain, constants, rules, dims, options.threads);
+    bool stopped = options.control != nullptr && level > 0 && options.control->stop_requested();
+    const TorusSums<Real> fresh =
+        stopped ? TorusSums<Real>(n_particles)
+                : level_sums(chain, constants, rules, dims, options.threads, options.control,
+                             stopped);
+    if (stopped) {  // the unfinished level is discarded: report the previous one
+      if (level == 0) throw interrupted("torus: stopped during the first level (nothing finished)");
+      a.interrupted = true;
+      break;
+    }
     a.evaluations += fresh.evaluations;
     fresh_last = fresh;
     if (trapezoid) {
