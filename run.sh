@@ -8,7 +8,8 @@ cd "$(dirname "$0")"
 
 BUILD_DIR=${PENDAVG_BUILD_DIR:-build}
 JOBS=$(nproc 2>/dev/null || echo 2)
-PACKAGES_BUILD=(g++ cmake make pkg-config libgsl-dev libboost-dev libmpfr-dev libgmp-dev libeigen3-dev catch2 libbenchmark-dev)
+PACKAGES_BUILD=(g++ cmake make pkg-config libgsl-dev libboost-dev libmpfr-dev libgmp-dev libeigen3-dev catch2 libbenchmark-dev
+                pybind11-dev python3-dev python3-numpy python3-pytest python3-mpmath)
 PACKAGES_MAIN=(python3 python3-numpy python3-matplotlib)
 
 log() { printf '[run.sh] %s\n' "$*" >&2; }
@@ -35,10 +36,17 @@ build() {
   cmake --build "$BUILD_DIR" -j "$JOBS"
 }
 
+python_hint() {  # how to import the Python module of this build
+  local python
+  python=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$BUILD_DIR/CMakeCache.txt")
+  log "Python module: PYTHONPATH=$PWD/$BUILD_DIR/python ${python:-python3} -c 'import pendavg'"
+}
+
 case "${1:-}" in
   test)
     build
     ctest --test-dir "$BUILD_DIR" -L default --output-on-failure -j "$JOBS"
+    python_hint
     ;;
   slow)
     build
@@ -48,6 +56,7 @@ case "${1:-}" in
     build
     install_missing "${PACKAGES_MAIN[@]}"
     PENDAVG="$BUILD_DIR/pendavg" bash tables/make_tables.sh
+    python_hint
     ;;
   *)
     echo "usage: ./run.sh main|test|slow" >&2

@@ -2,8 +2,9 @@
 # tests/consumer/run.sh BUILD_DIR -- the package test of issue 10. Installs BUILD_DIR into a
 # temporary prefix, builds tests/consumer (a separate project) against it with CMake's
 # find_package(pendavg 0.2) and again with pkg-config, checks that a double-only program's
-# #include <pendavg/pendavg.hpp> pulls in no Boost.Multiprecision, GSL or omp.h, and compares the
-# consumers' numbers with those the installed pendavg command prints.
+# #include <pendavg/pendavg.hpp> pulls in no Boost.Multiprecision, GSL or omp.h, compares the
+# consumers' numbers with those the installed pendavg command prints, and imports the installed
+# Python package from the prefix's site directory.
 set -euo pipefail
 build=$(realpath "$1")
 here=$(cd "$(dirname "$0")" && pwd)
@@ -66,3 +67,21 @@ for mine, theirs, err in zip(got[3:], o["beta_K"], o["error"]):
 assert lines["bad"][1:] and "beta" in " ".join(lines["bad"]), lines["bad"]
 print("consumer: find_package, pkg-config, include hygiene and the CLI's numbers agree")
 PY
+
+# 5. the Python package (when built), installed into the prefix's site directory
+init=$(find "$prefix" -path '*-packages/pendavg/__init__.py' | head -1)
+if grep -q '^PENDAVG_BUILD_PYTHON:BOOL=ON' "$build/CMakeCache.txt"; then
+  [ -n "$init" ] || fail "cmake --install put no Python package pendavg under $prefix"
+  python=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$build/CMakeCache.txt")
+  PYTHONPATH=$(dirname "$(dirname "$init")") "$python" - "$cli" "$prefix" <<'PY' || fail "the installed Python package"
+import json, subprocess, sys
+import pendavg
+cli, prefix = sys.argv[1], sys.argv[2]
+assert pendavg.__file__.startswith(prefix), pendavg.__file__
+r = pendavg.average([0.5, 0.5], [1, 1], 1.0)
+o = json.loads(subprocess.run([cli, "average", "--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1.0"],
+                              capture_output=True, text=True, check=True).stdout)
+assert r.decimal["beta_K"] == o["beta_K"] and r.method == o["method"], (r.decimal, o)
+print("consumer: the installed Python package imports from", pendavg.__file__.replace(prefix, "PREFIX"))
+PY
+fi

@@ -1,0 +1,66 @@
+// src/python/inputs.hpp -- Python arguments as the CLI receives them. Every number becomes the
+// decimal text a user would have typed (in double, a valid float is taken as it is: the same
+// double its repr parses to) and is checked by the CLI's own parsers (src/cli/args.hpp), so the
+// module accepts what the CLI accepts, refuses it with the same one-line message
+// (pendavg::invalid_input -> ValueError) and computes with the same numbers, bit for bit.
+#pragma once
+
+#include "cli/args.hpp"
+
+#include "pendavg/average.hpp"
+
+#include <pybind11/pybind11.h>
+
+#include <chrono>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace pendavg::python {
+
+namespace py = pybind11;
+
+/// The decimal text of a Python number: a str as given; an int (or numpy integer) by str(); a
+/// float by repr() (the shortest decimal that round-trips it: what was typed, so 0.1 is 1/10 at
+/// any digits); a decimal.Decimal by str(); an mpmath.mpf exactly (its binary value as
+/// M*5^k e-k); anything else by repr(float(x)).
+std::string number_text(py::handle x);
+
+/// A number in double, checked as the CLI's parse_real<double> checks its text (the same
+/// message names it, e.g. "--beta: '0.0' must be > 0").
+double number_double(py::handle x, std::string_view what, cli::Domain domain);
+
+/// True for an argument holding several values: a numpy array with ndim >= 1, a list, a tuple
+/// or a range.
+bool is_array_like(py::handle x);
+
+/// The entries of a list argument (masses, lengths, phi, ...): a list, tuple, range or 1-D+
+/// numpy array (its first axis). A single number is one entry.
+std::vector<py::object> entries(py::handle x);
+
+/// AverageOptions read and checked exactly as the CLI reads --digits, --method, --tol, --samples,
+/// --shifts and --seed (cli::parse_average_options on the same texts); None means "not given".
+AverageOptions average_options(py::handle digits, py::handle method, py::handle tol,
+                               py::handle samples, py::handle shifts, py::handle seed);
+
+/// --digits as the CLI reads it (an integer in 16..1000).
+int digits_option(py::handle digits);
+
+/// A str argument that picks one of several names (method, integrator, ...): str(x).
+std::string choice_text(py::handle x);
+
+/// OpenMP threads available to one call (the CLI's hardware_threads()).
+int hardware_threads();
+
+/// Wall time of a library call, as the CLI measures its `seconds`.
+class Stopwatch {
+ public:
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace pendavg::python

@@ -1,0 +1,529 @@
+"""pendavg -- exact thermal averages of the kinetic energy in planar multiple pendulums.
+
+A chain of N point masses m_1..m_N on massless rigid links of lengths l_1..l_N hangs from a fixed
+pivot in uniform gravity g (Konishi & Yanagita, "Multiple pendulum and nonuniform distribution of
+average kinetic energy"). In the canonical ensemble at inverse temperature beta the particles do
+not share the kinetic energy equally: beta<K_i> depends on i, on the masses and lengths and on
+beta g m l. pendavg computes beta<K_i>, <K_1>/<K_2>, <cos phi_i> and Var K_i exactly, to any number
+of digits, each with an error that says what it promises (a rigorous bound, a refinement
+estimate, or a statistical bar), the method used and the work done.
+
+    >>> import pendavg
+    >>> r = pendavg.average([0.5, 0.5], [1, 1], beta=1.0)      # double pendulum, beta = 1
+    >>> r.beta_K, r.beta_K_error, r.error_kind                   # numpy arrays, 'estimate'
+    >>> pendavg.average([0.5, 0.5], [1, 1], np.logspace(-3, 3, 61)).beta_K.shape   # (61, 2)
+    >>> pendavg.average([0.5, 0.5], [1, 1], "1", digits=50).decimal["beta_K"]     # 50 digits
+
+Functions: average (any N, one point or a numpy-broadcast grid on all cores), sweep (the double
+pendulum over a grid of beta, mu1, l1, l2, g), limit (beta -> 0 and beta -> infinity), series
+(the paper's series term by term), microcanonical (fixed energy), simulate (time averages along
+a trajectory), poincare (the double pendulum's Poincare section).
+
+Numbers. Every number argument may be a float, an int, a str holding a decimal ('0.1',
+'1e-300'), a decimal.Decimal or an mpmath.mpf. It is read as the `pendavg` command reads the same
+text: a float as its repr (the shortest decimal that gives it back, i.e. what you typed, so 0.1
+means 1/10 also at 50 digits), a str exactly as written, an mpf by its exact binary value. With
+digits = 16 (the default) everything runs in double and the results are the C++ library's doubles,
+bit for bit; with digits = 17..1000 it runs in MPFR at digits + 12 guard digits, and the results
+also come as the CLI's decimal strings (`.decimal`) and as mpmath.mpf values (`.mpf`).
+
+Errors. Bad input raises ValueError with the CLI's one-line message (e.g. "--beta: '0.0' must
+be > 0"). Calls release the GIL and are thread-safe at any mix of digits; array calls run on all
+cores. Ctrl-C stops an array call (KeyboardInterrupt) and ends simulate/poincare early with the
+averages so far (interrupted = True).
+"""
+import sys as _sys
+import time as _time
+from collections import namedtuple as _namedtuple
+from decimal import Decimal as _Decimal
+
+import numpy as _np
+
+from . import _pendavg as _core
+from ._pendavg import Averages
+
+__version__ = _core.__version__
+__all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
+           "Averages", "Limits", "SeriesResult", "MicrocanonicalResult", "SimulationResult",
+           "PoincareSection", "dynamics_instruction_set"]
+
+dynamics_instruction_set = _core.dynamics_instruction_set
+
+
+# ---------------------------------------------------------------- canonical averages
+
+def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, samples=None,
+            shifts=None, seed=None, progress=None):
+    """Canonical (thermal) averages of an N-link pendulum at inverse temperature beta.
+
+    The chain: point masses m_i on massless rigid links l_i, the first hanging from a fixed
+    pivot, in uniform gravity g; angles phi_i from the downward vertical; canonical ensemble
+    exp(-beta H). Returns an Averages with, per particle i (index 0 is the paper's particle 1):
+
+      beta_K, beta_K_error   beta<K_i> (dimensionless) and its absolute error (also `error`)
+      K, K_error             <K_i> = beta<K_i> / beta, in energy units
+      ratio, ratio_error     <K_1>/<K_2> (None for N = 1)
+      cos_phi, cos_phi_error <cos phi_i>
+      var_K, var_K_error     Var K_i = <K_i^2> - <K_i>^2; var_K_beta2 = beta^2 Var K_i
+      beta_Kc                beta<K_i^(c)>, K_i^(c) = p_i phidot_i / 2: exactly 1/2 (generalized
+                             equipartition), the built-in check
+      diagonal_approx        the paper's diagonal approximation (eq. ke-linear-tave-1), beside
+                             the exact values
+      method                 'integral' (N = 2: the exact 1-D reduced integral), 'series' (the
+                             paper's series), 'torus-trapezoid', 'torus-gauss', 'qmc',
+                             'low-temperature-extrapolation' (any N, very stiff joints)
+      error_kind             what the errors of beta_K and ratio promise: 'bound' (rigorous),
+                             'estimate' (from quadrature refinement, checked against independent
+                             methods), 'statistical' (QMC: 3-sigma bars); error_kinds per
+                             observable
+      evaluations, work_unit the work done ('terms', 'nodes' or 'samples')
+      converged              False when the requested accuracy was not reached (errors still hold)
+      interrupted            True when Ctrl-C stopped a torus run after a finished level: the
+                             values are that level's (converged False, errors still hold)
+      seconds, run           the library call's wall time; the torus grid or qmc run
+      decimal                the CLI's strings (`pendavg average --format json`), `digits` digits
+      mpf                    mpmath.mpf values (exact binary values of the MPFR results)
+
+    Arguments:
+      masses   the N masses m_i > 0 (a list, tuple or 1-D array; a single number is N = 1).
+      lengths  the N link lengths l_i > 0.
+      beta     inverse temperature 1/(k_B T) > 0, in units where m, l and g are as given (the
+               natural scale is beta g m l).
+      g        gravitational acceleration >= 0 (default 1); g = 0 is the free chain.
+      digits   significant digits requested: 16 (default) runs in double; 17..1000 in MPFR.
+      method   'auto' (default: 'integral' for N = 2, 'torus-trapezoid' for N = 1, 3, 4, 'qmc'
+               for N >= 5), 'integral' or 'series' (N = 2 only), 'torus-trapezoid' or
+               'torus-gauss' (any N, cost n^(N-1)), 'qmc' (any N <= 256, double only).
+      tol      torus methods in double: relative tolerance (default 1e-13; with digits > 16 it
+               is 10^-digits and may not be given).
+      samples  qmc: lattice points per shift, a power of two in 1024..1048576 (default 65536).
+      shifts   qmc: random shifts, 4..1024 (default 16).
+      seed     qmc: seed of the shifts (default 1).
+      progress None (silent), True (a line on stderr every 2 s, as the CLI) or a callable
+               f(fraction) called from this thread: for one point the fraction of the current
+               torus level (torus methods), for a grid the fraction of points done.
+    An option the chosen method does not use is refused (ValueError), so a typo cannot silently
+    change nothing. Ctrl-C: a torus run stops after its current level and returns the last
+    finished one (interrupted = True; KeyboardInterrupt if none finished); a grid stops starting
+    points and raises KeyboardInterrupt.
+
+    Broadcasting. beta, g and every single mass or length may be a numpy array (or list); they
+    are broadcast together (numpy rules) to a shape S, every point of S is computed on all cores
+    with the GIL released, and per-particle fields come back with shape S + (N,), per-point
+    fields (ratio, method, evaluations, ...) with shape S. Element k equals the scalar call with
+    the k-th values, bit for bit. E.g. a (beta, l2) grid:
+        pendavg.average([0.5, 0.5], [1, l2[None, :]], beta[:, None])   # shape (len(beta), len(l2), 2)
+    (pendavg.sweep does the same from 1-D axes). A bad point raises ValueError naming its index.
+    """
+    callback = _TextProgress("average") if progress is True else progress
+    result = _core.average_point(masses, lengths, beta, g, digits, method, tol, samples, shifts,
+                                 seed, callback)
+    if result is not None:
+        if result.interrupted:
+            print("[average] interrupted: the last finished torus level is reported",
+                  file=_sys.stderr, flush=True)
+        return result
+    m, l = _entries(masses), _entries(lengths)
+    if len(m) != len(l):
+        raise ValueError(f"{len(m)} masses but {len(l)} lengths")
+    columns = [_as_array(x) for x in [beta, g, *m, *l]]
+    shape = _np.broadcast_shapes(*(c.shape for c in columns))
+    flat = [_np.ascontiguousarray(_np.broadcast_to(c, shape)).reshape(-1) for c in columns]
+    return _core.average_grid(list(shape), len(m), flat, digits, method, tol, samples, shifts, seed,
+                              callback)
+
+
+def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=None):
+    """The double pendulum over every combination of the given values (as `pendavg table`).
+
+    Masses m1 = mu1 and m2 = 1 - mu1 (total mass M = 1; 1 - mu1 is formed in exact decimal from
+    the decimal of mu1, as `pendavg table --mu1` forms it, so 0.05 gives m2 = 0.95 exactly as
+    typed), lengths l1, l2, gravity g, inverse temperature beta. Each argument is a number or a
+    1-D array of values; the result is pendavg.average's Averages with one axis per array
+    argument, in the order (beta, mu1, l1, l2, g), then the particle axis:
+
+        r = pendavg.sweep(beta=np.logspace(-3, 3, 61), l2=np.logspace(-1, 1, 61))
+        r.ratio.shape     # (61, 61): <K1>/<K2> over (beta, l2)
+        r.beta_K.shape    # (61, 61, 2)
+
+    digits, method ('auto', 'integral' or 'series') and progress as for pendavg.average.
+    """
+    axes = [beta, mu1, l1, l2, g]
+    arrays = [i for i, a in enumerate(axes) if _is_array(a)]
+    shaped = []
+    for i, a in enumerate(axes):
+        if i not in arrays:
+            shaped.append(a)
+            continue
+        a = _np.asarray(a) if not isinstance(a, (list, tuple)) else _np.asarray(a, dtype=object)
+        if a.ndim != 1:
+            raise ValueError(f"sweep: {['beta', 'mu1', 'l1', 'l2', 'g'][i]} must be a number or a "
+                             "1-D array")
+        view = [1] * len(arrays)
+        view[arrays.index(i)] = a.shape[0]
+        shaped.append(a.reshape(view))
+    mu = shaped[1]
+    if _is_array(mu):
+        m1 = _np.vectorize(_mass_text, otypes=[object])(mu)
+        m2 = _np.vectorize(_one_minus, otypes=[object])(mu)
+    else:
+        m1, m2 = _mass_text(mu), _one_minus(mu)
+    return average([m1, m2], [shaped[2], shaped[3]], shaped[0], shaped[4], digits=digits,
+                   method=method, progress=progress)
+
+
+Limits = _namedtuple("Limits", ["high_temperature", "low_temperature"])
+Limits.__doc__ = """The beta -> 0 and beta -> infinity limits of a chain (pendavg.limit): two Averages
+(beta_K, var_K_beta2 = beta^2 Var K_i, ratio, cos_phi with their errors; no K or var_K)."""
+
+
+def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
+    """The high- and low-temperature limits of beta<K_i>, <K1>/<K2>, beta^2 Var K_i, <cos phi_i>.
+
+    beta -> 0: for N = 2 the paper's closed form beta<K_1> = (mu_1/2) K(k)/E(k), k^2 = mu_2 =
+    m_2/M (eq. aveK1-beta0; error kind 'bound'); for any N the torus average of the same chain at
+    g = 0 (trapezoid for N <= 5, qmc beyond, double only). <cos phi_i> -> 0. Independent of g.
+    beta -> infinity: beta<K_i> -> 1/2 for every particle (equipartition of the harmonic chain),
+    <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2)/2, in closed form.
+
+    masses, lengths (default: all 1), g, digits, progress as for pendavg.average (Ctrl-C stops
+    the torus run of N >= 3 after a finished level). Returns Limits(high_temperature,
+    low_temperature), two Averages without beta (as `pendavg limit`).
+    """
+    callback = _TextProgress("limit") if progress is True else progress
+    high, low = _core.limit(masses, lengths, g, digits, callback)
+    if high.interrupted:
+        print("[limit] interrupted: the last finished torus level is reported", file=_sys.stderr,
+              flush=True)
+    return Limits(high, low)
+
+
+# ---------------------------------------------------------------- series, microcanonical
+
+class _Record:
+    """Plain result: named fields (numpy arrays, numbers, strings) as attributes."""
+
+    def __init__(self, fields):
+        self.__dict__.update(fields)
+
+    def as_dict(self):
+        """The fields as a dict."""
+        return dict(self.__dict__)
+
+    def __repr__(self):
+        shown = ", ".join(f"{k}={_short(v)}" for k, v in self.__dict__.items()
+                          if not k.startswith("_") and k not in ("decimal", "exact", "trajectory"))
+        return f"pendavg.{type(self).__name__}({shown})"
+
+
+class SeriesResult(_Record):
+    """The paper's series for beta<K_1> term by term (pendavg.series).
+
+    Arrays, one entry per term n = 0, 1, ...: n; R_n (R_n(a1, a2) = (1/pi) int_0^pi cos^{2n} t
+    I0(R(t)) dt, scaled by exp(-(a1 + a2))); term (c_n mu2^n R_n); numerator and denominator (the
+    partial sums); value (the partial beta<K_1>); bound (a rigorous bound on |beta<K_1> - value|
+    from both tails). certified: the last bound reaches 10^-digits relative. decimal: the CLI's
+    strings of each column (`pendavg series --format json`), mpf: exact mpmath values; terms,
+    digits, N, error_kind ('bound').
+    """
+
+    @property
+    def mpf(self):
+        """Every column as a list of mpmath.mpf (the exact MPFR values)."""
+        return {name: [_to_mpf(x) for x in values] for name, values in self.exact.items()}
+
+
+class MicrocanonicalResult(_Record):
+    """Exact averages at fixed energy E (pendavg.microcanonical).
+
+    K, K_error: <K_i>_E (energy units); Kc, Kc_error: <K_i^(c)>_E = <K>_E / N (microcanonical
+    generalized equipartition, every i); K_total: <K>_E = E - <U>_E; cos_phi, cos_phi_error:
+    <cos phi_i>_E; density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
+    transform is the partition function), with its error; method ('microcanonical/<rule>'),
+    error_kind ('estimate', or 'statistical' for qmc), evaluations, converged, proposal_beta and
+    effective_sample_fraction (qmc), seconds.
+    """
+
+
+def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
+    """The paper's series for beta<K_1> of the double pendulum, term by term (eq. ave-K1-result).
+
+    beta<K_1> = (mu_1/2) sum_n c_n mu_2^n R_n / (R_0 - sum_{n>=1} d_n mu_2^n R_n) with the
+    modified-Bessel moments R_n(a1, a2), a1 = beta M g l1, a2 = beta m2 g l2. After n terms both
+    tails are bounded by c_{n+1} R_{n+1} mu_2^{n+1} / (1 - mu_2): every row carries a rigorous bound.
+    Convergence is geometric in mu_2 = m_2/M, so a light first particle (small mu_1) needs many
+    terms: prefer pendavg.average there.
+
+    masses, lengths (N = 2), beta, g as for pendavg.average; digits: the requested digits (the
+    sums always run in MPFR, at digits + 12); terms: how many terms (0, the default: until the
+    bound certifies the digits; refused before any work when that needs over 6000 terms).
+    progress: as for pendavg.average (the Bessel table's fraction done); Ctrl-C raises
+    KeyboardInterrupt (no row exists before the table is complete). Returns a SeriesResult with
+    the rows as arrays.
+    """
+    callback = _TextProgress("series") if progress is True else progress
+    return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
+
+
+def microcanonical(masses, lengths, energy, g=1.0, method="auto", tol=None, samples=None,
+                   shifts=None, seed=None):
+    """Exact microcanonical averages <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E at fixed energy E.
+
+    The values NVE time averages (pendavg.simulate without thermostat) must reproduce when the
+    motion is ergodic. Energies use the paper's U = -sum_j g S_j l_j cos phi_j (S_j the mass at
+    and below link j), so the hanging chain at rest has E_min = -sum_j g S_j l_j; E > E_min.
+    Per angle configuration the momenta are uniform on the shell H = E; the angle integrals
+    run over the reduced torus (MATH.md Sec. 7).
+
+    method: 'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut at every
+    singular point; tol: relative target, default 1e-10), 'torus-trapezoid' (a check), 'qmc'
+    (samples: points per shift 2^10..2^16, shifts, seed; statistical 3-sigma bars). In double.
+    Returns a MicrocanonicalResult.
+    """
+    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, method, tol,
+                                                     samples, shifts, seed))
+
+
+# ---------------------------------------------------------------- dynamics
+
+class SimulationResult(_Record):
+    """Time averages along one trajectory (pendavg.simulate), beside the exact values.
+
+    K, K_error: time average of K_i = |p_i|^2 / 2 m_i with one standard error (1 sigma, from
+    blocking; NaN, with error_reason saying why, when fewer than 16 blocks finished); Kc, Kc_error: of K_i^(c) = p_phi_i phidot_i / 2; K_autocorrelation_time;
+    cos_phi, cos_phi_error; K_total, potential (with errors). exact_K, exact_K_error, exact_Kc,
+    exact_cos_phi (+ errors): the exact microcanonical values at the run's energy (NVE) or the
+    exact canonical ones (Langevin), exact_method, exact_error_kind; K_deviation_sigmas =
+    (K - exact_K) / combined error. ensemble, integrator, method, N, dt, time (simulated),
+    energy (initial), final_energy, energy_drift, energy_error_max, energy_error_rms,
+    energy_trend (relative to (sum m) g (sum l)), constraint_residual, steps, samples,
+    newton_solves, unconverged_stages, interrupted (Ctrl-C: the averages of the run so far),
+    seconds, beta and friction (Langevin), trajectory (None, or a dict of arrays t, E, phi (T, N),
+    phidot (T, N) when `every` was given), error_kind ('statistical').
+    """
+
+
+class PoincareSection(_Record):
+    """The double pendulum's Poincare section phi_1 = 0, phidot_1 > 0 (pendavg.poincare).
+
+    orbit, phi2, p2, time: one entry per crossing (grouped by orbit, in time order; phi2 in
+    (-pi, pi], p2 the canonical momentum of phi_2); start_phi2, start_p2: the orbits' initial
+    points on the section; energy, energy_error_max (relative to (sum m) g (sum l)), orbits, dt,
+    steps, interrupted, seconds.
+    """
+
+
+def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time, dt=None,
+             burn_in=None, integrator=None, thermostat=None, beta=None, friction=None, seed=None,
+             exact=True, every=None, progress=None):
+    """Integrate the chain and return time averages with error bars beside the exact values.
+
+    Fixed energy (NVE, default): RATTLE in Cartesian coordinates (constraints |r_i| = l_i, O(N)
+    Newton multipliers) inside a symmetric composition -- integrator 'yoshida6' (default, 6th
+    order, 7 stages), 'yoshida4' (the paper's), 'suzuki4', 'kahan-li6', 'rattle2' -- compared
+    with the exact microcanonical averages at the run's energy. thermostat='langevin': constrained
+    BAOAB Langevin dynamics at inverse temperature beta (friction gamma, default 1; seed of the
+    noise, default 1) compared with the exact canonical averages.
+
+    Start: theta (every angle, radians, or a str like '90deg'; at rest) or phi (the N angles from
+    the downward vertical) with optional phidot (angular velocities, default 0).
+    time: the averaging time T; dt: time step (default 1e-3); burn_in: extra time before the
+    averaging starts (default 0). exact: compute the exact values (default True; N >= 5 uses
+    QMC: a few seconds). every: also return the trajectory t, E, phi_i, phidot_i every `every`
+    steps (numpy arrays). progress: None (silent), True (a line on stderr every 2 s, as the CLI)
+    or a callable f(fraction) called from this thread about every 1% of the run.
+
+    The exact values are computed first (a request they cannot serve is refused before any
+    integration). Ctrl-C (KeyboardInterrupt) ends the run cleanly: the averages of the run so far
+    are returned with interrupted = True. Same checks and messages as `pendavg simulate`; in
+    double.
+    Returns a SimulationResult.
+    """
+    callback = _TextProgress("simulate") if progress is True else progress
+    out = SimulationResult(_core.simulate(masses, lengths, g, theta, phi, phidot, time, dt, burn_in,
+                                          integrator, thermostat, beta, friction, seed, exact,
+                                          every, callback))
+    if out.interrupted:
+        print(f"[simulate] interrupted at t = {out.time:.6g}: averages of the run so far",
+              file=_sys.stderr, flush=True)
+    return out
+
+
+def poincare(masses, lengths, energy, g=1.0, *, orbits=None, points=None, dt=None, progress=None):
+    """The double pendulum's Poincare section phi_1 = 0, phidot_1 > 0 at energy E (paper Fig. 9).
+
+    Orbits (default 8) start on the section at p_2 = 0 over the allowed phi_2 >= 0 and at
+    phi_2 = 0 over the allowed p_2, and are integrated (RATTLE + Yoshida-4, dt default 1e-3)
+    until each has crossed the section `points` times (default 500); each crossing is refined
+    onto the section by a partial step. Energies in the paper's convention (E > -(M l1 + m2 l2) g).
+    progress, Ctrl-C: as for pendavg.simulate. Returns a PoincareSection.
+    """
+    callback = _TextProgress("poincare") if progress is True else progress
+    out = PoincareSection(_core.poincare(masses, lengths, g, energy, orbits, points, dt, callback))
+    if out.interrupted:
+        print("[poincare] interrupted: points so far", file=_sys.stderr, flush=True)
+    return out
+
+
+class _TextProgress:
+    """'[command]  42% (12 s)' on stderr at most every 2 s, starting after 2 s (as the CLI)."""
+
+    def __init__(self, command):
+        self.command, self.start, self.last = command, _time.monotonic(), 0.0
+
+    def __call__(self, fraction):
+        elapsed = _time.monotonic() - self.start
+        if elapsed - self.last < 2:
+            return
+        self.last = elapsed
+        print(f"[{self.command}] {100 * fraction:3.0f}% ({elapsed:.0f} s)", file=_sys.stderr,
+              flush=True)
+
+
+# ---------------------------------------------------------------- Averages: mpf, repr
+
+_EXACT_FIELDS = {  # name in Averages.mpf -> attribute with the double value
+    "beta_K": "beta_K", "error": "beta_K_error", "cos_phi": "cos_phi",
+    "cos_phi_error": "cos_phi_error", "var_K_beta2": "var_K_beta2",
+    "var_K_beta2_error": "var_K_beta2_error", "beta_Kc": "beta_Kc",
+    "diagonal_approx": "diagonal_approx", "K": "K", "K_error": "K_error", "var_K": "var_K",
+    "var_K_error": "var_K_error", "ratio": "ratio", "ratio_error": "ratio_error",
+    "equipartition_residual": "equipartition_residual"}
+_PER_POINT = ("ratio", "ratio_error", "equipartition_residual")
+
+
+def _averages_mpf(self):
+    """The values and errors as mpmath.mpf: exact binary values (MPFR runs: at digits + 12
+    guard digits, of which `digits` are asked for; errors as the library computed them, without
+    the printed strings' rounding allowance; double runs: the doubles exactly). For one point a
+    dict of lists (ratio, ratio_error, equipartition_residual: one mpf); for a grid numpy object
+    arrays. Needs mpmath."""
+    import mpmath
+    exact = self._exact_values()
+    out = {}
+    for name, attribute in _EXACT_FIELDS.items():
+        per_point = name in _PER_POINT
+        if exact is not None:
+            points = [[_to_mpf(x) for x in values] for values in exact[name]]
+            if per_point:
+                points = [p[0] if p else None for p in points]
+        else:
+            value = getattr(self, attribute)
+            if value is None:
+                continue
+            flat = _np.asarray(value, dtype=float).reshape(-1)
+            items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x))) for x in flat]
+            n = 1 if per_point else self.N
+            points = [items[k] if per_point else items[k * n:(k + 1) * n]
+                      for k in range(len(items) // n)]
+        if not any(p is not None and (per_point or len(p)) for p in points):
+            continue  # K and var_K of the limits, ratio of N = 1
+        if self.shape == ():
+            out[name] = points[0]
+        else:
+            shape = self.shape if per_point else self.shape + (self.N,)
+            array = _np.empty(len(points) * (1 if per_point else self.N), dtype=object)
+            for k, p in enumerate(points):
+                if per_point:
+                    array[k] = p
+                else:
+                    array[k * self.N:(k + 1) * self.N] = p
+            out[name] = array.reshape(shape)
+    return out
+
+
+def _averages_repr(self):
+    if self.shape == ():
+        beta = "" if self.beta is None else f"beta={self.beta!r}, "
+        return (f"pendavg.Averages(N={self.N}, {beta}digits={self.digits}, method={self.method!r}, "
+                f"beta_K={_short(self.beta_K)}, beta_K_error={_short(self.beta_K_error)}, "
+                f"ratio={self.ratio!r}, error_kind={self.error_kind!r}, "
+                f"evaluations={self.evaluations}, converged={self.converged})")
+    return f"pendavg.Averages(shape={self.shape}, N={self.N}, digits={self.digits})"
+
+
+def _averages_as_dict(self):
+    """Every field as a dict (the CLI's JSON keys, numbers as floats / numpy arrays)."""
+    names = ["N", "shape", "digits", "beta", "method", "beta_K", "beta_K_error", "K", "K_error",
+             "ratio", "ratio_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
+             "var_K_beta2", "var_K_beta2_error", "beta_Kc", "diagonal_approx",
+             "equipartition_residual", "error_kind", "error_kinds", "work_unit", "evaluations",
+             "converged", "seconds", "run"]
+    return {name: getattr(self, name) for name in names}
+
+
+Averages.mpf = property(_averages_mpf)
+Averages.error = property(lambda self: self.beta_K_error,
+                          doc="Absolute error of beta_K (the CLI's `error`).")
+Averages.as_dict = _averages_as_dict
+Averages.__repr__ = _averages_repr
+
+
+# ---------------------------------------------------------------- helpers
+
+def _is_array(x):
+    return isinstance(x, (list, tuple, range)) or (isinstance(x, _np.ndarray) and x.ndim > 0)
+
+
+def _entries(x):
+    if isinstance(x, str) or not _is_array(x):
+        return [x]
+    return list(x)
+
+
+def _as_array(x):
+    if isinstance(x, (list, tuple)):
+        return _np.asarray(x, dtype=object) if any(isinstance(v, str) for v in x) else _np.asarray(x)
+    return _np.asarray(x, dtype=object) if isinstance(x, str) else _np.asarray(x)
+
+
+def _decimal_text(x):
+    """The decimal a number is read as (see the module docstring)."""
+    if isinstance(x, str):
+        return x
+    if isinstance(x, float):
+        return repr(x)
+    if isinstance(x, (int, _np.integer)):
+        return str(int(x))
+    if isinstance(x, _Decimal):
+        return str(x)
+    return repr(float(x))
+
+
+def _mass_text(mu1):
+    return _decimal_text(mu1.item() if isinstance(mu1, _np.generic) else mu1)
+
+
+def _one_minus(mu1):
+    """1 - mu1 in exact decimal (as `pendavg table` forms m2), refused outside (0, 1) with the
+    CLI's message."""
+    text = _mass_text(mu1)
+    try:
+        value = _Decimal(text)
+    except Exception:
+        raise ValueError(f"--mu1: malformed number '{text}' (expected a finite decimal number)")
+    if not value.is_finite():
+        raise ValueError(f"--mu1: malformed number '{text}' (expected a finite decimal number)")
+    if not value > 0:
+        raise ValueError(f"--mu1: '{text}' must be > 0")
+    if not value < 1:
+        raise ValueError(f"--mu1: '{text}' must be < 1")
+    from decimal import localcontext
+    with localcontext() as context:
+        context.prec = 5000
+        return format(1 - value, "f")
+
+
+def _to_mpf(x):
+    import mpmath
+    if isinstance(x, tuple):
+        return mpmath.mp.make_mpf(mpmath.libmp.from_man_exp(int(x[0], 16), x[1]))
+    return mpmath.mpf(x)
+
+
+def _short(v):
+    if isinstance(v, _np.ndarray):
+        if v.size > 6:
+            return f"array(shape={v.shape})"
+        return repr(v.tolist())
+    return repr(v)

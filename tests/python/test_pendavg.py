@@ -1,0 +1,449 @@
+"""The Python module against the CLI (the same library calls: the same bits and the same strings),
+arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, and thread safety.
+
+Run by ctest (label default) with PYTHONPATH=build/python and PENDAVG_CLI=build/pendavg:
+    python3 -m pytest -q tests/python
+"""
+import concurrent.futures
+import json
+import os
+import csv
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import pendavg
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+CLI = os.environ.get("PENDAVG_CLI", os.path.join(ROOT, "build", "pendavg"))
+
+# The CLI's strings of `average --format json`, all of which Averages.decimal carries.
+STRING_KEYS = ["beta_K", "K", "error", "ratio", "cos_phi", "var_K", "diagonal_approx", "beta_Kc",
+               "K_error", "ratio_error", "cos_phi_error", "var_K_error", "equipartition_residual"]
+
+
+def text(x):
+    """What the module reads a number as (floats: repr), for the CLI's command line."""
+    return x if isinstance(x, str) else repr(x) if isinstance(x, float) else str(x)
+
+
+def cli(*args):
+    done = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True)
+    return done
+
+
+def cli_json(*args):
+    done = cli(*args)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def cli_average(masses, lengths, beta, g=1.0, digits=16, **options):
+    args = ["average", "--masses", ",".join(map(text, masses)), "--lengths",
+            ",".join(map(text, lengths)), "--beta", text(beta), "--g", text(g), "--digits", digits]
+    for name, value in options.items():
+        args += [f"--{name}", text(value)]
+    return cli_json(*args, "--format", "json")
+
+
+def assert_same_as_cli(r, d):
+    """Every string and every non-numeric field of the CLI's JSON, and (double) every float."""
+    for key in STRING_KEYS:
+        assert r.decimal[key] == d[key], key
+    assert r.method == d["method"]
+    assert r.error_kind == d["error_kind"]
+    assert r.error_kinds == d["error_kinds"]
+    assert r.work_unit == d["work_unit"]
+    assert r.evaluations == d["evaluations"]
+    assert r.converged == d["converged"]
+    assert r.N == d["N"] and r.digits == d["digits"]
+    if r.digits == 16:  # the doubles themselves print as the CLI prints them
+        assert [f"{x:.15e}" for x in r.beta_K] == d["beta_K"]
+        assert [f"{x:.15e}" for x in r.cos_phi] == d["cos_phi"]
+        if d["ratio"] is not None:
+            assert f"{r.ratio:.15e}" == d["ratio"]
+
+
+# ---------------------------------------------------------------- agreement with the CLI
+
+@pytest.mark.parametrize("masses, lengths, beta, options", [
+    ([1.0], [1.0], 2.0, {}),                                   # N = 1: torus-trapezoid
+    ([0.5, 0.5], [1.0, 1.0], 1.0, {}),                          # N = 2: integral
+    ([0.9, 0.1], [1.0, 2.0], 3.0, {"method": "series"}),
+    ([1.0, 2.0, 0.5], [1.0, 0.5, 2.0], 0.7, {}),                # N = 3: torus-trapezoid
+    ([1.0, 1.0, 1.0], [1.0, 1.0, 1.0], 1.0, {"method": "torus-gauss", "tol": 1e-10}),
+    ([1.0] * 8, [1.0] * 8, 1.0, {"samples": 4096, "seed": 3}),  # N = 8: qmc
+    ([1.0] * 3, [1.0] * 3, 1e9, {}),                            # N = 3, low-temperature extrapolation
+])
+def test_double_agrees_with_cli(masses, lengths, beta, options):
+    r = pendavg.average(masses, lengths, beta, **options)
+    assert_same_as_cli(r, cli_average(masses, lengths, beta, **options))
+
+
+TINY = 1e-12
+HARD_N2 = [  # tests/test_cross_check.cpp named_hard_cases: m1, m2, l1, l2, g, beta
+    (TINY, 1.0 - TINY, 1, 1, 1, 1), (1.0 - TINY, TINY, 1, 1, 1, 1), (0.5, 0.5, 1, 1, 1, 1e8),
+    (0.5, 0.5, 1, 1, 1, 1e-8), (0.5, 0.5, 1, 1e-4, 1, 1), (0.5, 0.5, 1, 1e4, 1, 1),
+    (0.5, 0.5, 1, 1, 0, 1), (TINY, 1.0 - TINY, 1, 1, 1, 1e8), (TINY, 1.0 - TINY, 1, 1, 1, 1e-8),
+    (1.0 - TINY, TINY, 1, 1, 1, 1e8), (0.5, 0.5, 1, 1e4, 1, 1e8), (0.5, 0.5, 1, 1e-4, 1, 1e8),
+    (TINY, 1.0 - TINY, 1, 1e-4, 1, 1e8), (0.05, 0.95, 1, 1, 1, 100)]
+
+
+@pytest.mark.parametrize("case", HARD_N2)
+def test_hard_double_pendulum_cases_agree_with_cli(case):
+    m1, m2, l1, l2, g, beta = case
+    r = pendavg.average([m1, m2], [l1, l2], beta, g)
+    assert_same_as_cli(r, cli_average([m1, m2], [l1, l2], beta, g))
+
+
+@pytest.mark.parametrize("masses, lengths, beta, digits", [
+    (["0.5", "0.5"], ["1", "1"], "1", 30),
+    ([TINY, 1.0 - TINY], [1, 1e-4], 1e8, 40),      # floats: read as their repr, as typed
+    (["0.05", "0.95"], ["1", "1"], "100", 60),
+    ([1, 1, 1], [1, 1, 1], "0.5", 20),              # N = 3 torus in MPFR
+])
+def test_mpfr_agrees_with_cli(masses, lengths, beta, digits):
+    r = pendavg.average(masses, lengths, beta, digits=digits)
+    assert_same_as_cli(r, cli_average(masses, lengths, beta, digits=digits))
+    # mpf: the exact MPFR value, which the printed string rounds
+    mpmath = pytest.importorskip("mpmath")
+    with mpmath.workdps(digits + 20):
+        for value, printed in zip(r.mpf["beta_K"], r.decimal["beta_K"]):
+            assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - digits)
+
+
+def test_limit_agrees_with_cli():
+    for masses, digits in (([0.5, 0.5], 16), (["0.05", "0.95"], 20), ([1, 1, 1], 16)):
+        lim = pendavg.limit(masses, digits=digits)
+        d = cli_json("limit", "--masses", ",".join(map(text, masses)), "--digits", digits)
+        for r, key in ((lim.high_temperature, "high_temperature"),
+                       (lim.low_temperature, "low_temperature")):
+            ref = d[key]
+            assert r.decimal["beta_K"] == ref["beta_K"]
+            assert r.decimal["error"] == ref["error"]
+            assert r.decimal["ratio"] == ref["ratio"]
+            assert r.decimal["var_K_beta2"] == ref["var_K_beta2"]
+            assert r.decimal["cos_phi"] == ref["cos_phi"]
+            assert r.method == ref["method"] and r.error_kind == ref["error_kind"]
+            assert r.K is None and r.beta is None
+
+
+def test_series_agrees_with_cli():
+    s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20)
+    d = cli_json("series", "--masses", "0.8,0.2", "--lengths", "1,1", "--beta", "2", "--digits", 20,
+                 "--format", "json")
+    assert s.certified == d["certified"] and s.terms == d["terms"] == len(s.n)
+    for key in ("R_n", "term", "numerator", "denominator", "value", "bound"):
+        assert s.decimal[key] == [row[key] for row in d["rows"]]
+    assert list(s.n) == [row["n"] for row in d["rows"]]
+    assert s.error_kind == "bound"
+
+
+def test_sweep_agrees_with_table():
+    r = pendavg.sweep(beta=[0.1, 1, 10], mu1=[0.05, 0.5], l2=[0.5, 2])
+    assert r.beta_K.shape == (3, 2, 2, 2) and r.ratio.shape == (3, 2, 2)
+    out = cli("table", "--beta", "0.1,1,10", "--mu1", "0.05,0.5", "--l2", "0.5,2").stdout
+    rows = [line.split(",") for line in out.splitlines() if not line.startswith("#")]
+    header, rows = rows[0], rows[1:]
+    col = {name: k for k, name in enumerate(header)}
+    # table nests mu1, l1, l2, g, beta (beta fastest); the sweep's axes are (beta, mu1, l2)
+    for row in rows:
+        b = [0.1, 1, 10].index(float(row[col["beta"]]))
+        m = ["0.05", "0.5"].index(row[col["m1"]])
+        l = ["0.5", "2"].index(row[col["l2"]])
+        for i in range(2):
+            assert r.decimal["beta_K"][b, m, l, i] == row[col[f"beta_K{i + 1}"]]
+            assert r.decimal["error"][b, m, l, i] == row[col[f"error_K{i + 1}"]]
+        assert r.decimal["ratio"][b, m, l] == row[col["ratio"]]
+
+
+# ---------------------------------------------------------------- arrays against scalar calls
+
+def same_point(grid, index, point):
+    for name in ("beta_K", "beta_K_error", "K", "K_error", "cos_phi", "cos_phi_error", "var_K",
+                 "var_K_error", "var_K_beta2", "diagonal_approx", "beta_Kc"):
+        np.testing.assert_array_equal(getattr(grid, name)[index], getattr(point, name), name)
+    for name in ("ratio", "ratio_error", "evaluations", "converged", "method", "error_kind",
+                 "equipartition_residual"):
+        assert getattr(grid, name)[index] == getattr(point, name), name
+    for key in STRING_KEYS:
+        assert list(np.atleast_1d(grid.decimal[key][index])) == \
+            list(np.atleast_1d(point.decimal[key])), key
+
+
+def test_array_calls_equal_scalar_calls_element_by_element():
+    beta = np.logspace(-3, 3, 7)
+    l2 = np.array([0.1, 1.0, 10.0])
+    grid = pendavg.average([0.3, 0.7], [1.0, l2[None, :]], beta[:, None])
+    assert grid.shape == (7, 3) and grid.beta_K.shape == (7, 3, 2)
+    for b in range(7):
+        for k in range(3):
+            same_point(grid, (b, k), pendavg.average([0.3, 0.7], [1.0, l2[k]], beta[b]))
+    one_axis = pendavg.average([0.5, 0.5], [1, 1], beta)
+    assert one_axis.beta_K.shape == (7, 2)
+    for b in range(7):
+        same_point(one_axis, b, pendavg.average([0.5, 0.5], [1, 1], beta[b]))
+
+
+def test_array_calls_any_n_and_mpfr():
+    beta = [0.5, 2.0]
+    grid = pendavg.average([1, 1, 1], [1, 1, 1], beta, tol=1e-10)
+    for b in range(2):
+        same_point(grid, b, pendavg.average([1, 1, 1], [1, 1, 1], beta[b], tol=1e-10))
+    grid = pendavg.average(["0.4", "0.6"], [1, 1], ["0.1", "1", "10"], digits=30)
+    for b, beta_text in enumerate(["0.1", "1", "10"]):
+        point = pendavg.average(["0.4", "0.6"], [1, 1], beta_text, digits=30)
+        same_point(grid, b, point)
+        assert [m[b] for m in [grid.mpf["beta_K"][:, 0]]] == [point.mpf["beta_K"][0]]
+
+
+def test_broadcast_errors_name_the_point():
+    with pytest.raises(ValueError, match=r"^index \(2,\): --beta: '-1.0' must be > 0$"):
+        pendavg.average([0.5, 0.5], [1, 1], np.array([1.0, 2.0, -1.0]))
+    with pytest.raises(ValueError, match="2 masses but 1 lengths"):
+        pendavg.average([0.5, 0.5], [1], np.array([1.0, 2.0]))
+
+
+# ---------------------------------------------------------------- error kinds
+
+def test_error_kinds():
+    assert pendavg.average([0.5, 0.5], [1, 1], 1).error_kind == "estimate"
+    series = pendavg.average([0.9, 0.1], [1, 1], 1, method="series")
+    assert series.error_kind == "bound" and series.error_kinds["beta_K"] == "bound"
+    qmc = pendavg.average([1] * 5, [1] * 5, 1, samples=1024)
+    assert qmc.method == "qmc" and qmc.error_kind == "statistical"
+    assert qmc.run["points"] == 1024 and qmc.run["shifts"] == 16
+    torus = pendavg.average([1] * 3, [1] * 3, 1)
+    assert torus.error_kind == "estimate" and torus.run["points_per_dim"] > 0
+    assert pendavg.limit([0.5, 0.5]).high_temperature.error_kind == "bound"
+    assert pendavg.limit([0.5, 0.5]).low_temperature.error_kind == "bound"
+    for r in (series, qmc, torus):
+        assert np.all(r.beta_K_error > 0) and np.all(r.beta_Kc == 0.5)
+
+
+# ---------------------------------------------------------------- bad input
+
+BAD = [  # (python call, the CLI's arguments): the same one-line message
+    (lambda: pendavg.average([0, 0.5], [1, 1], 1), "average --masses 0,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average([-1.0, 0.5], [1, 1], 1), "average --masses -1.0,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average([float("nan"), 0.5], [1, 1], 1), "average --masses nan,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average(["inf", 0.5], [1, 1], 1), "average --masses inf,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average(["1e400", 0.5], [1, 1], 1), "average --masses 1e400,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average(["0x1p3", 0.5], [1, 1], 1), "average --masses 0x1p3,0.5 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 0], 1), "average --masses 0.5,0.5 --lengths 1,0 --beta 1"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 0), "average --masses 0.5,0.5 --lengths 1,1 --beta 0"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], "nan", digits=30), "average --masses 0.5,0.5 --lengths 1,1 --beta nan --digits 30"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], ""), "average --masses 0.5,0.5 --lengths 1,1 --beta="),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, g=-1), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --g -1"),
+    (lambda: pendavg.average([1, 1], [1], 1), "average --masses 1,1 --lengths 1 --beta 1"),
+    (lambda: pendavg.average(["1.0x", 1], [1, 1], 1), "average --masses 1.0x,1 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, digits=15), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --digits 15"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, digits=1001), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --digits 1001"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, digits=20.5), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --digits 20.5"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, method="simpson"), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --method simpson"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, method="series"), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method series"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, tol=0), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --tol 0"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, tol=1), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --tol 1"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, method="qmc", tol=1e-10), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method qmc --tol 1e-10"),
+    (lambda: pendavg.average([0.5, 0.5], [1, 1], 1, tol=1e-10), "average --masses 0.5,0.5 --lengths 1,1 --beta 1 --tol 1e-10"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, tol=1e-10, digits=30), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --tol 1e-10 --digits 30"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, method="qmc", samples=1000), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method qmc --samples 1000"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, method="qmc", samples=4096.0), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method qmc --samples 4096.0"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, method="qmc", seed=-1), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method qmc --seed=-1"),
+    (lambda: pendavg.average([1] * 3, [1] * 3, 1, seed=2), "average --masses 1,1,1 --lengths 1,1,1 --beta 1 --seed 2"),
+    (lambda: pendavg.average([1e-320, 1], [1, 1], 1), "average --masses 1e-320,1 --lengths 1,1 --beta 1"),
+    (lambda: pendavg.limit([0, 1]), "limit --masses 0,1"),
+    (lambda: pendavg.series([0.5, 0.5], [1, 1], 0, terms=3), "series --masses 0.5,0.5 --lengths 1,1 --beta 0 --terms 3"),
+    (lambda: pendavg.series([0.5, 0.5], [1, 1], 1, terms=-1), "series --masses 0.5,0.5 --lengths 1,1 --beta 1 --terms=-1"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], time=1), "simulate --masses 1,1 --lengths 1,1 --time 1"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=0.0001), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 0.0001"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta="1x", time=1), "simulate --masses 1,1 --lengths 1,1 --theta 1x --time 1"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, integrator="euler"), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --integrator euler"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, beta=1), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --beta 1"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, thermostat="langevin"), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --thermostat langevin"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], phi=[1], time=1), "simulate --masses 1,1 --lengths 1,1 --phi 1 --time 1"),
+    (lambda: pendavg.poincare([1, 1, 1], [1, 1, 1], -2), "poincare --masses 1,1,1 --lengths 1,1,1 --energy -2"),
+    (lambda: pendavg.poincare([1, 1], [1, 1], -2, orbits=0), "poincare --masses 1,1 --lengths 1,1 --energy -2 --orbits 0"),
+]
+
+
+@pytest.mark.parametrize("call, args", BAD, ids=[b[1] for b in BAD])
+def test_bad_input_raises_the_cli_message(call, args):
+    done = cli(*args.split())
+    assert done.returncode == 2 and done.stdout == ""
+    message = done.stderr.strip()
+    assert message.startswith("pendavg: error: ")
+    with pytest.raises(ValueError) as caught:
+        call()
+    assert str(caught.value) == message[len("pendavg: error: "):]
+
+
+def test_nothing_crashes_on_odd_arguments():
+    for call in (lambda: pendavg.average([], [], 1), lambda: pendavg.average([None], [1], 1),
+                 lambda: pendavg.average([0.5, 0.5], [1, 1], [[1, 2], [3]]),
+                 lambda: pendavg.average([0.5, 0.5], [1, 1], object()),
+                 lambda: pendavg.average([0.5, 0.5], [1, 1], True)):
+        with pytest.raises((ValueError, TypeError)):
+            call()
+    empty = pendavg.average([0.5, 0.5], [1, 1], np.zeros(0), digits=30)
+    assert empty.shape == (0,) and empty.beta_K.shape == (0, 2) and empty.ratio.shape == (0,)
+    assert empty.decimal["beta_K"].shape == (0, 2) and empty.mpf == {} and empty.method.shape == (0,)
+
+
+# ---------------------------------------------------------------- dynamics
+
+def test_simulate_agrees_with_cli():
+    r = pendavg.simulate([1, 1], [1, 1], theta="90deg", time=20, every=1000)
+    d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", "90deg", "--time", 20)
+    for key in ("K", "K_error", "Kc", "Kc_error", "cos_phi", "exact_K", "exact_K_error",
+                "K_deviation_sigmas"):
+        assert [float(f"{x:.9e}") for x in getattr(r, key)] == d[key], key
+    for key in ("energy", "exact_Kc"):
+        assert float(f"{getattr(r, key):.9e}") == d[key], key
+    assert float(f"{r.energy_error_max:.2e}") == d["energy_error_max"]
+    assert r.steps == d["steps"] and r.newton_solves == d["newton_solves"]
+    assert r.exact_method == d["exact_method"] and not r.interrupted
+    assert r.trajectory["phi"].shape == (21, 2) and r.trajectory["t"][-1] == pytest.approx(20)
+    langevin = pendavg.simulate([1, 1], [1, 1], theta=0, time=10, thermostat="langevin", beta=2,
+                                exact=False)
+    d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", 0, "--time", 10,
+                 "--thermostat", "langevin", "--beta", 2, "--exact", "no")
+    assert [float(f"{x:.9e}") for x in langevin.K] == d["K"]
+    assert langevin.exact_K is None and langevin.ensemble == "canonical"
+
+
+def test_microcanonical_is_simulates_exact_reference():
+    s = pendavg.simulate([1, 1], [1, 1], theta="90deg", time=1)  # E ~ 0
+    m = pendavg.microcanonical([1, 1], [1, 1], s.energy)
+    np.testing.assert_array_equal(m.K, s.exact_K)
+    assert m.error_kind == "estimate" and m.converged
+
+
+def test_poincare_agrees_with_cli():
+    p = pendavg.poincare([1, 1], [1, 1], -2, orbits=2, points=5)
+    out = cli("poincare", "--masses", "1,1", "--lengths", "1,1", "--energy", -2, "--orbits", 2,
+              "--points", 5).stdout
+    rows = [l.split(",") for l in out.splitlines() if l and not l.startswith("#")][1:]
+    assert len(rows) == len(p.phi2) == 10
+    for k, (orbit, phi2, p2, t) in enumerate(rows):
+        assert int(orbit) == p.orbit[k] and f"{p.phi2[k]:.11e}" == phi2 and f"{p.p2[k]:.11e}" == p2
+
+
+def test_keyboard_interrupt_stops_simulate_with_the_averages_so_far():
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    fractions = []
+    start = time.monotonic()
+    timer.start()
+    try:
+        r = pendavg.simulate([1, 1, 1], [1, 1, 1], theta="90deg", time=1e6, exact=False,
+                             progress=fractions.append)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 10
+    assert r.interrupted and 0 < r.time < 1e6 and r.steps > 0
+    assert np.all(np.isfinite(r.K)) and np.all(r.K > 0)
+    assert fractions and fractions == sorted(fractions) and fractions[-1] < 1
+
+
+def test_keyboard_interrupt_stops_an_array_call():
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            pendavg.average([0.5, 0.5], [1, 1], np.linspace(0.5, 2, 20000), digits=60)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 10
+    assert pendavg.average([0.5, 0.5], [1, 1], 1).beta_K[0] > 0  # still usable
+
+
+def test_keyboard_interrupt_stops_a_torus_run_after_a_level():
+    reference = pendavg.average([1] * 4, [1] * 4, 1.0)
+    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    levels = []
+    start = time.monotonic()
+    timer.start()
+    try:
+        r = pendavg.average([1] * 4, [1] * 4, 1.0, digits=20, progress=levels.append)  # ~1 min
+    except KeyboardInterrupt:  # stopped before the first level finished
+        r = None
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 30 and levels
+    if r is not None:  # the last finished level, with errors that still cover
+        assert r.interrupted and not r.converged
+        assert np.all(np.abs(r.beta_K - reference.beta_K) <= r.beta_K_error + reference.beta_K_error)
+
+
+def test_progress_of_a_grid():
+    fractions = []
+    pendavg.average([0.5, 0.5], [1, 1], np.logspace(-2, 2, 50), digits=30, progress=fractions.append)
+    assert fractions[-1] == 1.0 and fractions == sorted(fractions)
+
+
+def test_progress_callback_errors_propagate():
+    def fail(fraction):
+        raise RuntimeError("stop here")
+    with pytest.raises(RuntimeError, match="stop here"):
+        pendavg.simulate([1, 1], [1, 1], theta=1, time=1e5, exact=False, progress=fail)
+
+
+# ---------------------------------------------------------------- threads
+
+def test_threads_mixing_digits_give_the_serial_bits():
+    calls = [(["0.5", "0.5"], ["1", "1"], beta, digits)
+             for digits in (16, 30, 60) for beta in ("0.3", "1", "7")]
+    calls += [([1], [1], "1", 20), ([1, 1, 1], [1, 1, 1], "2", 16)]
+
+    def run(call):
+        masses, lengths, beta, digits = call
+        r = pendavg.average(masses, lengths, beta, digits=digits)
+        return r.decimal, r.beta_K.tolist()
+
+    serial = [run(call) for call in calls]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        for _ in range(2):
+            assert list(pool.map(run, calls * 2)) == serial * 2
+
+
+def test_grid_calls_from_threads():
+    beta = np.logspace(-1, 1, 16)
+    reference = pendavg.average([0.5, 0.5], [1, 1], beta).beta_K
+    with concurrent.futures.ThreadPoolExecutor(max_workers=3) as pool:
+        for result in pool.map(lambda _: pendavg.average([0.5, 0.5], [1, 1], beta).beta_K, range(6)):
+            np.testing.assert_array_equal(result, reference)
+
+
+# ---------------------------------------------------------------- documentation
+
+def test_help_explains_every_argument():
+    doc = pendavg.average.__doc__
+    for name in ("masses", "lengths", "beta", "g", "digits", "method", "tol", "samples", "shifts",
+                 "seed"):
+        assert f"\n      {name}" in doc, name
+    for f in (pendavg.sweep, pendavg.limit, pendavg.series, pendavg.microcanonical,
+              pendavg.simulate, pendavg.poincare):
+        assert len(f.__doc__) > 300
+
+
+def test_quickstart_reproduces_fig5(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "fig5.png"
+    subprocess.run([sys.executable, os.path.join(ROOT, "tables", "examples", "quickstart.py"),
+                    str(out)], check=True, capture_output=True)
+    assert out.stat().st_size > 10000
+    # its curve is the paper's Fig. 5 as the main job tabulates it (tables/beta_sweep.csv)
+    with open(os.path.join(ROOT, "tables", "beta_sweep.csv")) as fh:
+        rows = [row for row in csv.DictReader(line for line in fh if not line.startswith("#"))
+                if row["m1"] == "0.5" and row["l2"] == "1"]
+    assert len(rows) == 61
+    r = pendavg.average([0.5, 0.5], [1, 1], [row["beta"] for row in rows])
+    for row, value, error in zip(rows, r.beta_K, r.beta_K_error):
+        for i in range(2):
+            assert abs(value[i] - float(row[f"beta_K{i + 1}"])) <= error[i] + float(row[f"error_K{i + 1}"])
