@@ -2,13 +2,16 @@
 """Speed against error: every available pendavg method on a fixed set of cases (issue 5, item g).
 
 usage: work_precision.py PENDAVG      writes the CSV to stdout (make_tables.sh renames it into
-                                      place atomically); progress goes to stderr.
+                                      place atomically); progress goes to stderr. The averages come
+                                      from the Python module pendavg (on PYTHONPATH), the dynamics
+                                      from the CLI PENDAVG.
 
 true_error = |beta_K[0] - reference|, subtracted exactly in decimal (60 digits). The reference is
 `integral --digits 100` for N = 2 and `torus-trapezoid --digits 30` for N = 3; a true error below the
 reference's own resolution (its error estimate plus half a unit in its last printed digit,
 `ref_floor` in the header) is not resolvable and is only known to be <= ref_floor.
-seconds = median over 3 runs of the library call's wall time (the CLI's `seconds` field).
+seconds = median over 3 runs of the library call's wall time (Averages.seconds: the stopwatch of the
+CLI's `seconds` field, around the same call).
 """
 import json
 import statistics
@@ -16,6 +19,8 @@ import subprocess
 import sys
 from datetime import datetime, timezone
 from decimal import Decimal as D, getcontext
+
+import pendavg
 
 getcontext().prec = 60
 PENDAVG = sys.argv[1]
@@ -36,28 +41,31 @@ DYNAMICS_CASES = ("mu1=0.5 beta=1", "chain N=3 beta=1")
 
 
 def configs(n, name):
-    """(method, setting, extra CLI arguments) in the order they appear in the table."""
+    """(method, setting, options of pendavg.average) in the order they appear in the table."""
     out = []
     if n == 2:
-        out += [("integral", f"digits={d}", ["--digits", d]) for d in ("16", "24", "38", "77")]
+        out += [("integral", f"digits={d}", {"digits": d}) for d in ("16", "24", "38", "77")]
         if not name.startswith("mu1=1e-6"):
-            out += [("series", f"digits={d}", ["--digits", d]) for d in ("16", "38")]
+            out += [("series", f"digits={d}", {"digits": d}) for d in ("16", "38")]
         tols = ["1e-6", "1e-9", "1e-12"]
     else:
         tols = [f"1e-{k}" for k in range(6, 14)]
     for method in ("torus-trapezoid", "torus-gauss"):
-        out += [(method, f"tol={t}", ["--tol", t]) for t in tols]
-    out += [("qmc", f"samples={s}", ["--samples", s]) for s in SAMPLES]
+        out += [(method, f"tol={t}", {"tol": t}) for t in tols]
+    out += [("qmc", f"samples={s}", {"samples": s}) for s in SAMPLES]
     return out
 
 
-def run(masses, lengths, g, beta, method, extra):
-    cmd = [PENDAVG, "average", "--masses", masses, "--lengths", lengths, "--g", g, "--beta", beta,
-           "--method", method, "--format", "json"] + extra
-    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+def run(masses, lengths, g, beta, method, options):
+    """pendavg.average on the same decimal strings the CLI would read: its strings and seconds."""
+    r = pendavg.average(masses.split(","), lengths.split(","), beta, g, method=method, **options)
+    return {"beta_K": r.decimal["beta_K"], "error": r.decimal["error"], "digits": r.digits,
+            "evaluations": r.evaluations, "seconds": r.seconds}
 
 
 def simulate(masses, lengths, g, beta, time):
+    """The CLI's run: the table reformats its 10-digit JSON numbers (the module's full doubles
+    would move last digits of the derived columns)."""
     n = len(masses.split(","))
     cmd = [PENDAVG, "simulate", "--masses", masses, "--lengths", lengths, "--g", g,
            "--phi", ",".join(["0"] * n), "--thermostat", "langevin", "--beta", beta,
@@ -71,19 +79,19 @@ def ulp_half(s):
     return D(5) * D(10) ** (t.exponent - 1)
 
 
-version = subprocess.run([PENDAVG, "--version"], capture_output=True, text=True, check=True).stdout.strip()
+version = pendavg.__version__
 rows, notes = [], []
 for name, masses, lengths, g, beta in CASES:
     n = len(masses.split(","))
     ref_method, ref_digits = ("integral", "100") if n == 2 else ("torus-trapezoid", "30")
     print(f"[work_precision] {name}: reference {ref_method} --digits {ref_digits}", file=sys.stderr)
-    ref = run(masses, lengths, g, beta, ref_method, ["--digits", ref_digits])
+    ref = run(masses, lengths, g, beta, ref_method, {"digits": ref_digits})
     ref_value = D(ref["beta_K"][0])
     ref_floor = D(ref["error"][0]) + ulp_half(ref["beta_K"][0])
     notes.append(f"# reference {name}: {ref_method} --digits {ref_digits}, beta_K1 = {ref['beta_K'][0]}, "
                  f"error {ref['error'][0]}, ref_floor {float(ref_floor):.1e} ({ref['seconds']:.3f} s)")
-    for method, setting, extra in configs(n, name):
-        results = [run(masses, lengths, g, beta, method, extra) for _ in range(REPEATS)]
+    for method, setting, options in configs(n, name):
+        results = [run(masses, lengths, g, beta, method, options) for _ in range(REPEATS)]
         first = results[0]
         true_error = abs(D(first["beta_K"][0]) - ref_value)
         rows.append([name, str(n), method, setting, str(first["digits"]), f"{float(true_error):.3e}",
