@@ -525,6 +525,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const auto line_context = [&](std::size_t k) {
     return path + " line " + std::to_string(rows[k].line) + ": ";
   };
+  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
   const auto check = [&](std::size_t k) {
     try {
       check_case<Real>(file, rows[k], columns, options);
@@ -592,7 +593,6 @@ std::string average_cases(const CasesFile& file, const std::string& path,
 
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
   std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
-  const StopOnSignal signals;
   std::optional<SweepFile> output;
   if (is_root()) {
     output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);

@@ -35,7 +35,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr double chunk_target_seconds = 0.02;            ///< a chunk's aimed cost
+/// A chunk's aimed cost: 20 ms, or 50 us per compute thread of the job when that is more, so
+/// that rank 0 receives at most ~20,000 chunks a second (each costs it a few microseconds).
+constexpr double chunk_target_seconds = 0.02;
+constexpr double chunk_target_per_thread = 50e-6;
 /// Rows waiting to be written: 32 MB, and 128 kB more per compute thread of the job (the rows in
 /// flight grow with the threads: 160 MB at 1000).
 constexpr std::size_t reorder_budget_bytes = 32u << 20;
@@ -47,7 +50,7 @@ constexpr int chunks_per_thread = 2;                     ///< queued per compute
 enum Tag : int {
   tag_request = 101,  ///< rank -> 0: u64 chunks wanted
   tag_grant,          ///< 0 -> rank: u64 n, n x (u64 first, u64 count), u8 exhausted
-  tag_result,         ///< rank -> 0: finished rows (pack_finished)
+  tag_result,         ///< rank -> 0: u64 chunks wanted, then finished rows (pack_finished)
   tag_stopping,       ///< rank -> 0: this rank got SIGINT/SIGTERM
   tag_stop,           ///< 0 -> rank: start no more rows, report, then say finished
   tag_finished,       ///< rank -> 0: u8 abandoned; every result was sent before
@@ -122,8 +125,9 @@ struct Finished {
   std::optional<RowFailure> failure;  ///< row first + count failed
 };
 
-std::string pack_finished(const Finished& f) {
+std::string pack_finished(const Finished& f, std::uint64_t wanted) {
   Packer p;
+  p.put<std::uint64_t>(wanted);
   p.put<std::uint64_t>(f.first).put<std::uint64_t>(f.count).put<double>(f.seconds);
   p.put<std::uint8_t>(f.failure.has_value());
   if (f.failure)
@@ -134,8 +138,9 @@ std::string pack_finished(const Finished& f) {
   return p.take();
 }
 
-Finished unpack_finished(const std::string& bytes) {
+Finished unpack_finished(const std::string& bytes, std::uint64_t& wanted) {
   Unpacker u(bytes);
+  wanted = u.get<std::uint64_t>();
   Finished f;
   f.first = u.get<std::uint64_t>();
   f.count = u.get<std::uint64_t>();
@@ -318,7 +323,10 @@ class ComputeTeam {
 class Scheduler {
  public:
   Scheduler(std::size_t count, std::size_t window, int threads, const SweepOutput& output)
-      : count_(count), window_(window), threads_(static_cast<std::size_t>(threads)), output_(output) {}
+      : count_(count), window_(window), threads_(static_cast<std::size_t>(threads)),
+        target_seconds_(std::max(chunk_target_seconds,
+                                 chunk_target_per_thread * static_cast<double>(threads))),
+        output_(output) {}
 
   /// The next chunk, or nothing when every row is handed out or the window is full.
   std::optional<Range> next(std::size_t first_unwritten) {
@@ -327,8 +335,9 @@ class Scheduler {
     if (next_ >= limit) return std::nullopt;
     const std::size_t remaining = count_ - next_;
     std::size_t size = timed_rows_ == 0 ? 1
-                       : static_cast<std::size_t>(std::max(1.0, chunk_target_seconds * static_cast<double>(timed_rows_) /
-                                                      std::max(seconds_, 1e-12)));
+                       : static_cast<std::size_t>(std::max(
+                             1.0, target_seconds_ * static_cast<double>(timed_rows_) /
+                                      std::max(seconds_, 1e-12)));
     size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
                      std::max<std::size_t>(1, window_ / (4 * threads_)), limit - next_});
     for (std::size_t k = 1; k < size; ++k)
@@ -351,6 +360,7 @@ class Scheduler {
 
  private:
   const std::size_t count_, window_, threads_;
+  const double target_seconds_;
   const SweepOutput& output_;
   std::size_t next_ = 0, timed_rows_ = 0;
   double seconds_ = 0;
@@ -528,7 +538,12 @@ SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
       Peer& peer = peers[static_cast<std::size_t>(message->source)];
       switch (message->tag) {
         case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
-        case tag_result: accept(unpack_finished(message->payload), message->source); break;
+        case tag_result: {
+          std::uint64_t wanted = 0;
+          accept(unpack_finished(message->payload, wanted), message->source);
+          peer.wanted += wanted;
+          break;
+        }
         case tag_stopping:
           outcome.interrupted = true;
           close(rows.grace_seconds);
@@ -654,7 +669,10 @@ SweepOutcome run_worker(const SweepRows& rows) {
     bool active = false;
     for (const Finished& f : team.take()) {
       outcome.computed += f.count;
-      post(0, tag_result, pack_finished(f));
+      // A request rides on the result when one is due (half the messages).
+      std::uint64_t wanted = 0;
+      if (!stopping && !exhausted && !requested && (wanted = team.wanted()) > 0) requested = true;
+      post(0, tag_result, pack_finished(f, wanted));
       active = true;
     }
     while (std::optional<Message> message = receive()) {
@@ -694,7 +712,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
     if (stopping && !finished_sent && (team.idle() || Clock::now() >= deadline)) {
       for (const Finished& f : team.take()) {
         outcome.computed += f.count;
-        post(0, tag_result, pack_finished(f));
+        post(0, tag_result, pack_finished(f, 0));
       }
       post(0, tag_finished, Packer().put<std::uint8_t>(!team.idle()).take());
       finished_sent = true;
@@ -739,6 +757,7 @@ std::size_t first_failing_row(std::size_t count, int threads,
        ++i) {
     const auto index = static_cast<std::size_t>(i);
     if (index > first.load(std::memory_order_relaxed)) continue;
+    if (stop_flag().load(std::memory_order_relaxed)) continue;  // stopped: no row will run
     try {
       check(index);
     } catch (...) {

@@ -3,10 +3,12 @@
 // written in index order by rank 0.
 //
 // Work distribution. Rank 0 hands out chunks of consecutive rows on request (dynamic: rows may
-// differ 1000x in cost). A chunk is one thread's unit; its size aims at ~20 ms from the rows'
-// measured mean cost and shrinks towards the end (at most 1/4 of the remaining rows per thread,
-// as guided scheduling), so that the last chunks balance the ranks. Each rank keeps about two
-// chunks per thread queued, so the round trip to rank 0 is hidden. Rank 0 computes too: its
+// differ 1000x in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread
+// of the job beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean
+// cost and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
+// scheduling), so that the last chunks balance the ranks. Each rank keeps about two chunks per
+// thread queued, so the round trip to rank 0 is hidden; a rank's request for more rides on the
+// message that returns its finished rows. Rank 0 computes too: its
 // main thread only schedules, receives and writes (it sleeps between polls), and a second thread
 // runs the OpenMP team of every rank.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
@@ -91,7 +93,9 @@ void rethrow_failure(const SweepOutcome& outcome,
 
 /// Calls `check(index)` for rows 0..count-1, split between the ranks and their `threads`
 /// threads (collective). Returns the smallest index for which it threw, on every rank, or
-/// `count` when none did. Run check(index) again to get the error.
+/// `count` when none did. Run check(index) again to get the error. Once stop_flag() is set
+/// (a signal while a StopOnSignal is alive) the remaining rows are skipped: the sweep that
+/// follows will start none of them.
 std::size_t first_failing_row(std::size_t count, int threads,
                               const std::function<void(std::size_t index)>& check);
 

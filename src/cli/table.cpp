@@ -525,7 +525,9 @@ std::string table_command(const Options& options) {
                       "same file or be left out");
   const std::string target = resume.empty() ? output : resume;
 
-  // Every point is checked before any is computed (numbers, chain, the method's domain).
+  // Every point is checked before any is computed (numbers, chain, the method's domain). From
+  // here on SIGINT/SIGTERM stop the sweep (also while the points are being checked).
+  const StopOnSignal signals;
   const PointSpace space(plan, sweeps, [&](std::size_t n, int digits) {
     return digits == min_digits || !is_qmc(n);  // a qmc N has no MPFR rows
   });
@@ -625,7 +627,6 @@ std::string table_command(const Options& options) {
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
 
-  const StopOnSignal signals;
   std::optional<SweepFile> file;
   if (is_root()) file.emplace(target, "table", out, resumed ? &*resumed : nullptr);
   SweepRows rows;

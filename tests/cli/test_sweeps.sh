@@ -66,6 +66,22 @@ start_then_signal() {
   wait "$pid"
   rc=$?
 }
+# signal_after_progress PATTERN SIGNAL ARGS...: as start_then_signal, but the signal goes once
+# stderr shows PATTERN (a progress line: rows are being computed), or after 120 s.
+signal_after_progress() {
+  local pattern=$1 signal=$2
+  shift 2
+  "$pendavg" "$@" >"$work/out" 2>"$work/err" &
+  local pid=$!
+  for ((k = 0; k < 600; ++k)); do
+    grep -q "$pattern" "$work/err" && break
+    sleep 0.2
+  done
+  peak=$(peak_rss_kb "$pid" 2>/dev/null || echo 0)
+  kill "-$signal" "$pid" 2>/dev/null
+  wait "$pid"
+  rc=$?
+}
 
 # ---------------------------------------------------------------- every row checked first
 # These computed for seconds to minutes before they were refused (or never ended).
@@ -96,7 +112,7 @@ grep -q "N <= 256, not N = 49999" "$work/err" && pass || fail "wide header: N re
 
 # ---------------------------------------------------------------- streaming, bounded memory
 # 1e5 rows at 1000 digits (each row's line ~7 kB; 720 MB were reserved up front before): the
-# peak after a few seconds stays under 100 MB; SIGINT keeps the finished rows, in order.
+# peak once rows are being computed stays under 100 MB; SIGINT keeps the finished rows, in order.
 "$python" - "$work/many.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -104,7 +120,7 @@ with open(sys.argv[1], "w") as f:
     for i in range(100000):
         f.write(f"{0.5 + (i % 97) / 50},1,{0.3 + (i % 13) / 40},0.5,1,{1 + (i % 7) / 10}\n")
 PY
-start_then_signal 4 INT average --cases "$work/many.csv" --digits 1000 --output "$work/many_out.csv"
+signal_after_progress '^\[average\] [1-9]' INT average --cases "$work/many.csv" --digits 1000 --output "$work/many_out.csv"
 check "cases 1e5 rows at 1000 digits: peak ${peak} kB < 100 MB" test "$peak" -gt 0 -a "$peak" -lt 102400
 check "cases SIGINT: exit 0, footer, rows in order, no temporary" "$python" - "$work/many_out.csv" "$rc" <<'PY'
 import sys
@@ -116,7 +132,7 @@ assert 0 < len(rows) < 100000, len(rows)
 PY
 check "cases SIGINT: no temporary" no_temporaries
 # A chain of 256 over 1e5 betas (1.6 GB of decimal strings were built before the first row).
-start_then_signal 4 TERM table --chain 256 --beta lin:0.1:10:100000 --samples 1024 --shifts 4 \
+signal_after_progress '^\[table\] [1-9]' TERM table --chain 256 --beta lin:0.1:10:100000 --samples 1024 --shifts 4 \
   --output "$work/chain256.csv"
 check "table chain 256 x 1e5 betas: peak ${peak} kB < 100 MB" test "$peak" -gt 0 -a "$peak" -lt 102400
 check "table SIGTERM: exit 0 and footer" \
