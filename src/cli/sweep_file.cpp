@@ -4,6 +4,7 @@
 #include "args.hpp"
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 
 #include <unistd.h>
@@ -17,13 +18,18 @@ constexpr std::string_view generated = ", generated ";
 
 /// Reads one line (without its newline) into `line`; false at the end of the file.
 bool read_line(std::FILE* file, std::string& line) {
-  line.clear();
-  int c;
-  while ((c = std::getc(file)) != EOF) {
-    if (c == '\n') return true;
-    line += static_cast<char>(c);
+  char* buffer = nullptr;
+  std::size_t capacity = 0;
+  const ssize_t length = ::getline(&buffer, &capacity, file);
+  if (length < 0) {
+    std::free(buffer);
+    line.clear();
+    return false;
   }
-  return !line.empty();
+  line.assign(buffer, static_cast<std::size_t>(length));
+  std::free(buffer);
+  if (!line.empty() && line.back() == '\n') line.pop_back();
+  return true;
 }
 
 /// The first `fields` comma-separated fields of `row` (the whole row when it has fewer).

@@ -294,7 +294,7 @@ class PointSpace {
  public:
   PointSpace(const TablePlan& plan, const std::vector<Sweep>& sweeps,
              const std::function<bool(std::size_t particles, int digits)>& runs)
-      : plan_(plan), sweeps_(sweeps) {
+      : plan_(plan) {
     // chain (with --chain) and digits are integer lists, never ranges: they lead the nesting.
     const std::size_t leading = plan.chain ? 2 : 1;
     const std::vector<std::string> default_n{"2"};
@@ -308,9 +308,10 @@ class PointSpace {
     for (const Sweep* sweep : inner_) per_pair_ *= sweep->values.size();
   }
   std::size_t count() const { return pairs_.size() * per_pair_; }
-  std::size_t per_pair() const { return per_pair_; }
 
-  Point point(std::size_t index, const std::function<AverageOptions(std::size_t, int)>& options) const {
+  /// Row `index`; `options(N, digits)` gives the options its row passes to the library.
+  Point point(std::size_t index,
+              const std::function<AverageOptions(std::size_t, int)>& options) const {
     const auto [particles, digits] = pairs_[index / per_pair_];
     std::size_t rest = index % per_pair_;
     Point point;
@@ -339,7 +340,6 @@ class PointSpace {
 
  private:
   const TablePlan& plan_;
-  const std::vector<Sweep>& sweeps_;
   std::vector<std::pair<std::size_t, int>> pairs_;
   std::vector<const Sweep*> inner_;
   std::size_t per_pair_ = 1;
