@@ -61,6 +61,9 @@ void post(int destination, int tag, std::string payload);
 std::optional<Message> receive();
 /// True while some posted message has not been sent yet (also advances them).
 bool sends_pending();
+/// True while a message is being sent or received (a long one needs both sides to call MPI
+/// often until it is through).
+bool transfers_pending();
 
 /// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
 /// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for

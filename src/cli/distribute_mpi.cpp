@@ -7,6 +7,7 @@
 
 #include <climits>
 #include <cstdio>
+#include <deque>
 #include <cstdlib>
 #include <list>
 #include <stdexcept>
@@ -38,6 +39,15 @@ struct PendingSend {
   MPI_Request request = MPI_REQUEST_NULL;
 };
 std::list<PendingSend> pending_sends;
+
+/// Messages being received, in arrival order: a long one (a chunk's rows) goes by rendezvous
+/// and needs both sides to make progress, so it is received without waiting (MPI_Imrecv) and
+/// handed out only when complete, in order.
+struct PendingReceive {
+  Message message;
+  MPI_Request request = MPI_REQUEST_NULL;
+};
+std::deque<PendingReceive> pending_receives;
 
 int byte_count(std::size_t size) {
   if (size > static_cast<std::size_t>(INT_MAX))
@@ -164,19 +174,29 @@ void post(int destination, int tag, std::string payload) {
 
 std::optional<Message> receive() {
   if (!joined) return std::nullopt;
-  int arrived = 0;
-  MPI_Status status;
-  check(MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, world, &arrived, &status), "MPI_Iprobe");
-  if (!arrived) return std::nullopt;
-  int size = 0;
-  MPI_Get_count(&status, MPI_BYTE, &size);
-  Message message;
-  message.source = status.MPI_SOURCE;
-  message.tag = status.MPI_TAG;
-  message.payload.resize(static_cast<std::size_t>(size));
-  check(MPI_Recv(message.payload.data(), size, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG, world,
-                 MPI_STATUS_IGNORE),
-        "MPI_Recv");
+  for (;;) {  // start receiving everything that has arrived
+    int arrived = 0;
+    MPI_Message handle;
+    MPI_Status status;
+    check(MPI_Improbe(MPI_ANY_SOURCE, MPI_ANY_TAG, world, &arrived, &handle, &status),
+          "MPI_Improbe");
+    if (!arrived) break;
+    int size = 0;
+    MPI_Get_count(&status, MPI_BYTE, &size);
+    PendingReceive& receiving = pending_receives.emplace_back();
+    receiving.message.source = status.MPI_SOURCE;
+    receiving.message.tag = status.MPI_TAG;
+    receiving.message.payload.resize(static_cast<std::size_t>(size));
+    check(MPI_Imrecv(receiving.message.payload.data(), size, MPI_BYTE, &handle,
+                     &receiving.request),
+          "MPI_Imrecv");
+  }
+  if (pending_receives.empty()) return std::nullopt;
+  int done = 0;
+  check(MPI_Test(&pending_receives.front().request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+  if (!done) return std::nullopt;
+  Message message = std::move(pending_receives.front().message);
+  pending_receives.pop_front();
   return message;
 }
 
@@ -188,6 +208,8 @@ bool sends_pending() {
   }
   return !pending_sends.empty();
 }
+
+bool transfers_pending() { return sends_pending() || !pending_receives.empty(); }
 
 void exit_process(int code) {
   std::fflush(stdout);

@@ -25,6 +25,7 @@ const ShiftPartition* shift_partition() { return nullptr; }
 void post(int, int, std::string) { throw std::logic_error("post: a plain run has no other rank"); }
 std::optional<Message> receive() { return std::nullopt; }
 bool sends_pending() { return false; }
+bool transfers_pending() { return false; }
 
 void exit_process(int code) {
   std::fflush(stdout);

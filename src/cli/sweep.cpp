@@ -50,7 +50,7 @@ constexpr int chunks_per_thread = 2;                     ///< queued per compute
 enum Tag : int {
   tag_request = 101,  ///< rank -> 0: u64 chunks wanted
   tag_grant,          ///< 0 -> rank: u64 n, n x (u64 first, u64 count), u8 exhausted
-  tag_result,         ///< rank -> 0: u64 chunks wanted, then finished rows (pack_finished)
+  tag_result,         ///< rank -> 0: finished rows (pack_finished)
   tag_stopping,       ///< rank -> 0: this rank got SIGINT/SIGTERM
   tag_stop,           ///< 0 -> rank: start no more rows, report, then say finished
   tag_finished,       ///< rank -> 0: u8 abandoned; every result was sent before
@@ -125,9 +125,8 @@ struct Finished {
   std::optional<RowFailure> failure;  ///< row first + count failed
 };
 
-std::string pack_finished(const Finished& f, std::uint64_t wanted) {
+std::string pack_finished(const Finished& f) {
   Packer p;
-  p.put<std::uint64_t>(wanted);
   p.put<std::uint64_t>(f.first).put<std::uint64_t>(f.count).put<double>(f.seconds);
   p.put<std::uint8_t>(f.failure.has_value());
   if (f.failure)
@@ -138,9 +137,8 @@ std::string pack_finished(const Finished& f, std::uint64_t wanted) {
   return p.take();
 }
 
-Finished unpack_finished(const std::string& bytes, std::uint64_t& wanted) {
+Finished unpack_finished(const std::string& bytes) {
   Unpacker u(bytes);
-  wanted = u.get<std::uint64_t>();
   Finished f;
   f.first = u.get<std::uint64_t>();
   f.count = u.get<std::uint64_t>();
@@ -434,20 +432,27 @@ class Progress {
 };
 
 /// Poll interval of a coordinator that talks to other ranks: 0.25 ms while messages come, up to
-/// 4 ms while nothing happens, so that a coordinator costs little CPU beside the compute threads
-/// of its core (the ~40 ms of work queued per thread hide the latency).
+/// 1 ms (rank 0, which answers requests) or 4 ms (the others, unless their threads wait for
+/// work) while nothing happens, so that a coordinator costs little CPU beside the compute threads
+/// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a message is
+/// in flight.
 class PollInterval {
  public:
-  explicit PollInterval(bool alone) : alone_(alone) {}
+  /// `alone`: no other rank; `longest`: the longest interval (us).
+  PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
+  /// `active`: something happened, or an answer is awaited by a thread without work.
   std::chrono::microseconds next(bool active) {
     if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
-    current_ = active ? 250 : std::min<long>(4000, current_ * 2);
+    // A long message in flight moves only while both ends call MPI: poll at 50 us until it is
+    // through.
+    if (transfers_pending()) return std::chrono::microseconds(50);
+    current_ = active ? 250 : std::min(longest_, current_ * 2);
     return std::chrono::microseconds(current_);
   }
 
  private:
   bool alone_;
-  long current_ = 250;
+  long longest_, current_ = 250;
 };
 
 struct Peer {
@@ -498,7 +503,7 @@ SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
   Scheduler scheduler(rows.count, window, outcome.threads, output);
   OrderedWriter writer(output, rows.count);
   Progress progress(rows);
-  PollInterval poll(size == 1);
+  PollInterval poll(size == 1, 4000);
   std::vector<Peer> peers(static_cast<std::size_t>(size));
   std::optional<RowFailure> failure;
   bool closing = false;
@@ -538,12 +543,7 @@ SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
       Peer& peer = peers[static_cast<std::size_t>(message->source)];
       switch (message->tag) {
         case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
-        case tag_result: {
-          std::uint64_t wanted = 0;
-          accept(unpack_finished(message->payload, wanted), message->source);
-          peer.wanted += wanted;
-          break;
-        }
+        case tag_result: accept(unpack_finished(message->payload), message->source); break;
         case tag_stopping:
           outcome.interrupted = true;
           close(rows.grace_seconds);
@@ -654,7 +654,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
   outcome.count = rows.count;
   outcome.threads = rows.threads * ranks();
   ComputeTeam team(rows, rows.threads);
-  PollInterval poll(false);
+  PollInterval poll(false, 4000);
   bool requested = false, exhausted = false, stopping = false, told = false;
   bool finished_sent = false, done = false;
   Clock::time_point deadline{};
@@ -669,10 +669,15 @@ SweepOutcome run_worker(const SweepRows& rows) {
     bool active = false;
     for (const Finished& f : team.take()) {
       outcome.computed += f.count;
-      // A request rides on the result when one is due (half the messages).
-      std::uint64_t wanted = 0;
-      if (!stopping && !exhausted && !requested && (wanted = team.wanted()) > 0) requested = true;
-      post(0, tag_result, pack_finished(f, wanted));
+      // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
+      // a long one arrives only when all of it is through.
+      if (!stopping && !exhausted && !requested) {
+        if (const std::size_t wanted = team.wanted(); wanted > 0) {
+          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
+          requested = true;
+        }
+      }
+      post(0, tag_result, pack_finished(f));
       active = true;
     }
     while (std::optional<Message> message = receive()) {
@@ -712,13 +717,14 @@ SweepOutcome run_worker(const SweepRows& rows) {
     if (stopping && !finished_sent && (team.idle() || Clock::now() >= deadline)) {
       for (const Finished& f : team.take()) {
         outcome.computed += f.count;
-        post(0, tag_result, pack_finished(f, 0));
+        post(0, tag_result, pack_finished(f));
       }
       post(0, tag_finished, Packer().put<std::uint8_t>(!team.idle()).take());
       finished_sent = true;
     }
     sends_pending();
-    if (!done) team.wait(poll.next(active));
+    // Waiting for a grant with idle threads counts as active: the answer is noticed at once.
+    if (!done) team.wait(poll.next(active || (requested && team.idle())));
   }
   while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)

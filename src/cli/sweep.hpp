@@ -7,8 +7,8 @@
 // of the job beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean
 // cost and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
 // scheduling), so that the last chunks balance the ranks. Each rank keeps about two chunks per
-// thread queued, so the round trip to rank 0 is hidden; a rank's request for more rides on the
-// message that returns its finished rows. Rank 0 computes too: its
+// thread queued, so the round trip to rank 0 is hidden (a rank asks for more, in a short message,
+// just before it sends a chunk's rows). Rank 0 computes too: its
 // main thread only schedules, receives and writes (it sleeps between polls), and a second thread
 // runs the OpenMP team of every rank.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
