@@ -124,6 +124,7 @@ QmcOptions qmc_options(const AverageOptions& o) {
   qmc.shifts = o.shifts.value_or(default_qmc_shifts);
   qmc.seed = o.seed.value_or(default_qmc_seed);
   qmc.threads = o.threads;
+  qmc.partition = o.partition;
   return qmc;
 }
 
@@ -259,6 +260,37 @@ Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Rea
   return out;
 }
 
+/// What the torus and qmc methods do at `beta`: run directly, or extrapolate to low temperature
+/// (every joint stiffer than stiffness_extrapolated, double only). Throws invalid_input when the
+/// stiffnesses are outside what either resolves.
+enum class StiffnessPlan { direct, extrapolate };
+template <class Real>
+StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta) {
+  const JointStiffness stiffness = joint_stiffness(chain, beta);
+  if constexpr (!is_mpfr_v<Real>) {
+    check_double_mass_range(chain);
+    if (stiffness.smallest >= stiffness_extrapolated) {
+      if (stiffness.largest / stiffness.smallest * stiffness_reference > stiffness_resolved)
+        throw invalid_input(
+            "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.smallest) +
+            " to " + short_decimal(stiffness.largest) + ") differ by more than 1e9, beyond "
+            "what the low-temperature extrapolation resolves; outside pendavg's domain");
+      return StiffnessPlan::extrapolate;
+    }
+    if (stiffness.largest > stiffness_resolved)
+      throw invalid_input("average: a joint's stiffness beta g S l = " +
+                          short_decimal(stiffness.largest) + " is beyond what the torus and "
+                          "qmc methods resolve (1e13) while another joint is soft (" +
+                          short_decimal(stiffness.smallest) + "); outside pendavg's domain");
+  } else if (stiffness.largest > stiffness_resolved_mpfr) {
+    throw invalid_input("average: a joint's stiffness beta g S l = " +
+                        short_decimal(stiffness.largest) + " is beyond what the torus "
+                        "resolves in MPFR (1e9); at 16 digits pendavg extrapolates to low "
+                        "temperature (every joint stiffer than 1e7)");
+  }
+  return StiffnessPlan::direct;
+}
+
 /// The engines, for a chain and beta already at the working precision.
 template <class Real>
 Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& o,
@@ -278,28 +310,8 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
                    ? qmc_average(chain, b, qmc_options(o))
                    : torus_average(chain, b, torus_options(o, method, chain.size(), "average"));
       };
-      const JointStiffness stiffness = joint_stiffness(chain, beta);
-      if constexpr (!is_mpfr_v<Real>) {
-        check_double_mass_range(chain);
-        if (stiffness.smallest >= stiffness_extrapolated) {
-          if (stiffness.largest / stiffness.smallest * stiffness_reference > stiffness_resolved)
-            throw invalid_input(
-                "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.smallest) +
-                " to " + short_decimal(stiffness.largest) + ") differ by more than 1e9, beyond "
-                "what the low-temperature extrapolation resolves; outside pendavg's domain");
-          return low_temperature_extrapolation(chain, beta, stiffness, run);
-        }
-        if (stiffness.largest > stiffness_resolved)
-          throw invalid_input("average: a joint's stiffness beta g S l = " +
-                              short_decimal(stiffness.largest) + " is beyond what the torus and "
-                              "qmc methods resolve (1e13) while another joint is soft (" +
-                              short_decimal(stiffness.smallest) + "); outside pendavg's domain");
-      } else if (stiffness.largest > stiffness_resolved_mpfr) {
-        throw invalid_input("average: a joint's stiffness beta g S l = " +
-                            short_decimal(stiffness.largest) + " is beyond what the torus "
-                            "resolves in MPFR (1e9); at 16 digits pendavg extrapolates to low "
-                            "temperature (every joint stiffer than 1e7)");
-      }
+      if (check_stiffness(chain, beta) == StiffnessPlan::extrapolate)
+        return low_temperature_extrapolation(chain, beta, joint_stiffness(chain, beta), run);
       return run(beta);
     }
     case AverageMethod::automatic: break;  // resolved before
@@ -399,6 +411,32 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
 }
 
 template <class Real>
+void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options) {
+  const AverageMethod method = resolve_average_method(chain.size(), options);
+  check_digits<Real>(options.digits);
+  check_beta(beta);
+  const precision_guard<Real> precision(options.digits + guard_digits);
+  switch (method) {
+    case AverageMethod::series:
+      if constexpr (!is_mpfr_v<Real>) {  // the series runs in MPFR at 16 digits
+        const working_precision series_precision(min_digits + guard_digits);
+        double_pendulum_parameters(chain.template cast<mpfr_real>(), mpfr_real(beta));
+        break;
+      }
+      [[fallthrough]];
+    case AverageMethod::integral:
+      double_pendulum_parameters(at_working_precision(chain), at_working_precision(beta));
+      break;
+    case AverageMethod::torus_trapezoid:
+    case AverageMethod::torus_gauss:
+    case AverageMethod::qmc:
+      check_stiffness(at_working_precision(chain), at_working_precision(beta));
+      break;
+    case AverageMethod::automatic: break;  // resolved above
+  }
+}
+
+template <class Real>
 Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options) {
   const std::size_t n = chain.size();
   if (options.method != AverageMethod::automatic)
@@ -440,6 +478,7 @@ Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOpti
 
 #define PENDAVG_INSTANTIATE_AVERAGE(Real)                                                      \
   template class AverageWorkspace<Real>;                                                        \
+  template void check_average<Real>(const Chain<Real>&, const Real&, const AverageOptions&);    \
   template Averages<Real> average<Real>(const Chain<Real>&, const Real&, const AverageOptions&); \
   template Averages<Real> average<Real>(const Chain<Real>&, const Real&, const AverageOptions&, \
                                         AverageWorkspace<Real>&);                               \

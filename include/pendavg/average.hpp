@@ -34,6 +34,8 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
+#include <vector>
 
 namespace pendavg {
 
@@ -52,6 +54,20 @@ inline constexpr std::size_t default_qmc_shifts = 16;
 inline constexpr std::uint64_t default_qmc_seed = 1;
 /// automatic: torus_trapezoid for N = 1 and 3..automatic_torus_max_particles, qmc beyond.
 inline constexpr std::size_t automatic_torus_max_particles = 4;
+
+/// Several processes computing one qmc average together (the CLI's MPI ranks; the library itself
+/// has no MPI). Part p of P computes the shifts [R p / P, R (p + 1) / P) of the R shifts and
+/// all_gather() hands every part the packed sums of all parts, in part order, so that each shift
+/// is combined in shift order as in an undivided run: the result is bit-identical for every P
+/// (each shift is summed by one thread, in point order). Every part must make the same calls.
+class ShiftPartition {
+ public:
+  virtual ~ShiftPartition() = default;
+  virtual int part() const = 0;   ///< 0..parts()-1
+  virtual int parts() const = 0;  ///< >= 1
+  /// Every part's `local` values, concatenated in part order (an all-gather; sizes may differ).
+  virtual std::vector<double> all_gather(std::span<const double> local) const = 0;
+};
 
 /// How average() computes. Unset optionals mean "the method's default"; setting one that the
 /// chosen method does not use is an error.
@@ -74,6 +90,8 @@ struct AverageOptions {
   /// run stopped after its first level returns that level's values (interrupted = true,
   /// converged = false, errors still hold); before it, average() throws `interrupted`.
   RunControl control;
+  /// qmc: share the shifts with other processes (see ShiftPartition); null: compute them all.
+  const ShiftPartition* partition = nullptr;
 };
 
 /// Which method average() runs for N particles under `options`, after checking every option
@@ -101,6 +119,14 @@ class AverageWorkspace {
  private:
   std::unique_ptr<detail::AverageWorkspaceData<Real>> data_;
 };
+
+/// Checks, without computing, everything average(chain, beta, options) checks before its work:
+/// the options against the method, digits, beta, and the chosen engine's domain (e.g. the
+/// double-pendulum engine's range of beta g M l in double, the joints' stiffnesses of the torus
+/// and qmc methods). Throws the invalid_input average() would throw. Cheap (no quadrature).
+/// For mpfr_real, call it under a working_precision of at least digits + guard_digits.
+template <class Real>
+void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options);
 
 /// The canonical averages of `chain` at inverse temperature `beta` (finite, > 0).
 /// Throws invalid_input for bad input or options.

@@ -57,6 +57,8 @@ extern template Averages<mpfr_real> average<mpfr_real>(const Chain<mpfr_real>&, 
                                                          const AverageOptions&,
                                                          AverageWorkspace<mpfr_real>&);
 extern template class AverageWorkspace<mpfr_real>;
+extern template void check_average<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&,
+                                              const AverageOptions&);
 extern template Averages<mpfr_real> high_temperature_limit<mpfr_real>(const Chain<mpfr_real>&,
                                                                         const AverageOptions&);
 extern template Averages<mpfr_real> low_temperature_limit<mpfr_real>(const Chain<mpfr_real>&,

@@ -5,11 +5,14 @@
 #include "commands.hpp"
 
 #include "args.hpp"
+#include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
 #include "average_options.hpp"
 #include "interrupt.hpp"
 #include "simulate.hpp"
+#include "sweep.hpp"
+#include "sweep_file.hpp"
 #include "table.hpp"
 
 #include "pendavg/mpfr.hpp"
@@ -25,6 +28,7 @@
 #include <cstring>
 #include <ctime>
 #include <exception>
+#include <filesystem>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -61,7 +65,7 @@ constexpr std::string_view average_usage =
     "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
     "                       [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
-    "                       [--timing] [--timing-rows FILE]\n"
+    "                       [--output FILE | --resume FILE] [--timing] [--timing-rows FILE]\n"
     "\n"
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
@@ -88,7 +92,16 @@ constexpr std::string_view average_usage =
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
     "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
     "evaluations, ratio_error, cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind,\n"
-    "converged. Rows run on all cores; the output does not depend on the thread count.\n"
+    "converged. Every row is checked before the first is computed. Rows run on all cores (and,\n"
+    "under mpirun/srun with pendavg built with MPI, on all ranks); the output does not depend\n"
+    "on the thread or rank count. Rows are streamed in file order as they finish.\n"
+    "--output FILE writes the CSV atomically to FILE, after '#' lines naming the cases (by a\n"
+    "hash of the file), digits, method, version and date. SIGINT/SIGTERM stop early: every\n"
+    "finished row is written, then an '# interrupted: K of N rows computed' line; --resume\n"
+    "FILE continues such a file (same cases, digits, method and version) and rewrites it as an\n"
+    "uninterrupted run does (a FILE that does not exist yet is simply written).\n"
+    "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
+    "is the same for any number of ranks.\n"
     "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
     "and worst thread CPU time per row in microseconds (from parsing the row to its formatted\n"
     "output line; the timer's own cost, timer_us, is measured and subtracted), the worst row\n"
@@ -305,6 +318,15 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   run.threads = hardware_threads();
   resolve_average_method(chain.size(), run);  // every option checked before any work
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
+  check_average(chain, beta, run);  // and the method's domain
+  if (ranks() > 1) {
+    // Under MPI one qmc point shares its shifts between the ranks (the same bits for any
+    // number of ranks); another method runs on rank 0 alone.
+    if (resolve_average_method(chain.size(), run) == AverageMethod::qmc)
+      run.partition = shift_partition();
+    else if (!is_root())
+      return {};
+  }
   const int digits = settings.digits;
   const Stopwatch stopwatch;
   Progress progress("average");
@@ -423,14 +445,21 @@ double timer_overhead_microseconds() {
   return empty[100];
 }
 
-/// --timing: one line on stderr with the distribution of the rows' thread CPU times.
+/// --timing: one line on stderr with the distribution of the rows' thread CPU times (rows not
+/// computed in this run, kept or interrupted, have a negative time and are left out).
 void report_case_timing(const std::vector<double>& row_us, const CasesFile& file,
                         double timer_us, int threads) {
-  if (row_us.empty()) {
+  std::vector<double> sorted;
+  std::size_t worst = 0;
+  for (std::size_t i = 0; i < row_us.size(); ++i) {
+    if (row_us[i] < 0) continue;
+    if (sorted.empty() || row_us[i] > row_us[worst]) worst = i;
+    sorted.push_back(row_us[i]);
+  }
+  if (sorted.empty()) {
     std::fprintf(stderr, "pendavg: timing: rows=0\n");
     return;
   }
-  std::vector<double> sorted = row_us;
   std::ranges::sort(sorted);
   const std::size_t count = sorted.size();
   const auto rank = [&](double p) {  // nearest rank
@@ -439,7 +468,6 @@ void report_case_timing(const std::vector<double>& row_us, const CasesFile& file
   };
   const double median =
       count % 2 ? sorted[count / 2] : 0.5 * (sorted[count / 2 - 1] + sorted[count / 2]);
-  const auto worst = static_cast<std::size_t>(std::ranges::max_element(row_us) - row_us.begin());
   std::fprintf(stderr,
                "pendavg: timing: rows=%zu median_us=%.3f p90_us=%.3f worst_us=%.3f "
                "worst_row=%zu worst_line=%zu threads=%d timer_us=%.3f (thread CPU time per row, "
@@ -448,127 +476,182 @@ void report_case_timing(const std::vector<double>& row_us, const CasesFile& file
                timer_us);
 }
 
-/// Rows are independent: they are evaluated on all cores in blocks, each block into its own
-/// stretch of the output, joined in file order (the output does not depend on the thread count).
-/// The first bad row (in file order) is reported. Blocks hold 256 rows for the fast double-
-/// pendulum engines and one row for the torus and QMC methods; a single block runs on one
-/// thread and lets those methods use every core instead. `timing`: see report_case_timing.
+/// Checks one cases row as the library will see it (fields, numbers at the working precision,
+/// the chain, the method's domain), without computing it.
+template <class Real>
+void check_case(const CasesFile& file, const CaseRow& row, const std::vector<std::string>& columns,
+                const AverageOptions& options) {
+  std::optional<working_precision> precision;
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
+  std::vector<std::string_view> fields(columns.size());
+  case_fields(file, row, fields);
+  const std::size_t n = file.particles;
+  const Real beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
+  std::vector<Real> masses, lengths;
+  for (std::size_t i = 0; i < n; ++i)
+    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
+  for (std::size_t i = 0; i < n; ++i)
+    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
+  check_average(make_chain<Real>(std::move(masses), std::move(lengths),
+                                 parse_real<Real>(fields[1], columns[1], Domain::nonnegative)),
+                beta, options);
+}
+
+/// Where --cases writes, and what it keeps from an earlier run.
+struct CasesOutput {
+  std::string path;       ///< --output or --resume (empty: stdout)
+  std::string resume;     ///< --resume
+  std::string timing_rows;  ///< --timing-rows
+  bool timing = false;
+};
+
+/// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
+/// ranks and threads, one thread per row, so the output does not depend on their number) and
+/// streamed in file order. The first bad row (in file order) is reported. A single row runs on
+/// one thread and lets the torus and QMC methods use every core instead. `timing`: see
+/// report_case_timing.
 template <class Real>
 std::string average_cases(const CasesFile& file, const std::string& path,
-                          const AverageOptions& settings, bool timing,
-                          const std::string& timing_rows_path) {
+                          const AverageOptions& settings, const CasesOutput& where) {
   const std::vector<CaseRow>& rows = file.rows;
   const std::size_t n = file.particles;
   const std::vector<std::string> columns = case_columns(n);
   const int digits = settings.digits;
   AverageOptions options = settings;
-  const AverageMethod method = resolve_average_method(n, options);  // checked before any row
-  const bool fast = method == AverageMethod::integral || method == AverageMethod::series;
-  const std::size_t block = fast ? 256 : 1;
-  const std::size_t blocks = (rows.size() + block - 1) / block;
-  if (blocks == 1) options.threads = hardware_threads();
+  resolve_average_method(n, options);  // checked before any row
+  const int threads = hardware_threads();
+  if (rows.size() == 1 && ranks() == 1) options.threads = threads;
 
-  std::string out;
-  append_csv_line(out, columns);
-  out.pop_back();
+  const auto line_context = [&](std::size_t k) {
+    return path + " line " + std::to_string(rows[k].line) + ": ";
+  };
+  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
+  const auto check = [&](std::size_t k) {
+    try {
+      check_case<Real>(file, rows[k], columns, options);
+    } catch (const invalid_input& bad) {
+      throw usage_error(line_context(k) + bad.what());
+    }
+  };
+  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
+    check(bad);  // throws the first bad row's error, on every rank
+
+  std::string header;
+  if (!where.path.empty()) {
+    // A file says what made it (and --resume checks it): the cases (by content), digits,
+    // method and its options, version.
+    header += "# pendavg average --cases: " + std::to_string(rows.size()) + " rows of N = " +
+              std::to_string(n) + ", cases file fnv1a-64 " + fnv1a_hex(file.text) + "\n";
+    header += "# digits = " + std::to_string(digits) + ", method = " +
+              average_method_name(settings.method);
+    if (settings.tolerance) header += ", tol = " + decimal(*settings.tolerance, 17);
+    if (settings.samples) header += ", samples = " + std::to_string(*settings.samples);
+    if (settings.shifts) header += ", shifts = " + std::to_string(*settings.shifts);
+    if (settings.seed) header += ", seed = " + std::to_string(*settings.seed);
+    header += "\n# pendavg " + std::string(version()) + ", generated " + utc_timestamp() +
+              " (UTC) from " + path + "\n";
+  }
+  append_csv_line(header, columns);
+  header.pop_back();
   const auto add_names = [&](std::string_view stem) {
-    for (const std::string& name : indexed_names(stem, n)) (out += ',') += name;
+    for (const std::string& name : indexed_names(stem, n)) (header += ',') += name;
   };
   add_names("beta_K");
   add_names("error_K");
-  out += ",ratio";
+  header += ",ratio";
   add_names("cos_phi");
-  out += ",method,evaluations,ratio_error";
+  header += ",method,evaluations,ratio_error";
   add_names("cos_phi_error");
   add_names("var_K");
   add_names("var_K_error");
-  out += ",error_kind,converged\n";
+  header += ",error_kind,converged\n";
 
-  // One output buffer: each block writes into its own stretch (the sum of its rows' longest
-  // lines), sized and zero-filled here, before any row runs; the blocks' texts are then moved
-  // together in file order. No allocation while the rows run.
-  std::vector<std::size_t> block_start(blocks + 1, out.size()), block_end(blocks);
-  for (std::size_t b = 0; b < blocks; ++b) {
-    std::size_t bytes = 0;
-    for (std::size_t i = b * block; i < std::min(rows.size(), (b + 1) * block); ++i)
-      bytes += case_line_bound(rows[i], n, digits);
-    block_start[b + 1] = block_start[b] + bytes;
+  // Rank 0 checks the outputs (and reads a resumed file); every rank learns the verdict.
+  std::optional<ResumedRows> resumed;
+  std::string verdict;
+  if (is_root()) {
+    try {
+      if (!where.path.empty()) probe_output(where.path, "average");
+      if (!where.timing_rows.empty()) probe_output(where.timing_rows, "average");
+      if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
+        std::vector<std::string_view> fields(columns.size());
+        resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
+                        [&](std::size_t k) {
+                          case_fields(file, rows[k], fields);
+                          std::string key;
+                          for (const std::string_view field : fields)
+                            (key += key.empty() ? "" : ",") += field;
+                          return key;
+                        });
+      }
+    } catch (const invalid_input& bad) {
+      verdict = bad.what();
+    }
   }
-  out.resize(block_start[blocks]);
+  verdict = broadcast_from_root(verdict);
+  if (!verdict.empty()) throw usage_error(verdict);
 
-  const double timer_us = timing ? timer_overhead_microseconds() : 0.0;
-  std::vector<double> row_us(timing ? rows.size() : 0);
-  std::vector<std::exception_ptr> errors(blocks);  // exceptions must not leave the region
-  std::vector<std::size_t> error_row(blocks, rows.size());
-  int threads = 1;
-#pragma omp parallel if (blocks > 1)
-  {
-    CaseScratch<Real> scratch;
-#if defined(_OPENMP)
-#pragma omp single nowait
-    threads = omp_get_num_threads();
-#endif
-#pragma omp for schedule(dynamic, 1)
-    for (long b = 0; b < static_cast<long>(blocks); ++b) {
-      const auto bu = static_cast<std::size_t>(b);
-      const std::size_t first = bu * block;
-      const std::size_t last = std::min(rows.size(), first + block);
-      char* p = out.data() + block_start[bu];
-      for (std::size_t i = first; i < last; ++i) {
-        try {
-          if (timing) {
-            const double start = thread_cpu_microseconds();
-            p = write_case<Real>(p, file, rows[i], columns, options, scratch);
-            row_us[i] = thread_cpu_microseconds() - start - timer_us;
-          } else {
-            p = write_case<Real>(p, file, rows[i], columns, options, scratch);
-          }
-        } catch (...) {
-          errors[bu] = std::current_exception();
-          error_row[bu] = i;
-          break;
-        }
+  const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
+  std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
+  std::optional<SweepFile> output;
+  if (is_root()) {
+    output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
+    output->on_timing = [&](std::size_t first, std::span<const double> us) {
+      for (std::size_t k = 0; k < us.size(); ++k) row_us[first + k] = us[k] - timer_us;
+    };
+  }
+  std::vector<std::optional<CaseScratch<Real>>> scratch(static_cast<std::size_t>(threads));
+  SweepRows sweep;
+  sweep.count = rows.size();
+  sweep.threads = options.threads > 1 ? 1 : threads;
+  sweep.timing = where.timing;
+  sweep.progress = "average";
+  sweep.row_bytes = 1;
+  for (const CaseRow& row : rows)
+    sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits));
+  sweep.compute = [&](std::size_t k, int thread, std::string& text) {
+    std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
+    if (!mine) mine.emplace();
+    const std::size_t start = text.size();
+    text.resize(start + case_line_bound(rows[k], n, digits));
+    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, options, *mine);
+    text.resize(static_cast<std::size_t>(end - text.data()));
+  };
+  run_sweep(sweep, output ? &*output : nullptr, [&](const SweepOutcome& outcome) {
+    if (outcome.failed) {
+      output->discard();
+      rethrow_failure(outcome, line_context);
+    }
+    if (outcome.written < rows.size()) {
+      output->append("# interrupted: " + std::to_string(outcome.written) + " of " +
+                     std::to_string(rows.size()) +
+                     " rows computed; the rows of the others are left out\n");
+      std::fprintf(stderr, "[average] interrupted: %zu of %zu rows written\n", outcome.written,
+                   rows.size());
+    }
+    output->commit();
+    if (!where.timing_rows.empty()) {
+      std::string rows_csv = "row,line,us\n";
+      char number[32];
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (row_us[i] < 0) continue;
+        const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
+        ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
+            .append(number, static_cast<std::size_t>(length)) += '\n';
       }
-      block_end[bu] = static_cast<std::size_t>(p - out.data());
+      write_atomically(where.timing_rows, rows_csv, "average");
     }
-  }
-  for (std::size_t b = 0; b < blocks; ++b) {
-    if (error_row[b] < rows.size()) {
-      try {
-        std::rethrow_exception(errors[b]);
-      } catch (const invalid_input& bad) {
-        throw usage_error(path + " line " + std::to_string(rows[error_row[b]].line) + ": " +
-                          bad.what());
-      }
-    }
-  }
-  std::size_t size = block_start[0];
-  for (std::size_t b = 0; b < blocks; ++b) {
-    const std::size_t length = block_end[b] - block_start[b];
-    std::memmove(out.data() + size, out.data() + block_start[b], length);
-    size += length;
-  }
-  out.resize(size);
-  if (!timing_rows_path.empty()) {
-    std::string rows_csv = "row,line,us\n";
-    char number[32];
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
-      ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
-          .append(number, static_cast<std::size_t>(length)) += '\n';
-    }
-    write_atomically(timing_rows_path, rows_csv, "average");
-  }
-  if (timing) report_case_timing(row_us, file, timer_us, threads);
-  return out;
+    if (where.timing) report_case_timing(row_us, file, timer_us, outcome.threads);
+  });
+  return {};
 }
 
 std::string average_command(const Options& options) {
   const AverageOptions settings = average_settings(options);
   if (!options.has("cases")) {
-    for (const std::string_view timing : {"timing", "timing-rows"})
-      if (options.has(timing))
-        throw usage_error("average: --" + std::string(timing) + " is for --cases only");
+    for (const std::string_view cases_only : {"timing", "timing-rows", "output", "resume"})
+      if (options.has(cases_only))
+        throw usage_error("average: --" + std::string(cases_only) + " is for --cases only");
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
     return with_number_type(settings.digits, [&]<class Real>() {
@@ -581,15 +664,29 @@ std::string average_command(const Options& options) {
   constexpr std::array<std::string_view, 1> formats{"csv"};
   format_option(options, "csv", formats);
   const std::string path(options.required("cases"));
-  const std::string timing_rows(options.get("timing-rows", ""));
-  if (options.has("timing-rows") && timing_rows.empty())
-    throw usage_error("average: --timing-rows needs a file name");
-  if (!timing_rows.empty()) probe_output(timing_rows, "average");
+  CasesOutput where;
+  where.timing_rows = std::string(options.get("timing-rows", ""));
+  where.resume = std::string(options.get("resume", ""));
+  where.path = std::string(options.get("output", ""));
+  for (const std::string_view name : {"timing-rows", "output", "resume"})
+    if (options.has(name) && options.get(name, "").empty())
+      throw usage_error("average: --" + std::string(name) + " needs a file name");
+  if (!where.resume.empty() && !where.path.empty() &&
+      resolved_path(where.path, "average") != resolved_path(where.resume, "average"))
+    throw usage_error("average: --resume FILE continues FILE and writes it; --output must name "
+                      "the same file or be left out");
+  if (!where.resume.empty()) where.path = where.resume;
+  const std::string_view output_option = options.has("resume") ? "resume" : "output";
+  if (!where.path.empty()) refuse_same_file(where.path, output_option, path, "cases", "average");
+  if (!where.timing_rows.empty()) {
+    refuse_same_file(where.timing_rows, "timing-rows", path, "cases", "average");
+    if (!where.path.empty())
+      refuse_same_file(where.timing_rows, "timing-rows", where.path, output_option, "average");
+  }
   const CasesFile file = read_cases_file(path);
-  const bool timing = options.has("timing") || !timing_rows.empty();
-  if (settings.digits == min_digits)
-    return average_cases<double>(file, path, settings, timing, timing_rows);
-  return average_cases<mpfr_real>(file, path, settings, timing, timing_rows);
+  where.timing = options.has("timing") || !where.timing_rows.empty();
+  if (settings.digits == min_digits) return average_cases<double>(file, path, settings, where);
+  return average_cases<mpfr_real>(file, path, settings, where);
 }
 
 // ---------------------------------------------------------------- limit
@@ -746,11 +843,12 @@ struct Command {
   std::span<const std::string_view> options;
   std::string (*run)(const Options&);
   std::span<const std::string_view> flags = {};  ///< options without a value
+  bool distributed = false;  ///< runs on every MPI rank; the others run on rank 0 alone
 };
 
-constexpr std::array<std::string_view, 13> average_options{
-    "masses", "lengths", "g",   "beta",    "digits", "method",
-    "format", "cases",   "tol", "samples", "shifts", "seed", "timing-rows"};
+constexpr std::array<std::string_view, 15> average_options{
+    "masses", "lengths", "g",   "beta",    "digits", "method", "format",      "cases",
+    "tol",    "samples", "shifts", "seed", "timing-rows", "output", "resume"};
 constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};
@@ -758,11 +856,11 @@ constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g
                                                          "digits", "terms",   "format"};
 
 const std::array<Command, 6> commands{{
-    {"average", average_usage, average_options, average_command, average_flags},
+    {"average", average_usage, average_options, average_command, average_flags, true},
     {"limit", limit_usage, limit_options, limit_command},
     {"series", series_usage, series_options, series_command},
-    {"table", table_usage, table_options, table_command},
-    {"simulate", simulate_usage, simulate_options, simulate_command},
+    {"table", table_usage, table_options, table_command, {}, true},
+    {"simulate", simulate_usage, simulate_options, simulate_command, {}, true},
     {"poincare", poincare_usage, poincare_options, poincare_command},
 }};
 
@@ -785,7 +883,9 @@ std::string run(std::span<const std::string_view> args) {
   if (name == "--version") return std::string(version()) + "\n";
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
-  return command.run(Options(name, rest, command.options, command.flags));
+  const Options options(name, rest, command.options, command.flags);
+  if (!command.distributed && !is_root()) return {};
+  return command.run(options);
 }
 
 }  // namespace pendavg::cli

@@ -4,6 +4,7 @@
 #include "args.hpp"
 
 #include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -21,16 +22,50 @@ std::string cannot_write(std::string_view command, const std::string& path, std:
   return std::string(command) + ": cannot write '" + path + "': " + std::string(why);
 }
 
+constexpr int max_symlinks = 40;  // as the kernel's ELOOP limit
+
 }  // namespace
+
+std::string resolved_path(const std::string& path, std::string_view command) {
+  namespace fs = std::filesystem;
+  fs::path current = path;
+  for (int hops = 0;; ++hops) {
+    struct stat status {};
+    if (lstat(current.c_str(), &status) != 0 || !S_ISLNK(status.st_mode)) return current.string();
+    if (hops == max_symlinks)
+      throw usage_error(cannot_write(command, path, "too many levels of symbolic links"));
+    std::string link(PATH_MAX, '\0');
+    const ssize_t length = readlink(current.c_str(), link.data(), link.size());
+    if (length < 0) throw usage_error(cannot_write(command, path, std::strerror(errno)));
+    link.resize(static_cast<std::size_t>(length));
+    const fs::path target = link;
+    current = target.is_absolute() ? target : current.parent_path() / target;
+  }
+}
 
 AtomicFile::AtomicFile(std::string path, std::string_view command)
     : path_(std::move(path)), command_(command) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path_, ec))
-    throw usage_error(cannot_write(command_, path_, "is a directory"));
-  temporary_ = path_ + ".tmp.XXXXXX";
-  fd_ = mkstemp(temporary_.data());
-  if (fd_ < 0) throw usage_error(cannot_write(command_, path_, std::strerror(errno)));
+  target_ = resolved_path(path_, command_);
+  struct stat status {};
+  if (stat(target_.c_str(), &status) == 0) {
+    if (S_ISDIR(status.st_mode)) throw usage_error(cannot_write(command_, path_, "is a directory"));
+    if (!S_ISREG(status.st_mode)) {
+      // A device or FIFO: written in place (never replaced by a regular file).
+      in_place_ = true;
+      fd_ = open(target_.c_str(), O_WRONLY | O_CLOEXEC);
+      if (fd_ < 0) throw usage_error(cannot_write(command_, path_, std::strerror(errno)));
+      return;
+    }
+  }
+  deferred_.emplace();
+  temporary_ = target_ + ".tmp.XXXXXX";
+  fd_ = mkostemp(temporary_.data(), O_CLOEXEC);
+  if (fd_ < 0) {
+    const int error = errno;
+    temporary_.clear();
+    deferred_.reset();
+    throw usage_error(cannot_write(command_, path_, std::strerror(error)));
+  }
   const mode_t mask = umask(0);
   umask(mask);
   if (fchmod(fd_, 0666 & ~mask) != 0) fail(errno);
@@ -39,12 +74,13 @@ AtomicFile::AtomicFile(std::string path, std::string_view command)
 AtomicFile::~AtomicFile() {
   if (fd_ >= 0) close(fd_);
   if (!committed_ && !temporary_.empty()) unlink(temporary_.c_str());
+  // deferred_ is released last (member order): a deferred signal acts after the cleanup.
 }
 
 void AtomicFile::fail(int error) {
   if (fd_ >= 0) close(fd_);
   fd_ = -1;
-  unlink(temporary_.c_str());
+  if (!temporary_.empty()) unlink(temporary_.c_str());
   temporary_.clear();
   throw usage_error(cannot_write(command_, path_, std::strerror(error)));
 }
@@ -61,6 +97,14 @@ void AtomicFile::append(std::string_view text) {
 }
 
 void AtomicFile::commit() {
+  if (in_place_) {
+    const int fd = fd_;
+    fd_ = -1;
+    committed_ = true;
+    if (close(fd) != 0 && errno != EINTR)
+      throw usage_error(cannot_write(command_, path_, std::strerror(errno)));
+    return;
+  }
   if (fsync(fd_) != 0) fail(errno);
   const int fd = fd_;
   fd_ = -1;
@@ -69,12 +113,13 @@ void AtomicFile::commit() {
     unlink(temporary_.c_str());
     throw usage_error(cannot_write(command_, path_, std::strerror(error)));
   }
-  if (std::rename(temporary_.c_str(), path_.c_str()) != 0) {
+  if (std::rename(temporary_.c_str(), target_.c_str()) != 0) {
     const int error = errno;
     unlink(temporary_.c_str());
     throw usage_error(cannot_write(command_, path_, std::strerror(error)));
   }
   committed_ = true;
+  deferred_.reset();
 }
 
 void write_atomically(const std::string& path, const std::string& content,
@@ -85,7 +130,35 @@ void write_atomically(const std::string& path, const std::string& content,
 }
 
 void probe_output(const std::string& path, std::string_view command) {
+  const std::string target = resolved_path(path, command);
+  struct stat status {};
+  if (stat(target.c_str(), &status) == 0 && !S_ISDIR(status.st_mode) && !S_ISREG(status.st_mode)) {
+    // A device or FIFO: opening a FIFO would wait for its reader; ask for write permission.
+    if (access(target.c_str(), W_OK) != 0)
+      throw usage_error(cannot_write(command, path, std::strerror(errno)));
+    return;
+  }
   AtomicFile file(path, command);  // created and removed again: the directory is writable
+}
+
+void refuse_same_file(const std::string& output, std::string_view output_option,
+                      const std::string& input, std::string_view input_option,
+                      std::string_view command) {
+  struct stat out_status {}, in_status {};
+  bool same = false;
+  if (stat(output.c_str(), &out_status) == 0 && stat(input.c_str(), &in_status) == 0) {
+    same = out_status.st_dev == in_status.st_dev && out_status.st_ino == in_status.st_ino &&
+           S_ISREG(out_status.st_mode);  // two names of /dev/null are no conflict
+  } else {
+    std::error_code ec1, ec2;
+    const auto a = std::filesystem::weakly_canonical(resolved_path(output, command), ec1);
+    const auto b = std::filesystem::weakly_canonical(resolved_path(input, command), ec2);
+    same = !ec1 && !ec2 && a == b;
+  }
+  if (same)
+    throw usage_error(std::string(command) + ": --" + std::string(output_option) + " '" + output +
+                      "' names the same file as --" + std::string(input_option) +
+                      ", which writing it would overwrite; choose another file");
 }
 
 }  // namespace pendavg::cli

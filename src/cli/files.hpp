@@ -1,16 +1,23 @@
 // src/cli/files.hpp -- output files of the pendavg CLI, written atomically: everything goes to a
 // temporary file next to the target, which is renamed onto it only when complete. A failed or
-// abandoned file leaves nothing behind (the temporary is removed).
+// abandoned file leaves nothing behind (the temporary is removed), and SIGINT/SIGTERM/SIGHUP are
+// deferred while the temporary exists (interrupt.hpp, DeferSignals), so no signal leaves one
+// behind either. A symbolic link is followed: its final target is what gets replaced. A target
+// that exists and is not a regular file (a device such as /dev/null, a FIFO) is written in place,
+// never replaced.
 #pragma once
 
+#include "interrupt.hpp"
+
+#include <optional>
 #include <string>
 #include <string_view>
 
 namespace pendavg::cli {
 
-/// A file being written: open() creates the temporary, append() adds text, commit() makes it
-/// appear under its name. Destroying an uncommitted file removes the temporary. Errors throw
-/// usage_error "<command>: cannot write '<path>': <reason>".
+/// A file being written: the constructor creates the temporary (or opens a non-regular target),
+/// append() adds text, commit() makes it appear under its name. Destroying an uncommitted file
+/// removes the temporary. Errors throw usage_error "<command>: cannot write '<path>': <reason>".
 class AtomicFile {
  public:
   AtomicFile(std::string path, std::string_view command);
@@ -24,9 +31,10 @@ class AtomicFile {
 
  private:
   [[noreturn]] void fail(int error);
-  std::string path_, command_, temporary_;
+  std::string path_, command_, target_, temporary_;
+  std::optional<DeferSignals> deferred_;  ///< while a temporary exists
   int fd_ = -1;
-  bool committed_ = false;
+  bool committed_ = false, in_place_ = false;
 };
 
 /// Writes `content` to `path` atomically (AtomicFile in one go).
@@ -34,5 +42,15 @@ void write_atomically(const std::string& path, const std::string& content, std::
 
 /// Fails early (before a long computation) when `path` cannot be written; leaves nothing behind.
 void probe_output(const std::string& path, std::string_view command);
+
+/// The file a path names after following symbolic links (the path itself when it does not
+/// exist yet); throws usage_error for a loop of links.
+std::string resolved_path(const std::string& path, std::string_view command);
+
+/// Refuses (usage_error, one line) an output path that names the same file as an input path
+/// (or as another output): `--<output_option> X` would overwrite what `--<input_option>` reads.
+void refuse_same_file(const std::string& output, std::string_view output_option,
+                      const std::string& input, std::string_view input_option,
+                      std::string_view command);
 
 }  // namespace pendavg::cli

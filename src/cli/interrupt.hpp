@@ -1,10 +1,12 @@
 // src/cli/interrupt.hpp -- SIGINT/SIGTERM end long CLI runs cleanly: a handler sets a flag that
 // the library polls (DynamicsObserver::stop) or the CLI checks between points, and the command
-// still prints what it finished.
+// still prints what it finished. While an output file is being written (temporary file, then
+// rename), the same signals are deferred, so that none leaves a truncated temporary behind.
 #pragma once
 
 #include <atomic>
 #include <chrono>
+#include <csignal>
 #include <string>
 
 namespace pendavg::cli {
@@ -22,8 +24,19 @@ class StopOnSignal {
   StopOnSignal& operator=(const StopOnSignal&) = delete;
 
  private:
-  void (*previous_int_)(int);
-  void (*previous_term_)(int);
+  struct sigaction previous_int_{}, previous_term_{};
+};
+
+/// While alive, SIGINT, SIGTERM and SIGHUP only set stop_flag() and are remembered; on
+/// destruction the previous handlers come back and a remembered signal whose previous action
+/// was the default one is raised again (so it still ends the process, but only after the file
+/// was committed or removed). Nests: only the outermost object acts.
+class DeferSignals {
+ public:
+  DeferSignals();
+  ~DeferSignals();
+  DeferSignals(const DeferSignals&) = delete;
+  DeferSignals& operator=(const DeferSignals&) = delete;
 };
 
 /// Prints "[command] ..." to stderr at most every 2 s, starting after 2 s.

@@ -6,9 +6,11 @@
 #include "simulate.hpp"
 
 #include "average_options.hpp"
+#include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
 #include "interrupt.hpp"
+#include "sweep.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -17,7 +19,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <numbers>
+#include <random>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,6 +40,7 @@ const std::string_view simulate_usage =
     "                        [--thermostat none|langevin --beta B [--friction G] [--seed S]]\n"
     "                        [--exact yes|no] [--format json|csv]\n"
     "                        [--trajectory FILE.csv --every K]\n"
+    "                        [--replicas R [--seed S] [--perturb EPS]]\n"
     "\n"
     "Integrates the chain (RATTLE in Cartesian coordinates inside a symmetric composition) and\n"
     "prints the time averages <K_i> and <K_i^(c)> (canonical kinetic energy p_i phidot_i / 2)\n"
@@ -50,6 +56,14 @@ const std::string_view simulate_usage =
     "  --thermostat langevin  constrained BAOAB at --beta B, friction --friction G (default 1)\n"
     "  --exact no      skip the exact values (N >= 5 uses QMC for them: a few seconds)\n"
     "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
+    "  --replicas R    R independent trajectories on all cores (and all MPI ranks under\n"
+    "                  mpirun/srun), combined: Langevin replicas differ by their noise (seeds\n"
+    "                  mixed from --seed), NVE replicas by their start (every angle moved by up\n"
+    "                  to --perturb EPS radians, default 1e-6, from --seed; replica 0 unmoved).\n"
+    "                  K_error is then the larger of the blocking error of the mean and the\n"
+    "                  standard error of the spread between replicas (both printed, as\n"
+    "                  K_error_blocking and K_error_replicas); the result is the same for any\n"
+    "                  number of ranks and threads.\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
@@ -168,6 +182,199 @@ std::string number_array(const std::vector<double>& values) {
   return out + "]";
 }
 
+constexpr long max_replicas = 100000;
+
+/// A replica's seed: replica 0 runs with --seed itself (as a single run does), the others with
+/// seeds mixed from it (splitmix64), so their noise streams and perturbations are independent.
+std::uint64_t replica_seed(std::uint64_t seed, std::size_t replica) {
+  if (replica == 0) return seed;
+  std::uint64_t z = seed + 0x9e3779b97f4a7c15ull * static_cast<std::uint64_t>(replica);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+/// What --replicas adds to a run's report: the two error bars of every average (blocking within
+/// the replicas; the spread between them) and how far the replicas' energies lie apart.
+struct ReplicaSpread {
+  std::size_t replicas = 0, requested = 0;  ///< finished (also when interrupted), asked for
+  std::vector<double> kinetic_blocking, kinetic_replicas, canonical_blocking, canonical_replicas,
+      cosine_blocking, cosine_replicas;
+  double energy_spread = 0;  ///< largest |E_r - E| over the replicas (NVE perturbed starts)
+};
+
+/// Weighted mean over replicas in replica order (West's update: the same bits for any split of
+/// the replicas between ranks), with the blocking error of the mean and the standard error of
+/// the spread between replicas.
+struct ReplicaMean {
+  double weight = 0, mean = 0, spread_sum = 0, blocking_sum = 0, tau_sum = 0;
+  void add(double w, const TimeAverage<double>& x) {
+    weight += w;
+    const double delta = x.value - mean;
+    mean += w / weight * delta;
+    spread_sum += w * delta * (x.value - mean);
+    blocking_sum += w * w * x.error * x.error;
+    tau_sum += w * x.autocorrelation_time;
+  }
+  double blocking() const { return std::sqrt(blocking_sum) / weight; }
+  double replica_error(std::size_t replicas) const {
+    const double r = static_cast<double>(replicas);
+    return replicas > 1 ? std::sqrt(spread_sum / weight * r / (r - 1) / r) : 0.0;
+  }
+};
+
+/// One replica's result as bytes (the sweep engine moves rows as text).
+std::string pack_replica(const SimulationResult<double>& r) {
+  std::vector<double> v;
+  for (const auto* list : {&r.kinetic, &r.kinetic_canonical, &r.cos_angle})
+    for (const TimeAverage<double>& x : *list) v.insert(v.end(), {x.value, x.error, x.autocorrelation_time});
+  v.insert(v.end(), {r.initial_energy, r.energy_drift, r.energy_error_max, r.energy_error_rms,
+                     r.constraint_residual, r.simulated_time, static_cast<double>(r.steps),
+                     static_cast<double>(r.samples), static_cast<double>(r.newton_solves),
+                     r.interrupted ? 1.0 : 0.0});
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(double));
+}
+
+SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
+  std::vector<double> v(bytes.size() / sizeof(double));
+  std::memcpy(v.data(), bytes.data(), v.size() * sizeof(double));
+  SimulationResult<double> r;
+  std::size_t k = 0;
+  for (auto* list : {&r.kinetic, &r.kinetic_canonical, &r.cos_angle}) {
+    list->resize(n);
+    for (TimeAverage<double>& x : *list) {
+      x.value = v[k++];
+      x.error = v[k++];
+      x.autocorrelation_time = v[k++];
+    }
+  }
+  r.initial_energy = v[k++];
+  r.energy_drift = v[k++];
+  r.energy_error_max = v[k++];
+  r.energy_error_rms = v[k++];
+  r.constraint_residual = v[k++];
+  r.simulated_time = v[k++];
+  r.steps = static_cast<std::size_t>(v[k++]);
+  r.samples = static_cast<std::size_t>(v[k++]);
+  r.newton_solves = static_cast<std::size_t>(v[k++]);
+  r.interrupted = v[k++] != 0;
+  return r;
+}
+
+/// Rank 0's side of the replicas: each finished replica (in order) joins the means.
+class ReplicaCombiner : public SweepOutput {
+ public:
+  ReplicaCombiner(std::size_t n, double energy)
+      : n_(n), energy_(energy), kinetic_(n), canonical_(n), cosine_(n) {}
+  void write_rows(std::size_t, std::size_t count, std::string_view text,
+                  std::span<const double>) override {
+    const std::size_t size = text.size() / count;
+    for (std::size_t k = 0; k < count; ++k) add(unpack_replica(text.substr(k * size, size), n_));
+  }
+  /// The combined run (averages, summed work, largest errors) and the spread.
+  SimulationResult<double> result(ReplicaSpread& spread) const {
+    SimulationResult<double> out = totals_;
+    spread.replicas = replicas_;
+    spread.energy_spread = energy_spread_;
+    const auto fill = [&](const std::vector<ReplicaMean>& means, std::vector<TimeAverage<double>>& to,
+                          std::vector<double>& blocking, std::vector<double>& replicas) {
+      to.resize(n_);
+      blocking.resize(n_);
+      replicas.resize(n_);
+      for (std::size_t i = 0; i < n_; ++i) {
+        blocking[i] = means[i].blocking();  // NaN when a replica's blocking error is unknown
+        replicas[i] = replicas_ > 1 ? means[i].replica_error(replicas_)
+                                    : std::numeric_limits<double>::quiet_NaN();
+        to[i].value = means[i].mean;
+        // The larger of the two that are known (NaN, printed null, when neither is).
+        to[i].error = std::isnan(blocking[i])   ? replicas[i]
+                      : std::isnan(replicas[i]) ? blocking[i]
+                                                : std::max(blocking[i], replicas[i]);
+        to[i].autocorrelation_time = means[i].tau_sum / means[i].weight;
+      }
+    };
+    fill(kinetic_, out.kinetic, spread.kinetic_blocking, spread.kinetic_replicas);
+    fill(canonical_, out.kinetic_canonical, spread.canonical_blocking, spread.canonical_replicas);
+    fill(cosine_, out.cos_angle, spread.cosine_blocking, spread.cosine_replicas);
+    return out;
+  }
+  std::size_t replicas() const { return replicas_; }
+
+ private:
+  void add(const SimulationResult<double>& r) {
+    const double w = static_cast<double>(std::max<std::size_t>(r.samples, 1));
+    for (std::size_t i = 0; i < n_; ++i) {
+      kinetic_[i].add(w, r.kinetic[i]);
+      canonical_[i].add(w, r.kinetic_canonical[i]);
+      cosine_[i].add(w, r.cos_angle[i]);
+    }
+    const auto larger = [](double a, double b) { return std::abs(b) > std::abs(a) ? b : a; };
+    totals_.energy_drift = larger(totals_.energy_drift, r.energy_drift);
+    totals_.energy_error_max = std::max(totals_.energy_error_max, r.energy_error_max);
+    totals_.energy_error_rms = std::max(totals_.energy_error_rms, r.energy_error_rms);
+    totals_.constraint_residual = std::max(totals_.constraint_residual, r.constraint_residual);
+    totals_.simulated_time += r.simulated_time;
+    totals_.steps += r.steps;
+    totals_.samples += r.samples;
+    totals_.newton_solves += r.newton_solves;
+    totals_.interrupted = totals_.interrupted || r.interrupted;
+    energy_spread_ = std::max(energy_spread_, std::abs(r.initial_energy - energy_));
+    ++replicas_;
+  }
+  std::size_t n_;
+  double energy_;
+  std::vector<ReplicaMean> kinetic_, canonical_, cosine_;
+  SimulationResult<double> totals_;
+  std::size_t replicas_ = 0;
+  double energy_spread_ = 0;
+};
+
+/// R independent trajectories on every rank and thread (sweep.hpp): Langevin runs from the same
+/// start with their own noise (replica_seed), NVE runs from the start with every angle moved by
+/// up to `perturbation` (uniform, from replica_seed; replica 0 unmoved). Rank 0 returns the
+/// spread and sets `combined` to the combined run.
+ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<double>& phi,
+                                const std::vector<double>& phidot, const SimulationOptions& run,
+                                std::size_t replicas, double perturbation, double energy,
+                                SimulationResult<double>& combined) {
+  const std::size_t n = chain.size();
+  SweepRows rows;
+  rows.count = replicas;
+  rows.threads = hardware_threads();
+  rows.row_bytes = (9 * n + 10) * sizeof(double);
+  rows.grace_seconds = 5;  // a replica stops within 1024 steps and reports its averages so far
+  rows.progress = "simulate";
+  rows.unit = "replicas";
+  rows.compute = [&](std::size_t replica, int, std::string& out) {
+    SimulationOptions options = run;
+    options.seed = replica_seed(run.seed, replica);
+    std::vector<double> start = phi;
+    if (run.thermostat == Thermostat::none && replica > 0) {
+      std::mt19937_64 random(options.seed);
+      for (double& angle : start)
+        angle += perturbation * (2 * (static_cast<double>(random() >> 11) * 0x1.0p-53) - 1);
+    }
+    DynamicsObserver<double> observer;
+    observer.stop = &stop_flag();
+    out += pack_replica(simulate(chain, state_from_angles(chain, start, phidot), options, observer));
+  };
+  const StopOnSignal signals;
+  std::optional<ReplicaCombiner> combiner;
+  if (is_root()) combiner.emplace(n, energy);
+  ReplicaSpread spread;
+  spread.requested = replicas;
+  run_sweep(rows, combiner ? &*combiner : nullptr, [&](const SweepOutcome& outcome) {
+    rethrow_failure(outcome, [](std::size_t replica) {
+      return "simulate: replica " + std::to_string(replica) + ": ";
+    });
+    if (combiner->replicas() == 0)
+      throw usage_error("simulate: interrupted before any replica reported");
+    combined = combiner->result(spread);
+    combined.interrupted = combined.interrupted || outcome.interrupted;
+  });
+  return spread;
+}
+
 }  // namespace
 
 std::string simulate_command(const Options& options) {
@@ -207,6 +414,8 @@ std::string simulate_command(const Options& options) {
                        ? Thermostat::langevin
                        : Thermostat::none;
   const bool langevin = run.thermostat == Thermostat::langevin;
+  const auto replicas = static_cast<std::size_t>(
+      parse_integer(options.get("replicas", "1"), "--replicas", 1, max_replicas));
   if (langevin) {
     run.beta = parse_real<double>(options.required("beta"), "--beta", Domain::positive);
     run.friction =
@@ -214,15 +423,29 @@ std::string simulate_command(const Options& options) {
     run.seed = parse_unsigned(options.get("seed", "1"), "--seed");
     if (options.has("integrator"))
       throw usage_error("simulate: --integrator is for NVE runs (Langevin uses BAOAB)");
+    if (options.has("perturb"))
+      throw usage_error("simulate: --perturb is for NVE replicas (Langevin replicas differ by "
+                        "their noise)");
   } else {
-    for (const char* name : {"beta", "friction", "seed"})
+    for (const char* name : {"beta", "friction"})
       if (options.has(name))
         throw usage_error("simulate: --" + std::string(name) + " needs --thermostat langevin");
+    if (replicas == 1)
+      for (const char* name : {"seed", "perturb"})
+        if (options.has(name))
+          throw usage_error("simulate: --" + std::string(name) +
+                            " needs --thermostat langevin or --replicas R > 1");
+    run.seed = parse_unsigned(options.get("seed", "1"), "--seed");
   }
+  const double perturbation =
+      parse_real<double>(options.get("perturb", "1e-6"), "--perturb", Domain::positive);
   const bool exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
   const bool csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
   if (options.has("trajectory") != options.has("every"))
     throw usage_error("simulate: --trajectory and --every go together");
+  if (replicas > 1 && options.has("trajectory"))
+    throw usage_error("simulate: --trajectory records one run; it does not go with --replicas");
+  if (replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
   std::optional<AtomicFile> trajectory;
   DynamicsObserver<double> observer;
   std::string buffer;
@@ -261,10 +484,17 @@ std::string simulate_command(const Options& options) {
   if (exact) reference = langevin ? canonical_values(chain, run.beta)
                                   : microcanonical_values(chain, energy);
   Progress progress("simulate");
-  observer.progress = [&](double fraction) { progress(fraction); };
-  StopOnSignal signals;
-  observer.stop = &stop_flag();
-  const SimulationResult<double> r = simulate(chain, initial, run, observer);
+  SimulationResult<double> r;
+  std::optional<ReplicaSpread> spread;
+  if (replicas == 1) {
+    observer.progress = [&](double fraction) { progress(fraction); };
+    StopOnSignal signals;
+    observer.stop = &stop_flag();
+    r = simulate(chain, initial, run, observer);
+  } else {
+    spread = simulate_replicas(chain, phi, phidot, run, replicas, perturbation, energy, r);
+    if (!is_root()) return {};
+  }
   const double seconds = progress.seconds();
   if (trajectory) {
     trajectory->append(buffer);
@@ -297,7 +527,12 @@ std::string simulate_command(const Options& options) {
                       decimal(r.energy_error_max, 3) + ", constraint_residual " +
                       decimal(r.constraint_residual, 3) +
                       (reference ? ", exact " + reference->method : std::string()) + "\n";
-    out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time\n";
+    if (spread)
+      out += "# replicas " + std::to_string(spread->replicas) + " of " +
+             std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
+             "replica-spread errors\n";
+    out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
+    out += spread ? ",K_error_blocking,K_error_replicas\n" : "\n";
     for (std::size_t i = 0; i < n; ++i) {
       out += std::to_string(i + 1) + "," + cell(k[i], 10) + "," + cell(k_error[i], 3) + "," +
              cell(kc[i], 10) + "," + cell(kc_error[i], 3) + "," +
@@ -305,7 +540,11 @@ std::string simulate_command(const Options& options) {
                               decimal(reference->kinetic_error[i], 3) + "," +
                               number(reference->kinetic_canonical)
                         : std::string(",,")) +
-             "," + cell(tau[i], 3) + "\n";
+             "," + cell(tau[i], 3);
+      if (spread)
+        out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
+               cell(spread->kinetic_replicas[i], 3);
+      out += "\n";
     }
     return out;
   }
@@ -352,8 +591,24 @@ std::string simulate_command(const Options& options) {
       .raw("constraint_residual", error_number(r.constraint_residual))
       .integer("steps", static_cast<long long>(r.steps))
       .integer("newton_solves", static_cast<long long>(r.newton_solves))
-      .boolean("interrupted", r.interrupted)
-      .raw("seconds", seconds_text(seconds));
+      .boolean("interrupted", r.interrupted);
+  if (spread) {
+    // Replicas: K_error (and Kc_error, cos_phi_error) is the larger of the two below; time,
+    // steps and newton_solves add up over the replicas, the energy errors are the largest.
+    json.integer("replicas", static_cast<long long>(spread->replicas))
+        .integer("replicas_requested", static_cast<long long>(spread->requested))
+        .raw("K_error_blocking", number_array(spread->kinetic_blocking))
+        .raw("K_error_replicas", number_array(spread->kinetic_replicas))
+        .raw("Kc_error_blocking", number_array(spread->canonical_blocking))
+        .raw("Kc_error_replicas", number_array(spread->canonical_replicas))
+        .raw("cos_phi_error_blocking", number_array(spread->cosine_blocking))
+        .raw("cos_phi_error_replicas", number_array(spread->cosine_replicas))
+        .raw("replica_time", number(run.duration))
+        .raw("replica_energy_spread", decimal(spread->energy_spread, 3));
+    if (spread->replicas < 2)
+      json.string("replicas_error_reason", "fewer than two replicas finished");
+  }
+  json.raw("seconds", seconds_text(seconds));
   return json.str() + "\n";
 }
 

@@ -12,10 +12,10 @@ namespace pendavg::cli {
 extern const std::string_view simulate_usage;
 extern const std::string_view poincare_usage;
 
-inline constexpr std::array<std::string_view, 18> simulate_options{
+inline constexpr std::array<std::string_view, 20> simulate_options{
     "masses",     "lengths", "g",    "theta",  "phi",      "phidot",     "time",
     "dt",         "burn-in", "integrator", "thermostat", "beta", "friction", "seed",
-    "exact",      "format",  "trajectory", "every"};
+    "exact",      "format",  "trajectory", "every", "replicas", "perturb"};
 inline constexpr std::array<std::string_view, 8> poincare_options{
     "masses", "lengths", "g", "energy", "orbits", "points", "dt", "output"};
 

@@ -1,12 +1,17 @@
-// src/cli/table.cpp -- `pendavg table`: every combination of swept parameters, one CSV row each,
-// computed in parallel across points (one thread per point, so the numbers do not depend on the
-// thread count), rows in a fixed order, written atomically (temporary file + rename).
+// src/cli/table.cpp -- `pendavg table`: every combination of swept parameters, one CSV row each.
+// Every point is checked first; then the rows are generated from their index and computed by
+// the sweep engine (sweep.hpp: every rank and thread, one thread per row, so the numbers do not
+// depend on either), streamed in a fixed order to stdout or to a file written atomically
+// (temporary file + rename), and an interrupted sweep can be resumed from its file.
 #include "table.hpp"
 
 #include "average_options.hpp"
+#include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
 #include "interrupt.hpp"
+#include "sweep.hpp"
+#include "sweep_file.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -22,6 +27,7 @@
 #include <ctime>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <type_traits>
 #include <utility>
@@ -35,10 +41,11 @@ namespace pendavg::cli {
 
 const std::string_view table_usage =
     "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g SPEC]\n"
-    "                     [--digits LIST] [--method auto|integral|series] [--output FILE.csv]\n"
+    "                     [--digits LIST] [--method auto|integral|series]\n"
+    "                     [--output FILE.csv | --resume FILE.csv]\n"
     "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
     "                     [--method auto|torus-trapezoid|qmc] [--samples S] [--shifts R]\n"
-    "                     [--seed K] [--output FILE.csv]\n"
+    "                     [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
     "\n"
     "A parameter sweep: one CSV row per combination of the values. SPEC is one of\n"
     "  log:A:B:N   N values log-spaced from A to B (N >= 2; the ends are A and B as written)\n"
@@ -67,14 +74,23 @@ const std::string_view table_usage =
     "The CSV starts with '#' lines naming every swept value, the method (and qmc's samples,\n"
     "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
-    "place (nothing is left behind on error); without --output the CSV goes to stdout.\n"
+    "place (nothing is left behind on error or on a signal); a symbolic link is followed, a\n"
+    "device or FIFO is written in place; without --output the CSV goes to stdout. Rows are\n"
+    "streamed as they finish (memory does not grow with the number of rows).\n"
     "Progress goes to stderr (\"[table] 120/366 points\") when a sweep runs for over 2 s.\n"
-    "SIGINT/SIGTERM stop a sweep early: the points already computed are still written, after a\n"
-    "'# interrupted: K of N points computed' line.\n";
+    "SIGINT/SIGTERM stop a sweep early: rows still running get a second to finish, then every\n"
+    "finished row is written, in order, followed by an '# interrupted: K of N points\n"
+    "computed' line. --resume FILE continues such a file: FILE's header must match this sweep\n"
+    "(parameters, method, digits, version; not the date), its rows are kept and the missing\n"
+    "ones computed, and FILE is rewritten as an uninterrupted run writes it (a FILE that does\n"
+    "not exist yet is simply written: a batch job can always pass --resume).\n"
+    "Under mpirun/srun (pendavg built with MPI) the rows are shared by all ranks (OpenMP threads\n"
+    "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n";
 
 namespace {
 
-constexpr long max_sweep_points = 100000;
+constexpr long max_sweep_points = 100000;         // values of one swept variable
+constexpr std::size_t max_sweep_rows = 100000000;  // rows of a table (they are streamed)
 constexpr int max_decimal_scale = 4000;  // digits after the point in one_minus_decimal
 
 /// Shortest round-trip decimal of a double.
@@ -270,88 +286,92 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   return out;
 }
 
-/// "[table] k/count points" on stderr, at most every 2 s, once the sweep has run for 2 s.
-struct Progress {
-  std::size_t count = 0;
-  std::atomic<std::size_t> done{0};
-  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
-  double last_report = 0;
-  bool reported = false;
-
-  void finished_one() {
-    const std::size_t finished = ++done;
-    const double elapsed =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-#pragma omp critical(pendavg_table_progress)
-    if (elapsed - last_report >= 2 || (reported && finished == count)) {
-      std::fprintf(stderr, "[table] %zu/%zu points\n", finished, count);
-      last_report = elapsed;
-      reported = true;
-    }
+/// The rows of a sweep, generated one at a time from their index (never all at once: a chain of
+/// 256 over 1e5 betas would be 1.6 GB of decimal strings). Rows are the (N, digits) pairs that
+/// run (a qmc N has no MPFR rows), outermost, each with the product of the other sweeps; the
+/// last sweep varies fastest.
+class PointSpace {
+ public:
+  PointSpace(const TablePlan& plan, const std::vector<Sweep>& sweeps,
+             const std::function<bool(std::size_t particles, int digits)>& runs)
+      : plan_(plan) {
+    // chain (with --chain) and digits are integer lists, never ranges: they lead the nesting.
+    const std::size_t leading = plan.chain ? 2 : 1;
+    const std::vector<std::string> default_n{"2"};
+    const std::vector<std::string>& n_values = plan.chain ? sweeps[0].values : default_n;
+    for (const std::string& n : n_values)
+      for (const std::string& digits : sweeps[leading - 1].values)
+        if (runs(std::stoul(n), std::stoi(digits)))
+          pairs_.push_back({std::stoul(n), std::stoi(digits)});
+    for (std::size_t s = leading; s < sweeps.size(); ++s) inner_.push_back(&sweeps[s]);
+    per_pair_ = 1;
+    for (const Sweep* sweep : inner_) per_pair_ *= sweep->values.size();
   }
+  std::size_t count() const { return pairs_.size() * per_pair_; }
+
+  /// Row `index`; `options(N, digits)` gives the options its row passes to the library.
+  Point point(std::size_t index,
+              const std::function<AverageOptions(std::size_t, int)>& options) const {
+    const auto [particles, digits] = pairs_[index / per_pair_];
+    std::size_t rest = index % per_pair_;
+    Point point;
+    point.particles = particles;
+    std::string mu1 = "0.5", l1 = "1", l2 = "1";
+    for (std::size_t s = inner_.size(); s-- > 0;) {
+      const Sweep& sweep = *inner_[s];
+      const std::string& value = sweep.values[rest % sweep.values.size()];
+      rest /= sweep.values.size();
+      if (sweep.name == "beta") point.beta = value;
+      else if (sweep.name == "g") point.g = value;
+      else if (sweep.name == "mu1") mu1 = value;
+      else if (sweep.name == "l1") l1 = value;
+      else l2 = value;
+    }
+    if (plan_.chain) {
+      point.masses.assign(particles, "1");
+      point.lengths.assign(particles, "1");
+    } else {
+      point.masses = {mu1, one_minus_decimal(mu1, "--mu1")};
+      point.lengths = {l1, l2};
+    }
+    point.options = options(particles, digits);
+    return point;
+  }
+
+ private:
+  const TablePlan& plan_;
+  std::vector<std::pair<std::size_t, int>> pairs_;
+  std::vector<const Sweep*> inner_;
+  std::size_t per_pair_ = 1;
 };
 
-/// Evaluates the points `indices` (all of one digits value) on all cores, one thread per point;
-/// each row lands in its slot of `rows`.
+/// Checks one point as the library will see it (numbers at the row's precision, the chain,
+/// the method's domain), without computing it.
 template <class Real>
-void table_rows(const std::vector<Point>& points, const std::vector<std::size_t>& indices,
-                const TablePlan& plan, std::vector<std::string>& rows,
-                std::vector<std::exception_ptr>& errors, Progress& progress) {
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long i = 0; i < static_cast<long>(indices.size()); ++i) {
-    const std::size_t k = indices[static_cast<std::size_t>(i)];
-    if (stop_flag().load(std::memory_order_relaxed)) continue;  // SIGINT: finish what runs
-    try {
-      rows[k] = table_row<Real>(points[k], plan);
-    } catch (...) {
-      errors[k] = std::current_exception();
-    }
-    progress.finished_one();
-  }
+void check_point(const Point& point) {
+  std::optional<working_precision> precision;
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
+  const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
+  const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
+  std::vector<Real> masses, lengths;
+  for (const std::string& mass : point.masses)
+    masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
+  for (const std::string& length : point.lengths)
+    lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
+  check_average(Chain<Real>(std::move(masses), std::move(lengths), g), beta, point.options);
 }
 
-/// The rows of every point, in point order. Points are grouped by digits (ascending); each
-/// group runs in parallel under its own working precision. The first failing point (in point
-/// order) is reported.
-std::vector<std::string> compute_rows(const std::vector<Point>& points, const TablePlan& plan) {
-  const std::size_t count = points.size();
-  std::vector<std::string> rows(count);
-  std::vector<std::exception_ptr> errors(count);
-  Progress progress;
-  progress.count = count;
-  std::vector<int> digit_groups;
-  for (const Point& point : points) digit_groups.push_back(point.options.digits);
-  std::ranges::sort(digit_groups);
-  digit_groups.erase(std::unique(digit_groups.begin(), digit_groups.end()), digit_groups.end());
-  for (const int digits : digit_groups) {
-    std::vector<std::size_t> indices;
-    for (std::size_t k = 0; k < count; ++k)
-      if (points[k].options.digits == digits) indices.push_back(k);
-    if (digits == min_digits) {
-      table_rows<double>(points, indices, plan, rows, errors, progress);
-    } else {
-      table_rows<mpfr_real>(points, indices, plan, rows, errors, progress);
-    }
-  }
-  for (std::size_t k = 0; k < count; ++k) {
-    if (!errors[k]) continue;
-    try {
-      std::rethrow_exception(errors[k]);
-    } catch (const invalid_input& bad) {
-      throw usage_error("table: point (" + points[k].describe() + "): " + bad.what());
-    }
-  }
-  return rows;
-}
-
-
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof buffer, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buffer;
+/// The leading fields of a row (N, digits, beta, g, masses, lengths, padded to `width`): what
+/// identifies it in a resumed file.
+std::string row_key(const Point& point, std::size_t width) {
+  std::vector<std::string> fields{std::to_string(point.particles),
+                                  std::to_string(point.options.digits), point.beta, point.g};
+  add_padded(fields, point.masses, width);
+  add_padded(fields, point.lengths, width);
+  std::string key;
+  append_csv_line(key, fields);
+  key.pop_back();
+  return key;
 }
 
 }  // namespace
@@ -433,8 +453,8 @@ std::string table_command(const Options& options) {
   std::size_t combinations = 1;
   for (const Sweep& s : sweeps) {
     combinations *= s.values.size();
-    if (combinations > static_cast<std::size_t>(max_sweep_points))
-      throw usage_error("table: more than " + std::to_string(max_sweep_points) + " points");
+    if (combinations > max_sweep_rows)
+      throw usage_error("table: more than " + std::to_string(max_sweep_rows) + " points");
   }
   const auto sweep_named = [&](std::string_view name) -> const Sweep* {
     const auto found = std::ranges::find(sweeps, name, &Sweep::name);
@@ -495,47 +515,38 @@ std::string table_command(const Options& options) {
     throw usage_error("table: N = " + join_values(qmc_n) + " runs qmc, which is double only, but "
                       "--digits has no 16");
 
+  // Where the rows go: --output FILE, or --resume FILE (continued and rewritten), or stdout.
   const std::string output(options.get("output", ""));
-  if (options.has("output")) {
-    if (output.empty()) throw usage_error("table: --output needs a file name");
-    probe_output(output, "table");
-  }
+  const std::string resume(options.get("resume", ""));
+  if (options.has("output") && output.empty()) throw usage_error("table: --output needs a file name");
+  if (options.has("resume") && resume.empty()) throw usage_error("table: --resume needs a file name");
+  if (!resume.empty() && !output.empty() && resolved_path(output, "table") != resolved_path(resume, "table"))
+    throw usage_error("table: --resume FILE continues FILE and writes it; --output must name the "
+                      "same file or be left out");
+  const std::string target = resume.empty() ? output : resume;
 
-  // Points in row order: the last sweep varies fastest. A qmc N skips its MPFR digits.
-  std::vector<Point> points;
-  points.reserve(combinations);
-  std::vector<std::size_t> index(sweeps.size(), 0);
-  for (std::size_t k = 0; k < combinations; ++k) {
-    Point point;
-    int digits = min_digits;
-    std::string mu1 = "0.5", l1 = "1", l2 = "1";
-    for (std::size_t s = 0; s < sweeps.size(); ++s) {
-      const std::string& value = sweeps[s].values[index[s]];
-      const std::string& name = sweeps[s].name;
-      if (name == "beta") point.beta = value;
-      else if (name == "g") point.g = value;
-      else if (name == "chain") point.particles = std::stoul(value);
-      else if (name == "digits") digits = std::stoi(value);
-      else if (name == "mu1") mu1 = value;
-      else if (name == "l1") l1 = value;
-      else l2 = value;
+  // Every point is checked before any is computed (numbers, chain, the method's domain). From
+  // here on SIGINT/SIGTERM stop the sweep (also while the points are being checked).
+  const StopOnSignal signals;
+  const PointSpace space(plan, sweeps, [&](std::size_t n, int digits) {
+    return digits == min_digits || !is_qmc(n);  // a qmc N has no MPFR rows
+  });
+  const auto row_options = [&](std::size_t n, int digits) {
+    return row_method(plan, n, digits).options;
+  };
+  const std::size_t row_count = space.count();
+  const auto check = [&](std::size_t k) {
+    const Point point = space.point(k, row_options);
+    try {
+      if (point.options.digits == min_digits) check_point<double>(point);
+      else check_point<mpfr_real>(point);
+    } catch (const invalid_input& bad) {
+      throw usage_error("table: point (" + point.describe() + "): " + bad.what());
     }
-    if (plan.chain) {
-      point.masses.assign(point.particles, "1");
-      point.lengths.assign(point.particles, "1");
-    } else {
-      point.masses = {mu1, one_minus_decimal(mu1, "--mu1")};
-      point.lengths = {l1, l2};
-    }
-    if (digits == min_digits || !is_qmc(point.particles)) {
-      point.options = row_method(plan, point.particles, digits).options;
-      points.push_back(std::move(point));
-    }
-    for (std::size_t s = sweeps.size(); s-- > 0;) {
-      if (++index[s] < sweeps[s].values.size()) break;
-      index[s] = 0;
-    }
-  }
+  };
+  const int threads = hardware_threads();
+  if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
+    check(bad);  // throws the first bad point's error, on every rank
 
   std::string out;
   if (plan.chain) {
@@ -551,9 +562,9 @@ std::string table_command(const Options& options) {
   std::string nesting;
   for (const Sweep& s : sweeps)
     nesting += (nesting.empty() ? "" : ", ") + (s.name == "chain" ? std::string("N") : s.name);
-  out += "# rows = " + std::to_string(points.size()) + ", nested " + nesting +
+  out += "# rows = " + std::to_string(row_count) + ", nested " + nesting +
          " (outermost first; the last varies fastest)";
-  if (points.size() < combinations)
+  if (row_count < combinations)
     out += "; qmc is double only, so N = " + join_values(qmc_n) + " has rows at digits = 16 only";
   out += "\n# method = " + plan.method;
   if (plan.chain) {
@@ -578,7 +589,7 @@ std::string table_command(const Options& options) {
       std::ranges::min(particle_values) < plan.columns_particles)
     out += "# per-particle columns run to N = " + std::to_string(plan.columns_particles) +
            "; a row of a shorter chain leaves the cells beyond its N empty\n";
-  out += "# pendavg " + std::string(version()) + ", generated " + utc_now() + " (UTC)\n";
+  out += "# pendavg " + std::string(version()) + ", generated " + utc_timestamp() + " (UTC)\n";
   std::vector<std::string> header{"N", "digits"};
   const std::vector<std::string> cases = case_columns(plan.columns_particles);
   header.insert(header.end(), cases.begin(), cases.end());
@@ -597,23 +608,62 @@ std::string table_command(const Options& options) {
   }
   append_csv_line(out, header);
 
-  std::vector<std::string> rows;
+
+  // Rank 0 checks the output (and reads a resumed file); every rank learns the verdict.
+  std::optional<ResumedRows> resumed;
+  std::string verdict;
+  if (is_root()) {
+    try {
+      if (!target.empty()) probe_output(target, "table");
+      if (!resume.empty() && std::filesystem::exists(resume))
+        resumed.emplace(resume, "table", out, row_count, 4 + 2 * plan.columns_particles,
+                        [&](std::size_t k) {
+                          return row_key(space.point(k, row_options), plan.columns_particles);
+                        });
+    } catch (const invalid_input& bad) {
+      verdict = bad.what();
+    }
+  }
+  verdict = broadcast_from_root(verdict);
+  if (!verdict.empty()) throw usage_error(verdict);
+
+  std::optional<SweepFile> file;
+  if (is_root()) file.emplace(target, "table", out, resumed ? &*resumed : nullptr);
+  SweepRows rows;
+  rows.count = row_count;
+  rows.threads = threads;
+  rows.progress = "table";
+  rows.unit = "points";
   {
-    const StopOnSignal signals;
-    rows = compute_rows(points, plan);
+    int most_digits = min_digits;
+    for (const std::string& d : sweep_named("digits")->values) most_digits = std::max(most_digits, std::stoi(d));
+    const std::size_t m = plan.columns_particles;
+    rows.row_bytes = (6 * m + 3) * (decimal_max_length(most_digits) + 1) +
+                     (2 * m + 2) * 32 + 4 * m + 64;
   }
-  const auto finished = static_cast<std::size_t>(
-      std::ranges::count_if(rows, [](const std::string& row) { return !row.empty(); }));
-  if (finished < rows.size()) {
-    // Interrupted (SIGINT/SIGTERM): keep every finished row, say so in the file and on stderr.
-    out += "# interrupted: " + std::to_string(finished) + " of " + std::to_string(rows.size()) +
-           " points computed; the rows of the others are left out\n";
-    std::fprintf(stderr, "[table] interrupted: %zu of %zu points written\n", finished,
-                 rows.size());
-  }
-  for (const std::string& row : rows) out += row;
-  if (output.empty()) return out;
-  write_atomically(output, out, "table");
+  rows.compute = [&](std::size_t k, int, std::string& text) {
+    const Point point = space.point(k, row_options);
+    text += point.options.digits == min_digits ? table_row<double>(point, plan)
+                                               : table_row<mpfr_real>(point, plan);
+  };
+  run_sweep(rows, file ? &*file : nullptr, [&](const SweepOutcome& outcome) {
+    if (outcome.failed) {
+      file->discard();
+      rethrow_failure(outcome, [&](std::size_t k) {
+        return "table: point (" + space.point(k, row_options).describe() + "): ";
+      });
+    }
+    if (outcome.written < row_count) {
+      // Interrupted (SIGINT/SIGTERM): every finished row is kept; say so in the file and on
+      // stderr. --resume FILE computes the others.
+      file->append("# interrupted: " + std::to_string(outcome.written) + " of " +
+                   std::to_string(row_count) +
+                   " points computed; the rows of the others are left out\n");
+      std::fprintf(stderr, "[table] interrupted: %zu of %zu points written\n", outcome.written,
+                   row_count);
+    }
+    file->commit();
+  });
   return {};
 }
 

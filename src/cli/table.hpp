@@ -11,12 +11,12 @@ namespace pendavg::cli {
 
 extern const std::string_view table_usage;
 
-inline constexpr std::array<std::string_view, 12> table_options{
-    "beta",   "mu1",    "l1",      "l2",     "g",      "chain",
-    "digits", "method", "samples", "shifts", "seed",   "output"};
+inline constexpr std::array<std::string_view, 13> table_options{
+    "beta",   "mu1",    "l1",      "l2",     "g",      "chain", "digits",
+    "method", "samples", "shifts", "seed",   "output", "resume"};
 
-/// Runs `pendavg table`: returns the CSV (for stdout) when --output is absent, otherwise
-/// writes it to --output through a temporary file in the same directory and returns "".
+/// Runs `pendavg table`: streams the CSV to stdout, or to --output (or --resume) through a
+/// temporary file in the same directory; returns "".
 std::string table_command(const Options& options);
 
 /// 1 - x for a strict positive decimal x < 1, exactly, as a plain decimal string ("0.95" for

@@ -77,6 +77,7 @@
 
 #include "engine/bessel.hpp"
 #include "engine/estimates.hpp"
+#include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "engine/detail/qmc_lattices.hpp"
 #include "engine/precision.hpp"
@@ -95,6 +96,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -931,6 +933,8 @@ struct QmcOptions {
   QmcProposal proposal = QmcProposal::automatic;
   /// Nodes of the tabulated conditional law per angle (pivot_sequential), >= 4.
   std::size_t proposal_grid = 32;
+  /// Shares the shifts with other processes (pendavg/average.hpp, ShiftPartition; double only).
+  const ShiftPartition* partition = nullptr;
 };
 
 namespace detail::qmc {
@@ -1407,6 +1411,69 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
   return sums;
 }
 
+/// The shifts [first, last) that this part of a ShiftPartition computes (all without one).
+struct ShiftRange {
+  std::size_t first = 0, last = 0;
+};
+inline ShiftRange shift_range(const ShiftPartition* partition, std::size_t shifts) {
+  if (!partition) return {0, shifts};
+  const auto part = static_cast<std::size_t>(partition->part());
+  const auto parts = static_cast<std::size_t>(partition->parts());
+  return {shifts * part / parts, shifts * (part + 1) / parts};
+}
+
+/// Hands every part the sums of all shifts: each part packs its own shifts' sums (both words of
+/// every compensated sum, and the scale), all_gather concatenates them in part order, which is
+/// shift order, and they are unpacked exactly.
+template <class Real>
+void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Real>>& sums) {
+  if constexpr (!std::is_same_v<Real, double>) {
+    throw invalid_input("qmc_average: a shift partition is for double runs");
+  } else {
+    const std::size_t shifts = sums.size();
+    const ShiftRange mine = shift_range(&partition, shifts);
+    const std::size_t n = sums.empty() ? 0 : sums[0].trace.size();
+    const std::size_t width = 5 + 6 * n;  // doubles per shift
+    std::vector<double> local;
+    local.reserve((mine.last - mine.first) * width);
+    for (std::size_t r = mine.first; r < mine.last; ++r) {
+      const ShiftSums<double>& s = sums[r];
+      const auto put = [&](const detail::torus::CompensatedSum<double>& c) {
+        local.push_back(c.sum);
+        local.push_back(c.compensation);
+      };
+      put(s.weight);
+      put(s.weight_squared);
+      for (std::size_t i = 0; i < n; ++i) {
+        put(s.trace[i]);
+        put(s.second_moment[i]);
+        put(s.cosine[i]);
+      }
+      local.push_back(s.log_scale);
+    }
+    const std::vector<double> all = partition.all_gather(local);
+    if (all.size() != shifts * width)
+      throw std::logic_error("qmc_average: the shift partition gathered " +
+                             std::to_string(all.size()) + " values, expected " +
+                             std::to_string(shifts * width));
+    std::size_t k = 0;
+    for (ShiftSums<double>& s : sums) {
+      const auto get = [&](detail::torus::CompensatedSum<double>& c) {
+        c.sum = all[k++];
+        c.compensation = all[k++];
+      };
+      get(s.weight);
+      get(s.weight_squared);
+      for (std::size_t i = 0; i < n; ++i) {
+        get(s.trace[i]);
+        get(s.second_moment[i]);
+        get(s.cosine[i]);
+      }
+      s.log_scale = all[k++];
+    }
+  }
+}
+
 }  // namespace detail::qmc
 
 /// Randomized lattice QMC estimate of the averages (see the comment above QmcOptions).
@@ -1455,12 +1522,14 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const std::vector<std::vector<Real>> shift = random_shifts<Real>(shifts, n, options.seed);
   std::vector<ShiftSums<Real>> sums(shifts, ShiftSums<Real>(n));
   ParallelErrors errors;  // an exception may not leave the parallel region
+  const ShiftRange mine = shift_range(options.partition, shifts);
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(options.threads, 1);
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
 #endif
-  for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
+  for (std::ptrdiff_t r = static_cast<std::ptrdiff_t>(mine.first);
+       r < static_cast<std::ptrdiff_t>(mine.last); ++r) {
     errors.capture([&] {
       sums[static_cast<std::size_t>(r)] =
           shifted_lattice_sums(chain, constants, sampler, shift[static_cast<std::size_t>(r)],
@@ -1469,6 +1538,7 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   }
   errors.rethrow();
   (void)team;
+  if (options.partition) gather_shift_sums(*options.partition, sums);
 
   // Totals and delete-one-shift totals; every quantity is a function of sums, so the jackknife
   // applies to each: Var_jack = (R - 1)/R sum_r (theta_(r) - mean)^2.

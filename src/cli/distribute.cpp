@@ -1,0 +1,43 @@
+// src/cli/distribute.cpp -- what both builds share (see distribute.hpp): failure reports.
+#include "distribute.hpp"
+
+#include "pendavg/chain.hpp"
+#include "pendavg/result.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <string>
+
+namespace pendavg::cli {
+
+namespace {
+
+constexpr int exit_bad_input = 2;
+constexpr int exit_internal_error = 1;
+constexpr int exit_interrupted = 130;  // 128 + SIGINT, as a shell reports it
+
+int report(std::string_view kind, std::string message, int exit_code) {
+  if (!is_root()) return exit_code;  // every rank meets the same bad input; rank 0 says it
+  std::ranges::replace(message, '\n', ' ');  // one line, whatever the message
+  std::fprintf(stderr, "pendavg: %.*s: %s\n", static_cast<int>(kind.size()), kind.data(),
+               message.c_str());
+  return exit_code;
+}
+
+}  // namespace
+
+int report_failure(const std::exception_ptr& failure) {
+  try {
+    std::rethrow_exception(failure);
+  } catch (const invalid_input& bad) {
+    return report("error", bad.what(), exit_bad_input);
+  } catch (const interrupted& stopped) {
+    return report("interrupted", stopped.what(), exit_interrupted);
+  } catch (const std::exception& error) {
+    return report("internal error", error.what(), exit_internal_error);
+  } catch (...) {
+    return report("internal error", "unknown exception", exit_internal_error);
+  }
+}
+
+}  // namespace pendavg::cli

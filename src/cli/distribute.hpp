@@ -1,0 +1,77 @@
+// src/cli/distribute.hpp -- the processes of one pendavg run: a single process (a plain run, or
+// a build without MPI), or the ranks of an MPI job (pendavg built with MPI and started by
+// mpirun or srun). Everything MPI is behind this interface (distribute_mpi.cpp; the build
+// without MPI compiles distribute_serial.cpp instead), and the library never sees it.
+//
+// Rank 0 reads what must be read once, prints, and writes the output files; every rank parses
+// the command line and computes. The sweep engine (sweep.hpp) sends rows between ranks with
+// post() and receive(); the rest are collectives that every rank calls in the same order.
+#pragma once
+
+#include "pendavg/average.hpp"
+
+#include <cstdint>
+#include <exception>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace pendavg::cli {
+
+/// Joins the MPI job when the process was started by an MPI launcher (mpirun, mpiexec, srun;
+/// PENDAVG_MPI=1 forces it, =0 prevents it) and leaves it on destruction. One per process, in
+/// main(). Without MPI it does nothing.
+class ProcessGroup {
+ public:
+  ProcessGroup(int& argc, char**& argv);
+  ~ProcessGroup();
+  ProcessGroup(const ProcessGroup&) = delete;
+  ProcessGroup& operator=(const ProcessGroup&) = delete;
+};
+
+int rank();   ///< this process' rank (0 in a plain run)
+int ranks();  ///< the number of ranks (1 in a plain run)
+inline bool is_root() { return rank() == 0; }
+/// "MPI, K ranks" or "no MPI": for messages and the --version line.
+std::string distribution_text();
+
+/// Collective: the smallest `value` over the ranks.
+std::uint64_t min_over_ranks(std::uint64_t value);
+/// Collective: rank 0's `text` on every rank.
+std::string broadcast_from_root(std::string text);
+/// Collective: every rank's `local` values concatenated in rank order, on every rank.
+std::vector<double> all_gather(std::span<const double> local);
+/// Collective: every rank's `local` bytes, in rank order, on rank 0 (empty elsewhere).
+std::vector<std::string> gather_to_root(const std::string& local);
+
+/// The shifts of one qmc average shared by all ranks (pendavg::ShiftPartition); null in a plain
+/// run.
+const ShiftPartition* shift_partition();
+
+/// A point-to-point message of the sweep engine.
+struct Message {
+  int source = 0;
+  int tag = 0;
+  std::string payload;
+};
+/// Sends `payload` to `destination` without waiting (the payload is kept until it is sent).
+void post(int destination, int tag, std::string payload);
+/// The next message that has arrived, if any (never waits).
+std::optional<Message> receive();
+/// True while some posted message has not been sent yet (also advances them).
+bool sends_pending();
+/// True while a message is being sent or received (a long one needs both sides to call MPI
+/// often until it is through).
+bool transfers_pending();
+
+/// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
+/// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for
+/// `failure`, on rank 0 only; one line.
+int report_failure(const std::exception_ptr& failure);
+
+/// Ends the process now with `code`, after flushing stdio and leaving the MPI job: for a run
+/// whose compute threads were left behind (an interrupted sweep with rows still running).
+[[noreturn]] void exit_process(int code);
+
+}  // namespace pendavg::cli

@@ -1,0 +1,229 @@
+// src/cli/distribute_mpi.cpp -- distribute.hpp over MPI (the build with MPI). Only the main
+// thread calls MPI (MPI_THREAD_FUNNELED): the sweep engine's coordinator runs there and its
+// compute threads never communicate.
+#include "distribute.hpp"
+
+#include <mpi.h>
+
+#include <climits>
+#include <cstdio>
+#include <deque>
+#include <cstdlib>
+#include <list>
+#include <stdexcept>
+
+namespace pendavg::cli {
+
+namespace {
+
+bool joined = false;  // MPI_Init_thread was called by us
+MPI_Comm world = MPI_COMM_NULL;
+int my_rank = 0, my_size = 1;
+
+/// Started by an MPI launcher? OpenMPI's mpirun, PMIx (srun --mpi=pmix, prterun), PMI-1/2
+/// (MPICH's hydra, srun --mpi=pmi2).
+bool launched_by_mpi() {
+  if (const char* forced = std::getenv("PENDAVG_MPI"); forced && *forced)
+    return std::string_view(forced) != "0";
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
+    if (std::getenv(name)) return true;
+  return false;
+}
+
+void check(int status, const char* what) {
+  if (status != MPI_SUCCESS) throw std::runtime_error(std::string("MPI: ") + what + " failed");
+}
+
+struct PendingSend {
+  std::string payload;
+  MPI_Request request = MPI_REQUEST_NULL;
+};
+std::list<PendingSend> pending_sends;
+
+/// Messages being received, in arrival order: a long one (a chunk's rows) goes by rendezvous
+/// and needs both sides to make progress, so it is received without waiting (MPI_Imrecv) and
+/// handed out only when complete, in order.
+struct PendingReceive {
+  Message message;
+  MPI_Request request = MPI_REQUEST_NULL;
+};
+std::deque<PendingReceive> pending_receives;
+
+int byte_count(std::size_t size) {
+  if (size > static_cast<std::size_t>(INT_MAX))
+    throw std::runtime_error("MPI: a message of " + std::to_string(size) + " bytes is too long");
+  return static_cast<int>(size);
+}
+
+class RankPartition final : public ShiftPartition {
+ public:
+  int part() const override { return my_rank; }
+  int parts() const override { return my_size; }
+  std::vector<double> all_gather(std::span<const double> local) const override {
+    return cli::all_gather(local);
+  }
+};
+const RankPartition rank_partition;
+
+}  // namespace
+
+ProcessGroup::ProcessGroup(int& argc, char**& argv) {
+  if (!launched_by_mpi()) return;
+  int provided = 0;
+  if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+    std::fprintf(stderr, "pendavg: internal error: MPI_Init_thread failed\n");
+    std::exit(1);
+  }
+  joined = true;
+  MPI_Comm_dup(MPI_COMM_WORLD, &world);
+  MPI_Comm_rank(world, &my_rank);
+  MPI_Comm_size(world, &my_size);
+  if (provided < MPI_THREAD_FUNNELED && my_size > 1) {
+    if (my_rank == 0)
+      std::fprintf(stderr, "pendavg: internal error: the MPI library does not provide "
+                           "MPI_THREAD_FUNNELED\n");
+    MPI_Abort(world, 1);
+  }
+}
+
+ProcessGroup::~ProcessGroup() {
+  if (!joined) return;
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (finalized) return;
+  while (sends_pending()) {
+  }
+  MPI_Comm_free(&world);
+  MPI_Finalize();
+}
+
+int rank() { return my_rank; }
+int ranks() { return my_size; }
+std::string distribution_text() {
+  return joined ? "MPI, " + std::to_string(my_size) + (my_size == 1 ? " rank" : " ranks")
+                : "built with MPI, not started by an MPI launcher";
+}
+
+std::uint64_t min_over_ranks(std::uint64_t value) {
+  if (my_size == 1) return value;
+  std::uint64_t smallest = value;
+  check(MPI_Allreduce(&value, &smallest, 1, MPI_UINT64_T, MPI_MIN, world), "MPI_Allreduce");
+  return smallest;
+}
+
+std::string broadcast_from_root(std::string text) {
+  if (my_size == 1) return text;
+  unsigned long long size = text.size();
+  check(MPI_Bcast(&size, 1, MPI_UNSIGNED_LONG_LONG, 0, world), "MPI_Bcast");
+  text.resize(static_cast<std::size_t>(size));
+  check(MPI_Bcast(text.data(), byte_count(text.size()), MPI_BYTE, 0, world), "MPI_Bcast");
+  return text;
+}
+
+std::vector<double> all_gather(std::span<const double> local) {
+  if (my_size == 1) return {local.begin(), local.end()};
+  const int mine = byte_count(local.size() * sizeof(double)) / static_cast<int>(sizeof(double));
+  std::vector<int> counts(static_cast<std::size_t>(my_size)), offsets(counts.size());
+  check(MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, world), "MPI_Allgather");
+  std::size_t total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    offsets[r] = static_cast<int>(total);
+    total += static_cast<std::size_t>(counts[r]);
+  }
+  std::vector<double> all(total);
+  check(MPI_Allgatherv(local.data(), mine, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
+                       MPI_DOUBLE, world),
+        "MPI_Allgatherv");
+  return all;
+}
+
+std::vector<std::string> gather_to_root(const std::string& local) {
+  if (my_size == 1) return {local};
+  const int mine = byte_count(local.size());
+  std::vector<int> counts(static_cast<std::size_t>(my_size)), offsets(counts.size());
+  check(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, world), "MPI_Gather");
+  std::string all;
+  if (my_rank == 0) {
+    std::size_t total = 0;
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      offsets[r] = byte_count(total);
+      total += static_cast<std::size_t>(counts[r]);
+    }
+    all.resize(total);
+  }
+  check(MPI_Gatherv(local.data(), mine, MPI_BYTE, all.data(), counts.data(), offsets.data(),
+                    MPI_BYTE, 0, world),
+        "MPI_Gatherv");
+  if (my_rank != 0) return {};
+  std::vector<std::string> parts;
+  for (std::size_t r = 0; r < counts.size(); ++r)
+    parts.push_back(all.substr(static_cast<std::size_t>(offsets[r]),
+                               static_cast<std::size_t>(counts[r])));
+  return parts;
+}
+
+const ShiftPartition* shift_partition() { return my_size > 1 ? &rank_partition : nullptr; }
+
+void post(int destination, int tag, std::string payload) {
+  PendingSend& send = pending_sends.emplace_back();
+  send.payload = std::move(payload);
+  check(MPI_Isend(send.payload.data(), byte_count(send.payload.size()), MPI_BYTE, destination,
+                  tag, world, &send.request),
+        "MPI_Isend");
+}
+
+std::optional<Message> receive() {
+  if (!joined) return std::nullopt;
+  for (;;) {  // start receiving everything that has arrived
+    int arrived = 0;
+    MPI_Message handle;
+    MPI_Status status;
+    check(MPI_Improbe(MPI_ANY_SOURCE, MPI_ANY_TAG, world, &arrived, &handle, &status),
+          "MPI_Improbe");
+    if (!arrived) break;
+    int size = 0;
+    MPI_Get_count(&status, MPI_BYTE, &size);
+    PendingReceive& receiving = pending_receives.emplace_back();
+    receiving.message.source = status.MPI_SOURCE;
+    receiving.message.tag = status.MPI_TAG;
+    receiving.message.payload.resize(static_cast<std::size_t>(size));
+    check(MPI_Imrecv(receiving.message.payload.data(), size, MPI_BYTE, &handle,
+                     &receiving.request),
+          "MPI_Imrecv");
+  }
+  if (pending_receives.empty()) return std::nullopt;
+  int done = 0;
+  check(MPI_Test(&pending_receives.front().request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+  if (!done) return std::nullopt;
+  Message message = std::move(pending_receives.front().message);
+  pending_receives.pop_front();
+  return message;
+}
+
+bool sends_pending() {
+  for (auto it = pending_sends.begin(); it != pending_sends.end();) {
+    int done = 0;
+    check(MPI_Test(&it->request, &done, MPI_STATUS_IGNORE), "MPI_Test");
+    it = done ? pending_sends.erase(it) : std::next(it);
+  }
+  return !pending_sends.empty();
+}
+
+bool transfers_pending() { return sends_pending() || !pending_receives.empty(); }
+
+void exit_process(int code) {
+  std::fflush(stdout);
+  std::fflush(stderr);
+  if (joined) {
+    int finalized = 0;
+    MPI_Finalized(&finalized);
+    if (!finalized) {
+      while (sends_pending()) {
+      }
+      MPI_Finalize();
+    }
+  }
+  std::_Exit(code);
+}
+
+}  // namespace pendavg::cli

@@ -1,0 +1,793 @@
+// src/cli/sweep.cpp -- the sweep engine (see sweep.hpp): a coordinator on every rank's main
+// thread (rank 0's also schedules and writes), and a team of compute threads.
+#include "sweep.hpp"
+
+#include "distribute.hpp"
+#include "interrupt.hpp"
+
+#include "pendavg/chain.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <deque>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+
+#if defined(_OPENMP)
+#include <omp.h>
+#endif
+
+namespace pendavg::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// A chunk's aimed cost: 20 ms, or 50 us per compute thread of the job when that is more, so
+/// that rank 0 receives at most ~20,000 chunks a second (each costs it a few microseconds).
+constexpr double chunk_target_seconds = 0.02;
+constexpr double chunk_target_per_thread = 50e-6;
+/// Rows waiting to be written: 32 MB, and 128 kB more per compute thread of the job (the rows in
+/// flight grow with the threads: 160 MB at 1000).
+constexpr std::size_t reorder_budget_bytes = 32u << 20;
+constexpr std::size_t reorder_budget_per_thread = 128u << 10;
+constexpr std::size_t max_chunk_rows = 1u << 14;
+constexpr int chunks_per_thread = 2;                     ///< queued per compute thread
+
+// Message tags of the sweep protocol (distribute.hpp's post/receive).
+enum Tag : int {
+  tag_request = 101,  ///< rank -> 0: u64 chunks wanted
+  tag_grant,          ///< 0 -> rank: u64 n, n x (u64 first, u64 count), u8 exhausted
+  tag_result,         ///< rank -> 0: finished rows (pack_finished)
+  tag_stopping,       ///< rank -> 0: this rank got SIGINT/SIGTERM
+  tag_stop,           ///< 0 -> rank: start no more rows, report, then say finished
+  tag_finished,       ///< rank -> 0: u8 abandoned; every result was sent before
+  tag_done,           ///< 0 -> rank: the sweep is over
+};
+
+// ---------------------------------------------------------------- wire format
+
+class Packer {
+ public:
+  template <class T>
+  Packer& put(T value) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    bytes_.append(reinterpret_cast<const char*>(&value), sizeof value);
+    return *this;
+  }
+  Packer& put_text(std::string_view text) {
+    put<std::uint64_t>(text.size());
+    bytes_.append(text);
+    return *this;
+  }
+  std::string take() { return std::move(bytes_); }
+
+ private:
+  std::string bytes_;
+};
+
+class Unpacker {
+ public:
+  explicit Unpacker(const std::string& bytes) : bytes_(bytes) {}
+  template <class T>
+  T get() {
+    T value;
+    need(sizeof value);
+    std::memcpy(&value, bytes_.data() + position_, sizeof value);
+    position_ += sizeof value;
+    return value;
+  }
+  std::string_view get_text() {
+    const auto size = static_cast<std::size_t>(get<std::uint64_t>());
+    need(size);
+    const std::string_view text(bytes_.data() + position_, size);
+    position_ += size;
+    return text;
+  }
+
+ private:
+  void need(std::size_t size) const {
+    if (bytes_.size() - position_ < size) throw std::runtime_error("sweep: truncated message");
+  }
+  const std::string& bytes_;
+  std::size_t position_ = 0;
+};
+
+struct Range {
+  std::size_t first = 0, count = 0;
+};
+
+struct RowFailure {
+  std::size_t row = 0;
+  bool bad_input = false;
+  std::string message;
+};
+
+/// Rows first..first+count-1, finished by one thread (a chunk, or its start when the chunk was
+/// cut short by a stop or a failing row).
+struct Finished {
+  std::size_t first = 0, count = 0;
+  double seconds = 0;  ///< wall time of the chunk
+  std::string text;
+  std::vector<double> row_us;
+  std::optional<RowFailure> failure;  ///< row first + count failed
+};
+
+std::string pack_finished(const Finished& f) {
+  Packer p;
+  p.put<std::uint64_t>(f.first).put<std::uint64_t>(f.count).put<double>(f.seconds);
+  p.put<std::uint8_t>(f.failure.has_value());
+  if (f.failure)
+    p.put<std::uint64_t>(f.failure->row).put<std::uint8_t>(f.failure->bad_input).put_text(f.failure->message);
+  p.put<std::uint64_t>(f.row_us.size());
+  for (const double us : f.row_us) p.put<double>(us);
+  p.put_text(f.text);
+  return p.take();
+}
+
+Finished unpack_finished(const std::string& bytes) {
+  Unpacker u(bytes);
+  Finished f;
+  f.first = u.get<std::uint64_t>();
+  f.count = u.get<std::uint64_t>();
+  f.seconds = u.get<double>();
+  if (u.get<std::uint8_t>()) {
+    RowFailure failure;
+    failure.row = u.get<std::uint64_t>();
+    failure.bad_input = u.get<std::uint8_t>() != 0;
+    failure.message = std::string(u.get_text());
+    f.failure = std::move(failure);
+  }
+  f.row_us.resize(u.get<std::uint64_t>());
+  for (double& us : f.row_us) us = u.get<double>();
+  f.text = std::string(u.get_text());
+  return f;
+}
+
+double thread_cpu_microseconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e6 * static_cast<double>(ts.tv_sec) + 1e-3 * static_cast<double>(ts.tv_nsec);
+}
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// ---------------------------------------------------------------- compute threads
+
+/// One rank's compute threads: an OpenMP team, started from a thread of its own so that the
+/// coordinator (the main thread, which alone may call MPI) stays free. Chunks go in through
+/// add(); finished rows come out through take().
+class ComputeTeam {
+ public:
+  ComputeTeam(const SweepRows& rows, int threads) : rows_(rows), threads_(threads) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~ComputeTeam() {
+    stop();
+    close();
+    if (!thread_.joinable()) return;
+    bool running = false;
+    {
+      const std::lock_guard lock(mutex_);
+      running = running_ > 0;
+    }
+    // Idle threads leave at once; threads in abandoned rows are left to the process' exit.
+    if (running) thread_.detach();
+    else thread_.join();
+  }
+  ComputeTeam(const ComputeTeam&) = delete;
+  ComputeTeam& operator=(const ComputeTeam&) = delete;
+
+  void add(Range range) {
+    {
+      const std::lock_guard lock(mutex_);
+      queue_.push_back(range);
+    }
+    work_.notify_one();
+  }
+  /// No more chunks: the threads leave once the queue is empty.
+  void close() {
+    {
+      const std::lock_guard lock(mutex_);
+      closed_ = true;
+    }
+    work_.notify_all();
+  }
+  /// Start no more rows (running rows finish).
+  void stop() {
+    stopping_.store(true);
+    {
+      const std::lock_guard lock(mutex_);
+      queue_.clear();
+    }
+    work_.notify_all();
+  }
+  /// Chunks wanted to keep every thread busy with some in reserve.
+  std::size_t wanted() const {
+    const std::lock_guard lock(mutex_);
+    const std::size_t target = static_cast<std::size_t>(chunks_per_thread * threads_);
+    const std::size_t have = queue_.size() + static_cast<std::size_t>(running_);
+    return have < target ? target - have : 0;
+  }
+  /// No row is running and none will start (queue empty, or stopping).
+  bool idle() const {
+    const std::lock_guard lock(mutex_);
+    return running_ == 0 && (queue_.empty() || stopping_.load());
+  }
+  std::vector<Finished> take() {
+    const std::lock_guard lock(mutex_);
+    return std::exchange(results_, {});
+  }
+  /// Waits until a result is ready or `timeout` passed.
+  void wait(std::chrono::microseconds timeout) {
+    std::unique_lock lock(mutex_);
+    done_.wait_for(lock, timeout, [&] { return !results_.empty(); });
+  }
+
+ private:
+  bool stopped() const {
+    return stopping_.load(std::memory_order_relaxed) || stop_flag().load(std::memory_order_relaxed);
+  }
+
+  void run() {
+#if defined(_OPENMP)
+#pragma omp parallel num_threads(threads_)
+#endif
+    {
+#if defined(_OPENMP)
+      const int thread = omp_get_thread_num();
+#else
+      const int thread = 0;
+#endif
+      for (;;) {
+        Range range;
+        {
+          std::unique_lock lock(mutex_);
+          work_.wait(lock, [&] { return stopping_.load() || closed_ || !queue_.empty(); });
+          if (stopping_.load() || queue_.empty()) break;
+          range = queue_.front();
+          queue_.pop_front();
+          ++running_;
+        }
+        Finished done;
+        done.first = range.first;
+        done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
+        const Clock::time_point start = Clock::now();
+        for (std::size_t i = range.first; i < range.first + range.count; ++i) {
+          if (stopped()) break;
+          try {
+            if (rows_.timing) {
+              const double begin = thread_cpu_microseconds();
+              rows_.compute(i, thread, done.text);
+              done.row_us.push_back(thread_cpu_microseconds() - begin);
+            } else {
+              rows_.compute(i, thread, done.text);
+            }
+          } catch (const invalid_input& bad) {
+            done.failure = RowFailure{i, true, bad.what()};
+          } catch (const std::exception& error) {
+            done.failure = RowFailure{i, false, error.what()};
+          } catch (...) {
+            done.failure = RowFailure{i, false, "unknown exception"};
+          }
+          if (done.failure) break;
+          ++done.count;
+        }
+        done.seconds = seconds_since(start);
+        {
+          const std::lock_guard lock(mutex_);
+          results_.push_back(std::move(done));
+          --running_;
+        }
+        done_.notify_all();
+      }
+    }
+    {
+      const std::lock_guard lock(mutex_);
+      exited_ = true;
+    }
+    done_.notify_all();
+  }
+
+  const SweepRows& rows_;
+  const int threads_;
+  mutable std::mutex mutex_;
+  std::condition_variable work_, done_;
+  std::deque<Range> queue_;
+  std::vector<Finished> results_;
+  bool closed_ = false, exited_ = false;
+  std::atomic<bool> stopping_{false};
+  int running_ = 0;
+  std::thread thread_;
+};
+
+// ---------------------------------------------------------------- rank 0: schedule and write
+
+/// Hands out chunks of rows in index order (see sweep.hpp: sizes and window).
+class Scheduler {
+ public:
+  Scheduler(std::size_t count, std::size_t window, int threads, const SweepOutput& output)
+      : count_(count), window_(window), threads_(static_cast<std::size_t>(threads)),
+        target_seconds_(std::max(chunk_target_seconds,
+                                 chunk_target_per_thread * static_cast<double>(threads))),
+        output_(output) {}
+
+  /// The next chunk, or nothing when every row is handed out or the window is full.
+  std::optional<Range> next(std::size_t first_unwritten) {
+    while (next_ < count_ && output_.kept(next_)) ++next_;
+    const std::size_t limit = std::min(count_, first_unwritten + window_);
+    if (next_ >= limit) return std::nullopt;
+    const std::size_t remaining = count_ - next_;
+    std::size_t size = timed_rows_ == 0 ? 1
+                       : static_cast<std::size_t>(std::max(
+                             1.0, target_seconds_ * static_cast<double>(timed_rows_) /
+                                      std::max(seconds_, 1e-12)));
+    size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
+                     std::max<std::size_t>(1, window_ / (4 * threads_)), limit - next_});
+    for (std::size_t k = 1; k < size; ++k)
+      if (output_.kept(next_ + k)) {
+        size = k;
+        break;
+      }
+    const Range range{next_, size};
+    next_ += size;
+    return range;
+  }
+  bool exhausted() {
+    while (next_ < count_ && output_.kept(next_)) ++next_;
+    return next_ >= count_;
+  }
+  void record(std::size_t rows, double seconds) {
+    timed_rows_ += rows;
+    seconds_ += seconds;
+  }
+
+ private:
+  const std::size_t count_, window_, threads_;
+  const double target_seconds_;
+  const SweepOutput& output_;
+  std::size_t next_ = 0, timed_rows_ = 0;
+  double seconds_ = 0;
+};
+
+/// Rank 0's reorder buffer: rows go to the output in index order.
+class OrderedWriter {
+ public:
+  OrderedWriter(SweepOutput& output, std::size_t count) : output_(output), count_(count) {}
+  void add(Finished&& rows) {
+    if (rows.count > 0) waiting_.emplace(rows.first, std::move(rows));
+  }
+  /// Writes every row that is next in order.
+  void advance() {
+    while (position_ < count_) {
+      if (output_.kept(position_)) {
+        output_.write_kept(position_++);
+        ++written_;
+        continue;
+      }
+      const auto it = waiting_.begin();
+      if (it == waiting_.end() || it->first != position_) return;
+      Finished& rows = it->second;
+      output_.write_rows(rows.first, rows.count, rows.text, rows.row_us);
+      position_ += rows.count;
+      written_ += rows.count;
+      waiting_.erase(it);
+    }
+  }
+  /// After an interruption: every row there is, in order, past the missing ones.
+  void drain() {
+    for (;;) {
+      advance();
+      if (position_ >= count_) return;
+      const std::size_t next_waiting = waiting_.empty() ? count_ : waiting_.begin()->first;
+      ++position_;
+      while (position_ < next_waiting && !output_.kept(position_)) ++position_;
+    }
+  }
+  std::size_t position() const { return position_; }
+  std::size_t written() const { return written_; }
+  bool complete() const { return position_ >= count_; }
+
+ private:
+  SweepOutput& output_;
+  const std::size_t count_;
+  std::size_t position_ = 0, written_ = 0;
+  std::map<std::size_t, Finished> waiting_;
+};
+
+/// "[name] k/count unit" on stderr every 2 s once the sweep has run 2 s, and at the end.
+class Progress {
+ public:
+  Progress(const SweepRows& rows) : name_(rows.progress), unit_(rows.unit), count_(rows.count) {}
+  void report(std::size_t done, bool last = false) {
+    if (name_.empty()) return;
+    const double elapsed = seconds_since(start_);
+    if ((elapsed >= 2 && elapsed - last_ >= 2) || (last && reported_)) {
+      std::fprintf(stderr, "[%s] %zu/%zu %s\n", name_.c_str(), done, count_, unit_.c_str());
+      last_ = elapsed;
+      reported_ = true;
+    }
+  }
+
+ private:
+  std::string name_, unit_;
+  std::size_t count_;
+  Clock::time_point start_ = Clock::now();
+  double last_ = 0;
+  bool reported_ = false;
+};
+
+/// Poll interval of a coordinator that talks to other ranks: 0.25 ms while messages come, up to
+/// 1 ms (rank 0, which answers requests) or 4 ms (the others, unless their threads wait for
+/// work) while nothing happens, so that a coordinator costs little CPU beside the compute threads
+/// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a message is
+/// in flight.
+class PollInterval {
+ public:
+  /// `alone`: no other rank; `longest`: the longest interval (us).
+  PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
+  /// `active`: something happened, or an answer is awaited by a thread without work.
+  std::chrono::microseconds next(bool active) {
+    if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
+    // A long message in flight moves only while both ends call MPI: poll at 50 us until it is
+    // through.
+    if (transfers_pending()) return std::chrono::microseconds(50);
+    current_ = active ? 250 : std::min(longest_, current_ * 2);
+    return std::chrono::microseconds(current_);
+  }
+
+ private:
+  bool alone_;
+  long longest_, current_ = 250;
+};
+
+struct Peer {
+  std::size_t wanted = 0;
+  bool told_exhausted = false, finished = false, abandoned = false;
+  std::size_t rows = 0, chunks = 0;  ///< computed by this rank (the work distribution)
+  double seconds = 0;                ///< wall time of its chunks, summed over its threads
+};
+
+/// PENDAVG_SWEEP_REPORT=1: one line on stderr after a sweep (rank 0) with its wall time, the
+/// coordinator's CPU time and message count, and each rank's rows and busy time -- what
+/// tests/bench/mpi_scaling.sh reads.
+void report_distribution(const SweepOutcome& outcome, const std::vector<Peer>& peers,
+                         std::size_t messages, double coordinator_cpu_seconds) {
+  const char* wanted = std::getenv("PENDAVG_SWEEP_REPORT");
+  if (!wanted || std::string_view(wanted) != "1") return;
+  std::string ranks_text;
+  for (std::size_t r = 0; r < peers.size(); ++r) {
+    if (r > 0) ranks_text += ' ';
+    ranks_text += std::to_string(peers[r].rows);
+    ranks_text += '/';
+    ranks_text += std::to_string(peers[r].chunks);
+    ranks_text += '/';
+    ranks_text += std::to_string(peers[r].seconds);
+  }
+  std::fprintf(stderr,
+               "pendavg: sweep: rows=%zu computed=%zu ranks=%zu threads=%d seconds=%.6f "
+               "coordinator_cpu_seconds=%.6f messages=%zu per_rank(rows/chunks/busy_s)=%s\n",
+               outcome.count, outcome.computed, peers.size(), outcome.threads, outcome.seconds,
+               coordinator_cpu_seconds, messages, ranks_text.c_str());
+}
+
+double thread_cpu_seconds() { return 1e-6 * thread_cpu_microseconds(); }
+
+SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
+                      const std::function<void(const SweepOutcome&)>& finish) {
+  const Clock::time_point start = Clock::now();
+  const double start_cpu = thread_cpu_seconds();
+  const int size = ranks();
+  SweepOutcome outcome;
+  outcome.count = rows.count;
+  outcome.threads = rows.threads * size;
+  const std::size_t total_threads = static_cast<std::size_t>(outcome.threads);
+  const std::size_t window =
+      std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
+                    std::max<std::size_t>(rows.row_bytes, 1),
+                16 * total_threads, std::size_t(64)});
+  Scheduler scheduler(rows.count, window, outcome.threads, output);
+  OrderedWriter writer(output, rows.count);
+  Progress progress(rows);
+  PollInterval poll(size == 1, 4000);
+  std::vector<Peer> peers(static_cast<std::size_t>(size));
+  std::optional<RowFailure> failure;
+  bool closing = false;
+  Clock::time_point deadline{};
+  ComputeTeam team(rows, rows.threads);
+
+  std::size_t messages = 0;
+  const auto accept = [&](Finished&& rows_done, int source) {
+    Peer& from = peers[static_cast<std::size_t>(source)];
+    from.rows += rows_done.count;
+    from.chunks += 1;
+    from.seconds += rows_done.seconds;
+    outcome.computed += rows_done.count;
+    scheduler.record(rows_done.count + (rows_done.failure ? 1 : 0), rows_done.seconds);
+    if (rows_done.failure && (!failure || rows_done.failure->row < failure->row))
+      failure = rows_done.failure;
+    writer.add(std::move(rows_done));
+  };
+  const auto close = [&](double grace) {  // the end: complete, interrupted or failed
+    if (closing) return;
+    closing = true;
+    team.stop();
+    deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>(grace));
+    for (int r = 1; r < size; ++r) post(r, tag_stop, {});
+  };
+
+  for (;;) {
+    bool active = false;
+    for (Finished& f : team.take()) {
+      accept(std::move(f), 0);
+      active = true;
+    }
+    while (std::optional<Message> message = receive()) {
+      active = true;
+      ++messages;
+      Peer& peer = peers[static_cast<std::size_t>(message->source)];
+      switch (message->tag) {
+        case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
+        case tag_result: accept(unpack_finished(message->payload), message->source); break;
+        case tag_stopping:
+          outcome.interrupted = true;
+          close(rows.grace_seconds);
+          break;
+        case tag_finished:
+          peer.finished = true;
+          peer.abandoned = Unpacker(message->payload).get<std::uint8_t>() != 0;
+          break;
+        default: break;
+      }
+    }
+    if (!closing && stop_flag().load()) {
+      outcome.interrupted = true;
+      close(rows.grace_seconds);
+    }
+    if (!closing && failure) close(rows.grace_seconds);
+    if (!closing) {
+      for (std::size_t k = team.wanted(); k > 0; --k) {
+        const std::optional<Range> chunk = scheduler.next(writer.position());
+        if (!chunk) break;
+        team.add(*chunk);
+        active = true;
+      }
+      for (int r = 1; r < size; ++r) {
+        Peer& peer = peers[static_cast<std::size_t>(r)];
+        if (peer.wanted == 0 && !(scheduler.exhausted() && !peer.told_exhausted)) continue;
+        std::vector<Range> chunks;
+        for (; peer.wanted > 0; --peer.wanted) {
+          const std::optional<Range> chunk = scheduler.next(writer.position());
+          if (!chunk) break;
+          chunks.push_back(*chunk);
+        }
+        const bool exhausted = scheduler.exhausted();
+        if (chunks.empty() && !(exhausted && !peer.told_exhausted)) continue;
+        Packer grant;
+        grant.put<std::uint64_t>(chunks.size());
+        for (const Range& chunk : chunks) grant.put<std::uint64_t>(chunk.first).put<std::uint64_t>(chunk.count);
+        grant.put<std::uint8_t>(exhausted);
+        peer.told_exhausted = exhausted;
+        if (exhausted) peer.wanted = 0;
+        post(r, tag_grant, grant.take());
+        active = true;
+      }
+      if (scheduler.exhausted()) team.close();
+    }
+    try {
+      writer.advance();
+    } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
+      if (!failure) failure = RowFailure{rows.count, true, bad.what()};
+    } catch (const std::exception& error) {
+      if (!failure) failure = RowFailure{rows.count, false, error.what()};
+    }
+    progress.report(outcome.computed + output.kept_count());
+    if (!closing && writer.complete()) close(0);
+    if (closing) {
+      const bool peers_finished =
+          std::all_of(peers.begin() + 1, peers.end(), [](const Peer& p) { return p.finished; });
+      if (peers_finished && (team.idle() || Clock::now() >= deadline)) {
+        for (Finished& f : team.take()) accept(std::move(f), 0);
+        break;
+      }
+    }
+    sends_pending();
+    team.wait(poll.next(active));
+  }
+  for (int r = 1; r < size; ++r) post(r, tag_done, {});
+  while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+
+  const bool abandoned = !team.idle() || std::any_of(peers.begin(), peers.end(),
+                                                     [](const Peer& p) { return p.abandoned; });
+  if (!failure) {
+    try {
+      if (outcome.interrupted) writer.drain();
+      else writer.advance();
+    } catch (const invalid_input& bad) {
+      failure = RowFailure{rows.count, true, bad.what()};
+    } catch (const std::exception& error) {
+      failure = RowFailure{rows.count, false, error.what()};
+    }
+  }
+  outcome.written = writer.written();
+  outcome.seconds = seconds_since(start);
+  if (failure) {
+    outcome.failed = true;
+    outcome.failed_row = failure->row;
+    outcome.failure = failure->message;
+    outcome.bad_input = failure->bad_input;
+  }
+  progress.report(outcome.computed + output.kept_count(), true);
+  report_distribution(outcome, peers, messages, thread_cpu_seconds() - start_cpu);
+  if (!abandoned) {
+    finish(outcome);
+    return outcome;
+  }
+  // Rows are still running: complete the output, then end the process (their threads use what
+  // the caller's stack holds).
+  int code = 0;
+  try {
+    finish(outcome);
+  } catch (...) {
+    code = report_failure(std::current_exception());
+  }
+  exit_process(code);
+}
+
+SweepOutcome run_worker(const SweepRows& rows) {
+  SweepOutcome outcome;
+  outcome.count = rows.count;
+  outcome.threads = rows.threads * ranks();
+  ComputeTeam team(rows, rows.threads);
+  PollInterval poll(false, 4000);
+  bool requested = false, exhausted = false, stopping = false, told = false;
+  bool finished_sent = false, done = false;
+  Clock::time_point deadline{};
+  const auto stop = [&](double grace) {
+    if (stopping) return;
+    stopping = true;
+    team.stop();
+    deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>(grace));
+  };
+  while (!done) {
+    bool active = false;
+    for (const Finished& f : team.take()) {
+      outcome.computed += f.count;
+      // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
+      // a long one arrives only when all of it is through.
+      if (!stopping && !exhausted && !requested) {
+        if (const std::size_t wanted = team.wanted(); wanted > 0) {
+          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
+          requested = true;
+        }
+      }
+      post(0, tag_result, pack_finished(f));
+      active = true;
+    }
+    while (std::optional<Message> message = receive()) {
+      active = true;
+      if (message->tag == tag_grant) {
+        Unpacker grant(message->payload);
+        const auto n = grant.get<std::uint64_t>();
+        for (std::uint64_t k = 0; k < n; ++k) {
+          Range range;
+          range.first = grant.get<std::uint64_t>();
+          range.count = grant.get<std::uint64_t>();
+          if (!stopping) team.add(range);
+        }
+        exhausted = exhausted || grant.get<std::uint8_t>() != 0;
+        requested = false;
+      } else if (message->tag == tag_stop) {
+        stop(rows.grace_seconds);
+      } else if (message->tag == tag_done) {
+        done = true;
+      }
+    }
+    if (!told && !finished_sent && stop_flag().load()) {
+      post(0, tag_stopping, {});
+      told = true;
+      stop(rows.grace_seconds);
+    }
+    if (!stopping) {
+      if (exhausted) {
+        team.close();
+      } else if (!requested) {
+        if (const std::size_t wanted = team.wanted(); wanted > 0) {
+          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
+          requested = true;
+        }
+      }
+    }
+    if (stopping && !finished_sent && (team.idle() || Clock::now() >= deadline)) {
+      for (const Finished& f : team.take()) {
+        outcome.computed += f.count;
+        post(0, tag_result, pack_finished(f));
+      }
+      post(0, tag_finished, Packer().put<std::uint8_t>(!team.idle()).take());
+      finished_sent = true;
+    }
+    sends_pending();
+    // Waiting for a grant with idle threads counts as active: the answer is noticed at once.
+    if (!done) team.wait(poll.next(active || (requested && team.idle())));
+  }
+  while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+  if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)
+  return outcome;
+}
+
+}  // namespace
+
+SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
+                       const std::function<void(const SweepOutcome&)>& finish) {
+  if (is_root()) return run_root(rows, *output, finish);
+  return run_worker(rows);
+}
+
+void rethrow_failure(const SweepOutcome& outcome,
+                     const std::function<std::string(std::size_t row)>& context) {
+  if (!outcome.failed) return;
+  const std::string message = outcome.failed_row < outcome.count
+                                  ? context(outcome.failed_row) + outcome.failure
+                                  : outcome.failure;
+  if (outcome.bad_input) throw invalid_input(message);
+  throw std::runtime_error(message);
+}
+
+std::size_t first_failing_row(std::size_t count, int threads,
+                              const std::function<void(std::size_t index)>& check) {
+  const auto size = static_cast<std::size_t>(ranks());
+  const auto me = static_cast<std::size_t>(rank());
+  const std::size_t begin = count / size * me + std::min(me, count % size);
+  const std::size_t end = begin + count / size + (me < count % size ? 1 : 0);
+  std::atomic<std::size_t> first{count};
+#if defined(_OPENMP)
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 64)
+#endif
+  for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin); i < static_cast<std::ptrdiff_t>(end);
+       ++i) {
+    const auto index = static_cast<std::size_t>(i);
+    if (index > first.load(std::memory_order_relaxed)) continue;
+    if (stop_flag().load(std::memory_order_relaxed)) continue;  // stopped: no row will run
+    try {
+      check(index);
+    } catch (...) {
+      std::size_t seen = first.load();
+      while (index < seen && !first.compare_exchange_weak(seen, index)) {
+      }
+    }
+  }
+  (void)threads;
+  return static_cast<std::size_t>(min_over_ranks(first.load()));
+}
+
+std::string utc_timestamp() {
+  std::time_t now = std::time(nullptr);
+  if (const char* epoch = std::getenv("SOURCE_DATE_EPOCH"); epoch && *epoch) {
+    char* end = nullptr;
+    const long long seconds = std::strtoll(epoch, &end, 10);
+    if (end && *end == '\0' && seconds >= 0) now = static_cast<std::time_t>(seconds);
+  }
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buffer[32];
+  std::strftime(buffer, sizeof buffer, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buffer;
+}
+
+}  // namespace pendavg::cli

@@ -1,0 +1,106 @@
+// src/cli/sweep.hpp -- the engine under `table`, `average --cases` and `simulate --replicas`:
+// rows 0..count-1, each a pure function of its index, computed on every rank's threads and
+// written in index order by rank 0.
+//
+// Work distribution. Rank 0 hands out chunks of consecutive rows on request (dynamic: rows may
+// differ 1000x in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread
+// of the job beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean
+// cost and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
+// scheduling), so that the last chunks balance the ranks. Each rank keeps about two chunks per
+// thread queued, so the round trip to rank 0 is hidden (a rank asks for more, in a short message,
+// just before it sends a chunk's rows). Rank 0 computes too: its
+// main thread only schedules, receives and writes (it sleeps between polls), and a second thread
+// runs the OpenMP team of every rank.
+// Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
+// that arrive early wait in a reorder buffer. No row more than `window` past the first unwritten
+// one is handed out, so the buffer holds at most window rows; window = (32 MB + 128 kB per
+// compute thread of the job) / row_bytes, at least 16 rows per thread: memory is
+// O(threads x row), not O(rows).
+// Output. Every row is computed by the same function with one thread, so the output does not
+// depend on the rank or thread count, nor on which rank computed which row.
+// Interruption. SIGINT/SIGTERM on any rank stop the sweep: no new rows start, rows running get
+// `grace_seconds` to finish, then rank 0 writes every finished row (in order, the missing ones
+// left out) and the command ends; rows still running are abandoned (the process exits at once
+// after its output is complete).
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace pendavg::cli {
+
+/// What to compute.
+struct SweepRows {
+  std::size_t count = 0;      ///< rows 0..count-1
+  std::size_t row_bytes = 1;  ///< an upper bound of one row's text (sizes the reorder window)
+  int threads = 1;            ///< compute threads per rank
+  bool timing = false;        ///< measure every row's thread CPU time (SweepOutput::rows)
+  double grace_seconds = 1;   ///< after a signal, how long running rows may still finish
+  /// Appends row `index` to `out`; `thread` (0..threads-1) selects the caller's scratch. Throws
+  /// (invalid_input for bad input) when the row cannot be computed.
+  std::function<void(std::size_t index, int thread, std::string& out)> compute;
+  /// "[<progress>] k/count <unit>" on stderr every 2 s once a sweep has run 2 s (empty: none).
+  std::string progress, unit = "rows";
+};
+
+/// Rank 0's side: where the rows go, in index order.
+class SweepOutput {
+ public:
+  virtual ~SweepOutput() = default;
+  /// True when row `index` is in the output already (kept from a resumed file): not computed.
+  virtual bool kept(std::size_t) const { return false; }
+  /// The number of kept rows.
+  virtual std::size_t kept_count() const { return 0; }
+  /// The next kept row (index order).
+  virtual void write_kept(std::size_t) {}
+  /// Rows first..first+count-1, computed, as one text; `row_us` their thread CPU times
+  /// (SweepRows::timing) or empty.
+  virtual void write_rows(std::size_t first, std::size_t count, std::string_view text,
+                          std::span<const double> row_us) = 0;
+};
+
+struct SweepOutcome {
+  std::size_t count = 0;     ///< rows of the sweep
+  std::size_t written = 0;   ///< rows in the output: computed now or kept
+  std::size_t computed = 0;  ///< rows computed in this run
+  bool interrupted = false;  ///< a signal stopped the sweep (rows may be missing)
+  int threads = 1;           ///< compute threads over all ranks
+  double seconds = 0;        ///< wall time of the sweep
+  /// A row that could not be computed (the first by index among those seen): the sweep stopped
+  /// and nothing should be kept. Rethrown by rethrow_failure().
+  bool failed = false;
+  std::size_t failed_row = 0;
+  std::string failure;
+  bool bad_input = false;
+};
+
+/// Runs the sweep on every rank (collective). `output` is used on rank 0 only (null elsewhere).
+/// `finish` runs on rank 0 after the last row was written, before anything is released: it
+/// completes the output (a footer, the commit of the file). On the other ranks the outcome only
+/// says whether the run failed. When rows had to be abandoned the process ends inside this call,
+/// after `finish` (exit status 0, or the failure's).
+SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
+                       const std::function<void(const SweepOutcome&)>& finish);
+
+/// Throws the outcome's failure (invalid_input for bad input, std::runtime_error otherwise),
+/// prefixed by `context(row)`; does nothing when the sweep did not fail.
+void rethrow_failure(const SweepOutcome& outcome,
+                     const std::function<std::string(std::size_t row)>& context);
+
+/// Calls `check(index)` for rows 0..count-1, split between the ranks and their `threads`
+/// threads (collective). Returns the smallest index for which it threw, on every rank, or
+/// `count` when none did. Run check(index) again to get the error. Once stop_flag() is set
+/// (a signal while a StopOnSignal is alive) the remaining rows are skipped: the sweep that
+/// follows will start none of them.
+std::size_t first_failing_row(std::size_t count, int threads,
+                              const std::function<void(std::size_t index)>& check);
+
+/// The start time of a run in UTC ("2026-01-02T03:04:05Z"); SOURCE_DATE_EPOCH (seconds since
+/// 1970) replaces the clock, for reproducible files.
+std::string utc_timestamp();
+
+}  // namespace pendavg::cli

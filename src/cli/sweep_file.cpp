@@ -1,0 +1,182 @@
+// src/cli/sweep_file.cpp -- see sweep_file.hpp.
+#include "sweep_file.hpp"
+
+#include "args.hpp"
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include <unistd.h>
+
+namespace pendavg::cli {
+
+namespace {
+
+constexpr std::size_t flush_bytes = 1u << 20;
+constexpr std::string_view generated = ", generated ";
+
+/// Reads one line (without its newline) into `line`; false at the end of the file.
+bool read_line(std::FILE* file, std::string& line) {
+  char* buffer = nullptr;
+  std::size_t capacity = 0;
+  const ssize_t length = ::getline(&buffer, &capacity, file);
+  if (length < 0) {
+    std::free(buffer);
+    line.clear();
+    return false;
+  }
+  line.assign(buffer, static_cast<std::size_t>(length));
+  std::free(buffer);
+  if (!line.empty() && line.back() == '\n') line.pop_back();
+  return true;
+}
+
+/// The first `fields` comma-separated fields of `row` (the whole row when it has fewer).
+std::string_view leading_fields(std::string_view row, std::size_t fields) {
+  std::size_t position = 0;
+  for (std::size_t k = 0; k < fields; ++k) {
+    const std::size_t comma = row.find(',', position);
+    if (comma == std::string_view::npos) return row;
+    position = comma + 1;
+  }
+  return row.substr(0, position - 1);
+}
+
+std::string shortened(std::string_view line) {
+  return std::string(line.substr(0, 120)) + (line.size() > 120 ? "..." : "");
+}
+
+}  // namespace
+
+bool same_header_line(std::string_view expected, std::string_view found) {
+  const std::size_t cut = expected.find(generated);
+  if (cut == std::string_view::npos) return expected == found;
+  return found.substr(0, cut + generated.size()) == expected.substr(0, cut + generated.size());
+}
+
+std::string fnv1a_hex(std::string_view text) {
+  std::uint64_t hash = 0xcbf29ce484222325ull;
+  for (const char c : text) {
+    hash ^= static_cast<unsigned char>(c);
+    hash *= 0x100000001b3ull;
+  }
+  char buffer[17];
+  std::snprintf(buffer, sizeof buffer, "%016llx", static_cast<unsigned long long>(hash));
+  return buffer;
+}
+
+ResumedRows::ResumedRows(const std::string& path, std::string_view command,
+                         const std::string& header, std::size_t count, std::size_t key_fields,
+                         const std::function<std::string(std::size_t)>& key)
+    : path_(path), command_(command), kept_(count, false) {
+  const std::string where = command_ + ": --resume '" + path_ + "'";
+  file_ = std::fopen(path_.c_str(), "rb");
+  if (!file_) throw usage_error(where + ": cannot read it: " + std::strerror(errno));
+  // The header: every '#' line and the column line, as this run writes them.
+  std::vector<std::string_view> expected;
+  for (std::size_t begin = 0; begin < header.size();) {
+    const std::size_t end = header.find('\n', begin);
+    expected.push_back(std::string_view(header).substr(begin, end - begin));
+    begin = end == std::string::npos ? header.size() : end + 1;
+  }
+  std::string line;
+  for (const std::string_view want : expected) {
+    if (!read_line(file_, line))
+      throw usage_error(where + ": not an output of this sweep (it ends before its header does)");
+    if (!same_header_line(want, line))
+      throw usage_error(where + " is not an output of this sweep: its line '" + shortened(line) +
+                        "' differs from '" + shortened(want) + "' (same parameters, method, "
+                        "digits and version are needed)");
+  }
+  // The rows, matched to indices in order.
+  std::size_t index = 0, row_number = 0;
+  while (read_line(file_, line)) {
+    if (line.empty() || line.front() == '#') continue;
+    ++row_number;
+    const std::string_view found = leading_fields(line, key_fields);
+    while (index < count && key(index) != found) ++index;
+    if (index == count)
+      throw usage_error(where + ": its data row " + std::to_string(row_number) + " ('" +
+                        shortened(found) + ",...') is not a row of this sweep, or out of order");
+    kept_[index++] = true;
+    ++kept_count_;
+  }
+  // Back to the first row, for next_row().
+  std::rewind(file_);
+  for (std::size_t k = 0; k < expected.size(); ++k) read_line(file_, line);
+}
+
+ResumedRows::~ResumedRows() {
+  if (file_) std::fclose(file_);
+}
+
+const std::string& ResumedRows::next_row() {
+  while (read_line(file_, line_))
+    if (!line_.empty() && line_.front() != '#') {
+      line_ += '\n';
+      return line_;
+    }
+  throw usage_error(command_ + ": --resume '" + path_ + "' changed while it was being read");
+}
+
+SweepFile::SweepFile(const std::string& path, std::string_view command, const std::string& header,
+                     ResumedRows* resumed)
+    : resumed_(resumed) {
+  if (!path.empty()) file_.emplace(path, command);
+  buffer_.reserve(flush_bytes + (1u << 16));
+  append(header);
+}
+
+void SweepFile::write_kept(std::size_t) { append(resumed_->next_row()); }
+
+void SweepFile::write_rows(std::size_t first, std::size_t, std::string_view text,
+                           std::span<const double> row_us) {
+  if (on_timing && !row_us.empty()) on_timing(first, row_us);
+  append(text);
+}
+
+void SweepFile::append(std::string_view text) {
+  if (buffer_.size() + text.size() > flush_bytes) {
+    flush();
+    if (text.size() > flush_bytes) {
+      if (file_) {
+        file_->append(text);
+      } else {
+        buffer_.assign(text);
+        flush();
+      }
+      return;
+    }
+  }
+  buffer_ += text;
+}
+
+void SweepFile::flush() {
+  if (buffer_.empty()) return;
+  if (file_) {
+    file_->append(buffer_);
+  } else {
+    for (std::size_t written = 0; written < buffer_.size();) {
+      const ssize_t n = ::write(STDOUT_FILENO, buffer_.data() + written, buffer_.size() - written);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        throw std::runtime_error(std::string("cannot write to stdout: ") + std::strerror(errno));
+      }
+      written += static_cast<std::size_t>(n);
+    }
+  }
+  buffer_.clear();
+}
+
+void SweepFile::commit() {
+  flush();
+  if (file_) file_->commit();
+}
+
+void SweepFile::discard() {
+  buffer_.clear();
+  file_.reset();
+}
+
+}  // namespace pendavg::cli

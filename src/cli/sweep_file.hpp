@@ -1,0 +1,88 @@
+// src/cli/sweep_file.hpp -- where a sweep's rows go (sweep.hpp's SweepOutput on rank 0): stdout
+// or an atomically written file (files.hpp), after a header, streamed in row order; and the rows
+// of an earlier, interrupted run of the same sweep (--resume), which are kept instead of being
+// computed again.
+//
+// A sweep file is '#' lines (the header), the column line, the rows, and possibly an
+// '# interrupted: ...' line at the end. Resuming checks the earlier file's header and column
+// line against this run's (everything but the date of its "# pendavg VERSION, generated DATE"
+// line: the parameters, method, digits and version must agree) and finds each earlier row's
+// index from its leading fields (its parameters), in order, so rows missing anywhere are
+// computed and the finished file is the one an uninterrupted run writes.
+#pragma once
+
+#include "files.hpp"
+#include "sweep.hpp"
+
+#include <cstdio>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace pendavg::cli {
+
+/// The rows of an earlier output of the same sweep.
+class ResumedRows {
+ public:
+  /// Reads `path` and checks it against `header` (this run's '#' lines and column line, as
+  /// written); `key(index)` is row `index`'s leading `key_fields` fields joined by commas (a
+  /// row that produces no line returns an empty key). Throws usage_error (one line, naming
+  /// `command` and the option) on a mismatch.
+  ResumedRows(const std::string& path, std::string_view command, const std::string& header,
+              std::size_t count, std::size_t key_fields,
+              const std::function<std::string(std::size_t)>& key);
+  ~ResumedRows();
+  ResumedRows(const ResumedRows&) = delete;
+  ResumedRows& operator=(const ResumedRows&) = delete;
+
+  bool kept(std::size_t index) const { return kept_[index]; }
+  std::size_t kept_count() const { return kept_count_; }
+  /// The next kept row's line (with its newline); rows come back in file order.
+  const std::string& next_row();
+
+ private:
+  std::string path_, command_;
+  std::vector<bool> kept_;
+  std::size_t kept_count_ = 0;
+  std::FILE* file_ = nullptr;
+  std::string line_;
+};
+
+/// A sweep's output: the header at once, then the rows in order (SweepOutput), then commit().
+class SweepFile : public SweepOutput {
+ public:
+  /// `path` empty: stdout. `resumed` (may be null) supplies kept rows.
+  SweepFile(const std::string& path, std::string_view command, const std::string& header,
+            ResumedRows* resumed);
+  bool kept(std::size_t index) const override { return resumed_ && resumed_->kept(index); }
+  std::size_t kept_count() const override { return resumed_ ? resumed_->kept_count() : 0; }
+  void write_kept(std::size_t index) override;
+  void write_rows(std::size_t first, std::size_t count, std::string_view text,
+                  std::span<const double> row_us) override;
+  /// Called with every computed row's times (SweepRows::timing).
+  std::function<void(std::size_t first, std::span<const double> row_us)> on_timing;
+
+  void append(std::string_view text);
+  /// Flushes; a file is renamed into place.
+  void commit();
+  /// A file's temporary is removed (nothing is written); stdout keeps what it got.
+  void discard();
+
+ private:
+  void flush();
+  std::optional<AtomicFile> file_;
+  ResumedRows* resumed_ = nullptr;
+  std::string buffer_;
+};
+
+/// The header lines of a sweep as this run writes them, for ResumedRows: '#' lines and the
+/// column line. Lines containing ", generated " compare only up to it.
+bool same_header_line(std::string_view expected, std::string_view found);
+
+/// FNV-1a 64-bit hash of `text` as 16 hex digits (identifies an input file in a header).
+std::string fnv1a_hex(std::string_view text);
+
+}  // namespace pendavg::cli

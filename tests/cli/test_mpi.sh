@@ -1,0 +1,131 @@
+#!/usr/bin/env bash
+# tests/cli/test_mpi.sh -- pendavg under MPI (issue 14): the outputs of 1, 2 and 3 ranks
+# (oversubscribed on this machine: correctness, not speed) are the outputs of the plain serial
+# run, byte for byte apart from timing fields; a sweep killed under mpirun and resumed on
+# another number of ranks gives the uninterrupted file; bad input is reported once.
+#
+# Usage: test_mpi.sh PATH/TO/pendavg MPIEXEC
+# Prints "N passed, M failed" last and exits non-zero on any failure.
+set -u
+
+pendavg=${1:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
+mpiexec=${2:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
+python=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+passed=0
+failed=0
+export SOURCE_DATE_EPOCH=1767225600
+
+# What OpenMPI needs in a CI container: running as root, more ranks than cores, shared memory
+# between the ranks only (no network), local launch without ssh, no CMA (ptrace may be
+# forbidden), no binding (the ranks' OpenMP threads share the cores).
+launcher=("$mpiexec")
+if "$mpiexec" --version 2>&1 | grep -q "Open MPI\|OpenRTE"; then
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+  export OMPI_MCA_btl_vader_single_copy_mechanism=none
+  launcher+=(--oversubscribe --bind-to none --mca btl self,vader --mca plm isolated)
+fi
+
+pass() { passed=$((passed + 1)); }
+fail() {
+  failed=$((failed + 1))
+  echo "FAIL: $1"
+  [ -s "$work/err" ] && sed 's/^/  stderr: /' "$work/err" | head -8
+}
+# on_ranks K OUT ARGS...: mpiexec -n K pendavg ARGS > OUT (K = 0: the plain serial run)
+on_ranks() {
+  local ranks=$1 out=$2
+  shift 2
+  if [ "$ranks" -eq 0 ]; then
+    "$pendavg" "$@" >"$out" 2>"$work/err"
+  else
+    "${launcher[@]}" -n "$ranks" "$pendavg" "$@" >"$out" 2>"$work/err"
+  fi
+}
+# without_timing FILE: the file minus what depends on the clock ("seconds" in JSON)
+without_timing() { sed 's/"seconds": [^,}]*//' "$1"; }
+# same_on_ranks NAME ARGS...: serial, then 1, 2 and 3 ranks (threads 2, 1, 2, 1), compared
+same_on_ranks() {
+  local name=$1
+  shift
+  OMP_NUM_THREADS=2 on_ranks 0 "$work/serial.out" "$@" || { fail "$name: serial run"; return; }
+  [ -s "$work/serial.out" ] || { fail "$name: serial run printed nothing"; return; }
+  local ranks threads=1
+  for ranks in 1 2 3; do
+    if ! OMP_NUM_THREADS=$threads on_ranks "$ranks" "$work/ranks.out" "$@"; then
+      fail "$name: $ranks ranks exited with an error"
+    elif ! cmp -s <(without_timing "$work/serial.out") <(without_timing "$work/ranks.out"); then
+      fail "$name: $ranks ranks differ from the serial run"
+    else
+      pass
+    fi
+    threads=$((3 - threads))
+  done
+}
+
+# --cases: 2,000 rows at 38 digits (the benchmark's spread of costs), to stdout and to a file.
+"$python" - "$work/cases.csv" <<'PY'
+import math, random, sys
+rng = random.Random(2026)
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for _ in range(2000):
+        beta = 10 ** rng.uniform(-4, 4)
+        x = 10 ** rng.uniform(-6, math.log10(0.5))
+        mu1 = x if rng.random() < 0.5 else 1 - x
+        f.write(f"{beta:.6g},1,{mu1:.9g},{1 - mu1:.9g},1,{10 ** rng.uniform(-2, 2):.6g}\n")
+PY
+same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
+"$pendavg" average --cases "$work/cases.csv" --output "$work/cases_serial.csv" 2>/dev/null
+for ranks in 2 3; do
+  rm -f "$work/cases_ranks.csv"
+  "${launcher[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" --output "$work/cases_ranks.csv" 2>"$work/err"
+  if cmp -s "$work/cases_ranks.csv" "$work/cases_serial.csv"; then pass; else fail "cases --output on $ranks ranks"; fi
+done
+# table: chains of 8 (qmc), and a double-pendulum sweep mixing double and MPFR rows.
+same_on_ranks "table --chain 8" table --chain 3,8 --beta log:0.1:10:12 --g 1,2 --samples 2048 --shifts 8
+same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
+# One qmc point at N = 64: its shifts shared by the ranks.
+unit64=$("$python" -c 'print(",".join(["1"] * 64))')
+same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --samples 4096 --shifts 12
+# Trajectory replicas, N = 3: Langevin (noise streams) and NVE (perturbed starts).
+same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4
+same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no
+# Commands that do not distribute run on rank 0 alone and print once.
+same_on_ranks "limit on rank 0" limit --masses 0.5,0.5
+
+# A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
+# at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.
+sweep=(table --beta log:1:1000:40 --mu1 0.001,0.05 --digits 400)
+"$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
+delay=$("$python" -c 'import random; print(round(random.uniform(0.8, 2.0), 2))')
+"${launcher[@]}" -n 2 "$pendavg" "${sweep[@]}" --output "$work/resumed.csv" >/dev/null 2>&1 &
+pid=$!
+sleep "$delay"
+kill -TERM "$pid" 2>/dev/null
+wait "$pid"
+[ -e "$work/resumed.csv" ] || cp /dev/null "$work/resumed.csv"  # killed before the file existed
+interrupted=$(grep -c '^# interrupted' "$work/resumed.csv")
+[ -s "$work/resumed.csv" ] || rm -f "$work/resumed.csv"
+if [ -n "$(find "$work" -name '*.tmp.*' | head -1)" ]; then
+  fail "SIGTERM under mpirun left a temporary file"
+elif ! "${launcher[@]}" -n 3 "$pendavg" "${sweep[@]}" --resume "$work/resumed.csv" >/dev/null 2>"$work/err"; then
+  fail "resume on 3 ranks"
+elif ! cmp -s "$work/resumed.csv" "$work/reference.csv"; then
+  fail "killed under mpirun after $delay s (interrupted: $interrupted), resumed on 3 ranks: differs"
+else
+  pass
+fi
+
+# Bad input: every rank refuses it, rank 0 alone says so (mpirun may add its own lines).
+"${launcher[@]}" -n 2 "$pendavg" table --beta log:1e-3:1e300:60 --digits 16,600 >"$work/out" 2>"$work/err"
+rc=$?
+if [ "$rc" -eq 0 ] || [ -s "$work/out" ] || [ "$(grep -c '^pendavg: error: ' "$work/err")" -ne 1 ]; then
+  fail "bad input under mpirun: exit $rc, $(grep -c '^pendavg: error: ' "$work/err") error lines"
+else
+  pass
+fi
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]

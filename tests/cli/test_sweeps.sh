@@ -1,0 +1,314 @@
+#!/usr/bin/env bash
+# tests/cli/test_sweeps.sh -- the sweep commands (`table`, `average --cases`, `simulate
+# --replicas`) as a batch job sees them: every row checked before any work, rows streamed with
+# bounded memory, output files that follow symbolic links and never replace a device, no
+# temporary file left by a signal, finished rows kept on SIGINT/SIGTERM, and --resume giving the
+# file an uninterrupted run writes (issues 11 and 14). MPI runs: test_mpi.sh.
+#
+# Usage: test_sweeps.sh PATH/TO/pendavg
+# Prints "N passed, M failed" last and exits non-zero on any failure.
+set -u
+
+pendavg=${1:?usage: test_sweeps.sh PATH/TO/pendavg}
+python=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+passed=0
+failed=0
+export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare
+
+pass() { passed=$((passed + 1)); }
+fail() {
+  failed=$((failed + 1))
+  echo "FAIL: $1"
+  [ -s "$work/out" ] && sed 's/^/  stdout: /' "$work/out" | head -5
+  [ -s "$work/err" ] && sed 's/^/  stderr: /' "$work/err" | head -5
+}
+run() {
+  "$pendavg" "$@" >"$work/out" 2>"$work/err"
+  rc=$?
+}
+# bad NAME ARGS...: exit 2, one stderr line "pendavg: error: ...", empty stdout, within 20 s
+# (nothing is computed before the input is refused).
+bad() {
+  local name=$1
+  shift
+  timeout 20 "$pendavg" "$@" >"$work/out" 2>"$work/err"
+  rc=$?
+  if [ "$rc" -ne 2 ]; then
+    fail "$name: exit code $rc, expected 2"
+  elif [ -s "$work/out" ]; then
+    fail "$name: stdout not empty"
+  elif [ "$(wc -l <"$work/err")" -ne 1 ] || ! head -1 "$work/err" | grep -q '^pendavg: error: '; then
+    fail "$name: stderr is not one 'pendavg: error: ' line"
+  else
+    pass
+  fi
+}
+check() { # NAME COMMAND...: the command succeeds
+  local name=$1
+  shift
+  if "$@"; then pass; else fail "$name"; fi
+}
+no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+# peak_rss_kb PID: the process' peak resident memory so far (kB)
+peak_rss_kb() { awk '/^VmHWM:/ { print $2 }' "/proc/$1/status"; }
+# start_then_signal SECONDS SIGNAL ARGS...: runs pendavg ARGS in the background, sends SIGNAL
+# after SECONDS; leaves its exit code in $rc and its peak memory (kB) in $peak.
+start_then_signal() {
+  local delay=$1 signal=$2
+  shift 2
+  "$pendavg" "$@" >"$work/out" 2>"$work/err" &
+  local pid=$!
+  sleep "$delay"
+  peak=$(peak_rss_kb "$pid" 2>/dev/null || echo 0)
+  kill "-$signal" "$pid" 2>/dev/null
+  wait "$pid"
+  rc=$?
+}
+# signal_after_progress PATTERN SIGNAL ARGS...: as start_then_signal, but the signal goes once
+# stderr shows PATTERN (a progress line: rows are being computed), or after 120 s.
+signal_after_progress() {
+  local pattern=$1 signal=$2
+  shift 2
+  "$pendavg" "$@" >"$work/out" 2>"$work/err" &
+  local pid=$!
+  for ((k = 0; k < 600; ++k)); do
+    grep -q "$pattern" "$work/err" && break
+    sleep 0.2
+  done
+  peak=$(peak_rss_kb "$pid" 2>/dev/null || echo 0)
+  kill "-$signal" "$pid" 2>/dev/null
+  wait "$pid"
+  rc=$?
+}
+
+# ---------------------------------------------------------------- every row checked first
+# These computed for seconds to minutes before they were refused (or never ended).
+bad "table beta 1e300 at 16 digits, refused before the 600-digit rows" \
+  table --beta log:1e-3:1e300:60 --digits 16,600 --output "$work/late.csv"
+check "table refused: no file" test ! -e "$work/late.csv"
+"$python" - "$work/late_cases.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for i in range(2000):
+        f.write(f"{1 + i % 7},1,0.5,0.5,1,1\n")
+    f.write("1,1,0.5,0.5,1,-1\n")  # bad last row: refused before 2000 rows at 1000 digits
+PY
+bad "cases bad last row, refused before any row" average --cases "$work/late_cases.csv" --digits 1000
+grep -q 'line 2002: l2' "$work/err" && pass || fail "cases bad last row: stderr does not name line 2002"
+# A cases header of 100,000 columns (N = 49999) is read in linear time (it took minutes).
+"$python" - "$work/wide.csv" <<'PY'
+import random, sys
+n = 49999
+columns = ["beta", "g"] + [f"m{i}" for i in range(1, n + 1)] + [f"l{i}" for i in range(1, n + 1)]
+random.Random(1).shuffle(columns)
+with open(sys.argv[1], "w") as f:
+    f.write(",".join(columns) + "\n" + ",".join("1" for _ in columns) + "\n")
+PY
+bad "cases header of 100,000 columns" average --cases "$work/wide.csv"
+grep -q "N <= 256, not N = 49999" "$work/err" && pass || fail "wide header: N read from 100,000 columns"
+
+# ---------------------------------------------------------------- streaming, bounded memory
+# 1e5 rows at 1000 digits (each row's line ~7 kB; 720 MB were reserved up front before): the
+# peak once rows are being computed stays under 100 MB; SIGINT keeps the finished rows, in order.
+"$python" - "$work/many.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for i in range(100000):
+        f.write(f"{0.5 + (i % 97) / 50},1,{0.3 + (i % 13) / 40},0.5,1,{1 + (i % 7) / 10}\n")
+PY
+signal_after_progress '^\[average\] [1-9]' INT average --cases "$work/many.csv" --digits 1000 --output "$work/many_out.csv"
+check "cases 1e5 rows at 1000 digits: peak ${peak} kB < 100 MB" test "$peak" -gt 0 -a "$peak" -lt 102400
+check "cases SIGINT: exit 0, footer, rows in order, no temporary" "$python" - "$work/many_out.csv" "$rc" <<'PY'
+import sys
+assert sys.argv[2] == "0", sys.argv[2]
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[-1].startswith("# interrupted: ") and lines[-1].endswith("of 100000 rows computed; the rows of the others are left out"), lines[-1]
+rows = [l for l in lines if not l.startswith("#")][1:]
+assert 0 < len(rows) < 100000, len(rows)
+PY
+check "cases SIGINT: no temporary" no_temporaries
+# A chain of 256 over 1e5 betas (1.6 GB of decimal strings were built before the first row).
+signal_after_progress '^\[table\] [1-9]' TERM table --chain 256 --beta lin:0.1:10:100000 --samples 1024 --shifts 4 \
+  --output "$work/chain256.csv"
+check "table chain 256 x 1e5 betas: peak ${peak} kB < 100 MB" test "$peak" -gt 0 -a "$peak" -lt 102400
+check "table SIGTERM: exit 0 and footer" \
+  bash -c "[ $rc -eq 0 ] && tail -1 '$work/chain256.csv' | grep -q '^# interrupted: [0-9]* of 100000 points computed'"
+
+# ---------------------------------------------------------------- thread counts
+for args in "table --chain 3,5 --beta 0.5,2 --g 1,2 --digits 16,20 --samples 1024 --shifts 4" \
+            "table --beta log:0.01:100:30 --mu1 0.01,0.5 --digits 16,25"; do
+  # shellcheck disable=SC2086
+  OMP_NUM_THREADS=1 "$pendavg" $args >"$work/t1.csv" 2>/dev/null
+  # shellcheck disable=SC2086
+  OMP_NUM_THREADS=3 "$pendavg" $args >"$work/t3.csv" 2>/dev/null
+  check "$args: 1 and 3 threads give the same file" cmp -s "$work/t1.csv" "$work/t3.csv"
+done
+
+# ---------------------------------------------------------------- output files
+echo old >"$work/target.csv"
+ln -s target.csv "$work/link.csv"
+run table --beta 1 --output "$work/link.csv"
+check "--output onto a symlink writes its target" \
+  bash -c "[ $rc -eq 0 ] && [ -L '$work/link.csv' ] && grep -q '^2,16,1,1,' '$work/target.csv'"
+ln -s no/such/dir/x.csv "$work/dangling.csv"
+bad "--output onto a dangling symlink" table --beta 1 --output "$work/dangling.csv"
+ln -s loop_a "$work/loop_b"
+ln -s loop_b "$work/loop_a"
+bad "--output onto a loop of symlinks" table --beta 1 --output "$work/loop_a"
+# A device node is written in place, never replaced by a regular file (as root, --output
+# /dev/null used to replace the real device). A private copy of /dev/null when we may make one.
+device=/dev/null
+mknod "$work/null" c 1 3 2>/dev/null && device="$work/null"
+run table --beta 1,2 --output "$device"
+check "--output $device: exit 0, still a character device" bash -c "[ $rc -eq 0 ] && [ -c '$device' ]"
+mkfifo "$work/fifo"
+cat "$work/fifo" >"$work/from_fifo.csv" &
+reader=$!
+run table --beta 1,2 --output "$work/fifo"
+wait "$reader"
+check "--output onto a FIFO streams through it" \
+  bash -c "[ $rc -eq 0 ] && [ -p '$work/fifo' ] && [ \"\$(grep -c '^2,16,' '$work/from_fifo.csv')\" -eq 2 ]"
+printf 'beta,g,m1,m2,l1,l2\n1,1,0.5,0.5,1,1\n2,1,0.2,0.8,1,2\n' >"$work/cases.csv"
+ln -s cases.csv "$work/cases_link.csv"
+bad "--timing-rows = the cases file"     average --cases "$work/cases.csv" --timing-rows "$work/cases.csv"
+bad "--output = the cases file (symlink)" average --cases "$work/cases_link.csv" --output "$work/cases.csv"
+bad "--output = the cases file (./)"      average --cases "$work/cases.csv" --output "$work/./cases.csv"
+bad "--timing-rows = --output"          average --cases "$work/cases.csv" --output "$work/o.csv" --timing-rows "$work/o.csv"
+bad "--resume and another --output"     table --beta 1 --resume "$work/r1.csv" --output "$work/r2.csv"
+bad "--output without --cases"          average --masses 1,1 --lengths 1,1 --beta 1 --output "$work/o.csv"
+check "cases file untouched" grep -q '^2,1,0.2,0.8,1,2$' "$work/cases.csv"
+# SIGTERM at any moment of a table written to a file: no temporary file survives, and the file
+# is either absent (the signal came before it existed) or complete (all rows, or the finished
+# ones and the footer).
+for delay in 0.05 0.15 0.3 0.45 0.6 0.8 1.0 1.3; do
+  rm -f "$work/sig.csv"
+  start_then_signal "$delay" TERM table --beta log:1:1000:40 --mu1 0.001,0.3 --digits 300 \
+    --output "$work/sig.csv"
+  if ! no_temporaries; then
+    fail "SIGTERM after $delay s left a temporary file"
+  elif [ -e "$work/sig.csv" ] && ! "$python" - "$work/sig.csv" <<'PY'; then
+import sys
+text = open(sys.argv[1]).read()
+assert text.endswith("\n")
+lines = text.splitlines()
+rows = [l for l in lines if not l.startswith("#")][1:]
+assert len(rows) == 80 or lines[-1].startswith("# interrupted: %d of 80" % len(rows)), (len(rows), lines[-1])
+PY
+    fail "SIGTERM after $delay s: an incomplete file"
+  else
+    pass
+  fi
+done
+# poincare writes its file at the end, with the signals deferred meanwhile.
+for delay in 0.2 0.5; do
+  start_then_signal "$delay" TERM poincare --masses 1,1 --lengths 1,1 --energy -1 --orbits 4 \
+    --points 3000 --output "$work/section.csv"
+  check "poincare SIGTERM after $delay s: no temporary" no_temporaries
+done
+
+# ---------------------------------------------------------------- resume
+# A sweep killed at a random moment, then resumed: the same file as an uninterrupted run.
+sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 350)
+"$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
+delay=$("$python" -c 'import random; print(round(random.uniform(0.3, 1.2), 2))')
+start_then_signal "$delay" TERM "${sweep[@]}" --output "$work/resumed.csv"
+interrupted=$(grep -c '^# interrupted' "$work/resumed.csv")
+run "${sweep[@]}" --resume "$work/resumed.csv"
+check "table killed after $delay s (interrupted: $interrupted) and resumed = uninterrupted" \
+  cmp -s "$work/resumed.csv" "$work/reference.csv"
+check "resume: no temporary" no_temporaries
+# Rows missing anywhere (here every third, and the last ones) are computed again in place.
+"$python" - "$work/reference.csv" "$work/holes.csv" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines(keepends=True)
+head = [l for l in lines if l.startswith("#")]
+body = [l for l in lines if not l.startswith("#")]
+rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-5]
+open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
+PY
+run "${sweep[@]}" --resume "$work/holes.csv"
+check "table with missing rows resumed = uninterrupted" cmp -s "$work/holes.csv" "$work/reference.csv"
+run "${sweep[@]}" --resume "$work/holes.csv"
+check "resuming a complete file changes nothing" cmp -s "$work/holes.csv" "$work/reference.csv"
+run "${sweep[@]}" --resume "$work/fresh.csv"
+check "--resume of a file not there yet writes it" cmp -s "$work/fresh.csv" "$work/reference.csv"
+cp "$work/reference.csv" "$work/other.csv"
+bad "resume with other digits" table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 300 --resume "$work/other.csv"
+grep -q 'digits = 350' "$work/err" && pass || fail "resume mismatch: the differing line is named"
+bad "resume with another beta range" table --beta log:1:100:50 --mu1 0.001,0.05 --digits 350 --resume "$work/other.csv"
+sed 's/^# pendavg [0-9.]*,/# pendavg 0.0.1,/' "$work/reference.csv" >"$work/old_version.csv"
+bad "resume of another version's file" "${sweep[@]}" --resume "$work/old_version.csv"
+sed '20s/^2,350,[^,]*,/2,350,7.5,/' "$work/reference.csv" >"$work/foreign_row.csv"
+bad "resume of a file with a foreign row" "${sweep[@]}" --resume "$work/foreign_row.csv"
+check "failed resumes leave the file" cmp -s "$work/other.csv" "$work/reference.csv"
+
+# average --cases --output: '#' lines name the cases (by hash), digits, method, version; the
+# rows are stdout's; interrupted and resumed gives the uninterrupted file.
+"$python" - "$work/cases300.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("m1,m2,l1,l2,beta,g\n")
+    for i in range(300):
+        f.write(f"{0.001 + (i % 17) / 20},1,1,{2 ** (i % 5 - 2)},{10 ** ((i % 23) / 8 - 1)},1\n")
+PY
+"$pendavg" average --cases "$work/cases300.csv" --digits 250 --output "$work/cases_reference.csv" 2>/dev/null
+"$pendavg" average --cases "$work/cases300.csv" --digits 250 >"$work/cases_stdout.csv" 2>/dev/null
+check "cases --output: '#' lines, then stdout's CSV" "$python" - "$work/cases_reference.csv" "$work/cases_stdout.csv" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines(keepends=True)
+assert lines[0].startswith("# pendavg average --cases: 300 rows of N = 2, cases file fnv1a-64 "), lines[0]
+assert lines[1] == "# digits = 250, method = auto\n", lines[1]
+assert lines[2].startswith("# pendavg ") and ", generated 2026-01-01T00:00:00Z (UTC) from " in lines[2], lines[2]
+assert "".join(lines[3:]) == open(sys.argv[2]).read()
+PY
+delay=$("$python" -c 'import random; print(round(random.uniform(0.2, 0.8), 2))')
+start_then_signal "$delay" INT average --cases "$work/cases300.csv" --digits 250 --output "$work/cases_resumed.csv"
+run average --cases "$work/cases300.csv" --digits 250 --resume "$work/cases_resumed.csv"
+check "cases interrupted after $delay s and resumed = uninterrupted" \
+  cmp -s "$work/cases_resumed.csv" "$work/cases_reference.csv"
+sed '2s/^0.001,/0.002,/' "$work/cases300.csv" >"$work/cases300b.csv"
+cp "$work/cases_reference.csv" "$work/cases_other.csv"
+bad "cases resume with other cases" average --cases "$work/cases300b.csv" --digits 250 --resume "$work/cases_other.csv"
+bad "cases resume with another method" average --cases "$work/cases300.csv" --digits 250 --method series --resume "$work/cases_other.csv"
+
+# ---------------------------------------------------------------- simulate --replicas
+replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4)
+OMP_NUM_THREADS=1 "$pendavg" "${replicas[@]}" >"$work/rep1.json" 2>/dev/null
+OMP_NUM_THREADS=2 "$pendavg" "${replicas[@]}" >"$work/rep2.json" 2>/dev/null
+check "replicas: 1 and 2 threads give the same numbers" \
+  bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/rep1.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep2.json') >/dev/null"
+check "replicas: combined averages and both error bars" "$python" - "$work/rep2.json" <<'PY'
+import json, math, sys
+d = json.load(open(sys.argv[1]))
+assert d["replicas"] == d["replicas_requested"] == 4 and not d["interrupted"], d
+assert d["steps"] == 4 * 100000, d["steps"]
+for i in range(2):
+    assert d["K_error"][i] == max(d["K_error_blocking"][i], d["K_error_replicas"][i]), i
+    assert d["K_error_replicas"][i] > 0 and d["K_error_blocking"][i] > 0
+    assert abs(d["K"][i] - d["exact_K"][i]) <= 4 * math.hypot(d["K_error"][i], d["exact_K_error"][i]), i
+PY
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 >"$work/single.json" 2>/dev/null
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 >"$work/rep_one.json" 2>/dev/null
+check "--replicas 1 is the single run" \
+  bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
+run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
+check "NVE replicas (perturbed starts), csv" \
+  bash -c "[ $rc -eq 0 ] && grep -q '^# replicas 3 of 3' '$work/out' && grep -q ',K_error_blocking,K_error_replicas$' '$work/out'"
+bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --trajectory "$work/t.csv" --every 1
+bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
+bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3
+bad "seed, one NVE run"          simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --seed 3
+start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no
+check "replicas SIGINT: exit 0, interrupted averages of the replicas so far" "$python" - "$work/out" "$rc" <<'PY'
+import json, sys
+assert sys.argv[2] == "0", sys.argv[2]
+d = json.load(open(sys.argv[1]))
+assert d["interrupted"] and 1 <= d["replicas"] <= 4 and d["steps"] > 0, d
+PY
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
