@@ -20,6 +20,8 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -163,10 +165,15 @@ struct PointTexts {
   std::string g, beta;
 };
 
+/// One MPFR point's chain and beta.
+struct MpfrPoint {
+  Chain<mpfr_real> chain;
+  mpfr_real beta;
+};
+
 /// Parses `in` as the CLI does (masses, lengths, g, the chain, then the method's options, then
-/// beta) under the run's working precision, and computes. No GIL needed.
-void compute_mpfr(AveragePoint& out, const PointTexts& in, const AverageOptions& options) {
-  const working_precision precision(options.digits + guard_digits);
+/// beta). The caller holds the run's working precision.
+MpfrPoint parse_mpfr(const PointTexts& in, const AverageOptions& options) {
   std::vector<mpfr_real> masses, lengths;
   for (const std::string& m : in.masses)
     masses.push_back(cli::parse_real<mpfr_real>(m, "--masses", Domain::positive));
@@ -176,13 +183,28 @@ void compute_mpfr(AveragePoint& out, const PointTexts& in, const AverageOptions&
   if (masses.size() != lengths.size())
     throw cli::usage_error(std::to_string(masses.size()) + " masses but " +
                            std::to_string(lengths.size()) + " lengths");
-  const Chain<mpfr_real> chain(std::move(masses), std::move(lengths), std::move(g));
+  Chain<mpfr_real> chain(std::move(masses), std::move(lengths), std::move(g));
   resolve_average_method(chain.size(), options);
-  const mpfr_real beta = cli::parse_real<mpfr_real>(in.beta, "--beta", Domain::positive);
+  mpfr_real beta = cli::parse_real<mpfr_real>(in.beta, "--beta", Domain::positive);
+  return {std::move(chain), std::move(beta)};
+}
+
+/// Parses and computes one MPFR point under its working precision. No GIL needed.
+void compute_mpfr(AveragePoint& out, const PointTexts& in, const AverageOptions& options) {
+  const working_precision precision(options.digits + guard_digits);
+  const MpfrPoint point = parse_mpfr(in, options);
   const Stopwatch watch;
-  const Averages<mpfr_real> a = average(chain, beta, options);
+  const Averages<mpfr_real> a = average(point.chain, point.beta, options);
   out.seconds = watch.seconds();
-  keep_mpfr(out, a, &beta, options.digits);
+  keep_mpfr(out, a, &point.beta, options.digits);
+}
+
+/// Everything average() checks before its work, for one MPFR point (as `--cases` checks every
+/// row before computing any).
+void check_mpfr(const PointTexts& in, const AverageOptions& options) {
+  const working_precision precision(options.digits + guard_digits);
+  const MpfrPoint point = parse_mpfr(in, options);
+  check_average(point.chain, point.beta, options);
 }
 
 /// A library call observed through RunControl: its stop flag (set on Ctrl-C) and the fraction of
@@ -513,8 +535,9 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
     }
   };
   if (settings.digits == min_digits) {
-    // Inputs checked point by point in the CLI's order (the method's options after the first
-    // point's chain), then computed without the GIL.
+    // Every point checked before any work, as `--cases` checks its rows: the inputs in the CLI's
+    // order (the method's options after the first point's chain), then what average() checks
+    // before its work (check_average); then computed without the GIL.
     std::vector<double> beta(count), g(count), masses(n * count), lengths(n * count);
     bool resolved = false;
     for (std::size_t k = 0; k < count; ++k) {
@@ -529,6 +552,12 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
           resolved = true;
         }
         beta[k] = cols[0].number(k, "--beta", Domain::positive);
+        std::vector<double> m, l;
+        for (std::size_t i = 0; i < n; ++i) {
+          m.push_back(masses[i * count + k]);
+          l.push_back(lengths[i * count + k]);
+        }
+        check_average(Chain<double>(std::move(m), std::move(l), g[k]), beta[k], run);
       } catch (const invalid_input& bad) {
         throw invalid_input(index_text(k, result.shape) + ": " + bad.what());
       }
@@ -557,6 +586,19 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
       in[k].g = number_text(cols[1].at(k));
       in[k].beta = number_text(cols[0].at(k));
     }
+    std::optional<std::pair<std::size_t, std::string>> bad_point;
+    {
+      py::gil_scoped_release release;
+      for (std::size_t k = 0; k < count && !bad_point; ++k) {
+        try {
+          check_mpfr(in[k], run);
+        } catch (const invalid_input& bad) {
+          bad_point.emplace(k, bad.what());
+        }
+      }
+    }
+    if (bad_point)
+      throw invalid_input(index_text(bad_point->first, result.shape) + ": " + bad_point->second);
     try {
       run_points(
           count, threads, [&](std::size_t k, int) { compute_mpfr(result.points[k], in[k], run); },

@@ -173,10 +173,13 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     if (!integrator.is_none())
       throw cli::usage_error("simulate: --integrator is for NVE runs (Langevin uses BAOAB)");
   } else {
-    for (const auto& [value, name] :
-         {std::pair{beta, "beta"}, std::pair{friction, "friction"}, std::pair{seed, "seed"}})
+    for (const auto& [value, name] : {std::pair{beta, "beta"}, std::pair{friction, "friction"}})
       if (!value.is_none())
         throw cli::usage_error("simulate: --" + std::string(name) + " needs --thermostat langevin");
+    // The CLI's message (its NVE --seed is for --replicas, which this function does not run).
+    if (!seed.is_none())
+      throw cli::usage_error(
+          "simulate: --seed needs --thermostat langevin or --replicas R > 1");
   }
   const bool with_exact =
       PyBool_Check(exact.ptr())

@@ -266,6 +266,7 @@ BAD = [  # (python call, the CLI's arguments): the same one-line message
     (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, integrator="euler"), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --integrator euler"),
     (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, beta=1), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --beta 1"),
     (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, thermostat="langevin"), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --thermostat langevin"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, seed=3), "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --seed 3"),
     (lambda: pendavg.simulate([1, 1], [1, 1], phi=[1], time=1), "simulate --masses 1,1 --lengths 1,1 --phi 1 --time 1"),
     (lambda: pendavg.poincare([1, 1, 1], [1, 1, 1], -2), "poincare --masses 1,1,1 --lengths 1,1,1 --energy -2"),
     (lambda: pendavg.poincare([1, 1], [1, 1], -2, orbits=0), "poincare --masses 1,1 --lengths 1,1 --energy -2 --orbits 0"),

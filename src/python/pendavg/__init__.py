@@ -448,7 +448,7 @@ def _averages_as_dict(self):
              "ratio", "ratio_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
              "var_K_beta2", "var_K_beta2_error", "beta_Kc", "diagonal_approx",
              "equipartition_residual", "error_kind", "error_kinds", "work_unit", "evaluations",
-             "converged", "seconds", "run"]
+             "converged", "interrupted", "seconds", "run"]
     return {name: getattr(self, name) for name in names}
 
 
