@@ -44,10 +44,12 @@ constexpr std::string_view general_usage =
     "\n"
     "usage:\n"
     "  pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [options]\n"
+    "  pendavg average --masses ... --lengths ... (--energy E | --excitation D) [options]\n"
     "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options] [--timing]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] [--g SPEC] ... [--chain LIST] [--digits LIST] [--output FILE.csv]\n"
+    "  pendavg table   (--energy SPEC | --excitation SPEC) ...: microcanonical sweeps\n"
     "  pendavg simulate --masses ... --lengths ... (--theta A | --phi ...) --time T [options]\n"
     "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
@@ -59,6 +61,8 @@ constexpr std::string_view average_usage =
     "usage: pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [--digits D]\n"
     "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
     "                       [--format json|csv|text]\n"
+    "       pendavg average --masses ... --lengths ... [--g G] (--energy E | --excitation D)\n"
+    "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "                       [--timing] [--timing-rows FILE]\n"
     "\n"
@@ -71,9 +75,11 @@ constexpr std::string_view average_usage =
     "                   in MPFR; --tol T: relative tolerance in double (default 1e-13; with\n"
     "                   --digits D > 16 it is 1e-D)\n"
     "  torus-gauss      the same with Gauss-Legendre nodes (a check)\n"
-    "  qmc              randomized lattice QMC, double only, N <= 256, 3-sigma statistical error\n"
-    "                   bars; --samples S points per shift (a power of two, 1024..1048576,\n"
-    "                   default 65536), --shifts R (4..1024, default 16), --seed K (default 1)\n"
+    "  qmc              randomized lattice QMC, double only, N <= 256, statistical error bars\n"
+    "                   (the 99.9% Student-t quantile of the standard error over the shifts:\n"
+    "                   4.07 sigma for 16); --samples S points per shift (a power of two,\n"
+    "                   1024..1048576, default 65536), --shifts R (4..1024, default 16), --seed K\n"
+    "                   (default 1)\n"
     "Options of a method that is not run are rejected.\n"
     "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
     "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
@@ -94,7 +100,24 @@ constexpr std::string_view average_usage =
     "(0-based data row and file line) and the thread count:\n"
     "  pendavg: timing: rows=R median_us=X p90_us=Y worst_us=Z worst_row=I worst_line=L\n"
     "  threads=T timer_us=U (...)\n"
-    "--timing-rows FILE (with --cases) also writes every row's time as CSV row,line,us.\n";
+    "--timing-rows FILE (with --cases) also writes every row's time as CSV row,line,us.\n"
+    "\n"
+    "Microcanonical averages at fixed energy: --energy E (instead of --beta) or --excitation D\n"
+    "(D = E - E_min > 0, E_min = -sum_j g S_j l_j: how to state an energy near the bottom of the\n"
+    "well without losing digits). They give <K_i>_E, <K_i^(c)>_E = <K>_E/N, <cos phi_i>_E and\n"
+    "Var K_i, each with its error, and <K>_E and the density of states Omega(E). --method auto\n"
+    "(integral for N <= 4, qmc beyond), integral, torus-trapezoid (N <= 5, a check) or qmc;\n"
+    "--tol T for integral/torus-trapezoid (default 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9\n"
+    "beyond); qmc: --samples S (1024..65536), --shifts R, --seed K. --digits D > 16 runs in MPFR\n"
+    "for N <= 4 with the integral rule (N = 2: milliseconds; N = 3 at 30 digits: about a\n"
+    "minute); qmc is double only, torus-trapezoid only for N = 2. Output keys: N, energy,\n"
+    "excitation, digits, ensemble (microcanonical), method, K, K_error, Kc, Kc_error, cos_phi,\n"
+    "cos_phi_error, var_K, var_K_error, K_total, K_total_error, density_of_states,\n"
+    "density_of_states_error, error_kind, evaluations, work_unit, seconds, converged, run. An\n"
+    "energy at or below E_min is refused. --cases takes an energy or excitation column instead of\n"
+    "beta; its rows then have K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,\n"
+    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and then excitation (or\n"
+    "energy), the other way of stating the row's state.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
@@ -103,7 +126,7 @@ constexpr std::string_view limit_usage =
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
-    "at g = 0 (tensor trapezoid for N <= 5, qmc with 3-sigma bars beyond, double only);\n"
+    "at g = 0 (tensor trapezoid for N <= 5, qmc with statistical bars beyond, double only);\n"
     "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
 
 constexpr std::string_view series_usage =
@@ -316,6 +339,278 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
     case Format::json: break;
   }
   return average_json(report);
+}
+
+// ---------------------------------------------------------------- average --energy/--excitation
+
+/// The state option of `average`: beta (canonical), energy or excitation (microcanonical).
+/// Throws usage_error when more than one is given.
+std::string_view state_option(const Options& options) {
+  std::vector<std::string_view> given;
+  for (const std::string_view name : {"beta", "energy", "excitation"})
+    if (options.has(name)) given.push_back(name);
+  if (given.size() > 1)
+    throw usage_error("average: give one of --beta, --energy, --excitation (not both --" +
+                      std::string(given[0]) + " and --" + std::string(given[1]) + ")");
+  return given.empty() ? std::string_view("beta") : given.front();
+}
+
+/// The microcanonical averages of `chain` at the state `value` of the column or option `state`
+/// (energy or excitation), as text. An energy at or below E_min is refused with the valid range.
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_at(const Chain<Real>& chain, std::string_view state,
+                                               std::string_view value, std::string_view what,
+                                               const MicrocanonicalOptions& options) {
+  if (state == "excitation") {
+    const Real d = parse_real<Real>(value, what, Domain::any);
+    if (!(d > 0))
+      throw usage_error(std::string(what) + ": '" + std::string(value) +
+                        "' must be > 0 (the excitation D = E - E_min; E_min = " +
+                        decimal(minimum_energy(chain), 17) + " for this chain)");
+    return microcanonical_average_excitation(chain, d, options);
+  }
+  const Real e = parse_real<Real>(value, what, Domain::any);
+  if (!(excitation_energy(chain, e) > 0))
+    throw usage_error(std::string(what) + ": '" + std::string(value) +
+                      "' is at or below the minimum energy E_min = " +
+                      decimal(minimum_energy(chain), 17) +
+                      " of this chain: give E > E_min (or --excitation D > 0)");
+  return microcanonical_average(chain, e, options);
+}
+
+struct MicrocanonicalReport {
+  std::size_t particles;
+  std::string_view state, state_text;  ///< the option given and its text as written
+  int digits;
+  MicrocanonicalText values;
+  double seconds;
+};
+
+std::string microcanonical_run_json(const MicrocanonicalText& v) {
+  if (v.proposal_beta.empty()) return "null";
+  return JsonObject()
+      .string("proposal_beta", v.proposal_beta)
+      .string("effective_sample_fraction", v.effective_sample_fraction)
+      .str();
+}
+
+std::string microcanonical_json(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  JsonObject json;
+  json.integer("N", static_cast<long long>(r.particles))
+      .string("energy", r.state == "energy" ? std::string(r.state_text) : v.energy)
+      .string("excitation", r.state == "excitation" ? std::string(r.state_text) : v.excitation)
+      .integer("digits", r.digits)
+      .string("ensemble", "microcanonical")
+      .string("method", v.method)
+      .strings("K", v.kinetic)
+      .strings("K_error", v.kinetic_error)
+      .string("Kc", v.kinetic_canonical)
+      .string("Kc_error", v.kinetic_canonical_error)
+      .strings("cos_phi", v.cos_angle)
+      .strings("cos_phi_error", v.cos_angle_error)
+      .strings("var_K", v.variance)
+      .strings("var_K_error", v.variance_error)
+      .string("K_total", v.kinetic_total)
+      .string("K_total_error", v.kinetic_total_error)
+      .string("density_of_states", v.density_of_states)
+      .string("density_of_states_error", v.density_of_states_error)
+      .string("error_kind", v.error_kind)
+      .integer("evaluations", static_cast<long long>(v.evaluations))
+      .string("work_unit", v.work_unit)
+      .raw("seconds", seconds_text(r.seconds))
+      .boolean("converged", v.converged)
+      .raw("run", microcanonical_run_json(v));
+  return json.str() + "\n";
+}
+
+std::string microcanonical_csv(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  std::vector<std::string> header{"N", "energy", "excitation", "digits", "ensemble", "method"};
+  std::vector<std::string> row{std::to_string(r.particles),
+                               r.state == "energy" ? std::string(r.state_text) : v.energy,
+                               r.state == "excitation" ? std::string(r.state_text) : v.excitation,
+                               std::to_string(r.digits), "microcanonical", v.method};
+  const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
+    const auto names = indexed_names(stem, values.size());
+    header.insert(header.end(), names.begin(), names.end());
+    row.insert(row.end(), values.begin(), values.end());
+  };
+  const auto add = [&](std::string name, std::string value) {
+    header.push_back(std::move(name));
+    row.push_back(std::move(value));
+  };
+  add_array("K", v.kinetic);
+  add_array("K_error", v.kinetic_error);
+  add("Kc", v.kinetic_canonical);
+  add("Kc_error", v.kinetic_canonical_error);
+  add_array("cos_phi", v.cos_angle);
+  add_array("cos_phi_error", v.cos_angle_error);
+  add_array("var_K", v.variance);
+  add_array("var_K_error", v.variance_error);
+  add("K_total", v.kinetic_total);
+  add("K_total_error", v.kinetic_total_error);
+  add("density_of_states", v.density_of_states);
+  add("density_of_states_error", v.density_of_states_error);
+  add("error_kind", v.error_kind);
+  add("evaluations", std::to_string(v.evaluations));
+  add("work_unit", v.work_unit);
+  add("seconds", seconds_text(r.seconds));
+  add("converged", v.converged ? "true" : "false");
+  std::string out;
+  append_csv_line(out, header);
+  append_csv_line(out, row);
+  return out;
+}
+
+std::string microcanonical_text_report(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  std::vector<std::vector<std::string>> table{
+      {"i", "<K_i>_E", "error", "<cos phi_i>_E", "error", "Var K_i", "error"}};
+  for (std::size_t i = 0; i < v.kinetic.size(); ++i)
+    table.push_back({std::to_string(i + 1), v.kinetic[i], v.kinetic_error[i], v.cos_angle[i],
+                     v.cos_angle_error[i], v.variance[i], v.variance_error[i]});
+  const std::string energy = r.state == "energy" ? std::string(r.state_text) : v.energy;
+  const std::string excitation =
+      r.state == "excitation" ? std::string(r.state_text) : v.excitation;
+  return "N = " + std::to_string(r.particles) + ", E = " + energy + ", E - E_min = " +
+         excitation + ", digits = " + std::to_string(r.digits) +
+         ", microcanonical, method = " + v.method + "\n" + aligned_table(table) +
+         "<K_i^(c)>_E = <K>_E/N = " + v.kinetic_canonical + " +- " + v.kinetic_canonical_error +
+         "\n<K>_E = " + v.kinetic_total + " +- " + v.kinetic_total_error +
+         "\nOmega(E) = " + v.density_of_states + " +- " + v.density_of_states_error +
+         "\nerrors: " + v.error_kind + "\nevaluations = " + std::to_string(v.evaluations) + " " +
+         v.work_unit + ", seconds = " + seconds_text(r.seconds) +
+         ", converged = " + (v.converged ? "yes" : "no") + "\n";
+}
+
+template <class Real>
+std::string microcanonical_one(const Options& options, const AverageOptions& settings,
+                               std::string_view state, Format format) {
+  const std::string_view state_text = options.required(state);
+  const Chain<Real> chain = chain_option<Real>(options, true);
+  AverageOptions run = settings;
+  run.threads = hardware_threads();
+  MicrocanonicalOptions micro;
+  try {
+    micro = microcanonical_options(run, chain.size());
+  } catch (const invalid_input& bad) {
+    throw usage_error("average: " + std::string(bad.what()));
+  }
+  const std::string what = "--" + std::string(state);
+  const Stopwatch stopwatch;
+  const MicrocanonicalAverages<Real> result =
+      microcanonical_at(chain, state, state_text, what, micro);
+  const double seconds = stopwatch.seconds();
+  const MicrocanonicalReport report{chain.size(), state, state_text, settings.digits,
+                                    microcanonical_text(result, settings.digits), seconds};
+  switch (format) {
+    case Format::csv: return microcanonical_csv(report);
+    case Format::text: return microcanonical_text_report(report);
+    case Format::json: break;
+  }
+  return microcanonical_json(report);
+}
+
+/// One row of `average --cases` with an energy or excitation column: the input fields as
+/// written, then K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,
+/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and the other state
+/// (excitation for an energy column, energy for an excitation column).
+template <class Real>
+std::string microcanonical_case(const CasesFile& file, const CaseRow& row,
+                                const std::vector<std::string>& columns,
+                                const AverageOptions& settings) {
+  std::optional<working_precision> precision;  // each row of an MPFR run holds its own
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(settings.digits + guard_digits);
+  std::vector<std::string_view> fields(columns.size());
+  case_fields(file, row, fields);
+  const std::size_t n = file.particles;
+  const int digits = settings.digits;
+  std::vector<Real> masses, lengths;
+  for (std::size_t i = 0; i < n; ++i)
+    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
+  for (std::size_t i = 0; i < n; ++i)
+    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
+  const Chain<Real> chain = make_chain<Real>(
+      masses, lengths, parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
+  const MicrocanonicalOptions micro = microcanonical_options(settings, n);
+  const MicrocanonicalAverages<Real> r =
+      microcanonical_at(chain, file.state, fields[0], columns[0], micro);
+  const MicrocanonicalText v = microcanonical_text(r, digits);
+  std::vector<std::string> out(fields.begin(), fields.end());
+  const auto add = [&](const std::vector<std::string>& values) {
+    out.insert(out.end(), values.begin(), values.end());
+  };
+  add(v.kinetic);
+  add(v.kinetic_error);
+  out.push_back(v.kinetic_canonical);
+  add(v.cos_angle);
+  out.push_back(v.method);
+  out.push_back(std::to_string(v.evaluations));
+  out.push_back(v.kinetic_canonical_error);
+  add(v.cos_angle_error);
+  add(v.variance);
+  add(v.variance_error);
+  out.push_back(v.error_kind);
+  out.push_back(v.converged ? "true" : "false");
+  out.push_back(file.state == "energy" ? v.excitation : v.energy);
+  std::string line;
+  append_csv_line(line, out);
+  return line;
+}
+
+/// `average --cases` with an energy or excitation column: rows on all cores (one row per task;
+/// the output does not depend on the thread count), the first bad row (in file order) reported.
+template <class Real>
+std::string microcanonical_cases(const CasesFile& file, const std::string& path,
+                                 const AverageOptions& settings) {
+  const std::size_t n = file.particles;
+  const std::vector<std::string> columns = case_columns(n, file.state);
+  AverageOptions options = settings;
+  options.threads = file.rows.size() == 1 ? hardware_threads() : 1;
+  try {
+    microcanonical_options(options, n);  // checked before any row
+  } catch (const invalid_input& bad) {
+    throw usage_error("average: " + std::string(bad.what()));
+  }
+  std::vector<std::string> header = columns;
+  const auto add_names = [&](std::string_view stem) {
+    const auto names = indexed_names(stem, n);
+    header.insert(header.end(), names.begin(), names.end());
+  };
+  add_names("K");
+  add_names("K_error");
+  header.push_back("Kc");
+  add_names("cos_phi");
+  header.insert(header.end(), {"method", "evaluations", "Kc_error"});
+  add_names("cos_phi_error");
+  add_names("var_K");
+  add_names("var_K_error");
+  header.insert(header.end(), {"error_kind", "converged",
+                               file.state == "energy" ? "excitation" : "energy"});
+  std::vector<std::string> lines(file.rows.size());
+  std::vector<std::exception_ptr> errors(file.rows.size());
+#pragma omp parallel for schedule(dynamic, 1) if (file.rows.size() > 1)
+  for (long i = 0; i < static_cast<long>(file.rows.size()); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    try {
+      lines[k] = microcanonical_case<Real>(file, file.rows[k], columns, options);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  }
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    if (!errors[k]) continue;
+    try {
+      std::rethrow_exception(errors[k]);
+    } catch (const invalid_input& bad) {
+      throw usage_error(path + " line " + std::to_string(file.rows[k].line) + ": " + bad.what());
+    }
+  }
+  std::string out;
+  append_csv_line(out, header);
+  for (const std::string& line : lines) out += line;
+  return out;
 }
 
 /// Per-thread scratch of `average --cases`: reused from row to row.
@@ -562,11 +857,16 @@ std::string average_command(const Options& options) {
         throw usage_error("average: --" + std::string(timing) + " is for --cases only");
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
+    const std::string_view state = state_option(options);
+    if (state != "beta")
+      return with_number_type(settings.digits, [&]<class Real>() {
+        return microcanonical_one<Real>(options, settings, state, format);
+      });
     return with_number_type(settings.digits, [&]<class Real>() {
       return average_one<Real>(options, settings, format);
     });
   }
-  for (const std::string_view single : {"masses", "lengths", "g", "beta"})
+  for (const std::string_view single : {"masses", "lengths", "g", "beta", "energy", "excitation"})
     if (options.has(single))
       throw usage_error("average: --cases cannot be combined with --" + std::string(single));
   constexpr std::array<std::string_view, 1> formats{"csv"};
@@ -578,6 +878,12 @@ std::string average_command(const Options& options) {
   if (!timing_rows.empty()) probe_output(timing_rows, "average");
   const CasesFile file = read_cases_file(path);
   const bool timing = options.has("timing") || !timing_rows.empty();
+  if (file.state != "beta") {
+    if (timing)
+      throw usage_error("average: --timing and --timing-rows are for cases with a beta column");
+    if (settings.digits == min_digits) return microcanonical_cases<double>(file, path, settings);
+    return microcanonical_cases<mpfr_real>(file, path, settings);
+  }
   if (settings.digits == min_digits)
     return average_cases<double>(file, path, settings, timing, timing_rows);
   return average_cases<mpfr_real>(file, path, settings, timing, timing_rows);
@@ -728,9 +1034,9 @@ struct Command {
   std::span<const std::string_view> flags = {};  ///< options without a value
 };
 
-constexpr std::array<std::string_view, 13> average_options{
-    "masses", "lengths", "g",   "beta",    "digits", "method",
-    "format", "cases",   "tol", "samples", "shifts", "seed", "timing-rows"};
+constexpr std::array<std::string_view, 15> average_options{
+    "masses", "lengths", "g",      "beta",   "digits", "method",      "format",    "cases",
+    "tol",    "samples", "shifts", "seed",   "timing-rows", "energy", "excitation"};
 constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};

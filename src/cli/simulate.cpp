@@ -49,6 +49,9 @@ const std::string_view simulate_usage =
     "                  suzuki4, kahan-li6 (6th order, 9 stages), rattle2\n"
     "  --thermostat langevin  constrained BAOAB at --beta B, friction --friction G (default 1)\n"
     "  --exact no      skip the exact values (N >= 5 uses QMC for them: a few seconds)\n"
+    "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
+    "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
+    "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
     "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
@@ -131,15 +134,36 @@ std::vector<double> parse_angle_list(std::string_view text, std::string_view wha
 /// Exact values of the run's ensemble, per particle, in energy units.
 struct ExactValues {
   std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
+  std::vector<double> variance, variance_error;  ///< microcanonical Var K_i
   double kinetic_canonical = 0, kinetic_canonical_error = 0;
+  double excitation = 0;  ///< microcanonical: D = E - E_min of the initial state
   std::string method, error_kind;
 };
 
-ExactValues microcanonical_values(const Chain<double>& chain, double energy) {
+/// D = E - E_min of the state (phi, phidot) in the excitation form: its kinetic energy plus
+/// U - U_min = sum_j 2 gamma_j sin^2(phi_j / 2), so a start near the bottom of the well keeps
+/// its digits (E = K + U would lose them to the cancellation of U and E_min).
+double initial_excitation(const Chain<double>& chain, const ChainState<double>& state,
+                          const std::vector<double>& phi) {
+  double potential = 0;
+  for (std::size_t j = 0; j < chain.size(); ++j) {
+    const double s = std::sin(phi[j] / 2);
+    potential += 2 * chain.potential_coefficient(j) * s * s;
+  }
+  return observables(chain, state).kinetic_total + potential;
+}
+
+ExactValues microcanonical_values(const Chain<double>& chain, double excitation) {
   MicrocanonicalOptions options;
   options.threads = hardware_threads();
-  const MicrocanonicalAverages<double> r = microcanonical_average(chain, energy, options);
+  const MicrocanonicalAverages<double> r =
+      microcanonical_average_excitation(chain, excitation, options);
   ExactValues out;
+  out.excitation = r.excitation;
+  for (const Estimate<double>& v : r.kinetic_variance) {
+    out.variance.push_back(v.value);
+    out.variance_error.push_back(v.error);
+  }
   for (const Estimate<double>& k : r.kinetic) {
     out.kinetic.push_back(k.value);
     out.kinetic_error.push_back(k.error);
@@ -175,9 +199,32 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
 
 std::string number(double x) { return decimal(x, 10); }
 
+/// Exact values: every digit of the double (17 significant).
+std::string exact_number(double x) { return decimal(x, 17); }
+
+/// The error of an exact value printed with 17 digits (3 digits, half a unit in the value's
+/// last printed place included).
+std::string exact_error(double value, double error) {
+  return decimal(printed_error(value, error, 17), error_digits);
+}
+
 std::string number_array(const std::vector<double>& values) {
   std::string out = "[";
   for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + number(values[i]);
+  return out + "]";
+}
+
+std::string exact_array(const std::vector<double>& values) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_number(values[i]);
+  return out + "]";
+}
+
+std::string exact_error_array(const std::vector<double>& values,
+                              const std::vector<double>& errors) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < values.size(); ++i)
+    out += (i ? ", " : "") + exact_error(values[i], errors[i]);
   return out + "]";
 }
 
@@ -282,8 +329,9 @@ std::string simulate_command(const Options& options) {
                  r.simulated_time);
 
   std::optional<ExactValues> reference;
-  if (exact) reference = langevin ? canonical_values(chain, run.beta)
-                                  : microcanonical_values(chain, energy);
+  if (exact)
+    reference = langevin ? canonical_values(chain, run.beta)
+                         : microcanonical_values(chain, initial_excitation(chain, initial, phi));
 
   std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -312,9 +360,9 @@ std::string simulate_command(const Options& options) {
     for (std::size_t i = 0; i < n; ++i) {
       out += std::to_string(i + 1) + "," + number(k[i]) + "," + decimal(k_error[i], 3) + "," +
              number(kc[i]) + "," + decimal(kc_error[i], 3) + "," +
-             (reference ? number(reference->kinetic[i]) + "," +
-                              decimal(reference->kinetic_error[i], 3) + "," +
-                              number(reference->kinetic_canonical)
+             (reference ? exact_number(reference->kinetic[i]) + "," +
+                              exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
+                              "," + exact_number(reference->kinetic_canonical)
                         : std::string(",,")) +
              "," + decimal(tau[i], 3) + "\n";
     }
@@ -340,14 +388,16 @@ std::string simulate_command(const Options& options) {
     for (std::size_t i = 0; i < n; ++i)
       deviation[i] = (k[i] - reference->kinetic[i]) /
                      std::hypot(k_error[i], reference->kinetic_error[i]);
-    json.raw("exact_K", number_array(reference->kinetic))
-        .raw("exact_K_error", number_array(reference->kinetic_error))
-        .raw("exact_Kc", number(reference->kinetic_canonical))
-        .raw("exact_cos_phi", number_array(reference->cos_angle))
+    json.raw("exact_K", exact_array(reference->kinetic))
+        .raw("exact_K_error", exact_error_array(reference->kinetic, reference->kinetic_error))
+        .raw("exact_Kc", exact_number(reference->kinetic_canonical))
+        .raw("exact_cos_phi", exact_array(reference->cos_angle))
         .raw("K_deviation_sigmas", number_array(deviation))
         .string("exact_method", reference->method)
-        .raw("exact_Kc_error", number(reference->kinetic_canonical_error))
-        .raw("exact_cos_phi_error", number_array(reference->cos_angle_error))
+        .raw("exact_Kc_error",
+             exact_error(reference->kinetic_canonical, reference->kinetic_canonical_error))
+        .raw("exact_cos_phi_error",
+             exact_error_array(reference->cos_angle, reference->cos_angle_error))
         .string("exact_error_kind", reference->error_kind);
   } else {
     json.raw("exact_K", "null");
@@ -361,6 +411,13 @@ std::string simulate_command(const Options& options) {
       .integer("newton_solves", static_cast<long long>(r.newton_solves))
       .boolean("interrupted", r.interrupted)
       .raw("seconds", seconds_text(seconds));
+  if (reference && !langevin) {
+    // appended: the microcanonical state as D = E - E_min (excitation form) and Var K_i
+    json.raw("exact_excitation", exact_number(reference->excitation))
+        .raw("exact_var_K", exact_array(reference->variance))
+        .raw("exact_var_K_error",
+             exact_error_array(reference->variance, reference->variance_error));
+  }
   return json.str() + "\n";
 }
 

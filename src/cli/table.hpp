@@ -11,9 +11,9 @@ namespace pendavg::cli {
 
 extern const std::string_view table_usage;
 
-inline constexpr std::array<std::string_view, 12> table_options{
-    "beta",   "mu1",    "l1",      "l2",     "g",      "chain",
-    "digits", "method", "samples", "shifts", "seed",   "output"};
+inline constexpr std::array<std::string_view, 14> table_options{
+    "beta",   "mu1",    "l1",      "l2",     "g",      "chain",  "digits",
+    "method", "samples", "shifts", "seed",   "output", "energy", "excitation"};
 
 /// Runs `pendavg table`: returns the CSV (for stdout) when --output is absent, otherwise
 /// writes it to --output through a temporary file in the same directory and returns "".
