@@ -49,10 +49,10 @@ const std::string_view simulate_usage =
     "                  suzuki4, kahan-li6 (6th order, 9 stages), rattle2\n"
     "  --thermostat langevin  constrained BAOAB at --beta B, friction --friction G (default 1)\n"
     "  --exact no      skip the exact values (N >= 5 uses QMC for them: a few seconds)\n"
+    "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
     "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
     "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
     "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
-    "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
