@@ -13,7 +13,7 @@
 //  * MATH.md Sec. 8: N = 3, beta = 0.1, beta<K_1> = 0.3114096682 against the diagonal 1/6;
 //  * the work: mirror-halved node counts, determinism across thread counts, the n^(N-1) guard.
 //  * qmc_average (randomized lattice QMC; both proposals, the root-to-tail pivot law and the plain
-//    von Mises law): its 3-sigma error bars cover the exact N = 3 values (unit chain) and N = 4
+//    von Mises law): its error bars cover the exact N = 3 values (unit chain) and N = 4
 //    values (unequal masses and lengths, beta = 2) for >= 95 of 100 seeds, against the tensor
 //    torus; the two proposals agree within their bars at N = 8; sum_i beta<K_i> = N/2 at N = 64
 //    and N = 300; determinism across thread counts; the CBC table against the fast and the

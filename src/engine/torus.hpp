@@ -854,9 +854,10 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // exact to 1e-13 in milliseconds. Cost ~100 ns per particle and point (the 32-node table of
 // each conditional law, one tan and one exp per angle, the backward trace sweep).
 // Measured (tests/bench/bench_any_n.cpp, BM_qmc_to_target: points per shift doubled from 2^12,
-// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar over the beta<K_i> is <= 1e-4;
-// unit chains, g = 1; the machine's 2 cores were shared, load average ~4, so wall times are
-// ~3x the per-thread CPU times given here, which are what 2 free cores would take):
+// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar (the multiplier then) over the
+// beta<K_i> is <= 1e-4; unit chains, g = 1; the machine's 2 cores were shared, load average
+// ~4, so wall times are ~3x the per-thread CPU times given here, which are what 2 free cores
+// would take):
 //     N = 8,  beta = 1:    2^12 points, bar 8.9e-5, fraction 0.97,  0.06 s
 //     N = 16, beta = 1:    2^14 points, bar 6.7e-5, fraction 0.94,  0.5 s  (ladder)
 //     N = 32, beta = 1:    2^15 points, bar 7.7e-5, fraction 0.89,  2.1 s
