@@ -12,7 +12,8 @@
 //   * limits: E -> infinity (canonical beta -> 0) and E -> E_min (harmonic equipartition over
 //     normal modes: D/(2N) for every particle of every chain);
 //   * the near-minimum ladder D = 1e-4..1e-12 |E_min| (N = 2, 3) against a long-double quadrature
-//     of the definition in the excitation form (tests/oracle/near_minimum.hpp);
+//     of the definition in the excitation form (tests/oracle/near_minimum.hpp), and far below it
+//     (D down to 1e-250 |E_min|) against the harmonic limit;
 //   * Var K_i's conditional moment against momenta sampled on the energy shell;
 //   * error estimates against tighter runs, long double runs (separatrices, above the top) and
 //     MPFR; qmc finite at every excitation; bad input.
@@ -378,6 +379,46 @@ TEST_CASE("near-minimum ladder: D = 1e-4..1e-12 |E_min| for N = 2, 3 against a l
   }
   INFO("worst relative error " << worst_relative << ", worst |deviation|/error " << worst_ratio);
   CHECK(worst_ratio < 1);
+}
+
+TEST_CASE("far below the ladder (D = 1e-20..1e-250 |E_min|) the bars cover the harmonic limit",
+          "[microcanonical]") {
+  // There the harmonic values are the truth to ~D/|E_min| relative: <K_i>_E = D/(2N), Var K_i =
+  // D^2 (2N - 1)/(4N^2 (N + 1)), 1 - <cos phi_i>_E = D/(2N gamma_i). Every cut of the nested
+  // integral sits within ~sqrt(D) of 0 here, so this catches any cut or node formed with an
+  // absolute (rather than relative) rounding error, which would lie by ~(u / sqrt(D))^(3/2).
+  struct Case {
+    Chain<double> chain;
+    std::vector<double> fractions;
+  };
+  const std::vector<Case> cases{
+      {Chain<double>({1.0, 1.0}, {1.0, 1.0}, 1.0), {1e-20, 1e-50, 1e-100, 1e-250}},
+      {Chain<double>({1.0, 0.3}, {1.3, 0.6}, 9.81), {1e-20, 1e-100}},
+      {Chain<double>({0.7, 1.9, 0.4}, {0.8, 1.1, 1.7}, 2.5), {1e-20}},
+  };
+  for (const Case& k : cases) {
+    const Chain<double>& c = k.chain;
+    const std::size_t n = c.size();
+    const double nn = double(n);
+    for (double fraction : k.fractions) {
+      const double d = fraction * -minimum_energy(c);
+      MicrocanonicalOptions o;
+      o.tolerance = n == 2 ? 1e-13 : 1e-11;
+      const auto r = microcanonical_average_excitation(c, d, o);
+      INFO("N = " << n << ", m1 = " << c.mass(0) << ", D/|E_min| = " << fraction);
+      if (n == 2) CHECK(r.converged);
+      for (std::size_t i = 0; i < n; ++i) {
+        INFO("i = " << i << ": <K_i>/(D/(2N)) = " << r.kinetic[i].value / (d / (2 * nn)) << " +- "
+                    << r.kinetic[i].error / (d / (2 * nn)));
+        CHECK(std::abs(r.kinetic[i].value - d / (2 * nn)) <= r.kinetic[i].error);
+        CHECK(r.kinetic[i].error <= 1e-13 * r.kinetic[i].value);
+        const double variance = d * d * (2 * nn - 1) / (4 * nn * nn * (nn + 1));
+        CHECK(std::abs(r.kinetic_variance[i].value - variance) <= r.kinetic_variance[i].error);
+        const double gap = d / (2 * nn * c.potential_coefficient(i));
+        CHECK(std::abs(r.cos_angle[i].value - (1 - gap)) <= r.cos_angle[i].error);
+      }
+    }
+  }
 }
 
 TEST_CASE("excitation_energy keeps every digit of E - E_min (double-double, against MPFR)",

@@ -585,28 +585,38 @@ class NestedShellIntegral {
       cuts.push_back(theta_[j - 1]);
       cuts.push_back(theta_[j - 1] + p);
     }
-    for (Real& c : cuts) {  // into [-pi, pi)
+    // Into [-pi, pi), touching only the cuts outside it: a cut near 0 (near the bottom of the
+    // well every cut is within ~sqrt(D) of arg v, and arg v = 0 at j = 1) keeps its relative
+    // accuracy, which fmod(c + pi, 2 pi) - pi would reduce to an absolute u pi: the piece would
+    // then end up to ~u pi / sqrt(D) (relative) off the square-root edge of the accessible arc.
+    for (Real& c : cuts) {
+      if (c >= -p && c < p) continue;
       c = fmod(c + p, two_pi);
       if (c < 0) c += two_pi;
       c -= p;
     }
     std::sort(cuts.begin(), cuts.end());
+    // Cuts closer than 64 u (relative) are one cut.
+    const Real close = 64 * unit_roundoff<Real>();
+    const auto apart = [&](const Real& a, const Real& b) {
+      using std::max;
+      return b - a > close * max(abs(a), abs(b));
+    };
     std::vector<Real> ends;
-    const Real merge = 64 * unit_roundoff<Real>();
     for (const Real& c : cuts) {
       if (j == 1 && (c < 0)) continue;  // symmetric: [0, pi] only
-      if (ends.empty() || c - ends.back() > merge) ends.push_back(c);
+      if (ends.empty() || apart(ends.back(), c)) ends.push_back(c);
     }
     if (j == 1) {
-      if (ends.empty() || ends.front() > merge) ends.insert(ends.begin(), Real(0));
-      if (p - ends.back() > merge) {
+      if (ends.empty() || ends.front() > 0) ends.insert(ends.begin(), Real(0));
+      if (apart(ends.back(), p)) {
         ends.push_back(p);
       } else {
         ends.back() = p;
       }
     } else {
       const Real first = ends.front();
-      if (first + two_pi - ends.back() > merge) {
+      if (apart(ends.back(), first + two_pi)) {
         ends.push_back(first + two_pi);
       } else {
         ends.back() = first + two_pi;
@@ -616,7 +626,7 @@ class NestedShellIntegral {
     const Real multiplicity = (j == 1) ? Real(2) : Real(1);
     for (std::size_t a = 0; a + 1 < ends.size(); ++a) {
       const Real lo = ends[a], hi = ends[a + 1];
-      if (!(hi - lo > merge)) continue;
+      if (!apart(lo, hi)) continue;
       if (k.excitation < k.gamma_sum) {
         // E < 0: a fibre whose largest reachable |z| stays below |E| contributes nothing, i.e.
         // sum_{k <= j} gamma_k - |v_j| >= D at the piece's midpoint (no cut inside it).
