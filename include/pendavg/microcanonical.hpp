@@ -29,9 +29,12 @@
 // in which nothing cancels near the bottom: E + rho = D - (S - rho) with S - rho = sum_j gamma_j
 // (1 - cos(theta_j - arg z)) (S = sum_j gamma_j), and likewise the critical radii of the cuts and
 // the test for empty fibres below. (Above E = 0 the plain E + rho is the accurate form: there
-// S - rho can be ~S while E + rho is ~rho, for a folded chain with z ~ 0.) Relative accuracy then
-// stays near the tolerance down to D = 1e-12 |E_min| (tests/test_microcanonical.cpp, the
-// near-minimum ladder, against an independent long-double quadrature of the definition).
+// S - rho can be ~S while E + rho is ~rho, for a folded chain with z ~ 0.) The cuts of the
+// nested integral, which near the bottom sit within ~sqrt(D) of 0, are kept to relative (not
+// absolute) accuracy too. Relative accuracy then stays near the tolerance down to D = 1e-12
+// |E_min| (tests/test_microcanonical.cpp, the near-minimum ladder, against an independent
+// long-double quadrature of the definition) and far below (D = 1e-250 |E_min| for N = 2, against
+// the harmonic limit).
 // Harmonic limit (D -> 0): H -> (1/2) phidot^T A_0 phidot + (1/2) phi^T Gamma phi. On the energy
 // shell of N oscillators the 2N normal coordinates (momenta and frequency-scaled positions) are
 // uniform on a sphere, so each mode carries kinetic energy D/(2N) on average and, with the

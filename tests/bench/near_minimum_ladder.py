@@ -4,7 +4,7 @@ against an independent mpmath evaluation of the definition (issue 15).
 
     python3 tests/bench/near_minimum_ladder.py PENDAVG [--digits 40] [--nodes 24]
     python3 tests/bench/near_minimum_ladder.py --reference MASSES LENGTHS G D [--digits 40]
-    python3 tests/bench/near_minimum_ladder.py PENDAVG --separatrix [--digits 26]
+    python3 tests/bench/near_minimum_ladder.py PENDAVG --separatrix --digits 30
 
 For each chain (N = 2 and 3, unit and unequal) and each excitation D = 10^-k |E_min|
 (k = 4..12) it runs `pendavg average --excitation D` and `pendavg average --energy E` (E the
@@ -116,9 +116,10 @@ def checked(masses, lengths, g, excitation, nodes):
     return fine, spread
 
 
-def tanh_sinh(f, a, b, size, tolerance):
+def tanh_sinh(f, a, b, size, tolerance, scale_of=None):
     """Vector tanh-sinh quadrature of f (a list of `size` values) over [a, b], the step halved
-    until the sums change by less than `tolerance` (relative, largest component)."""
+    until every sum changes by less than `tolerance` times its scale: scale_of(sums)[c], by
+    default |sums[c]|. tolerance None: the sums at h = 1/8 (a rough value)."""
     half, mid = (b - a) / 2, (a + b) / 2
     t_max = mp.mpf(4)
 
@@ -140,8 +141,11 @@ def tanh_sinh(f, a, b, size, tolerance):
             values = f(mid + half * xw[0])
             total = [s + xw[1] * v for s, v in zip(total, values)]
         estimate = [half * h * s for s in total]
-        if previous is not None and all(abs(e - p) <= tolerance * max(abs(e), mp.mpf(10) ** -40)
-                                        for e, p in zip(estimate, previous)):
+        if tolerance is None and h <= mp.mpf(1) / 8:  # a rough value: h = 1/8, no test
+            return estimate
+        scales = scale_of(estimate) if scale_of and tolerance else [abs(e) for e in estimate]
+        if tolerance is not None and previous is not None and all(abs(e - p) <= tolerance * sc
+                                        for e, p, sc in zip(estimate, previous, scales)):
             return estimate
         previous = estimate
         h /= 2
@@ -151,11 +155,17 @@ def tanh_sinh(f, a, b, size, tolerance):
             raise RuntimeError("tanh_sinh: no convergence")
 
 
-def definition_2d(masses, lengths, g, energy, tolerance):
+def definition_2d(masses, lengths, g, energy, tolerance, floors=None):
     """N = 2 at any energy: the definition over (phi_1, phi_2) literally (MATH.md Sec. 7), with
     the paper's closed forms det A = l1^2 l2^2 m2 (M - m2 c^2), tr X_1 = m1 / (M - m2 c^2)
     (c = cos(phi_2 - phi_1); X_1 has rank one, X_2 = 1 - X_1). phi_1 over its exact accessible
-    arc, phi_2 over [0, pi] (the integrand is even) split where that arc opens or closes."""
+    arc, phi_2 over [0, pi] (the integrand is even) split where that arc opens or closes. Each
+    fibre's integral is converged to `tolerance` relative or to `floors` (absolute, per quantity:
+    tolerance x a rough value of the whole integral / pi), so that fibres where E - U is lost to
+    rounding (a vanishing arc) do not stall it; floors=None: a rough pass (h = 1/8) first."""
+    if floors is None and tolerance is not None:
+        rough = definition_2d(masses, lengths, g, energy, None)
+        floors = [tolerance * abs(r) / mp.pi for r in rough[3]]
     m1, m2 = masses
     l1, l2 = lengths
     big_m = m1 + m2
@@ -167,10 +177,8 @@ def definition_2d(masses, lengths, g, energy, tolerance):
             cuts.append(mp.acos(x))
     cuts.sort()
 
-    def node(phi1, phi2):
+    def node(phi1, phi2):  # phi1 inside the arc: no indicator (rounding could flip it)
         rest = energy + g1 * mp.cos(phi1) + g2 * mp.cos(phi2)  # E - U
-        if rest <= 0:
-            return [mp.mpf(0)] * 7
         c = mp.cos(phi2 - phi1)
         q = big_m - m2 * c * c
         w = l1 * l2 * mp.sqrt(m2 * q)
@@ -181,27 +189,35 @@ def definition_2d(masses, lengths, g, energy, tolerance):
             out.append(w * rest * rest * (trace * trace + 2 * trace_squared) / 8)
         return out
 
+    def scales(sums):  # the cosine moments can vanish: compared with the weight
+        if tolerance is None:
+            return None
+        return [max(abs(v) if c not in (3, 4) else max(abs(v), abs(sums[0])),
+                    floors[c] / tolerance) for c, v in enumerate(sums)]
+
     def fibre(phi2):
-        x = -(energy + g2 * mp.cos(phi2)) / g1
-        if x >= 1:
-            return [mp.mpf(0)] * 7
-        a = mp.pi if x <= -1 else mp.acos(x)
-        return tanh_sinh(lambda phi1: node(phi1, phi2), -a, a, 7, tolerance)
+        with mp.extradps(mp.mp.dps):  # the arc's half-width a = acos(x) loses digits near x = 1
+            x = -(energy + g2 * mp.cos(phi2)) / g1
+            if x >= 1:
+                return [mp.mpf(0)] * 7
+            a = mp.pi if x <= -1 else mp.acos(x)
+        a = +a
+        return tanh_sinh(lambda phi1: node(phi1, phi2), -a, a, 7, tolerance, scales)
 
     total = [mp.mpf(0)] * 7
     for lo, hi in zip(cuts, cuts[1:]):
-        part = tanh_sinh(fibre, lo, hi, 7, tolerance)
+        part = tanh_sinh(fibre, lo, hi, 7, tolerance, scales)
         total = [t + p for t, p in zip(total, part)]
     kinetic = [total[1] / total[0], total[2] / total[0]]
     cosine = [total[3] / total[0], total[4] / total[0]]
     variance = [total[5 + i] / total[0] - kinetic[i] ** 2 for i in range(2)]
-    return kinetic, variance, cosine
+    return kinetic, variance, cosine, total
 
 
 def separatrices(pendavg):
     """N = 2: every critical energy +-gamma_1 +-gamma_2 > E_min, exactly and 1e-9 top off, and
-    1.5, 10 and 1000 times the top, against definition_2d at the tolerances 10^(10 - digits) and
-    10^(5 - digits) (their change printed as "oracle change")."""
+    1.5, 10 and 1000 times the top, against definition_2d at the tolerances 10^(14 - digits) and
+    10^(10 - digits) (their change printed as "oracle change")."""
     chains = [(["1", "1"], ["1", "1"], "1"), (["1", "0.3"], ["1.3", "0.6"], "9.81")]
     worst_ratio = 0
     print("masses lengths g | E | rel. error K, Var K | |dev|/error K, Var K, cos phi | oracle change")
@@ -216,8 +232,8 @@ def separatrices(pendavg):
             energies += [e, e + 1e-9 * top, e - 1e-9 * top]
         energies += [1.5 * top, 10 * top, 1e3 * top]
         for e in energies:
-            coarse = definition_2d(m, l, gg, mp.mpf(e), mp.mpf(10) ** (10 - mp.mp.dps))
-            kin, var, cos = definition_2d(m, l, gg, mp.mpf(e), mp.mpf(10) ** (5 - mp.mp.dps))
+            coarse = definition_2d(m, l, gg, mp.mpf(e), mp.mpf(10) ** (14 - mp.mp.dps))
+            kin, var, cos, _ = definition_2d(m, l, gg, mp.mpf(e), mp.mpf(10) ** (10 - mp.mp.dps))
             change = max(abs(a / b - 1) for qa, qb in zip(coarse[:2], (kin, var))
                          for a, b in zip(qa, qb))
             o = run(pendavg, masses, lengths, g, "energy", repr(e))
