@@ -125,6 +125,7 @@ QmcOptions qmc_options(const AverageOptions& o) {
   qmc.seed = o.seed.value_or(default_qmc_seed);
   qmc.threads = o.threads;
   qmc.partition = o.partition;
+  qmc.control = &o.control;
   return qmc;
 }
 

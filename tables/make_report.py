@@ -130,7 +130,7 @@ and date; all were computed by `pendavg table` / `pendavg limit` (exact, not MCM
 | `l2_sweep.csv` | <K1>/<K2> (and all the above) vs l2 = log:0.1:10 (61 points) for mu1 in {{0.05, 0.5, 0.95}}, beta in {{1, 2, 5, 10}}, {len(l2_rows)} rows (paper Fig. 6) |
 | `cos_phi.csv` | <cos phi_i> vs beta (61 points), mu1 = 0.5, l1 = l2 = 1 (paper Fig. 8, exact instead of MCMC) |
 | `high_temperature_limit.csv` | the beta -> 0 limit (paper eq. aveK1-beta0) vs mu1: 41 values log-spaced from 1e-4 to 0.9999, plus mu1 = 0.5, 0.05, 0.95, at 20 digits |
-| `chains.csv` | chains N = 3..8 of unit masses and links: beta<K_i> vs i at beta in {{0.1, 1, 10}}, with the paper's diagonal approximation (eq. ke-linear-tave-1); torus-trapezoid (exact, ~1e-13) for N <= 4, qmc (65536 points x 16 shifts, 3-sigma bars up to {qmc_err:.1e}) for N = 5..8 |
+| `chains.csv` | chains N = 3..8 of unit masses and links: beta<K_i> vs i at beta in {{0.1, 1, 10}}, with the paper's diagonal approximation (eq. ke-linear-tave-1); torus-trapezoid (exact, ~1e-13) for N <= 4, qmc (65536 points x 16 shifts, 99.9% Student-t bars up to {qmc_err:.1e}) for N = 5..8 |
 | `series_convergence.csv` | the paper's series (eq. ave-K1-result): terms needed for a certified bound vs mu1 and digits |
 | `work_precision.csv` | speed against error: beta<K1> by every method on four fixed cases, true and reported errors, seconds (dynamics: Langevin time averages) |
 | `dynamics_paper_runs.csv` | the paper's runs (Figs. 3-4): N = 7 and 16 unit chains from phi_i = pi/2, RATTLE + Yoshida-6 (default) and the paper's Yoshida-4, dt = 1e-3, T = 1e4; <K_i>, <K_i^(c)> with error bars beside the exact microcanonical values |

@@ -114,7 +114,7 @@ print("# Speed against error (work precision): beta<K1> by every available penda
 print("# cases: double pendulum l = 1,1, g = 1 at (m 0.5,0.5; beta 1), (m 0.05,0.95; beta 10),")
 print("# (m 1e-6,0.999999; beta 100), and the chain N = 3 of unit masses/lengths at beta = 1.")
 print("# true_error = |beta_K1 - reference| (exact decimal subtraction); reported_error = the engine's own")
-print("# absolute error estimate of beta_K1 (qmc: 3 sigma); seconds = median of 3 runs of the library call")
+print("# absolute error estimate of beta_K1 (qmc: the 99.9% Student-t multiple of the standard error, 4.07 for 16 shifts); seconds = median of 3 runs of the library call")
 print("# (the CLI's `seconds`, process start excluded); evaluations = the engine's work count.")
 print("# A true_error below the reference's ref_floor is not resolvable (only <= ref_floor is known).")
 print("# series is skipped for mu1 = 1e-6 (rows 'skipped'): it converges like mu2^n = 0.999999^n and needs")

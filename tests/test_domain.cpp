@@ -230,6 +230,45 @@ TEST_CASE("run control: a stopped torus reports its last finished level honestly
   CHECK_THROWS_AS(pendavg::average(chain, 2.0, o), pendavg::interrupted);
 }
 
+TEST_CASE("run control: a stopped qmc run reports the shifts it finished", "[domain]") {
+  // One thread: the shifts finish in order. Stop after 5 of 16: an estimate from 5 shifts
+  // (wider Student-t bars for 4 degrees of freedom), interrupted, not converged, covering the
+  // converged answer; stopped before two shifts finished: the `interrupted` exception.
+  const Chain<double> chain({1, 0.5, 2, 1, 1}, {1, 2, 0.5, 1, 1});
+  AverageOptions o;
+  o.samples = 4096;
+  o.threads = 1;
+  const Averages<double> full = pendavg::average(chain, 1.5, o);
+  REQUIRE(full.qmc);
+  CHECK(full.qmc->shifts == 16);
+  std::atomic<bool> stop{false};
+  std::vector<double> fractions;
+  o.control.stop = &stop;
+  o.control.progress = [&](double fraction) {
+    fractions.push_back(fraction);
+    if (fractions.size() == 5) stop = true;
+  };
+  const Averages<double> stopped = pendavg::average(chain, 1.5, o);
+  CHECK(stopped.interrupted);
+  CHECK_FALSE(stopped.converged);
+  REQUIRE(stopped.qmc);
+  CHECK(stopped.qmc->shifts == 5);
+  CHECK(stopped.evaluations == 5 * 4096);
+  CHECK(stopped.qmc->sigmas > full.qmc->sigmas);  // t quantile for 4 dof, 8.61 > 4.07
+  CHECK(fractions.size() == 5);
+  CHECK(fractions.back() == 5.0 / 16);  // k/16 exactly
+  for (std::size_t i = 0; i < chain.size(); ++i) {
+    // The first 5 shifts of the full run are the stopped run's shifts: the same seed.
+    CHECK(std::abs(stopped.beta_kinetic[i].value - full.beta_kinetic[i].value) <=
+          stopped.beta_kinetic[i].error + full.beta_kinetic[i].error);
+    CHECK(stopped.beta_kinetic[i].error > full.beta_kinetic[i].error);
+  }
+  stop = false;
+  fractions.clear();
+  o.control.progress = [&](double) { stop = true; };  // after the first shift
+  CHECK_THROWS_AS(pendavg::average(chain, 1.5, o), pendavg::interrupted);
+}
+
 TEST_CASE("run control: the series refuses unbounded work and stops on request", "[domain]") {
   const Chain<mpfr_real> slow(std::vector<mpfr_real>{1, 1000}, std::vector<mpfr_real>{1, 1});
   CHECK_THAT(rejection([&] { pendavg::series_convergence(slow, mpfr_real(1), 16); }),

@@ -13,7 +13,7 @@
 //  * MATH.md Sec. 8: N = 3, beta = 0.1, beta<K_1> = 0.3114096682 against the diagonal 1/6;
 //  * the work: mirror-halved node counts, determinism across thread counts, the n^(N-1) guard.
 //  * qmc_average (randomized lattice QMC; both proposals, the root-to-tail pivot law and the plain
-//    von Mises law): its 3-sigma error bars cover the exact N = 3 values (unit chain) and N = 4
+//    von Mises law): its error bars cover the exact N = 3 values (unit chain) and N = 4
 //    values (unequal masses and lengths, beta = 2) for >= 95 of 100 seeds, against the tensor
 //    torus; the two proposals agree within their bars at N = 8; sum_i beta<K_i> = N/2 at N = 64
 //    and N = 300; determinism across thread counts; the CBC table against the fast and the
@@ -453,7 +453,7 @@ TEST_CASE("torus N = 5 reaches 1e-10", "[torus][.slow]") {
 
 // ------------------------------------------------------------------------------ randomized QMC
 
-/// Counts, over seeds 1..100, how often the 3-sigma bars of qmc_average (1024 x 16 points) cover
+/// Counts, over seeds 1..100, how often the bars of qmc_average (1024 x 16 points) cover
 /// the exact torus values, per quantity and particle; returns the largest |error| of beta<K_i>.
 double check_qmc_coverage(const Chain<double>& chain, double beta, pendavg::QmcProposal proposal) {
   const std::size_t n = chain.size();
@@ -500,6 +500,115 @@ TEST_CASE("qmc error bars cover the exact N = 3 values for >= 95 of 100 seeds", 
 TEST_CASE("qmc error bars cover the exact N = 4 values, unequal masses", "[torus][qmc]") {
   const Chain<double> chain({1.0, 0.3, 2.0, 0.7}, {1.0, 1.4, 0.6, 1.1}, 1.0);
   CHECK(check_qmc_coverage(chain, 2.0, pendavg::QmcProposal::pivot_sequential) < 1e-3);
+}
+
+/// True when every value and error of `a` is finite.
+bool all_finite(const pendavg::Averages<double>& a) {
+  const auto finite = [](const std::vector<pendavg::Estimate<double>>& v) {
+    return std::all_of(v.begin(), v.end(), [](const pendavg::Estimate<double>& e) {
+      return std::isfinite(e.value) && std::isfinite(e.error);
+    });
+  };
+  return finite(a.beta_kinetic) && finite(a.cos_angle) && finite(a.beta2_kinetic_variance) &&
+         (!a.ratio || (std::isfinite(a.ratio->value) && std::isfinite(a.ratio->error)));
+}
+
+TEST_CASE("qmc weights cannot underflow: the issue-15 case (N = 3, beta = 100, seed 16)",
+          "[torus][qmc]") {
+  // The first lattice point of a shift had a weight below the double range: its log (-inf)
+  // used to become the shift's reference, and -inf - (-inf) made every value NaN while
+  // `converged` stayed true. Now: finite, converged, and within its bars of the exact values.
+  const Chain<double> chain = uniform_chain(3);
+  pendavg::QmcOptions options;
+  options.seed = 16;
+  options.points = std::size_t(1) << 16;
+  options.threads = 2;
+  const auto q = pendavg::qmc_average(chain, 100.0, options);
+  REQUIRE(all_finite(q));
+  CHECK(q.converged);
+  const auto exact = torus_average(chain, 100.0);
+  for (std::size_t i = 0; i < 3; ++i) {
+    CHECK(std::abs(q.beta_kinetic[i].value - exact.beta_kinetic[i].value) <= q.beta_kinetic[i].error);
+    CHECK(std::abs(q.cos_angle[i].value - exact.cos_angle[i].value) <= q.cos_angle[i].error);
+  }
+  CHECK(q.qmc->sigmas == Approx(4.0728).epsilon(1e-4));  // 99.9% Student t, 15 degrees of freedom
+  CHECK(pendavg::qmc_default_sigmas(16) == Approx(4.0728).epsilon(1e-4));
+  CHECK(pendavg::qmc_default_sigmas(1024) == Approx(3.3001).epsilon(1e-4));
+}
+
+/// Runs qmc_average for N = 1..8, beta = 1e-3..1e6 (every decade) and seeds 1..seeds with
+/// `points` x `shifts` points; returns how many runs had a non-finite value or error, and
+/// checks that no converged run does.
+int qmc_non_finite_runs(std::uint64_t seeds, std::size_t points, std::size_t shifts) {
+  int bad = 0;
+  for (std::size_t n = 1; n <= 8; ++n) {
+    const Chain<double> chain = uniform_chain(n);
+    for (int decade = -3; decade <= 6; ++decade) {
+      const double beta = std::pow(10.0, decade);
+      for (std::uint64_t seed = 1; seed <= seeds; ++seed) {
+        pendavg::QmcOptions options;
+        options.points = points;
+        options.shifts = shifts;
+        options.seed = seed;
+        const auto q = pendavg::qmc_average(chain, beta, options);
+        if (!all_finite(q)) {
+          ++bad;
+          INFO("N = " << n << ", beta = " << beta << ", seed " << seed);
+          CHECK_FALSE(q.converged);
+        }
+      }
+    }
+  }
+  return bad;
+}
+
+TEST_CASE("qmc: no NaN for N = 1..8, beta = 1e-3..1e6, seeds 1..8", "[torus][qmc]") {
+  CHECK(qmc_non_finite_runs(8, 1024, 4) == 0);
+  CHECK(qmc_non_finite_runs(1, 1 << 12, 8) == 0);
+}
+
+TEST_CASE("qmc: no NaN for N = 1..8, beta = 1e-3..1e6, seeds 1..1000", "[torus][qmc][.slow]") {
+  CHECK(qmc_non_finite_runs(1000, 1024, 4) == 0);
+  CHECK(qmc_non_finite_runs(10, 1 << 14, 16) == 0);
+}
+
+TEST_CASE("qmc bars cover >= 99 of 100 seeds per component on the hard case", "[torus][qmc][.slow]") {
+  // lengths 0.01, 10, 1 at g = 9.81, beta = 0.1 (issue 15: 3-sigma bars missed 6 of 120 seeds
+  // there), and the unit N = 3 chain at beta = 1; default points and shifts (2^16 x 16).
+  struct Case {
+    Chain<double> chain;
+    double beta;
+  };
+  const std::vector<Case> cases{{Chain<double>({1.0, 1.0, 1.0}, {0.01, 10.0, 1.0}, 9.81), 0.1},
+                                {uniform_chain(3), 1.0}};
+  for (const Case& c : cases) {
+    TorusOptions exact_options;
+    exact_options.tolerance = 1e-14;
+    const auto exact = torus_average(c.chain, c.beta, exact_options);
+    std::vector<int> kinetic(3, 0), cosine(3, 0), variance(3, 0);
+    for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+      pendavg::QmcOptions options;
+      options.points = std::size_t(1) << 16;
+      options.seed = seed;
+      options.threads = 2;
+      const auto q = pendavg::qmc_average(c.chain, c.beta, options);
+      for (std::size_t i = 0; i < 3; ++i) {
+        const auto covers = [](const pendavg::Estimate<double>& a, const pendavg::Estimate<double>& b) {
+          return std::abs(a.value - b.value) <= a.error + b.error;
+        };
+        kinetic[i] += covers(q.beta_kinetic[i], exact.beta_kinetic[i]);
+        cosine[i] += covers(q.cos_angle[i], exact.cos_angle[i]);
+        variance[i] += covers(q.beta2_kinetic_variance[i], exact.beta2_kinetic_variance[i]);
+      }
+    }
+    for (std::size_t i = 0; i < 3; ++i) {
+      INFO("beta " << c.beta << ", l1 = " << c.chain.length(0) << ", particle " << i + 1 << ": "
+                   << kinetic[i] << ", " << cosine[i] << ", " << variance[i] << " of 100 covered");
+      CHECK(kinetic[i] >= 99);
+      CHECK(cosine[i] >= 99);
+      CHECK(variance[i] >= 99);
+    }
+  }
 }
 
 TEST_CASE("qmc: the pivot and von Mises proposals agree at N = 8; identities at N = 64",

@@ -14,8 +14,9 @@
 //                      until `tolerance` (double) or 10^-digits (MPFR); cost n^(N-1), so N <= ~6.
 //                      automatic for N = 1, 3, 4. Error kind: estimate.
 //   * torus_gauss      the same with Gauss-Legendre nodes: an independent check.
-//   * qmc              any N <= 256: randomized rank-1 lattice QMC, 3-sigma statistical bars
-//                      (double only). automatic for N >= 5.
+//   * qmc              any N <= 256: randomized rank-1 lattice QMC, statistical bars (the 99.9%
+//                      Student-t quantile of the standard error over the shifts: 4.07 sigma for
+//                      16 shifts; double only). automatic for N >= 5.
 // Options a method does not use are refused (invalid_input), so a typo cannot silently change
 // nothing. `digits` selects the precision: 16 is double (Real = double); 17..1000 need
 // Real = mpfr_real (include pendavg/mpfr.hpp), computed at digits + guard_digits.

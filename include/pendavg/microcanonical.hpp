@@ -2,22 +2,48 @@
 // the values that NVE time averages along a trajectory (dynamics) must reproduce.
 //
 // What it computes. For an N-link chain (H = (1/2) p^T A^{-1} p + U, U = -sum_j gamma_j cos phi_j,
-// gamma_j = g S_j l_j, paper eq. potential-energy; the minimum energy is -sum_j gamma_j):
+// gamma_j = g S_j l_j, paper eq. potential-energy; the minimum energy is E_min = -sum_j gamma_j):
 //   * <K_i>_E      -- per-particle kinetic energies (energy units, not beta-scaled);
 //   * <K>_E        = sum_i <K_i>_E = E - <U>_E;
 //   * <K_i^(c)>_E  = <K>_E / N for every i (microcanonical generalized equipartition);
 //   * <cos phi_i>_E;
+//   * Var K_i      = <K_i^2>_E - <K_i>_E^2;
 //   * Omega(E)     = ∫ delta(E - H) d^N phi d^N p, the density of states, whose Laplace transform
 //                    is the canonical partition function (ensemble equivalence, tested).
 // Per angle node the momenta are uniform on the ellipsoid p^T A^{-1} p / 2 = E - U, so
 //     weight      sqrt(det A) (E - U)_+^{N/2 - 1}  (times (2 pi)^{N/2} / Gamma(N/2)),
-//     <K_i | phi, E> = tr(X_i) (E - U) / N,   <K_i^(c) | phi, E> = (E - U) / N.
-// Reduction (MATH.md Sec. 2): phi_1 = psi, phi_j = psi + theta_j, z = sum_j gamma_j e^{i theta_j},
-// rho = |z|, U = -rho cos(psi + arg z). det A, tr X_i depend on theta only, so psi is integrated
-// in closed form through the shell integrals (p = N/2 - 1)
-//     F_p(E, rho) = ∫_0^{2 pi} (E + rho cos u)_+^p du,   G_p(E, rho) = ∫_0^{2 pi} cos u (E + rho cos u)_+^p du,
-//     <K_i>_E       = (1/N) ∫ sqrt(det A) tr X_i F_{p+1} d theta / ∫ sqrt(det A) F_p d theta,
-//     <cos phi_i>_E = ∫ sqrt(det A) cos(theta_i - arg z) G_p d theta / ∫ sqrt(det A) F_p d theta.
+//     <K_i | phi, E> = tr(X_i) (E - U) / N,   <K_i^(c) | phi, E> = (E - U) / N,
+//     <K_i^2 | phi, E> = (E - U)^2 [(tr X_i)^2 + 2 tr(X_i^2)] / (N (N + 2)).
+// (With p = L y, A^{-1} = L^{-T} L^{-1}, y is uniform on the sphere |y|^2 = 2 (E - U) in R^N and
+// K_i = y^T C_i y / 2 with tr C_i = tr X_i, tr C_i^2 = tr X_i^2; the sphere's fourth moments
+// <y_a y_b y_c y_d> = r^4 (d_ab d_cd + d_ac d_bd + d_ad d_bc) / (N (N + 2)) give the last line.)
+//
+// Two entry points, one shape: microcanonical_average(chain, E) and
+// microcanonical_average_excitation(chain, D) with the excitation D = E - E_min > 0. Near the
+// bottom of the well D is how a state is stated without losing digits: an energy E in double
+// near E_min carries only ~u |E_min| / D relative accuracy in D once E_min is rounded, so
+// microcanonical_average(chain, E) forms D = E + sum_j g S_j l_j in double-double from the
+// chain's stored (binary) parameters, and both entry points then evaluate every E - U below
+// E = 0 in the excitation form
+//     E - U = D - (U - U_min),   U - U_min = sum_j gamma_j (1 - cos phi_j) >= 0,
+// in which nothing cancels near the bottom: E + rho = D - (S - rho) with S - rho = sum_j gamma_j
+// (1 - cos(theta_j - arg z)) (S = sum_j gamma_j), and likewise the critical radii of the cuts and
+// the test for empty fibres below. (Above E = 0 the plain E + rho is the accurate form: there
+// S - rho can be ~S while E + rho is ~rho, for a folded chain with z ~ 0.) The cuts of the
+// nested integral, which near the bottom sit within ~sqrt(D) of 0, are kept to relative (not
+// absolute) accuracy too. Relative accuracy then stays near the tolerance down to D = 1e-12
+// |E_min| (tests/test_microcanonical.cpp, the near-minimum ladder, against an independent
+// long-double quadrature of the definition) and far below (D = 1e-250 |E_min| for N = 2, against
+// the harmonic limit).
+// Harmonic limit (D -> 0): H -> (1/2) phidot^T A_0 phidot + (1/2) phi^T Gamma phi. On the energy
+// shell of N oscillators the 2N normal coordinates (momenta and frequency-scaled positions) are
+// uniform on a sphere, so each mode carries kinetic energy D/(2N) on average and, with the
+// modes' velocity shapes v_k (V^T A_0 V = 1, V V^T = A_0^{-1}),
+//     <K_i>_E -> (D / (2N)) sum_k v_k^T A^(i)(0) v_k = (D / (2N)) tr X_i(0) = D / (2N)
+// for every particle, whatever the masses and lengths: tr X_i(0) = m_i c_i^T A_0^{-1} c_i = 1
+// with A_0 = C^T diag(m) C, c_i^T = e_i^T C. The positions give <phi_i^2>_E -> D / (N gamma_i),
+// i.e. 1 - <cos phi_i>_E -> D / (2 N gamma_i), and the sphere's fourth moments give
+// Var K_i -> D^2 [(1 + 2 tr X_i(0)^2) / (4 N (N + 1)) - 1 / (4 N^2)]. Corrections are O(D).
 //
 // Shell integrals (detail::microcanonical::ShellIntegrals, every p in {-1/2, 0, 1/2, 1, ...}).
 // Integration by parts gives the three-term recurrence
@@ -64,7 +90,8 @@
 //     r(phi) sqrt(det A) F_p(E, rho) / I0(beta* rho) and the psi integral stays analytic.
 //     beta* solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E (the proposal's
 //     mean energy with equipartition kinetic energy equals E). Error = sigmas x the jackknife
-//     standard error over the random shifts (a statistical bar, not a bound).
+//     standard error over the random shifts (a statistical bar, not a bound; sigmas is by
+//     default the 99.9% Student-t quantile, 4.07 for 16 shifts: see torus.hpp on why not 3).
 //
 // Measured (Release, g++ -O2, shared 2-core machine; unit masses and lengths, g = 1, E = 0;
 // repeated calls, the tanh-sinh table is built once per type, ~1 ms):
@@ -72,7 +99,9 @@
 //          2-D brute-force quadrature of the definition (dense A, exact phi_1 limits) to 1e-11.
 //   N = 3  integral, tolerance 1e-10: 2e4 nodes, ~7 ms, bars ~1e-12 relative.
 //   N = 4  integral, tolerance 1e-8: 2.7e6 nodes, 0.25 s on 2 threads (1e-10: 0.63 s).
-//   N = 7  qmc, 2^16 points x 32 shifts, 2 threads: 4.2 s, 3-sigma bars 1.4e-5..4e-5 relative
+//   With Var K_i in every stopping test: N = 3 at 1e-10 takes 2.4e4 nodes (bars ~1.6e-14
+//   relative), N = 4 at 1e-8 4.2e6 nodes (bars 1.5e-10); N = 2 is unchanged.
+//   N = 7  qmc, 2^16 points x 32 shifts, 2 threads: 4.2 s, bars (3 sigma) 1.4e-5..4e-5 relative
 //          (2^14 x 16: 0.4 s, ~1.5e-4); effective sample fraction 0.70, beta* = 0.248.
 //   N = 16 qmc, 2^16 x 32, 2 threads: 6.9 s, bars 1.1e-4..2.2e-4 relative (2^14 x 16: 0.9 s,
 //          ~6e-4); effective sample fraction 0.48, beta* = 0.115. The bars shrink about like
@@ -81,7 +110,15 @@
 //   help N = 16, so the matched value is kept.
 // Cross-checks (tests/test_microcanonical.cpp): integral vs QMC vs torus trapezoid vs a 3-angle
 // brute force for N = 3; Laplace transforms of Omega(E) <K_i>_E against the canonical engines
-// (N = 2: 1e-9; N = 3: 1e-7, slow test) and of Omega against Z(beta) of N = 1 (1e-9).
+// (N = 2: 1e-9; N = 3: 1e-7, slow test) and of Omega against Z(beta) of N = 1 (1e-9); the
+// near-minimum ladder (relative errors <= 1.1e-15 at D = 1e-4..1e-12 |E_min| for N = 2, 3, bars
+// 5e-15 (N = 2) and 5e-14 (N = 3) relative); double against long double at every separatrix
+// energy and above the top; MPFR (30 digits) against double.
+// Precision: double, long double and mpfr_real (pendavg/mpfr.hpp). With options.digits > 16
+// (MPFR only) the integral and torus rules run at digits + guard_digits with tolerance
+// 10^-digits; qmc is statistical and runs in double or long double only (refused with digits).
+// QMC weights are kept as exp(log w - log_scale) with a running reference per shift, so they
+// neither under- nor overflow for any N or D; a non-finite value is never reported as converged.
 // Limitations: the `integral` rule costs ~(pieces x nodes)^(N-1) and is for N <= 4; QMC bars are
 // statistical, and the proposal ignores sqrt(det A), so efficiency falls with N (the reported
 // effective_sample_fraction shows it). E exactly on a separatrix of N = 1 (E = gamma_1) gives
@@ -108,19 +145,27 @@ struct MicrocanonicalOptions {
   std::size_t points = std::size_t(1) << 14;  ///< lattice points per shift: 2^10..2^16
   std::size_t shifts = 16;                    ///< independent random shifts (>= 4)
   std::uint64_t seed = 1;                     ///< shifts from std::mt19937_64(seed)
-  double sigmas = 3;                          ///< error = sigmas x jackknife standard error
+  /// error = sigmas x jackknife standard error; 0 (default): the 99.9% two-sided Student-t
+  /// quantile for shifts - 1 degrees of freedom (4.07 for 16 shifts), as in qmc_average.
+  double sigmas = 0;
   double proposal_beta = 0;  ///< qmc: beta* of the von Mises proposal; 0: automatic (see header)
-  int threads = 1;  ///< OpenMP threads (results bitwise independent of the count)
+  int threads = 1;  ///< OpenMP threads (results bitwise independent of the count; MPFR: 1)
+  /// 0: run at the caller's precision with `tolerance`. > 0: check_digits<Real>(digits) (16 for
+  /// double; 17..1000 for mpfr_real, run at digits + guard_digits with tolerance 10^-digits;
+  /// the integral and torus rules only).
+  int digits = 0;
 };
 
 /// Microcanonical averages of one chain at one energy. Arrays have one entry per particle.
 template <class Real>
 struct MicrocanonicalAverages {
-  Real energy{};
+  Real energy{};      ///< E (from the excitation: E_min + D, rounded)
+  Real excitation{};  ///< D = E - E_min > 0 (from the energy: formed in double-double)
   std::vector<Estimate<Real>> kinetic;  ///< <K_i>_E (energy units)
   Estimate<Real> kinetic_canonical;     ///< <K_i^(c)>_E = <K>_E / N (every i)
   Estimate<Real> kinetic_total;         ///< <K>_E = E - <U>_E
   std::vector<Estimate<Real>> cos_angle;  ///< <cos phi_i>_E
+  std::vector<Estimate<Real>> kinetic_variance;  ///< Var K_i = <K_i^2>_E - <K_i>_E^2
   /// Omega(E) = ∫ delta(E - H) d^N phi d^N p = (2 pi)^{N/2} / Gamma(N/2) ∫ sqrt(det A)
   /// (E - U)_+^{N/2-1} d^N phi: the normalizer; ∫ Omega(E) e^{-beta E} dE = Z(beta).
   Estimate<Real> density_of_states;
@@ -128,7 +173,8 @@ struct MicrocanonicalAverages {
   Method quadrature = Method::reduced_integral;  ///< reduced_integral, torus_trapezoid or qmc
   /// estimate (integral, torus) or statistical (qmc): the kind of every error above.
   ErrorKind error_kind = ErrorKind::estimate;
-  std::size_t evaluations = 0;  ///< angle nodes (integrand evaluations) used
+  std::size_t evaluations = 0;  ///< work done, in `work_unit`
+  WorkUnit work_unit = WorkUnit::nodes;  ///< nodes (integral, torus) or samples (qmc)
   bool converged = true;        ///< false: the tolerance was not reached (bars still valid)
   // qmc only
   Real proposal_beta{};              ///< beta* of the von Mises proposal
@@ -136,12 +182,27 @@ struct MicrocanonicalAverages {
 };
 
 /// The microcanonical averages at energy E. Throws invalid_input for a non-finite E,
-/// E <= -sum_j gamma_j (no accessible states) or bad options.
+/// E <= E_min = -sum_j gamma_j (no accessible states) or bad options.
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
                                                      const MicrocanonicalOptions& options = {});
 
-/// Solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E for beta (qmc proposal).
+/// The same at the excitation D = E - E_min (> 0, finite): the way to state an energy near the
+/// bottom of the well without losing digits (see the header comment).
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_average_excitation(
+    const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options = {});
+
+/// E_min = -sum_j g S_j l_j of the chain's stored parameters (double-double sum, rounded once).
+template <class Real>
+Real minimum_energy(const Chain<Real>& chain);
+
+/// D = E - E_min, formed in double-double (relative error ~u however close E is to E_min).
+template <class Real>
+Real excitation_energy(const Chain<Real>& chain, const Real& energy);
+
+/// Solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E for beta (qmc
+/// proposal), in the excitation form N/(2 beta) + sum_j gamma_j (1 - I1/I0) = E - E_min.
 template <class Real>
 Real matched_beta(const Chain<Real>& chain, const Real& energy);
 

@@ -68,5 +68,11 @@ extern template void check_digits<mpfr_real>(int);
 extern template std::vector<SeriesRow<mpfr_real>> series_convergence<mpfr_real>(
     const Chain<mpfr_real>&, const mpfr_real&, int, std::size_t, const RunControl&);
 extern template class TraceWorkspace<mpfr_real>;
+extern template MicrocanonicalAverages<mpfr_real> microcanonical_average<mpfr_real>(
+    const Chain<mpfr_real>&, const mpfr_real&, const MicrocanonicalOptions&);
+extern template MicrocanonicalAverages<mpfr_real> microcanonical_average_excitation<mpfr_real>(
+    const Chain<mpfr_real>&, const mpfr_real&, const MicrocanonicalOptions&);
+extern template mpfr_real minimum_energy<mpfr_real>(const Chain<mpfr_real>&);
+extern template mpfr_real excitation_energy<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&);
 
 }  // namespace pendavg

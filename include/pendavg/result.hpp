@@ -8,7 +8,8 @@
 //                    error is rounding only);
 //   * estimate    -- a deterministic error estimate from refinement (quadrature levels), checked
 //                    against independent methods in the tests but not a proof;
-//   * statistical -- a statistical error bar (randomized QMC: 3 sigma from random shifts; time
+//   * statistical -- a statistical error bar (randomized QMC: the 99.9% Student-t quantile of
+//                    the standard error over random shifts, 4.07 sigma for 16 shifts; time
 //                    averages: 1 sigma from blocking).
 // Tests look for estimates that fail to cover the truth. "Did not converge" is a status with a
 // still-valid estimate (converged = false), never a silent wrong value.
@@ -107,7 +108,9 @@ struct QmcDiagnostics {
   /// these plus a rounding allowance.
   std::vector<Real> beta_kinetic_standard_error, cos_angle_standard_error,
       beta2_kinetic_variance_standard_error;
-  double sigmas = 3;
+  /// The multiplier used: by default the 99.9% two-sided Student-t quantile for shifts - 1
+  /// degrees of freedom (4.07 for 16 shifts).
+  double sigmas = 0;
   /// Kish's effective sample size of the pooled weights over points * shifts.
   Real effective_sample_fraction{};
 };

@@ -231,14 +231,15 @@ std::vector<std::string_view> split_fields(std::string_view line) {
 /// Largest particle index accepted in a column name (m<k>, l<k>).
 constexpr std::size_t max_column_index = 100000;
 
-/// A header name: beta, g, or m<k> / l<k> with k = 1..max_column_index (no leading zeros).
+/// A header name: beta (or energy, excitation), g, or m<k> / l<k> with k = 1..max_column_index
+/// (no leading zeros).
 struct ColumnName {
-  char kind = 0;        ///< 'b' (beta), 'g', 'm' or 'l'
+  char kind = 0;        ///< 'b' (beta, energy or excitation), 'g', 'm' or 'l'
   std::size_t index = 0;  ///< k for m<k> and l<k>
 };
 
 std::optional<ColumnName> column_name(std::string_view name) {
-  if (name == "beta") return ColumnName{'b', 0};
+  if (name == "beta" || name == "energy" || name == "excitation") return ColumnName{'b', 0};
   if (name == "g") return ColumnName{'g', 0};
   if (name.size() < 2 || (name.front() != 'm' && name.front() != 'l')) return std::nullopt;
   const std::string_view digits = name.substr(1);
@@ -252,24 +253,34 @@ std::optional<ColumnName> column_name(std::string_view name) {
 
 struct Header {
   std::size_t particles = 0;
+  std::string state = "beta";          ///< beta, energy or excitation
   std::vector<std::size_t> positions;  ///< for each header field, its canonical column
 };
 
-/// N and, for each header field, the index of its column in case_columns(N). Linear in the
-/// number of columns (a header may have 2 + 2 * 100000 of them).
+/// N and, for each header field, the index of its column in case_columns(N, state). Linear in
+/// the number of columns (a header may have 2 + 2 * 100000 of them).
 Header parse_header(std::string_view line, const std::string& where) {
   const auto names = split_fields(line);
   std::vector<ColumnName> columns;
   columns.reserve(names.size());
   std::size_t particles = 0;
+  std::string state;
   for (const std::string_view name : names) {
     const auto column = column_name(name);
     if (!column) throw usage_error(where + ": unknown column " + in_quotes(name));
+    if (column->kind == 'b') {
+      if (state == name) throw usage_error(where + ": column " + in_quotes(name) + " given twice");
+      if (!state.empty())
+        throw usage_error(where + ": columns " + in_quotes(state) + " and " + in_quotes(name) +
+                          " both given (one of beta, energy, excitation)");
+      state = std::string(name);
+    }
     columns.push_back(*column);
     particles = std::max(particles, column->index);
   }
   particles = std::max<std::size_t>(particles, 1);
-  Header header{particles, {}};
+  if (state.empty()) state = "beta";  // reported missing below
+  Header header{particles, state, {}};
   header.positions.reserve(columns.size());
   std::vector<bool> seen(2 + 2 * particles, false);
   for (std::size_t k = 0; k < columns.size(); ++k) {
@@ -286,7 +297,7 @@ Header parse_header(std::string_view line, const std::string& where) {
     seen[position] = true;
     header.positions.push_back(position);
   }
-  const std::vector<std::string> canonical = case_columns(particles);
+  const std::vector<std::string> canonical = case_columns(particles, state);
   for (std::size_t position = 0; position < seen.size(); ++position)
     if (!seen[position])
       throw usage_error(where + ": missing column " + in_quotes(canonical[position]));
@@ -312,8 +323,8 @@ std::string read_file(const std::string& path) {
 
 }  // namespace
 
-std::vector<std::string> case_columns(std::size_t particles) {
-  std::vector<std::string> columns{"beta", "g"};
+std::vector<std::string> case_columns(std::size_t particles, std::string_view state) {
+  std::vector<std::string> columns{std::string(state), "g"};
   for (const char kind : {'m', 'l'})
     for (std::size_t i = 1; i <= particles; ++i) columns.push_back(kind + std::to_string(i));
   return columns;
@@ -334,6 +345,7 @@ CasesFile read_cases_file(const std::string& path) {
     if (!header) {
       Header parsed = parse_header(line, path + " line " + std::to_string(line_number));
       file.particles = parsed.particles;
+      file.state = parsed.state;
       file.positions = std::move(parsed.positions);
       header = true;
       continue;

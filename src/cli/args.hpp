@@ -76,8 +76,8 @@ std::size_t parse_choice(std::string_view text, std::string_view what,
                          std::span<const std::string_view> choices);
 
 /// Columns of a cases file for N particles, in their canonical (output) order:
-/// beta, g, m1..mN, l1..lN.
-std::vector<std::string> case_columns(std::size_t particles);
+/// beta, g, m1..mN, l1..lN; `state` replaces beta by energy or excitation (microcanonical).
+std::vector<std::string> case_columns(std::size_t particles, std::string_view state = "beta");
 
 /// One data row of a cases file: its 1-based line number and where its (trimmed) text lies in
 /// CasesFile::text, as offsets (the text may move with the CasesFile).
@@ -89,6 +89,7 @@ struct CaseRow {
 /// A cases file: N (from the header), where each field of a row goes, its rows and its text.
 struct CasesFile {
   std::size_t particles = 0;
+  std::string state = "beta";  ///< the state column: beta, energy or excitation
   std::vector<std::size_t> positions;  ///< for each field of a row (file order): its canonical column
   std::vector<CaseRow> rows;
   std::string text;  ///< the whole file
@@ -97,13 +98,15 @@ struct CasesFile {
   }
 };
 
-/// Reads a cases CSV. The header names the columns beta, g, m1..mN and l1..lN (N >= 1, decided
-/// by the header), each exactly once, in any order. Blank lines and lines starting with '#' are
-/// skipped. Rows are only located here: case_fields splits them (no number is parsed here).
+/// Reads a cases CSV. The header names the columns beta (or energy, or excitation: one of the
+/// three), g, m1..mN and l1..lN (N >= 1, decided by the header), each exactly once, in any
+/// order. Blank lines and lines starting with '#' are skipped. Rows are only located here:
+/// case_fields splits them (no number is parsed here).
 CasesFile read_cases_file(const std::string& path);
 
 /// Splits `row` into its fields, trimmed, into `fields` (size file.positions.size()) in the
-/// canonical column order (beta, g, m1..mN, l1..lN); views into file.text, no allocation.
+/// canonical column order (beta or energy or excitation, g, m1..mN, l1..lN); views into
+/// file.text, no allocation.
 /// Throws usage_error "expected K fields, found J" for a row of the wrong length.
 void case_fields(const CasesFile& file, const CaseRow& row, std::span<std::string_view> fields);
 

@@ -5,8 +5,10 @@
 #pragma once
 
 #include "args.hpp"
+#include "format.hpp"
 
 #include "pendavg/average.hpp"
+#include "pendavg/microcanonical.hpp"
 
 #include <array>
 #include <span>
@@ -21,6 +23,43 @@ AverageOptions parse_average_options(const Options& options, std::span<const std
 /// Every option parse_average_options reads.
 inline constexpr std::array<std::string_view, 6> average_option_names{
     "method", "digits", "tol", "samples", "shifts", "seed"};
+
+/// The microcanonical run of `average --energy/--excitation` and `table --energy/--excitation`
+/// from the same options: --method auto (integral for N <= 4, qmc beyond), integral,
+/// torus-trapezoid or qmc; --tol for integral and torus-trapezoid in double (default
+/// default_microcanonical_tolerance); --samples, --shifts, --seed for qmc; --digits > 16 (MPFR)
+/// for integral (N <= 4) and torus-trapezoid (N <= 2: it converges only algebraically) only.
+/// Throws usage_error naming the option that the chosen rule does not use, or a method the
+/// microcanonical engine does not have.
+MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std::size_t particles);
+
+/// Default relative tolerance of the microcanonical integral and torus rules in double: 1e-13
+/// for N <= 2, 1e-11 for N = 3, 1e-9 beyond (their cost grows like (nodes per angle)^(N-1)).
+double default_microcanonical_tolerance(std::size_t particles);
+
+/// "integral", "torus-trapezoid" or "qmc": the rule microcanonical_options resolves to.
+const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles);
+
+/// The state `value` of the column or option `state` (energy or excitation), parsed and checked
+/// against `chain` before any work: an excitation must be > 0, an energy above E_min (refused
+/// with the valid range).
+template <class Real>
+Real microcanonical_state(const Chain<Real>& chain, std::string_view state, std::string_view value,
+                          std::string_view what) {
+  const Real x = parse_real<Real>(value, what, Domain::any);
+  if (state == "excitation") {
+    if (!(x > 0))
+      throw usage_error(std::string(what) + ": '" + std::string(value) +
+                        "' must be > 0 (the excitation D = E - E_min; E_min = " +
+                        decimal(minimum_energy(chain), 17) + " for this chain)");
+  } else if (!(excitation_energy(chain, x) > 0)) {
+    throw usage_error(std::string(what) + ": '" + std::string(value) +
+                      "' is at or below the minimum energy E_min = " +
+                      decimal(minimum_energy(chain), 17) +
+                      " of this chain: give E > E_min (or --excitation D > 0)");
+  }
+  return x;
+}
 
 /// OpenMP threads available to one call (1 without OpenMP).
 int hardware_threads();

@@ -49,10 +49,12 @@ constexpr std::string_view general_usage =
     "\n"
     "usage:\n"
     "  pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [options]\n"
+    "  pendavg average --masses ... --lengths ... (--energy E | --excitation D) [options]\n"
     "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options] [--timing]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] [--g SPEC] ... [--chain LIST] [--digits LIST] [--output FILE.csv]\n"
+    "  pendavg table   (--energy SPEC | --excitation SPEC) ...: microcanonical sweeps\n"
     "  pendavg simulate --masses ... --lengths ... (--theta A | --phi ...) --time T [options]\n"
     "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
@@ -64,6 +66,8 @@ constexpr std::string_view average_usage =
     "usage: pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [--digits D]\n"
     "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
     "                       [--format json|csv|text]\n"
+    "       pendavg average --masses ... --lengths ... [--g G] (--energy E | --excitation D)\n"
+    "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "                       [--output FILE | --resume FILE] [--timing] [--timing-rows FILE]\n"
     "\n"
@@ -76,9 +80,11 @@ constexpr std::string_view average_usage =
     "                   in MPFR; --tol T: relative tolerance in double (default 1e-13; with\n"
     "                   --digits D > 16 it is 1e-D)\n"
     "  torus-gauss      the same with Gauss-Legendre nodes (a check)\n"
-    "  qmc              randomized lattice QMC, double only, N <= 256, 3-sigma statistical error\n"
-    "                   bars; --samples S points per shift (a power of two, 1024..1048576,\n"
-    "                   default 65536), --shifts R (4..1024, default 16), --seed K (default 1)\n"
+    "  qmc              randomized lattice QMC, double only, N <= 256, statistical error bars\n"
+    "                   (the 99.9% Student-t quantile of the standard error over the shifts:\n"
+    "                   4.07 sigma for 16); --samples S points per shift (a power of two,\n"
+    "                   1024..1048576, default 65536), --shifts R (4..1024, default 16), --seed K\n"
+    "                   (default 1)\n"
     "Options of a method that is not run are rejected.\n"
     "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
     "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
@@ -108,7 +114,24 @@ constexpr std::string_view average_usage =
     "(0-based data row and file line) and the thread count:\n"
     "  pendavg: timing: rows=R median_us=X p90_us=Y worst_us=Z worst_row=I worst_line=L\n"
     "  threads=T timer_us=U (...)\n"
-    "--timing-rows FILE (with --cases) also writes every row's time as CSV row,line,us.\n";
+    "--timing-rows FILE (with --cases) also writes every row's time as CSV row,line,us.\n"
+    "\n"
+    "Microcanonical averages at fixed energy: --energy E (instead of --beta) or --excitation D\n"
+    "(D = E - E_min > 0, E_min = -sum_j g S_j l_j: how to state an energy near the bottom of the\n"
+    "well without losing digits). They give <K_i>_E, <K_i^(c)>_E = <K>_E/N, <cos phi_i>_E and\n"
+    "Var K_i, each with its error, and <K>_E and the density of states Omega(E). --method auto\n"
+    "(integral for N <= 4, qmc beyond), integral, torus-trapezoid (N <= 5, a check) or qmc;\n"
+    "--tol T for integral/torus-trapezoid (default 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9\n"
+    "beyond); qmc: --samples S (1024..65536), --shifts R, --seed K. --digits D > 16 runs in MPFR\n"
+    "for N <= 4 with the integral rule (N = 2: milliseconds; N = 3 at 30 digits: about a\n"
+    "minute); qmc is double only, torus-trapezoid only for N = 2. Output keys: N, energy,\n"
+    "excitation, digits, ensemble (microcanonical), method, K, K_error, Kc, Kc_error, cos_phi,\n"
+    "cos_phi_error, var_K, var_K_error, K_total, K_total_error, density_of_states,\n"
+    "density_of_states_error, error_kind, evaluations, work_unit, seconds, converged, run. An\n"
+    "energy at or below E_min is refused. --cases takes an energy or excitation column instead of\n"
+    "beta; its rows then have K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,\n"
+    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and then excitation (or\n"
+    "energy), the other way of stating the row's state.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
@@ -117,7 +140,7 @@ constexpr std::string_view limit_usage =
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
-    "at g = 0 (tensor trapezoid for N <= 5, qmc with 3-sigma bars beyond, double only);\n"
+    "at g = 0 (tensor trapezoid for N <= 5, qmc with statistical bars beyond, double only);\n"
     "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
 
 constexpr std::string_view series_usage =
@@ -330,13 +353,18 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   const int digits = settings.digits;
   const Stopwatch stopwatch;
   Progress progress("average");
-  StopOnSignal signals;  // a torus run stopped after its first level reports the last one
-  run.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
+  StopOnSignal signals;  // a torus run stopped after its first level reports the last one, a
+                         // qmc run its finished shifts
+  const bool qmc = resolve_average_method(chain.size(), run) == AverageMethod::qmc;
+  run.control.progress = [&](double fraction) {
+    progress(fraction, qmc ? "of the qmc shifts " : "of a torus level ");
+  };
   run.control.stop = &stop_flag();
   const Averages<Real> result = average(chain, beta, run);
   const double seconds = stopwatch.seconds();
   if (result.interrupted)
-    std::fprintf(stderr, "[average] interrupted: the last finished torus level is reported\n");
+    std::fprintf(stderr, "[average] interrupted: the last finished torus level (or the qmc "
+                         "shifts finished) is reported\n");
   const AverageReport report{chain.size(), beta_text, digits,
                              averages_text(result, digits, &beta), run_json(result), seconds};
   switch (format) {
@@ -347,6 +375,251 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   std::string json = average_json(report);
   if (result.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
   return json;
+}
+
+// ---------------------------------------------------------------- average --energy/--excitation
+
+/// The state option of `average`: beta (canonical), energy or excitation (microcanonical).
+/// Throws usage_error when more than one is given.
+std::string_view state_option(const Options& options) {
+  std::vector<std::string_view> given;
+  for (const std::string_view name : {"beta", "energy", "excitation"})
+    if (options.has(name)) given.push_back(name);
+  if (given.size() > 1)
+    throw usage_error("average: give one of --beta, --energy, --excitation (not both --" +
+                      std::string(given[0]) + " and --" + std::string(given[1]) + ")");
+  return given.empty() ? std::string_view("beta") : given.front();
+}
+
+/// The microcanonical averages of `chain` at the state `value` of the column or option `state`.
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_at(const Chain<Real>& chain, std::string_view state,
+                                               std::string_view value, std::string_view what,
+                                               const MicrocanonicalOptions& options) {
+  const Real x = microcanonical_state(chain, state, value, what);
+  return state == "excitation" ? microcanonical_average_excitation(chain, x, options)
+                               : microcanonical_average(chain, x, options);
+}
+
+struct MicrocanonicalReport {
+  std::size_t particles;
+  std::string_view state, state_text;  ///< the option given and its text as written
+  int digits;
+  MicrocanonicalText values;
+  double seconds;
+};
+
+std::string microcanonical_run_json(const MicrocanonicalText& v) {
+  if (v.proposal_beta.empty()) return "null";
+  return JsonObject()
+      .string("proposal_beta", v.proposal_beta)
+      .string("effective_sample_fraction", v.effective_sample_fraction)
+      .str();
+}
+
+std::string microcanonical_json(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  JsonObject json;
+  json.integer("N", static_cast<long long>(r.particles))
+      .string("energy", r.state == "energy" ? std::string(r.state_text) : v.energy)
+      .string("excitation", r.state == "excitation" ? std::string(r.state_text) : v.excitation)
+      .integer("digits", r.digits)
+      .string("ensemble", "microcanonical")
+      .string("method", v.method)
+      .strings("K", v.kinetic)
+      .strings("K_error", v.kinetic_error)
+      .string("Kc", v.kinetic_canonical)
+      .string("Kc_error", v.kinetic_canonical_error)
+      .strings("cos_phi", v.cos_angle)
+      .strings("cos_phi_error", v.cos_angle_error)
+      .strings("var_K", v.variance)
+      .strings("var_K_error", v.variance_error)
+      .string("K_total", v.kinetic_total)
+      .string("K_total_error", v.kinetic_total_error)
+      .string("density_of_states", v.density_of_states)
+      .string("density_of_states_error", v.density_of_states_error)
+      .string("error_kind", v.error_kind)
+      .integer("evaluations", static_cast<long long>(v.evaluations))
+      .string("work_unit", v.work_unit)
+      .raw("seconds", seconds_text(r.seconds))
+      .boolean("converged", v.converged)
+      .raw("run", microcanonical_run_json(v));
+  return json.str() + "\n";
+}
+
+std::string microcanonical_csv(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  std::vector<std::string> header{"N", "energy", "excitation", "digits", "ensemble", "method"};
+  std::vector<std::string> row{std::to_string(r.particles),
+                               r.state == "energy" ? std::string(r.state_text) : v.energy,
+                               r.state == "excitation" ? std::string(r.state_text) : v.excitation,
+                               std::to_string(r.digits), "microcanonical", v.method};
+  const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
+    const auto names = indexed_names(stem, values.size());
+    header.insert(header.end(), names.begin(), names.end());
+    row.insert(row.end(), values.begin(), values.end());
+  };
+  const auto add = [&](std::string name, std::string value) {
+    header.push_back(std::move(name));
+    row.push_back(std::move(value));
+  };
+  add_array("K", v.kinetic);
+  add_array("K_error", v.kinetic_error);
+  add("Kc", v.kinetic_canonical);
+  add("Kc_error", v.kinetic_canonical_error);
+  add_array("cos_phi", v.cos_angle);
+  add_array("cos_phi_error", v.cos_angle_error);
+  add_array("var_K", v.variance);
+  add_array("var_K_error", v.variance_error);
+  add("K_total", v.kinetic_total);
+  add("K_total_error", v.kinetic_total_error);
+  add("density_of_states", v.density_of_states);
+  add("density_of_states_error", v.density_of_states_error);
+  add("error_kind", v.error_kind);
+  add("evaluations", std::to_string(v.evaluations));
+  add("work_unit", v.work_unit);
+  add("seconds", seconds_text(r.seconds));
+  add("converged", v.converged ? "true" : "false");
+  std::string out;
+  append_csv_line(out, header);
+  append_csv_line(out, row);
+  return out;
+}
+
+std::string microcanonical_text_report(const MicrocanonicalReport& r) {
+  const MicrocanonicalText& v = r.values;
+  std::vector<std::vector<std::string>> table{
+      {"i", "<K_i>_E", "error", "<cos phi_i>_E", "error", "Var K_i", "error"}};
+  for (std::size_t i = 0; i < v.kinetic.size(); ++i)
+    table.push_back({std::to_string(i + 1), v.kinetic[i], v.kinetic_error[i], v.cos_angle[i],
+                     v.cos_angle_error[i], v.variance[i], v.variance_error[i]});
+  const std::string energy = r.state == "energy" ? std::string(r.state_text) : v.energy;
+  const std::string excitation =
+      r.state == "excitation" ? std::string(r.state_text) : v.excitation;
+  return "N = " + std::to_string(r.particles) + ", E = " + energy + ", E - E_min = " +
+         excitation + ", digits = " + std::to_string(r.digits) +
+         ", microcanonical, method = " + v.method + "\n" + aligned_table(table) +
+         "<K_i^(c)>_E = <K>_E/N = " + v.kinetic_canonical + " +- " + v.kinetic_canonical_error +
+         "\n<K>_E = " + v.kinetic_total + " +- " + v.kinetic_total_error +
+         "\nOmega(E) = " + v.density_of_states + " +- " + v.density_of_states_error +
+         "\nerrors: " + v.error_kind + "\nevaluations = " + std::to_string(v.evaluations) + " " +
+         v.work_unit + ", seconds = " + seconds_text(r.seconds) +
+         ", converged = " + (v.converged ? "yes" : "no") + "\n";
+}
+
+template <class Real>
+std::string microcanonical_one(const Options& options, const AverageOptions& settings,
+                               std::string_view state, Format format) {
+  const std::string_view state_text = options.required(state);
+  const Chain<Real> chain = chain_option<Real>(options, true);
+  AverageOptions run = settings;
+  run.threads = hardware_threads();
+  MicrocanonicalOptions micro;
+  try {
+    micro = microcanonical_options(run, chain.size());
+  } catch (const invalid_input& bad) {
+    throw usage_error("average: " + std::string(bad.what()));
+  }
+  const std::string what = "--" + std::string(state);
+  const Stopwatch stopwatch;
+  const MicrocanonicalAverages<Real> result =
+      microcanonical_at(chain, state, state_text, what, micro);
+  const double seconds = stopwatch.seconds();
+  const MicrocanonicalReport report{chain.size(), state, state_text, settings.digits,
+                                    microcanonical_text(result, settings.digits), seconds};
+  switch (format) {
+    case Format::csv: return microcanonical_csv(report);
+    case Format::text: return microcanonical_text_report(report);
+    case Format::json: break;
+  }
+  return microcanonical_json(report);
+}
+
+/// The chain of one cases row (masses, lengths and g in canonical order after the state).
+template <class Real>
+Chain<Real> case_chain(const std::vector<std::string_view>& fields,
+                       const std::vector<std::string>& columns, std::size_t n,
+                       std::vector<Real>& masses, std::vector<Real>& lengths) {
+  masses.clear();
+  lengths.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
+  for (std::size_t i = 0; i < n; ++i)
+    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
+  return make_chain<Real>(masses, lengths,
+                          parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
+}
+
+/// The output columns of `average --cases` with an energy or excitation column, after the input
+/// columns: K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,
+/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and the other state
+/// (excitation for an energy column, energy for an excitation column).
+std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_view state) {
+  std::vector<std::string> header;
+  const auto add_names = [&](std::string_view stem) {
+    const auto names = indexed_names(stem, n);
+    header.insert(header.end(), names.begin(), names.end());
+  };
+  add_names("K");
+  add_names("K_error");
+  header.push_back("Kc");
+  add_names("cos_phi");
+  header.insert(header.end(), {"method", "evaluations", "Kc_error"});
+  add_names("cos_phi_error");
+  add_names("var_K");
+  add_names("var_K_error");
+  header.insert(header.end(),
+                {"error_kind", "converged", state == "energy" ? "excitation" : "energy"});
+  return header;
+}
+
+/// One row of `average --cases` with an energy or excitation column (microcanonical_case_columns
+/// after the input fields as written), appended to `line`.
+template <class Real>
+void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow& row,
+                         const std::vector<std::string>& columns, const MicrocanonicalOptions& micro,
+                         int digits) {
+  std::optional<working_precision> precision;  // each row of an MPFR run holds its own
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
+  std::vector<std::string_view> fields(columns.size());
+  case_fields(file, row, fields);
+  std::vector<Real> masses, lengths;
+  const Chain<Real> chain = case_chain<Real>(fields, columns, file.particles, masses, lengths);
+  const MicrocanonicalAverages<Real> r =
+      microcanonical_at(chain, file.state, fields[0], columns[0], micro);
+  const MicrocanonicalText v = microcanonical_text(r, digits);
+  std::vector<std::string> out(fields.begin(), fields.end());
+  const auto add = [&](const std::vector<std::string>& values) {
+    out.insert(out.end(), values.begin(), values.end());
+  };
+  add(v.kinetic);
+  add(v.kinetic_error);
+  out.push_back(v.kinetic_canonical);
+  add(v.cos_angle);
+  out.push_back(v.method);
+  out.push_back(std::to_string(v.evaluations));
+  out.push_back(v.kinetic_canonical_error);
+  add(v.cos_angle_error);
+  add(v.variance);
+  add(v.variance_error);
+  out.push_back(v.error_kind);
+  out.push_back(v.converged ? "true" : "false");
+  out.push_back(file.state == "energy" ? v.excitation : v.energy);
+  append_csv_line(line, out);
+}
+
+/// Checks one microcanonical cases row (fields, numbers at the working precision, the chain, the
+/// state against E_min) without computing it.
+template <class Real>
+void check_microcanonical_case(const CasesFile& file, const CaseRow& row,
+                               const std::vector<std::string>& columns, int digits) {
+  std::optional<working_precision> precision;
+  if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
+  std::vector<std::string_view> fields(columns.size());
+  case_fields(file, row, fields);
+  std::vector<Real> masses, lengths;
+  const Chain<Real> chain = case_chain<Real>(fields, columns, file.particles, masses, lengths);
+  microcanonical_state(chain, file.state, fields[0], columns[0]);
 }
 
 /// Per-thread scratch of `average --cases`: reused from row to row.
@@ -515,12 +788,22 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                           const AverageOptions& settings, const CasesOutput& where) {
   const std::vector<CaseRow>& rows = file.rows;
   const std::size_t n = file.particles;
-  const std::vector<std::string> columns = case_columns(n);
+  const std::vector<std::string> columns = case_columns(n, file.state);
   const int digits = settings.digits;
+  const bool microcanonical = file.state != "beta";  // an energy or excitation column
   AverageOptions options = settings;
-  resolve_average_method(n, options);  // checked before any row
+  MicrocanonicalOptions micro;
   const int threads = hardware_threads();
   if (rows.size() == 1 && ranks() == 1) options.threads = threads;
+  if (microcanonical) {  // checked before any row
+    try {
+      micro = microcanonical_options(options, n);
+    } catch (const invalid_input& bad) {
+      throw usage_error("average: " + std::string(bad.what()));
+    }
+  } else {
+    resolve_average_method(n, options);
+  }
 
   const auto line_context = [&](std::size_t k) {
     return path + " line " + std::to_string(rows[k].line) + ": ";
@@ -528,7 +811,10 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
   const auto check = [&](std::size_t k) {
     try {
-      check_case<Real>(file, rows[k], columns, options);
+      if (microcanonical)
+        check_microcanonical_case<Real>(file, rows[k], columns, digits);
+      else
+        check_case<Real>(file, rows[k], columns, options);
     } catch (const invalid_input& bad) {
       throw usage_error(line_context(k) + bad.what());
     }
@@ -556,6 +842,11 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const auto add_names = [&](std::string_view stem) {
     for (const std::string& name : indexed_names(stem, n)) (header += ',') += name;
   };
+  if (microcanonical) {
+    for (const std::string& name : microcanonical_case_columns(n, file.state))
+      (header += ',') += name;
+    header += '\n';
+  } else {
   add_names("beta_K");
   add_names("error_K");
   header += ",ratio";
@@ -565,6 +856,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   add_names("var_K");
   add_names("var_K_error");
   header += ",error_kind,converged\n";
+  }
 
   // Rank 0 checks the outputs (and reads a resumed file); every rank learns the verdict.
   std::optional<ResumedRows> resumed;
@@ -608,8 +900,13 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   sweep.progress = "average";
   sweep.row_bytes = 1;
   for (const CaseRow& row : rows)
-    sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits));
+    sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits) +
+                                                     decimal_max_length(digits) + 1);
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
+    if (microcanonical) {
+      microcanonical_case<Real>(text, file, rows[k], columns, micro, digits);
+      return;
+    }
     std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
     if (!mine) mine.emplace();
     const std::size_t start = text.size();
@@ -654,11 +951,16 @@ std::string average_command(const Options& options) {
         throw usage_error("average: --" + std::string(cases_only) + " is for --cases only");
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
+    const std::string_view state = state_option(options);
+    if (state != "beta")
+      return with_number_type(settings.digits, [&]<class Real>() {
+        return microcanonical_one<Real>(options, settings, state, format);
+      });
     return with_number_type(settings.digits, [&]<class Real>() {
       return average_one<Real>(options, settings, format);
     });
   }
-  for (const std::string_view single : {"masses", "lengths", "g", "beta"})
+  for (const std::string_view single : {"masses", "lengths", "g", "beta", "energy", "excitation"})
     if (options.has(single))
       throw usage_error("average: --cases cannot be combined with --" + std::string(single));
   constexpr std::array<std::string_view, 1> formats{"csv"};
@@ -747,13 +1049,14 @@ std::string limit_report(const Options& options, int digits, Format format) {
     return "N = " + std::to_string(chain.size()) + ", digits = " + std::to_string(digits) +
            "\n" + aligned_table(table);
   }
-  return JsonObject()
-             .integer("N", static_cast<long long>(chain.size()))
-             .integer("digits", digits)
-             .raw("high_temperature", limit_json(high))
-             .raw("low_temperature", limit_json(low))
-             .str() +
-         "\n";
+  std::string json = JsonObject()
+                         .integer("N", static_cast<long long>(chain.size()))
+                         .integer("digits", digits)
+                         .raw("high_temperature", limit_json(high))
+                         .raw("low_temperature", limit_json(low))
+                         .str();
+  if (high_values.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
+  return json + "\n";
 }
 
 std::string limit_command(const Options& options) {
@@ -846,9 +1149,10 @@ struct Command {
   bool distributed = false;  ///< runs on every MPI rank; the others run on rank 0 alone
 };
 
-constexpr std::array<std::string_view, 15> average_options{
-    "masses", "lengths", "g",   "beta",    "digits", "method", "format",      "cases",
-    "tol",    "samples", "shifts", "seed", "timing-rows", "output", "resume"};
+constexpr std::array<std::string_view, 17> average_options{
+    "masses", "lengths", "g",      "beta",   "digits",      "method", "format",
+    "cases",  "tol",     "samples", "shifts", "seed",       "timing-rows", "output",
+    "resume", "energy",  "excitation"};
 constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};

@@ -123,6 +123,42 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   return text;
 }
 
+template <class Real>
+MicrocanonicalText microcanonical_text(const MicrocanonicalAverages<Real>& averages, int digits) {
+  MicrocanonicalText text;
+  const auto put = [digits](const Estimate<Real>& e, std::string& value, std::string& error) {
+    value = decimal(e.value, digits);
+    error = decimal(printed_error(e.value, e.error, digits), error_digits);
+  };
+  const auto put_all = [&](const std::vector<Estimate<Real>>& estimates,
+                           std::vector<std::string>& values, std::vector<std::string>& errors) {
+    values.resize(estimates.size());
+    errors.resize(estimates.size());
+    for (std::size_t i = 0; i < estimates.size(); ++i) put(estimates[i], values[i], errors[i]);
+  };
+  text.energy = decimal(averages.energy, digits);
+  text.excitation = decimal(averages.excitation, digits);
+  put_all(averages.kinetic, text.kinetic, text.kinetic_error);
+  put_all(averages.cos_angle, text.cos_angle, text.cos_angle_error);
+  put_all(averages.kinetic_variance, text.variance, text.variance_error);
+  put(averages.kinetic_canonical, text.kinetic_canonical, text.kinetic_canonical_error);
+  put(averages.kinetic_total, text.kinetic_total, text.kinetic_total_error);
+  put(averages.density_of_states, text.density_of_states, text.density_of_states_error);
+  text.method = method_name(averages.quadrature);
+  text.error_kind = error_kind_name(averages.error_kind);
+  text.work_unit = work_unit_name(averages.work_unit);
+  if (averages.quadrature == Method::qmc) {
+    text.proposal_beta = decimal(averages.proposal_beta, error_digits + 3);
+    text.effective_sample_fraction = decimal(averages.effective_sample_fraction, error_digits);
+  }
+  text.evaluations = averages.evaluations;
+  text.converged = averages.converged;
+  return text;
+}
+
+template MicrocanonicalText microcanonical_text<double>(const MicrocanonicalAverages<double>&, int);
+template MicrocanonicalText microcanonical_text<mpfr_real>(const MicrocanonicalAverages<mpfr_real>&,
+                                                           int);
 template void append_decimal<double>(std::string&, const double&, int);
 template void append_decimal<long double>(std::string&, const long double&, int);
 template char* write_decimal<double>(char*, const double&, int);

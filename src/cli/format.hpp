@@ -3,6 +3,7 @@
 // Everything builds strings; the caller writes them to stdout once, after all work succeeded.
 #pragma once
 
+#include "pendavg/microcanonical.hpp"
 #include "pendavg/result.hpp"
 
 #include <cstddef>
@@ -71,6 +72,25 @@ struct AveragesText {
 /// `beta` (may be null, as for the limits) adds <K_i> and Var K_i.
 template <class Real>
 AveragesText averages_text(const Averages<Real>& averages, int digits, const Real* beta);
+
+/// Microcanonical averages of one run as decimal strings (MicrocanonicalAverages), converted
+/// once and shared by every format; every printed error covers its printed value, as above.
+struct MicrocanonicalText {
+  std::string energy, excitation;  ///< E and D = E - E_min, `digits` digits
+  std::vector<std::string> kinetic, kinetic_error;          ///< <K_i>_E
+  std::vector<std::string> cos_angle, cos_angle_error;      ///< <cos phi_i>_E
+  std::vector<std::string> variance, variance_error;        ///< Var K_i
+  std::string kinetic_canonical, kinetic_canonical_error;   ///< <K_i^(c)>_E = <K>_E / N
+  std::string kinetic_total, kinetic_total_error;           ///< <K>_E
+  std::string density_of_states, density_of_states_error;   ///< Omega(E)
+  std::string method, error_kind, work_unit;
+  std::string proposal_beta, effective_sample_fraction;  ///< qmc only (empty otherwise)
+  std::size_t evaluations = 0;
+  bool converged = true;
+};
+
+template <class Real>
+MicrocanonicalText microcanonical_text(const MicrocanonicalAverages<Real>& averages, int digits);
 
 /// A JSON array of strings.
 std::string json_strings(const std::vector<std::string>& values);

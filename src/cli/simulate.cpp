@@ -7,6 +7,7 @@
 
 #include "average_options.hpp"
 #include "distribute.hpp"
+#include "exact_values.hpp"
 #include "files.hpp"
 #include "format.hpp"
 #include "interrupt.hpp"
@@ -64,6 +65,9 @@ const std::string_view simulate_usage =
     "                  standard error of the spread between replicas (both printed, as\n"
     "                  K_error_blocking and K_error_replicas); the result is the same for any\n"
     "                  number of ranks and threads.\n"
+    "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
+    "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
+    "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
@@ -120,51 +124,6 @@ std::vector<double> parse_angle_list(std::string_view text, std::string_view wha
   }
 }
 
-/// Exact values of the run's ensemble, per particle, in energy units.
-struct ExactValues {
-  std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
-  double kinetic_canonical = 0, kinetic_canonical_error = 0;
-  std::string method, error_kind;
-};
-
-ExactValues microcanonical_values(const Chain<double>& chain, double energy) {
-  MicrocanonicalOptions options;
-  options.threads = hardware_threads();
-  const MicrocanonicalAverages<double> r = microcanonical_average(chain, energy, options);
-  ExactValues out;
-  for (const Estimate<double>& k : r.kinetic) {
-    out.kinetic.push_back(k.value);
-    out.kinetic_error.push_back(k.error);
-  }
-  for (const Estimate<double>& c : r.cos_angle) {
-    out.cos_angle.push_back(c.value);
-    out.cos_angle_error.push_back(c.error);
-  }
-  out.kinetic_canonical = r.kinetic_canonical.value;
-  out.kinetic_canonical_error = r.kinetic_canonical.error;
-  out.method = std::string(method_name(r.method)) + "/" + method_name(r.quadrature);
-  out.error_kind = error_kind_name(r.error_kind);
-  return out;
-}
-
-ExactValues canonical_values(const Chain<double>& chain, double beta) {
-  AverageOptions options;
-  options.threads = hardware_threads();
-  const Averages<double> a = average(chain, beta, options);
-  ExactValues out;
-  for (std::size_t i = 0; i < chain.size(); ++i) {
-    out.kinetic.push_back(a.beta_kinetic[i].value / beta);
-    out.kinetic_error.push_back(a.beta_kinetic[i].error / beta);
-    out.cos_angle.push_back(a.cos_angle[i].value);
-    out.cos_angle_error.push_back(a.cos_angle[i].error);
-  }
-  // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4).
-  out.kinetic_canonical = a.beta_kinetic_canonical.front().value / beta;
-  out.method = method_name(a.method);
-  out.error_kind = error_kind_name(a.error_kind);
-  return out;
-}
-
 /// A JSON number; null for a value that does not exist (an unknown error bar).
 std::string number(double x) { return std::isfinite(x) ? decimal(x, 10) : std::string("null"); }
 
@@ -175,6 +134,15 @@ std::string error_number(double x) {
 
 /// A CSV cell: empty for a value that does not exist.
 std::string cell(double x, int digits) { return std::isfinite(x) ? decimal(x, digits) : std::string(); }
+
+/// Exact values: every digit of the double (17 significant).
+std::string exact_number(double x) { return decimal(x, 17); }
+
+/// The error of an exact value printed with 17 digits (3 digits, half a unit in the value's
+/// last printed place included).
+std::string exact_error(double value, double error) {
+  return decimal(printed_error(value, error, 17), error_digits);
+}
 
 std::string number_array(const std::vector<double>& values) {
   std::string out = "[";
@@ -375,6 +343,20 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   return spread;
 }
 
+std::string exact_array(const std::vector<double>& values) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_number(values[i]);
+  return out + "]";
+}
+
+std::string exact_error_array(const std::vector<double>& values,
+                              const std::vector<double>& errors) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < values.size(); ++i)
+    out += (i ? ", " : "") + exact_error(values[i], errors[i]);
+  return out + "]";
+}
+
 }  // namespace
 
 std::string simulate_command(const Options& options) {
@@ -481,8 +463,9 @@ std::string simulate_command(const Options& options) {
   // no accessible states) is refused before any integration, and a run stopped by a signal
   // still prints them.
   std::optional<ExactValues> reference;
-  if (exact) reference = langevin ? canonical_values(chain, run.beta)
-                                  : microcanonical_values(chain, energy);
+  if (exact)
+    reference = langevin ? canonical_values(chain, run.beta)
+                         : microcanonical_values(chain, initial_excitation(chain, initial, phi));
   Progress progress("simulate");
   SimulationResult<double> r;
   std::optional<ReplicaSpread> spread;
@@ -536,9 +519,9 @@ std::string simulate_command(const Options& options) {
     for (std::size_t i = 0; i < n; ++i) {
       out += std::to_string(i + 1) + "," + cell(k[i], 10) + "," + cell(k_error[i], 3) + "," +
              cell(kc[i], 10) + "," + cell(kc_error[i], 3) + "," +
-             (reference ? number(reference->kinetic[i]) + "," +
-                              decimal(reference->kinetic_error[i], 3) + "," +
-                              number(reference->kinetic_canonical)
+             (reference ? exact_number(reference->kinetic[i]) + "," +
+                              exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
+                              "," + exact_number(reference->kinetic_canonical)
                         : std::string(",,")) +
              "," + cell(tau[i], 3);
       if (spread)
@@ -568,14 +551,16 @@ std::string simulate_command(const Options& options) {
     for (std::size_t i = 0; i < n; ++i)
       deviation[i] = (k[i] - reference->kinetic[i]) /
                      std::hypot(k_error[i], reference->kinetic_error[i]);
-    json.raw("exact_K", number_array(reference->kinetic))
-        .raw("exact_K_error", number_array(reference->kinetic_error))
-        .raw("exact_Kc", number(reference->kinetic_canonical))
-        .raw("exact_cos_phi", number_array(reference->cos_angle))
+    json.raw("exact_K", exact_array(reference->kinetic))
+        .raw("exact_K_error", exact_error_array(reference->kinetic, reference->kinetic_error))
+        .raw("exact_Kc", exact_number(reference->kinetic_canonical))
+        .raw("exact_cos_phi", exact_array(reference->cos_angle))
         .raw("K_deviation_sigmas", number_array(deviation))
         .string("exact_method", reference->method)
-        .raw("exact_Kc_error", number(reference->kinetic_canonical_error))
-        .raw("exact_cos_phi_error", number_array(reference->cos_angle_error))
+        .raw("exact_Kc_error",
+             exact_error(reference->kinetic_canonical, reference->kinetic_canonical_error))
+        .raw("exact_cos_phi_error",
+             exact_error_array(reference->cos_angle, reference->cos_angle_error))
         .string("exact_error_kind", reference->error_kind);
   } else {
     json.raw("exact_K", "null");
@@ -607,6 +592,13 @@ std::string simulate_command(const Options& options) {
         .raw("replica_energy_spread", decimal(spread->energy_spread, 3));
     if (spread->replicas < 2)
       json.string("replicas_error_reason", "fewer than two replicas finished");
+  }
+  if (reference && !langevin) {
+    // the microcanonical state as D = E - E_min (excitation form) and Var K_i
+    json.raw("exact_excitation", exact_number(reference->excitation))
+        .raw("exact_var_K", exact_array(reference->variance))
+        .raw("exact_var_K_error",
+             exact_error_array(reference->variance, reference->variance_error));
   }
   json.raw("seconds", seconds_text(seconds));
   return json.str() + "\n";

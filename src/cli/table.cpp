@@ -46,6 +46,7 @@ const std::string_view table_usage =
     "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
     "                     [--method auto|torus-trapezoid|qmc] [--samples S] [--shifts R]\n"
     "                     [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
+    "       pendavg table (--energy SPEC | --excitation SPEC) [--mu1 ...] [--chain LIST] ...\n"
     "\n"
     "A parameter sweep: one CSV row per combination of the values. SPEC is one of\n"
     "  log:A:B:N   N values log-spaced from A to B (N >= 2; the ends are A and B as written)\n"
@@ -85,7 +86,16 @@ const std::string_view table_usage =
     "ones computed, and FILE is rewritten as an uninterrupted run writes it (a FILE that does\n"
     "not exist yet is simply written: a batch job can always pass --resume).\n"
     "Under mpirun/srun (pendavg built with MPI) the rows are shared by all ranks (OpenMP threads\n"
-    "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n";
+    "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n"
+    "\n"
+    "Microcanonical sweeps: --energy SPEC (any sign; every E must exceed the chain's E_min =\n"
+    "-sum_j g S_j l_j) or --excitation SPEC (D = E - E_min > 0) instead of --beta, for the double\n"
+    "pendulum and for --chain. --method auto (integral for N <= 4, qmc beyond), integral,\n"
+    "torus-trapezoid or qmc (--samples 1024..65536, --shifts, --seed); --digits > 16 for N <= 4.\n"
+    "Columns (M = the largest N): N, digits, energy (or excitation), g, m1..mM, l1..lM, K1..M,\n"
+    "K_error1..M, Kc, cos_phi1..M, var_K1..M, method, evaluations, converged, error_kind,\n"
+    "Kc_error, cos_phi_error1..M, var_K_error1..M, then excitation (or energy): <K_i>_E,\n"
+    "<K_i^(c)>_E = <K>_E/N, <cos phi_i>_E and Var K_i with their errors.\n";
 
 namespace {
 
@@ -188,6 +198,8 @@ constexpr long max_chain_particles = 256;
 /// The sweep's settings that hold for every row.
 struct TablePlan {
   bool chain = false;                    ///< --chain: unit masses and lengths
+  std::string state = "beta";            ///< beta (canonical), energy or excitation
+  bool microcanonical() const { return state != "beta"; }
   std::string method = "auto";           ///< as given
   AverageOptions options;                ///< method and the qmc options, as given
   std::size_t columns_particles = 2;     ///< the largest N: the per-particle columns
@@ -202,6 +214,20 @@ struct RowMethod {
 RowMethod row_method(const TablePlan& plan, std::size_t particles, int digits) {
   AverageOptions options = plan.options;
   options.digits = min_digits;
+  if (plan.microcanonical()) {
+    AverageOptions bare = options;
+    bare.samples.reset();
+    bare.shifts.reset();
+    bare.seed.reset();
+    const bool qmc =
+        std::string_view(microcanonical_rule_name(microcanonical_options(bare, particles).rule,
+                                                  particles)) == "qmc";
+    if (!qmc) options = bare;
+    options.digits = digits;
+    options.threads = 1;
+    microcanonical_options(options, particles);  // refuses what the rule does not use
+    return {qmc ? AverageMethod::qmc : options.method, options};
+  }
   const bool qmc = resolve_average_method(particles, [&] {
                      AverageOptions bare = options;
                      bare.samples.reset();
@@ -229,14 +255,15 @@ std::string join_values(const std::vector<std::string>& values) {
 struct Point {
   std::size_t particles = 2;
   AverageOptions options;  ///< digits, method and its options for this row
+  std::string state = "beta";  ///< what `beta` holds: beta, energy or excitation
   std::string beta, g;
   std::vector<std::string> masses, lengths;
 
   std::string describe() const {
     const auto join = join_values;
     return "N = " + std::to_string(particles) + ", digits = " + std::to_string(options.digits) +
-           ", beta = " + beta + ", g = " + g + ", masses " + join(masses) + ", lengths " +
-           join(lengths);
+           ", " + state + " = " + beta + ", g = " + g + ", masses " + join(masses) +
+           ", lengths " + join(lengths);
   }
 };
 
@@ -247,8 +274,53 @@ void add_padded(std::vector<std::string>& fields, const std::vector<std::string>
   fields.insert(fields.end(), width - values.size(), std::string());
 }
 
+/// One row of a microcanonical sweep (see the usage text for its columns).
+template <class Real>
+std::string microcanonical_row(const Point& point, const TablePlan& plan) {
+  std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
+  if constexpr (!std::is_same_v<Real, double>)
+    precision.emplace(point.options.digits + guard_digits);
+  const std::size_t n = point.particles;
+  const int digits = point.options.digits;
+  const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
+  std::vector<Real> masses, lengths;
+  for (const std::string& mass : point.masses)
+    masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
+  for (const std::string& length : point.lengths)
+    lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
+  const Chain<Real> chain(std::move(masses), std::move(lengths), g);
+  const MicrocanonicalOptions options = microcanonical_options(point.options, n);
+  const Real state = microcanonical_state(chain, plan.state, point.beta, "--" + plan.state);
+  const MicrocanonicalAverages<Real> averages =
+      plan.state == "excitation" ? microcanonical_average_excitation(chain, state, options)
+                                 : microcanonical_average(chain, state, options);
+  const MicrocanonicalText text = microcanonical_text(averages, digits);
+
+  const std::size_t width = plan.columns_particles;
+  std::vector<std::string> fields{std::to_string(n), std::to_string(digits), point.beta, point.g};
+  add_padded(fields, point.masses, width);
+  add_padded(fields, point.lengths, width);
+  add_padded(fields, text.kinetic, width);
+  add_padded(fields, text.kinetic_error, width);
+  fields.push_back(text.kinetic_canonical);
+  add_padded(fields, text.cos_angle, width);
+  add_padded(fields, text.variance, width);
+  fields.push_back(text.method);
+  fields.push_back(std::to_string(text.evaluations));
+  fields.push_back(text.converged ? "true" : "false");
+  fields.push_back(text.error_kind);
+  fields.push_back(text.kinetic_canonical_error);
+  add_padded(fields, text.cos_angle_error, width);
+  add_padded(fields, text.variance_error, width);
+  fields.push_back(plan.state == "energy" ? text.excitation : text.energy);
+  std::string out;
+  append_csv_line(out, fields);
+  return out;
+}
+
 template <class Real>
 std::string table_row(const Point& point, const TablePlan& plan) {
+  if (plan.microcanonical()) return microcanonical_row<Real>(point, plan);
   std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
   const std::size_t n = point.particles;
@@ -321,7 +393,7 @@ class PointSpace {
       const Sweep& sweep = *inner_[s];
       const std::string& value = sweep.values[rest % sweep.values.size()];
       rest /= sweep.values.size();
-      if (sweep.name == "beta") point.beta = value;
+      if (sweep.name == plan_.state) point.beta = value;
       else if (sweep.name == "g") point.g = value;
       else if (sweep.name == "mu1") mu1 = value;
       else if (sweep.name == "l1") l1 = value;
@@ -334,6 +406,7 @@ class PointSpace {
       point.masses = {mu1, one_minus_decimal(mu1, "--mu1")};
       point.lengths = {l1, l2};
     }
+    point.state = plan_.state;
     point.options = options(particles, digits);
     return point;
   }
@@ -351,14 +424,20 @@ template <class Real>
 void check_point(const Point& point) {
   std::optional<working_precision> precision;
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
-  const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
   const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
   std::vector<Real> masses, lengths;
   for (const std::string& mass : point.masses)
     masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
   for (const std::string& length : point.lengths)
     lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
-  check_average(Chain<Real>(std::move(masses), std::move(lengths), g), beta, point.options);
+  Chain<Real> chain(std::move(masses), std::move(lengths), g);
+  if (point.state != "beta") {  // microcanonical: the state against E_min, the rule's options
+    microcanonical_state(chain, point.state, point.beta, "--" + point.state);
+    microcanonical_options(point.options, point.particles);
+    return;
+  }
+  const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
+  check_average(chain, beta, point.options);
 }
 
 /// The leading fields of a row (N, digits, beta, g, masses, lengths, padded to `width`): what
@@ -424,6 +503,15 @@ std::string table_command(const Options& options) {
   plan.chain = options.has("chain");
   constexpr std::array<std::string_view, 3> qmc_names{"samples", "shifts", "seed"};
   plan.options = parse_average_options(options, qmc_names);
+  {
+    std::vector<std::string> given;
+    for (const char* name : {"beta", "energy", "excitation"})
+      if (options.has(name)) given.emplace_back(name);
+    if (given.size() > 1)
+      throw usage_error("table: give one of --beta, --energy, --excitation (not both --" +
+                        given[0] + " and --" + given[1] + ")");
+    if (!given.empty()) plan.state = given.front();
+  }
 
   // Swept variables in their default nesting (outermost first); ranges are moved innermost.
   std::vector<Sweep> sweeps;
@@ -433,11 +521,23 @@ std::string table_command(const Options& options) {
         throw usage_error("table: --chain has unit masses and lengths; --" +
                           std::string(single) + " is for the double pendulum");
     constexpr std::array<std::string_view, 3> methods{"auto", "torus-trapezoid", "qmc"};
-    plan.method = std::string(methods[parse_choice(options.get("method", "auto"), "method", methods)]);
+    constexpr std::array<std::string_view, 4> micro_methods{"auto", "integral", "torus-trapezoid",
+                                                            "qmc"};
+    plan.method = plan.microcanonical()
+                      ? std::string(micro_methods[parse_choice(options.get("method", "auto"),
+                                                               "method", micro_methods)])
+                      : std::string(methods[parse_choice(options.get("method", "auto"), "method",
+                                                         methods)]);
     sweeps.push_back(parse_integer_sweep("chain", options.required("chain"), 3, max_chain_particles));
   } else {
     constexpr std::array<std::string_view, 3> methods{"auto", "integral", "series"};
-    plan.method = std::string(methods[parse_choice(options.get("method", "auto"), "method", methods)]);
+    constexpr std::array<std::string_view, 4> micro_methods{"auto", "integral", "torus-trapezoid",
+                                                            "qmc"};
+    plan.method = plan.microcanonical()
+                      ? std::string(micro_methods[parse_choice(options.get("method", "auto"),
+                                                               "method", micro_methods)])
+                      : std::string(methods[parse_choice(options.get("method", "auto"), "method",
+                                                         methods)]);
   }
   plan.options.method = parse_average_method(plan.method.c_str());
   sweeps.push_back(parse_integer_sweep("digits", options.get("digits", "16"), min_digits, max_digits));
@@ -448,7 +548,8 @@ std::string table_command(const Options& options) {
     sweeps.push_back(parse_sweep("l2", options.get("l2", "1"), Domain::positive));
   }
   sweeps.push_back(parse_sweep("g", options.get("g", "1"), Domain::nonnegative));
-  sweeps.push_back(parse_sweep("beta", options.required("beta"), Domain::positive));
+  sweeps.push_back(parse_sweep(plan.state, options.required(plan.state),
+                               plan.state == "energy" ? Domain::any : Domain::positive));
   std::ranges::stable_partition(sweeps, [](const Sweep& s) { return !s.range; });
   std::size_t combinations = 1;
   for (const Sweep& s : sweeps) {
@@ -480,13 +581,17 @@ std::string table_command(const Options& options) {
     } catch (const invalid_input& bad) {
       throw usage_error(std::string("table: ") + bad.what());
     }
-    if (!plan.chain) continue;
+    if (!plan.chain && !plan.microcanonical()) continue;
     std::vector<std::string>& names = is_qmc(n) ? qmc_n : torus_n;
     if (std::ranges::find(names, std::to_string(n)) == names.end())
       names.push_back(std::to_string(n));
   }
   const std::string chosen =
-      !plan.chain ? "the double-pendulum engines (--method " + plan.method + ")"
+      plan.microcanonical()
+          ? (plan.method != "auto" ? "--method " + plan.method
+                                   : "--method auto, which runs the microcanonical integral "
+                                     "rule for N = " + join_values(torus_n))
+      : !plan.chain ? "the double-pendulum engines (--method " + plan.method + ")"
       : plan.method != "auto"
           ? "--method " + plan.method
           : "--method auto, which runs torus-trapezoid for N = " + join_values(torus_n);
@@ -567,7 +672,20 @@ std::string table_command(const Options& options) {
   if (row_count < combinations)
     out += "; qmc is double only, so N = " + join_values(qmc_n) + " has rows at digits = 16 only";
   out += "\n# method = " + plan.method;
-  if (plan.chain) {
+  if (plan.microcanonical()) {
+    out += " (microcanonical averages at fixed " + plan.state +
+           (plan.method == "auto" ? "; integral for N <= 4, qmc beyond" : "") +
+           "; tolerance 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond in double, 1e-D at D > 16 "
+           "digits)\n";
+    if (!qmc_n.empty())
+      out += "# qmc (N = " + join_values(qmc_n) + "): " +
+             std::to_string(plan.options.samples.value_or(MicrocanonicalOptions{}.points)) +
+             " points x " +
+             std::to_string(plan.options.shifts.value_or(MicrocanonicalOptions{}.shifts)) +
+             " shifts, seed " + std::to_string(plan.options.seed.value_or(1)) +
+             ", double only, statistical error bars (the 99.9% Student-t quantile of the "
+             "standard error)\n";
+  } else if (plan.chain) {
     const std::string torus = "torus-trapezoid (tolerance " + shortest(default_torus_tolerance) +
                               " in double, 1e-D at D > 16 digits)";
     if (plan.method == "auto")
@@ -581,7 +699,8 @@ std::string table_command(const Options& options) {
              std::to_string(plan.options.samples.value_or(default_qmc_samples)) + " points x " +
              std::to_string(plan.options.shifts.value_or(default_qmc_shifts)) + " shifts, seed " +
              std::to_string(plan.options.seed.value_or(default_qmc_seed)) +
-             " (the same shifts for every row), double only, 3-sigma error bars\n";
+             " (the same shifts for every row), double only, statistical error bars (the 99.9% "
+             "Student-t quantile of the standard error over the shifts)\n";
   } else {
     out += " (the double-pendulum engines)\n";
   }
@@ -591,8 +710,23 @@ std::string table_command(const Options& options) {
            "; a row of a shorter chain leaves the cells beyond its N empty\n";
   out += "# pendavg " + std::string(version()) + ", generated " + utc_timestamp() + " (UTC)\n";
   std::vector<std::string> header{"N", "digits"};
-  const std::vector<std::string> cases = case_columns(plan.columns_particles);
+  const std::vector<std::string> cases = case_columns(plan.columns_particles, plan.state);
   header.insert(header.end(), cases.begin(), cases.end());
+  if (plan.microcanonical()) {
+    const auto add_names = [&](std::string_view stem) {
+      const auto names = indexed_names(stem, plan.columns_particles);
+      header.insert(header.end(), names.begin(), names.end());
+    };
+    add_names("K");
+    add_names("K_error");
+    header.push_back("Kc");
+    add_names("cos_phi");
+    add_names("var_K");
+    header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "Kc_error"});
+    add_names("cos_phi_error");
+    add_names("var_K_error");
+    header.push_back(plan.state == "energy" ? "excitation" : "energy");
+  } else {
   for (const std::string_view stem :
        {std::string_view("beta_K"), std::string_view("error_K"), std::string_view(""),
         std::string_view("cos_phi"), std::string_view("var_K"),
@@ -605,6 +739,7 @@ std::string table_command(const Options& options) {
   for (const std::string_view stem : {std::string_view("cos_phi_error"), std::string_view("var_K_error")}) {
     const auto names = indexed_names(stem, plan.columns_particles);
     header.insert(header.end(), names.begin(), names.end());
+  }
   }
   append_csv_line(out, header);
 

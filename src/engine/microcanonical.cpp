@@ -1,8 +1,10 @@
-// Microcanonical averages (pendavg/microcanonical.hpp): the three rules and their explicit
-// instantiations (double, long double).
+// Microcanonical averages (pendavg/microcanonical.hpp): the three rules, the two entry points
+// (energy, excitation) and their explicit instantiations (double, long double, mpfr_real).
 #include "engine/microcanonical.hpp"
 
 #include <cmath>
+#include <optional>
+#include <sstream>
 #include <string>
 
 namespace pendavg {
@@ -14,7 +16,7 @@ namespace detail::microcanonical {
 /// with an absolute error estimate.
 template <class Real>
 struct ShellSums {
-  std::vector<Real> value, error;  // q = 1 + 2N entries each
+  std::vector<Real> value, error;  // q = 1 + 3N entries each
   std::size_t evaluations = 0;
   bool converged = true;
 };
@@ -23,34 +25,56 @@ template <class Real>
 typename NestedShellIntegral<Real>::Shared nested_shared(const Chain<Real>& chain,
                                                          const ShellSetup<Real>& setup,
                                                          const TanhSinhTable<Real>& table,
-                                                         const MicrocanonicalOptions& options) {
+                                                         const MicrocanonicalOptions& options,
+                                                         const Real& tolerance) {
   const std::size_t n = setup.n;
   typename NestedShellIntegral<Real>::Shared shared;
   shared.chain = &chain;
   shared.setup = &setup;
   shared.table = &table;
   // each level gets a quarter of the budget: the inner errors are carried outwards
-  shared.tolerance = Real(options.tolerance) / 4;
+  shared.tolerance = tolerance / 4;
   shared.max_level = options.max_level;
-  shared.tail_gamma.assign(n + 1, Real(0));
-  for (std::size_t j = n; j-- > 0;) shared.tail_gamma[j] = shared.tail_gamma[j + 1] + setup.gamma[j];
   shared.targets.resize(n);
   shared.light.assign(n, false);
-  const Real abs_energy = abs(setup.energy);
+  const bool below_zero = setup.excitation < setup.gamma_sum;  // E < 0
   for (std::size_t j = 1; j < n; ++j) {
-    // | |E| + sum_{k > j} eps_k gamma_k | over every sign pattern
-    std::vector<Real> values{abs_energy};
+    // t = | |E| + sum_{k > j} eps_k gamma_k | over every sign pattern. For E < 0, |E| = S - D and
+    // t = |head_j - d| with d = D - P, P = sum of 2 gamma_k over the k with eps_k = +1: where
+    // d <= head_j the deficit d is kept (cuts near the bottom of the well without cancellation).
+    std::vector<Real> subset{Real(0)};  // P over every subset of the links beyond j
     for (std::size_t k = j + 1; k < n; ++k) {
-      std::vector<Real> next;
-      for (const Real& v : values) {
-        next.push_back(v + setup.gamma[k]);
-        next.push_back(v - setup.gamma[k]);
-      }
-      values.swap(next);
+      const std::size_t count = subset.size();
+      for (std::size_t a = 0; a < count; ++a) subset.push_back(subset[a] + 2 * setup.gamma[k]);
     }
-    for (Real& v : values) v = abs(v);
-    std::sort(values.begin(), values.end());
-    values.erase(std::unique(values.begin(), values.end()), values.end());
+    std::vector<CriticalRadius<Real>> values;
+    const Real head = setup.head_gamma[j];
+    const Real tail = setup.gamma_sum - head;
+    for (const Real& plus : subset) {
+      CriticalRadius<Real> t;
+      if (below_zero) {
+        const Real d = setup.excitation - plus;
+        if (d <= head) {
+          t.radius = head - d;
+          t.deficit = d;
+          t.has_deficit = true;
+        } else {
+          t.radius = d - head;
+        }
+      } else {
+        t.radius = abs(setup.energy + plus - tail);
+      }
+      values.push_back(t);
+    }
+    std::sort(values.begin(), values.end(),
+              [](const CriticalRadius<Real>& a, const CriticalRadius<Real>& b) {
+                return a.radius < b.radius;
+              });
+    values.erase(std::unique(values.begin(), values.end(),
+                             [](const CriticalRadius<Real>& a, const CriticalRadius<Real>& b) {
+                               return a.radius == b.radius;
+                             }),
+                 values.end());
     shared.targets[j] = values;
     shared.light[j] = chain.mass(j - 1) / chain.tail_mass(j - 1) < Real(0.09);
   }
@@ -59,10 +83,10 @@ typename NestedShellIntegral<Real>::Shared nested_shared(const Chain<Real>& chai
 
 template <class Real>
 ShellSums<Real> integral_sums(const Chain<Real>& chain, const ShellSetup<Real>& setup,
-                              const MicrocanonicalOptions& options) {
+                              const MicrocanonicalOptions& options, const Real& tolerance) {
   const TanhSinhTable<Real>& table = TanhSinhTable<Real>::shared();
-  auto shared = nested_shared(chain, setup, table, options);
-  const std::size_t q = 1 + 2 * setup.n;
+  auto shared = nested_shared(chain, setup, table, options, tolerance);
+  const std::size_t q = 1 + 3 * setup.n;
   const auto run = [&](std::size_t& evaluations, std::size_t& unconverged) {
     NestedShellIntegral<Real> master(shared, options.threads);
     std::vector<std::unique_ptr<NestedShellIntegral<Real>>> workers;
@@ -93,8 +117,9 @@ ShellSums<Real> integral_sums(const Chain<Real>& chain, const ShellSetup<Real>& 
     Real outer_measure = 1;
     for (std::size_t j = 1; j < setup.n; ++j) {
       for (std::size_t c = 0; c < q; ++c) {
-        const Real size = (c >= 1 && c <= setup.n) ? abs(rough[c]) : abs(rough[0]);
-        shared.floor[j][c] = Real(options.tolerance) / 16 * size / outer_measure;
+        const Real size = NestedShellIntegral<Real>::own_scale(c, setup.n) ? abs(rough[c])
+                                                                            : abs(rough[0]);
+        shared.floor[j][c] = tolerance / 16 * size / outer_measure;
       }
       outer_measure *= 2 * pi<Real>();
     }
@@ -111,9 +136,11 @@ ShellSums<Real> integral_sums(const Chain<Real>& chain, const ShellSetup<Real>& 
 /// The plain tensor trapezoid rule on the (N-1)-torus, n = 16, 32, ... per dimension.
 template <class Real>
 ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& setup,
-                           const MicrocanonicalOptions& options) {
-  const std::size_t n = setup.n, dims = n - 1, q = 1 + 2 * n;
-  const auto shared = nested_shared(chain, setup, TanhSinhTable<Real>::shared(), options);
+                           const MicrocanonicalOptions& options, const Real& tolerance) {
+  using std::pow;
+  const std::size_t n = setup.n, dims = n - 1, q = 1 + 3 * n;
+  const auto shared =
+      nested_shared(chain, setup, TanhSinhTable<Real>::shared(), options, tolerance);
   ShellSums<Real> out;
   out.value.assign(q, Real(0));
   out.error.assign(q, Real(0));
@@ -133,6 +160,7 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
     for (std::size_t d = 1; d < dims; ++d) inner *= points;
     std::vector<std::vector<Real>> partial(points, std::vector<Real>(q, Real(0)));
     const int team = std::max(options.threads, 1);
+    ParallelErrors errors;  // an exception may not leave the parallel region
 #if defined(_OPENMP)
 #pragma omp parallel num_threads(team) if (team > 1)
 #endif
@@ -144,24 +172,29 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
 #pragma omp for schedule(dynamic, 1)
 #endif
       for (std::ptrdiff_t k0 = 0; k0 < static_cast<std::ptrdiff_t>(points); ++k0) {
-        std::vector<detail::torus::CompensatedSum<Real>> sums(q);
-        for (std::size_t r = 0; r < inner; ++r) {
-          std::size_t rest = r;
-          theta[1] = two_pi * Real(static_cast<double>(k0)) / Real(static_cast<double>(points));
-          for (std::size_t d = 1; d < dims; ++d) {
-            theta[d + 1] = two_pi * Real(static_cast<double>(rest % points)) /
-                           Real(static_cast<double>(points));
-            rest /= points;
+        errors.capture([&] {
+          std::vector<detail::torus::CompensatedSum<Real>> sums(q);
+          for (std::size_t r = 0; r < inner; ++r) {
+            std::size_t rest = r;
+            theta[1] = two_pi * Real(static_cast<double>(k0)) / Real(static_cast<double>(points));
+            for (std::size_t d = 1; d < dims; ++d) {
+              theta[d + 1] = two_pi * Real(static_cast<double>(rest % points)) /
+                             Real(static_cast<double>(points));
+              rest /= points;
+            }
+            node.evaluate_at(theta.data(), f.data());
+            for (std::size_t c = 0; c < q; ++c) sums[c].add(f[c]);
           }
-          node.evaluate_at(theta.data(), f.data());
-          for (std::size_t c = 0; c < q; ++c) sums[c].add(f[c]);
-        }
-        for (std::size_t c = 0; c < q; ++c) partial[static_cast<std::size_t>(k0)][c] = sums[c].value();
+          for (std::size_t c = 0; c < q; ++c)
+            partial[static_cast<std::size_t>(k0)][c] = sums[c].value();
+        });
       }
     }
+    errors.rethrow();
     (void)team;
     std::vector<Real> value(q, Real(0));
-    const Real cell = std::pow(two_pi / Real(static_cast<double>(points)), Real(static_cast<double>(dims)));
+    const Real cell =
+        pow(two_pi / Real(static_cast<double>(points)), Real(static_cast<double>(dims)));
     for (std::size_t c = 0; c < q; ++c) {
       detail::torus::CompensatedSum<Real> s;
       for (std::size_t k0 = 0; k0 < points; ++k0) s.add(partial[k0][c]);
@@ -173,8 +206,9 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
       bool done = true;
       for (std::size_t c = 0; c < q; ++c) {
         out.error[c] = abs(value[c] - previous[c]);
-        const Real scale = (c >= 1 && c <= n) ? abs(value[c]) : abs(value[0]);
-        if (!(out.error[c] <= Real(options.tolerance) * scale)) done = false;
+        const Real scale =
+            NestedShellIntegral<Real>::own_scale(c, n) ? abs(value[c]) : abs(value[0]);
+        if (!(out.error[c] <= tolerance * scale)) done = false;
       }
       if (done) {
         out.converged = true;
@@ -188,12 +222,28 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
   return out;
 }
 
-/// Randomized lattice QMC: per shift, sums of w, w^2, w tr X_i F_{p+1}/F_p, w cos G_p/F_p.
+/// Randomized lattice QMC: per shift, sums of w, w^2, w tr X_i F_{p+1}/F_p, w cos G_p/F_p and
+/// w ((tr X_i)^2 + 2 tr X_i^2) F_{p+2}/F_p, with the weights kept as exp(log w - log_scale): the
+/// reference log_scale is the first point's log weight, raised when a later one exceeds it by
+/// 256 (log-sum-exp with a running maximum), so no weight under- or overflows for any N or E.
 template <class Real>
 struct QmcShellShift {
   detail::torus::CompensatedSum<Real> weight, weight_squared;
-  std::vector<detail::torus::CompensatedSum<Real>> kinetic, cosine;
-  explicit QmcShellShift(std::size_t n = 0) : kinetic(n), cosine(n) {}
+  std::vector<detail::torus::CompensatedSum<Real>> kinetic, cosine, kinetic_squared;
+  Real log_scale{0};
+  bool scaled = false;  ///< log_scale is set (a point reached the shell)
+  explicit QmcShellShift(std::size_t n = 0) : kinetic(n), cosine(n), kinetic_squared(n) {}
+  void rescale(const Real& factor) {
+    const auto scale = [](detail::torus::CompensatedSum<Real>& s, const Real& f) {
+      s.sum *= f;
+      s.compensation *= f;
+    };
+    scale(weight, factor);
+    scale(weight_squared, factor * factor);
+    for (auto& s : kinetic) scale(s, factor);
+    for (auto& s : cosine) scale(s, factor);
+    for (auto& s : kinetic_squared) scale(s, factor);
+  }
 };
 
 template <class Real>
@@ -222,47 +272,63 @@ QmcShellShift<Real> qmc_shift_sums(const Chain<Real>& chain, const ShellSetup<Re
       zy += setup.gamma[j] * sphi[j];
     }
     const Real rho = sqrt(zx * zx + zy * zy);
-    const ShellMoments<Real> m = setup.shell(setup.energy, rho, setup.scale);
-    if (m.weight == 0 && m.kinetic == 0) {
-      sums.weight.add(Real(0));
-      continue;
-    }
+    // S - rho without cancellation, and E + rho = D - (S - rho) below E = 0: the excitation form
+    const Real deficit = rho > 0 ? well_deficit(setup.gamma, cphi.data(), sphi.data(), zx, zy, rho)
+                                 : setup.gamma_sum;
+    const ShellMoments<Real> m =
+        setup.shell(setup.energy, rho, setup.depth(rho, deficit), setup.scale);
+    if (m.weight == 0 && m.kinetic == 0) continue;
     for (std::size_t i = 0; i + 1 < n; ++i) delta[i] = phi[i + 1] - phi[i];
     const NodeTraces<Real>& t = node_traces_relative(chain, delta.data(), ws);
     const Real x = beta_star * rho;
     const Real log_bessel = x > 0 ? Real(log(scaled_bessel_i01(x).i0e)) : Real(0);
-    const Real base = exp(log_ratio_sum + t.log_sqrt_det_A - setup.log_hadamard +
-                          beta_star * (setup.gamma_sum - rho) - log_bessel);
+    const Real log_base = log_ratio_sum + t.log_sqrt_det_A - setup.log_hadamard +
+                          beta_star * deficit - log_bessel;
+    if (!sums.scaled) {
+      sums.log_scale = log_base;
+      sums.scaled = true;
+    } else if (log_base > sums.log_scale + 256) {
+      sums.rescale(exp(sums.log_scale - log_base));
+      sums.log_scale = log_base;
+    }
+    const Real base = exp(log_base - sums.log_scale);
     const Real w = base * m.weight;
     sums.weight.add(w);
     sums.weight_squared.add(w * w);
-    const Real bk = base * m.kinetic, bc = rho > 0 ? Real(base * m.cosine / rho) : Real(0);
+    const Real bk = base * m.kinetic, bk2 = base * m.kinetic_squared;
+    const Real bc = rho > 0 ? Real(base * m.cosine / rho) : Real(0);
     for (std::size_t i = 0; i < n; ++i) {
-      sums.kinetic[i].add(bk * t.trace_X[i]);
+      const Real& tr = t.trace_X[i];
+      sums.kinetic[i].add(bk * tr);
       sums.cosine[i].add(bc * (cphi[i] * zx + sphi[i] * zy));
+      sums.kinetic_squared[i].add(bk2 * (tr * tr + 2 * t.trace_X_squared[i]));
     }
   }
   return sums;
 }
 
-}  // namespace detail::microcanonical
-
+/// 1 - I1(x)/I0(x) >= 0 (the scaled Bessel functions' difference; only the proposal uses it).
 template <class Real>
-Real matched_beta(const Chain<Real>& chain, const Real& energy) {
-  using std::log;
+Real bessel_gap(const Real& x) {
+  const ScaledBesselI01<Real> b = scaled_bessel_i01(x);
+  return (b.i0e - b.i1e) / b.i0e;
+}
+
+/// beta* of the qmc proposal from the excitation D (see matched_beta).
+template <class Real>
+Real matched_beta_excitation(const Chain<Real>& chain, const Real& excitation) {
   const std::size_t n = chain.size();
-  Real gamma_sum = 0;
-  for (std::size_t j = 0; j < n; ++j) gamma_sum += chain.potential_coefficient(j);
-  if (!(energy + gamma_sum > 0)) throw invalid_input("matched_beta: energy below the minimum");
   const Real half_n = Real(static_cast<double>(n)) / 2;
-  const auto excess = [&](const Real& beta) {  // decreasing in beta
+  // N/(2 beta) + sum_j gamma_j (1 - I1/I0)(beta gamma_j) - D: the proposal's mean excitation
+  // (equipartition kinetic energy plus the von Mises potential energy above U_min) minus D,
+  // decreasing in beta; no cancellation near the bottom of the well.
+  const auto excess = [&](const Real& beta) {
     Real u = 0;
     for (std::size_t j = 0; j < n; ++j) {
       const Real g = chain.potential_coefficient(j);
-      const ScaledBesselI01<Real> b = scaled_bessel_i01(Real(beta * g));
-      u -= g * (b.i1e / b.i0e);
+      u += g * bessel_gap(Real(beta * g));
     }
-    return half_n / beta + u - energy;
+    return half_n / beta + u - excitation;
   };
   Real lo = 1, hi = 1;
   for (int i = 0; i < 2000 && excess(lo) < 0; ++i) lo /= 2;
@@ -274,31 +340,21 @@ Real matched_beta(const Chain<Real>& chain, const Real& energy) {
     } else {
       hi = mid;
     }
-    if (hi - lo <= 1e-13 * hi) break;
+    if (hi - lo <= Real(1e-13) * hi) break;
   }
   return sqrt(lo * hi);
 }
 
+/// The run of one entry point: validated, at the working precision, from the excitation D.
 template <class Real>
-MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
-                                                     const MicrocanonicalOptions& options) {
-  using namespace detail::microcanonical;
+MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const Real& energy,
+                                                 const Real& excitation,
+                                                 const MicrocanonicalOptions& options) {
   using Rule = MicrocanonicalOptions::Rule;
   using std::isfinite;
+  using std::pow;
   const std::size_t n = chain.size();
-  if (!isfinite(energy)) throw invalid_input("microcanonical: the energy must be finite");
-  if (!(options.tolerance > 0) || !std::isfinite(options.tolerance)) {
-    throw invalid_input("microcanonical: tolerance must be positive and finite");
-  }
-  if (options.threads < 1) throw invalid_input("microcanonical: threads must be >= 1");
-  if (options.max_level < 2 || options.max_level > 12) {
-    throw invalid_input("microcanonical: max_level must be in 2..12");
-  }
-  const ShellSetup<Real> setup(chain, energy);
-  if (!(setup.scale > 0)) {
-    throw invalid_input("microcanonical: no accessible states: E must exceed the minimum energy "
-                        "-sum_j g S_j l_j");
-  }
+  constexpr bool multiprecision = is_mpfr_v<Real>;
   Rule rule = options.rule;
   if (rule == Rule::automatic) rule = n <= 4 ? Rule::integral : Rule::qmc;
   if (rule == Rule::integral && n > 6) {
@@ -312,14 +368,28 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
   if (rule == Rule::torus && options.max_points_per_dim < 32) {
     throw invalid_input("microcanonical: max_points_per_dim must be >= 32");
   }
+  if (options.digits != 0 && rule == Rule::qmc) {
+    throw invalid_input("microcanonical: qmc (automatic for N >= 5) runs in double only; "
+                        "digits > 16 need the integral or torus rule (N <= 4)");
+  }
+  Real tolerance = Real(options.tolerance);
+  if (options.digits != 0) tolerance = pow(Real(10), -options.digits);
+  MicrocanonicalOptions run = options;
+  if constexpr (multiprecision) run.threads = 1;  // MPFR runs on the calling thread
 
+  const ShellSetup<Real> setup(chain, energy, excitation);
   MicrocanonicalAverages<Real> out;
   out.energy = energy;
-  const Real u = std::numeric_limits<Real>::epsilon() / 2;
+  out.excitation = excitation;
+  const Real u = unit_roundoff<Real>() / 2;
   const Real rounding = (Real(32) + Real(8 * static_cast<double>(n))) * u;
   const Real nn = Real(static_cast<double>(n));
+  const Real second_moment_norm = nn * (nn + 2);  // <K_i^2 | phi, E> = (E-U)^2 (...) / (N (N+2))
   const Real p = setup.shell.p();
-  std::vector<Real> value, error;  // Z~, kinetic numerators, cosine numerators
+  const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
+  out.kinetic.resize(n);
+  out.cos_angle.resize(n);
+  out.kinetic_variance.resize(n);
   if (rule == Rule::qmc) {
     using namespace detail::qmc;
     const std::size_t points = options.points;
@@ -328,8 +398,8 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
       throw invalid_input("microcanonical qmc: points must be a power of two in [2^10, 2^16]");
     }
     if (options.shifts < 4) throw invalid_input("microcanonical qmc: at least 4 random shifts");
-    if (!(options.sigmas > 0) || !std::isfinite(options.sigmas)) {
-      throw invalid_input("microcanonical qmc: sigmas must be positive");
+    if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
+      throw invalid_input("microcanonical qmc: sigmas must be positive (or 0: automatic)");
     }
     if (!(options.proposal_beta >= 0) || !std::isfinite(options.proposal_beta)) {
       throw invalid_input("microcanonical qmc: proposal_beta must be >= 0 and finite");
@@ -341,8 +411,9 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     while ((std::size_t(1) << log2_points) < points) ++log2_points;
     const auto& row = lattice_table[log2_points - lattice_table_min_log2];
     const std::vector<std::uint32_t> generator(row, row + n);
-    const Real beta_star =
-        options.proposal_beta > 0 ? Real(options.proposal_beta) : matched_beta(chain, energy);
+    const Real beta_star = options.proposal_beta > 0
+                               ? Real(options.proposal_beta)
+                               : matched_beta_excitation(chain, excitation);
     std::vector<BestFisherMap<Real>> maps;
     Real log_envelope = 0;  // log prod_j (1 + rho_j) / (2 pi (1 - rho_j))
     for (std::size_t j = 0; j < n; ++j) {
@@ -353,31 +424,47 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     const std::vector<std::vector<Real>> shift =
         detail::qmc::random_shifts<Real>(shifts, n, options.seed);
     std::vector<QmcShellShift<Real>> sums(shifts, QmcShellShift<Real>(n));
-    const int team = std::max(options.threads, 1);
+    const int team = std::max(run.threads, 1);
+    ParallelErrors shift_errors;  // an exception may not leave the parallel region
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
 #endif
     for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
-      const std::size_t rr = static_cast<std::size_t>(r);
-      sums[rr] = qmc_shift_sums(chain, setup, beta_star, maps, shift[rr], points, generator);
+      shift_errors.capture([&] {
+        const std::size_t rr = static_cast<std::size_t>(r);
+        sums[rr] = qmc_shift_sums(chain, setup, beta_star, maps, shift[rr], points, generator);
+      });
     }
+    shift_errors.rethrow();
     (void)team;
+    // Every shift's sums at the largest reference scale.
+    bool any = false;
+    Real log_scale = 0;
+    for (const QmcShellShift<Real>& s : sums) {
+      if (!s.scaled) continue;
+      if (!any || s.log_scale > log_scale) log_scale = s.log_scale;
+      any = true;
+    }
+    if (!any) throw invalid_input("microcanonical qmc: no point reached the shell");
     // Per-shift totals; every reported quantity is a ratio of them: jackknife over shifts.
-    const std::size_t q = 1 + 2 * n;
-    std::vector<std::vector<Real>> per(shifts, std::vector<Real>(q));
+    const std::size_t q = 1 + 3 * n;
+    std::vector<std::vector<Real>> per(shifts, std::vector<Real>(q, Real(0)));
     Real total_w = 0, total_w2 = 0;
     for (std::size_t r = 0; r < shifts; ++r) {
-      per[r][0] = sums[r].weight.value();
+      if (!sums[r].scaled) continue;
+      const Real f = exp(sums[r].log_scale - log_scale);
+      per[r][0] = f * sums[r].weight.value();
       for (std::size_t i = 0; i < n; ++i) {
-        per[r][1 + i] = sums[r].kinetic[i].value();
-        per[r][1 + n + i] = sums[r].cosine[i].value();
+        per[r][1 + i] = f * sums[r].kinetic[i].value();
+        per[r][1 + n + i] = f * sums[r].cosine[i].value();
+        per[r][1 + 2 * n + i] = f * sums[r].kinetic_squared[i].value();
       }
       total_w += per[r][0];
-      total_w2 += sums[r].weight_squared.value();
+      total_w2 += f * f * sums[r].weight_squared.value();
     }
     if (!(total_w > 0)) throw invalid_input("microcanonical qmc: no point reached the shell");
-    // quantities: <K_i> (n), <cos_i> (n), <K> (1), Z~ (1)
-    const std::size_t count = 2 * n + 2;
+    // quantities: <K_i> (n), <cos_i> (n), <K> (1), Z~ (1), Var K_i (n)
+    const std::size_t count = 3 * n + 2;
     const Real z_norm = exp(log(2 * pi<Real>()) + log_envelope) *
                         Real(static_cast<double>(points));
     const auto quantities = [&](std::size_t skip) {
@@ -393,6 +480,9 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
         res[i] = setup.scale * t[1 + i] / (nn * t[0]);
         res[n + i] = t[1 + n + i] / t[0];
         total += res[i];
+        res[2 * n + 2 + i] = setup.scale * setup.scale * t[1 + 2 * n + i] /
+                                 (second_moment_norm * t[0]) -
+                             res[i] * res[i];
       }
       res[2 * n] = total;
       res[2 * n + 1] = t[0] / (used * z_norm);
@@ -402,28 +492,32 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     std::vector<std::vector<Real>> leave(shifts);
     for (std::size_t r = 0; r < shifts; ++r) leave[r] = quantities(r);
     const std::vector<Real> se = detail::qmc::jackknife_standard_errors(leave, count);
-    const Real sig = Real(options.sigmas);
+    const Real sig = Real(options.sigmas > 0 ? options.sigmas : qmc_default_sigmas(shifts));
     out.quadrature = Method::qmc;
+    out.work_unit = WorkUnit::samples;
     out.evaluations = points * shifts;
     out.proposal_beta = beta_star;
     out.effective_sample_fraction =
         total_w * total_w / (total_w2 * Real(static_cast<double>(points * shifts)));
     constexpr ErrorKind kind = ErrorKind::statistical;
     out.error_kind = kind;
-    out.kinetic.resize(n);
-    out.cos_angle.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       out.kinetic[i] = {est[i], sig * se[i] + rounding * abs(est[i]), kind};
       out.cos_angle[i] = {est[n + i], sig * se[n + i] + rounding, kind};
+      const Real second = est[2 * n + 2 + i] + est[i] * est[i];
+      out.kinetic_variance[i] = {est[2 * n + 2 + i],
+                                 sig * se[2 * n + 2 + i] + rounding * abs(second), kind};
     }
     out.kinetic_total = {est[2 * n], sig * se[2 * n] + rounding * abs(est[2 * n]), kind};
     const Real z = est[2 * n + 1], z_error = sig * se[2 * n + 1] + rounding * z;
-    const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
-    out.density_of_states = {exp(log_factor) * z, exp(log_factor) * z_error, kind};
+    const Real density_factor = exp(log_factor + log_scale);
+    out.density_of_states = {density_factor * z, density_factor * z_error, kind};
   } else {
-    const ShellSums<Real> sums = rule == Rule::integral ? integral_sums(chain, setup, options)
-                                                        : torus_sums(chain, setup, options);
+    const ShellSums<Real> sums = rule == Rule::integral
+                                     ? integral_sums(chain, setup, run, tolerance)
+                                     : torus_sums(chain, setup, run, tolerance);
     out.quadrature = rule == Rule::integral ? Method::reduced_integral : Method::torus_trapezoid;
+    out.work_unit = WorkUnit::nodes;
     out.evaluations = sums.evaluations;
     out.converged = sums.converged;
     const Real z = sums.value[0], z_error = sums.error[0];
@@ -431,43 +525,148 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
     const Real z_rel = z_error / z;
     constexpr ErrorKind kind = ErrorKind::estimate;
     out.error_kind = kind;
-    out.kinetic.resize(n);
-    out.cos_angle.resize(n);
     Real numerator = 0, numerator_error = 0;
+    const Real kinetic_unit = setup.scale / (nn * z);
+    const Real second_unit = setup.scale * setup.scale / (second_moment_norm * z);
     for (std::size_t i = 0; i < n; ++i) {
       const Real kn = sums.value[1 + i], ke = sums.error[1 + i];
       numerator += kn;
       numerator_error += ke;
-      const Real kinetic = setup.scale * kn / (nn * z);
-      out.kinetic[i] = {kinetic, abs(kinetic) * (z_rel + rounding) + setup.scale * ke / (nn * z),
-                        kind};
+      const Real kinetic = kinetic_unit * kn;
+      const Real kinetic_error = abs(kinetic) * (z_rel + rounding) + kinetic_unit * ke;
+      out.kinetic[i] = {kinetic, kinetic_error, kind};
       out.cos_angle[i] = {sums.value[1 + n + i] / z,
                           (sums.error[1 + n + i] + abs(sums.value[1 + n + i]) * z_rel) / z +
                               rounding,
                           kind};
+      // Var K_i = <K_i^2>_E - <K_i>_E^2
+      const Real second = second_unit * sums.value[1 + 2 * n + i];
+      const Real second_error =
+          abs(second) * (z_rel + rounding) + second_unit * sums.error[1 + 2 * n + i];
+      out.kinetic_variance[i] = {second - kinetic * kinetic,
+                                 second_error + 2 * abs(kinetic) * kinetic_error +
+                                     rounding * abs(second),
+                                 kind};
     }
-    const Real kinetic_total = setup.scale * numerator / (nn * z);
+    const Real kinetic_total = kinetic_unit * numerator;
     out.kinetic_total = {kinetic_total,
-                         kinetic_total * (z_rel + rounding) + setup.scale * numerator_error / (nn * z),
+                         kinetic_total * (z_rel + rounding) + kinetic_unit * numerator_error,
                          kind};
     if (sums.converged) {
       // the budget was tolerance; report converged only if the propagated errors stay within it
-      out.converged = z_rel <= Real(2 * options.tolerance);
+      out.converged = z_rel <= 2 * tolerance;
     }
-    const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
-    out.density_of_states = {exp(log_factor) * z, exp(log_factor) * (z_error + rounding * z), kind};
+    const Real density_factor = exp(log_factor);
+    out.density_of_states = {density_factor * z, density_factor * (z_error + rounding * z), kind};
   }
   out.kinetic_canonical = {out.kinetic_total.value / nn, out.kinetic_total.error / nn,
                            out.kinetic_total.kind};
+  // Never a non-finite value reported as converged.
+  const auto finite = [](const Estimate<Real>& e) {
+    return isfinite(e.value) && isfinite(e.error);
+  };
+  bool all_finite = finite(out.kinetic_total) && finite(out.density_of_states);
+  for (std::size_t i = 0; i < n; ++i) {
+    all_finite = all_finite && finite(out.kinetic[i]) && finite(out.cos_angle[i]) &&
+                 finite(out.kinetic_variance[i]);
+  }
+  if (!all_finite) out.converged = false;
   return out;
+}
+
+/// Validation shared by the two entry points (before any work).
+template <class Real>
+void check_microcanonical_options(const MicrocanonicalOptions& options) {
+  if (!(options.tolerance > 0) || !std::isfinite(options.tolerance)) {
+    throw invalid_input("microcanonical: tolerance must be positive and finite");
+  }
+  if (options.threads < 1) throw invalid_input("microcanonical: threads must be >= 1");
+  if (options.max_level < 2 || options.max_level > 12) {
+    throw invalid_input("microcanonical: max_level must be in 2..12");
+  }
+  if (options.digits != 0) check_digits<Real>(options.digits);
+}
+
+/// "E must exceed the minimum energy E_min = -sum_j g S_j l_j = <value>".
+template <class Real>
+std::string below_minimum_message(const Chain<Real>& chain, const char* what) {
+  const DoubleWord<Real> depth = well_depth(chain);
+  std::ostringstream text;
+  text.precision(17);
+  text << "microcanonical: no accessible states: " << what << " E_min = -sum_j g S_j l_j = "
+       << static_cast<double>(-(depth.hi + depth.lo));
+  return text.str();
+}
+
+}  // namespace detail::microcanonical
+
+template <class Real>
+Real minimum_energy(const Chain<Real>& chain) {
+  const auto depth = detail::microcanonical::well_depth(chain);
+  return -(depth.hi + depth.lo);
+}
+
+template <class Real>
+Real excitation_energy(const Chain<Real>& chain, const Real& energy) {
+  return detail::microcanonical::excitation_of(chain, energy);
+}
+
+template <class Real>
+Real matched_beta(const Chain<Real>& chain, const Real& energy) {
+  const Real excitation = detail::microcanonical::excitation_of(chain, energy);
+  if (!(excitation > 0)) throw invalid_input("matched_beta: energy below the minimum");
+  return detail::microcanonical::matched_beta_excitation(chain, excitation);
+}
+
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
+                                                     const MicrocanonicalOptions& options) {
+  using namespace detail::microcanonical;
+  using std::isfinite;
+  check_microcanonical_options<Real>(options);
+  std::optional<precision_guard<Real>> guard;
+  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
+  const Chain<Real> model = at_working_precision(chain);
+  const Real e = at_working_precision(energy);
+  if (!isfinite(e)) throw invalid_input("microcanonical: the energy must be finite");
+  const Real excitation = excitation_of(model, e);
+  if (!(excitation > 0)) {
+    throw invalid_input(below_minimum_message(model, "the energy must exceed the minimum energy"));
+  }
+  return microcanonical_run(model, e, excitation, options);
+}
+
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_average_excitation(
+    const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options) {
+  using namespace detail::microcanonical;
+  using std::isfinite;
+  check_microcanonical_options<Real>(options);
+  std::optional<precision_guard<Real>> guard;
+  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
+  const Chain<Real> model = at_working_precision(chain);
+  const Real d = at_working_precision(excitation);
+  if (!isfinite(d)) throw invalid_input("microcanonical: the excitation must be finite");
+  if (!(d > 0)) {
+    throw invalid_input("microcanonical: no accessible states: the excitation D = E - E_min "
+                        "must be > 0");
+  }
+  const DoubleWord<Real> depth = well_depth(model);
+  const Real energy = d - depth.hi - depth.lo;
+  return microcanonical_run(model, energy, d, options);
 }
 
 #define PENDAVG_MICROCANONICAL_INSTANTIATE(Real)                                              \
   template MicrocanonicalAverages<Real> microcanonical_average<Real>(                         \
       const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
+  template MicrocanonicalAverages<Real> microcanonical_average_excitation<Real>(              \
+      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
+  template Real minimum_energy<Real>(const Chain<Real>&);                                     \
+  template Real excitation_energy<Real>(const Chain<Real>&, const Real&);                     \
   template Real matched_beta<Real>(const Chain<Real>&, const Real&);
 PENDAVG_MICROCANONICAL_INSTANTIATE(double)
 PENDAVG_MICROCANONICAL_INSTANTIATE(long double)
+PENDAVG_MICROCANONICAL_INSTANTIATE(mpfr_real)
 #undef PENDAVG_MICROCANONICAL_INSTANTIATE
 
 }  // namespace pendavg

@@ -1,7 +1,15 @@
 // Explicit instantiations of the any-N torus and QMC engines (engine/torus.hpp).
 #include "engine/torus.hpp"
 
+#include <boost/math/distributions/students_t.hpp>
+
 namespace pendavg {
+
+double qmc_default_sigmas(std::size_t shifts) {
+  if (shifts < 2) throw invalid_input("qmc_default_sigmas: at least 2 shifts");
+  const boost::math::students_t_distribution<double> t(static_cast<double>(shifts - 1));
+  return boost::math::quantile(boost::math::complement(t, 0.0005));
+}
 
 #define PENDAVG_TORUS_INSTANTIATE(Real)                                                  \
   template Averages<Real> torus_average<Real>(const Chain<Real>&, const Real&,           \

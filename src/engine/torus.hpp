@@ -86,6 +86,7 @@
 #include "pendavg/trace_formula.hpp"
 
 #include <boost/math/constants/constants.hpp>
+#include <boost/math/special_functions/log1p.hpp>
 #include <gsl/gsl_integration.h>
 
 #include <algorithm>
@@ -882,18 +883,31 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // the error at ~3e-7 for N = 3 from 2^13 to 2^16 points.
 // Error bar: the R shifted lattices give R independent, unbiased estimates of every numerator
 // and denominator; the value is the ratio of the totals and its standard error the jackknife
-// over shifts (delete-one-shift). The reported error is `sigmas` standard errors (default 3:
-// ~99% two-sided coverage for Student's t with R - 1 = 15 degrees of freedom) plus the rounding
-// budget. A statistical bar, not a bound. Deterministic for a given seed and bitwise
-// independent of the thread count (each shift is summed by one thread, in point order).
-// Weights are kept as exp(log W - log_scale) per shift, so no N overflows them.
+// over shifts (delete-one-shift). The reported error is `sigmas` standard errors plus the
+// rounding budget; by default sigmas is the 99.9% two-sided Student-t quantile for R - 1 degrees
+// of freedom (qmc_default_sigmas: 4.07 for R = 16, 3.29 as R -> infinity). Not 3 (the 99%
+// quantile for normal shift errors): a lattice rule's error as a function of the shift is
+// dominated by a few dual vectors, so it is close to A cos(2 pi h.Delta) -- arcsine-distributed,
+// with its mass at +-A -- and the t statistic of 16 such samples has heavier tails than
+// Student's (|t| > 3 in 1.1% of draws, > 4 in 0.22%). Measured over seeds 1..400 at 2^16 x 16
+// points (N = 3, unit chain at beta = 1; lengths 0.01, 10, 1 at g = 9.81, beta = 0.1): 3 SE
+// missed the tensor-torus value in 1.3-2.3% of the seeds per component, 4.07 SE in <= 0.25%.
+// A statistical bar, not a bound. Deterministic for a given seed and bitwise independent of
+// the thread count (each shift is summed by one thread, in point order).
+// Weights are kept as exp(log W - log_scale) per shift: a log-sum-exp with a finite reference
+// (the shift's first finite log W, raised whenever a later one exceeds it by 256), so no weight
+// overflows for any N and none underflows into a NaN at any beta: a product of factors that
+// would leave the normal range is carried as a sum of logs instead (only there, so runs whose
+// products stay normal keep every bit), and a point whose weight is exactly zero never becomes
+// the reference.
 // When to use it: N >= 5 or so (a tensor grid needs n^(N-1) nodes); for N <= 4 torus_average is
 // exact to 1e-13 in milliseconds. Cost ~100 ns per particle and point (the 32-node table of
 // each conditional law, one tan and one exp per angle, the backward trace sweep).
 // Measured (tests/bench/bench_any_n.cpp, BM_qmc_to_target: points per shift doubled from 2^12,
-// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar over the beta<K_i> is <= 1e-4;
-// unit chains, g = 1; the machine's 2 cores were shared, load average ~4, so wall times are
-// ~3x the per-thread CPU times given here, which are what 2 free cores would take):
+// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar (the multiplier then) over the
+// beta<K_i> is <= 1e-4; unit chains, g = 1; the machine's 2 cores were shared, load average
+// ~4, so wall times are ~3x the per-thread CPU times given here, which are what 2 free cores
+// would take):
 //     N = 8,  beta = 1:    2^12 points, bar 8.9e-5, fraction 0.97,  0.06 s
 //     N = 16, beta = 1:    2^14 points, bar 6.7e-5, fraction 0.94,  0.5 s  (ladder)
 //     N = 32, beta = 1:    2^15 points, bar 7.7e-5, fraction 0.89,  2.1 s
@@ -902,13 +916,14 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 //     N = 16, beta = 0.1:  2^13 points, bar 6.8e-5, fraction 0.99,  0.2 s
 //     N = 16, beta = 10:   2^13 points, bar 6.3e-5, fraction 0.96,  0.2 s
 // The von Mises law at N = 16, 2^14 points: bar 2.8e-3, fraction 0.03 (2.7x cheaper per point).
-// Coverage (tests/test_torus.cpp): the 3-sigma bars cover the tensor-torus values for >= 95 of
-// 100 seeds, per quantity and particle, at N = 3 (both laws) and N = 4 (unequal masses and
-// lengths, beta = 2, pivot law), 2^10 x 16 points.
-// Limitations: the bar is statistical (3 sigma, Student t with 15 degrees of freedom); it is
-// trustworthy while effective_sample_fraction stays above ~0.1. Mass ratios m_{j+1}/m_j far
-// from 1 make the pivot factors, and so the tables, steeper (not measured beyond the tests'
-// random chains). The lattices beyond 256 particles must be passed in generating_vector
+// Coverage (tests/test_torus.cpp): the bars cover the tensor-torus values for >= 95 of 100
+// seeds, per quantity and particle, at N = 3 (both laws) and N = 4 (unequal masses and lengths,
+// beta = 2, pivot law), 2^10 x 16 points; and for >= 99 of 100 at 2^16 x 16 on the hard case
+// above (slow test).
+// Limitations: the bar is statistical (the 99.9% Student-t quantile of the jackknife standard
+// error); it is trustworthy while effective_sample_fraction stays above ~0.1. Mass ratios
+// m_{j+1}/m_j far from 1 make the pivot factors, and so the tables, steeper (not measured beyond
+// the tests' random chains). The lattices beyond 256 particles must be passed in generating_vector
 // (fast_cbc_generating_vector builds one in seconds for 2^16 points).
 
 /// The law qmc_average maps the lattice points to (see the comment above QmcOptions).
@@ -923,7 +938,9 @@ struct QmcOptions {
   std::size_t points = std::size_t(1) << 14;  ///< lattice points per shift: 2^m, 2^10 <= . <= 2^20
   std::size_t shifts = 16;                    ///< independent random shifts (>= 4)
   std::uint64_t seed = 1;                     ///< the shifts come from std::mt19937_64(seed)
-  double sigmas = 3;                          ///< error = sigmas * jackknife standard error
+  /// error = sigmas * jackknife standard error; 0 (default): qmc_default_sigmas(shifts), the
+  /// 99.9% two-sided Student-t quantile for shifts - 1 degrees of freedom (4.07 for 16 shifts).
+  double sigmas = 0;
   int threads = 1;                            ///< OpenMP threads over shifts (double/long double)
   /// Optional generating vector for `points` points (one odd entry per particle); empty: the
   /// built-in table.
@@ -935,7 +952,16 @@ struct QmcOptions {
   std::size_t proposal_grid = 32;
   /// Shares the shifts with other processes (pendavg/average.hpp, ShiftPartition; double only).
   const ShiftPartition* partition = nullptr;
+  /// Progress (the fraction of shifts finished) and stop. A stop ends the run after the shifts
+  /// running finish: with at least 2 shifts done their average is returned (interrupted = true,
+  /// converged = false, the bars from the shifts done), otherwise `interrupted` is thrown. Not
+  /// used with a partition (the parts must agree on the shifts).
+  const RunControl* control = nullptr;
 };
+
+/// The 99.9% two-sided Student-t quantile for shifts - 1 degrees of freedom: the default error
+/// multiplier of the QMC bars (see the comment above QmcOptions). 4.0728 for 16 shifts.
+double qmc_default_sigmas(std::size_t shifts);
 
 namespace detail::qmc {
 
@@ -1257,6 +1283,7 @@ struct ShiftSums {
   detail::torus::CompensatedSum<Real> weight, weight_squared;
   std::vector<detail::torus::CompensatedSum<Real>> trace, second_moment, cosine;
   Real log_scale{0};
+  bool scaled = false;  ///< log_scale is set: some point had a finite log W
   explicit ShiftSums(std::size_t n = 0) : trace(n), second_moment(n), cosine(n) {}
   void rescale(const Real& factor) {
     const auto scale = [&](detail::torus::CompensatedSum<Real>& s, const Real& f) {
@@ -1285,6 +1312,9 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
   const Real inv_points = Real(1) / Real(static_cast<double>(points));
   const Real inv_grid = Real(1) / Real(static_cast<double>(grid));
   const std::vector<Real>& m = chain.masses();
+  const Real min_normal = std::numeric_limits<Real>::min();
+  const Real max_normal = std::numeric_limits<Real>::max();
+  const Real infinity = std::numeric_limits<Real>::infinity();
   bool first = true;
   for (std::uint64_t p = 0; p < points; ++p) {
     Real log_w = 0, product = 1;
@@ -1351,7 +1381,28 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
       } else {
         root_u[0] = 0;
       }
-      product *= factor;
+      const Real next = product * factor;
+      if (next >= min_normal && next <= max_normal) {
+        product = next;
+      } else {
+        // The product would leave the normal range (a point deep in a proposal tail at large
+        // beta, where a factor underflows): carry it and this factor as logs, the factor from
+        // its parts if it left the range itself. Points whose product stays normal take the
+        // branch above, bit for bit as before.
+        Real log_factor;
+        if (factor >= min_normal && factor <= max_normal) {
+          log_factor = log(factor);
+        } else {
+          const Real one_minus_rho = 1 - sampler.maps[j].rho;
+          log_factor = -sampler.maps[j].alpha * one_minus_cos +
+                       boost::math::log1p(Real(2 * sampler.maps[j].rho * one_minus_cos /
+                                               (one_minus_rho * one_minus_rho))) -
+                       log(relative_density);
+          if (j > 0) log_factor += boost::math::log1p(root_u[j]) / 2;
+        }
+        log_w += log(product) + log_factor;
+        product = 1;
+      }
       if ((j & 31) == 31) {  // keep the running product far from overflow for any N
         log_w += log(product);
         product = 1;
@@ -1376,8 +1427,14 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
       if (i > 0) kappa = m[i] * (1 + kappa) / (m[i - 1] * pivot_ratio);
     }
 
+    // Log-sum-exp with a finite reference: the first finite log W of the shift, raised when a
+    // later one exceeds it by 256. A zero weight (log W = -inf) never becomes the reference, and
+    // a point of zero proposal density (log W = +inf or NaN, never drawn in exact arithmetic) is
+    // left out.
+    if (!(log_w > -infinity && log_w < infinity)) continue;  // +-inf or NaN: adds nothing
     if (first) {
       sums.log_scale = log_w;
+      sums.scaled = true;
       first = false;
     } else if (log_w > sums.log_scale + 256) {
       sums.rescale(exp(sums.log_scale - log_w));
@@ -1423,7 +1480,7 @@ inline ShiftRange shift_range(const ShiftPartition* partition, std::size_t shift
 }
 
 /// Hands every part the sums of all shifts: each part packs its own shifts' sums (both words of
-/// every compensated sum, and the scale), all_gather concatenates them in part order, which is
+/// every compensated sum, the scale and whether it is set), all_gather concatenates them in part order, which is
 /// shift order, and they are unpacked exactly.
 template <class Real>
 void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Real>>& sums) {
@@ -1433,7 +1490,7 @@ void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Re
     const std::size_t shifts = sums.size();
     const ShiftRange mine = shift_range(&partition, shifts);
     const std::size_t n = sums.empty() ? 0 : sums[0].trace.size();
-    const std::size_t width = 5 + 6 * n;  // doubles per shift
+    const std::size_t width = 6 + 6 * n;  // doubles per shift
     std::vector<double> local;
     local.reserve((mine.last - mine.first) * width);
     for (std::size_t r = mine.first; r < mine.last; ++r) {
@@ -1450,6 +1507,7 @@ void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Re
         put(s.cosine[i]);
       }
       local.push_back(s.log_scale);
+      local.push_back(s.scaled ? 1.0 : 0.0);
     }
     const std::vector<double> all = partition.all_gather(local);
     if (all.size() != shifts * width)
@@ -1470,6 +1528,7 @@ void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Re
         get(s.cosine[i]);
       }
       s.log_scale = all[k++];
+      s.scaled = all[k++] != 0;
     }
   }
 }
@@ -1489,7 +1548,9 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
     throw invalid_input("qmc_average: points must be a power of two in [2^10, 2^20]");
   }
   if (options.shifts < 4) throw invalid_input("qmc_average: at least 4 random shifts");
-  if (!(options.sigmas > 0)) throw invalid_input("qmc_average: sigmas must be positive");
+  if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
+    throw invalid_input("qmc_average: sigmas must be positive (or 0: automatic)");
+  }
   std::vector<std::uint32_t> generator = options.generating_vector;
   if (generator.empty()) {
     unsigned log2_points = 0;
@@ -1518,11 +1579,14 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const detail::torus::WeightConstants<Real> constants(chain, beta);
   const PivotSampler<Real> sampler(chain, constants.alpha, options.proposal_grid, sequential);
 
-  const std::size_t shifts = options.shifts;
+  std::size_t shifts = options.shifts;
   const std::vector<std::vector<Real>> shift = random_shifts<Real>(shifts, n, options.seed);
   std::vector<ShiftSums<Real>> sums(shifts, ShiftSums<Real>(n));
   ParallelErrors errors;  // an exception may not leave the parallel region
   const ShiftRange mine = shift_range(options.partition, shifts);
+  const RunControl* control = options.partition ? nullptr : options.control;
+  std::vector<char> finished(shifts, 0);
+  std::size_t done = 0;
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(options.threads, 1);
 #if defined(_OPENMP)
@@ -1531,14 +1595,34 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   for (std::ptrdiff_t r = static_cast<std::ptrdiff_t>(mine.first);
        r < static_cast<std::ptrdiff_t>(mine.last); ++r) {
     errors.capture([&] {
-      sums[static_cast<std::size_t>(r)] =
-          shifted_lattice_sums(chain, constants, sampler, shift[static_cast<std::size_t>(r)],
-                               points, generator);
+      const auto rr = static_cast<std::size_t>(r);
+      if (control != nullptr && control->stop_requested()) return;
+      sums[rr] = shifted_lattice_sums(chain, constants, sampler, shift[rr], points, generator);
+      finished[rr] = 1;
+      if (control != nullptr) {
+#if defined(_OPENMP)
+#pragma omp critical(pendavg_qmc_progress)
+#endif
+        control->report(static_cast<double>(++done) / static_cast<double>(shifts));
+      }
     });
   }
   errors.rethrow();
   (void)team;
   if (options.partition) gather_shift_sums(*options.partition, sums);
+  // Stopped (RunControl): the shifts that finished are an estimate of their own (fewer shifts).
+  const bool stopped =
+      control != nullptr && std::count(finished.begin(), finished.end(), char(1)) <
+                                static_cast<std::ptrdiff_t>(shifts);
+  if (stopped) {
+    std::vector<ShiftSums<Real>> kept;
+    for (std::size_t r = 0; r < shifts; ++r)
+      if (finished[r]) kept.push_back(std::move(sums[r]));
+    if (kept.size() < 2)
+      throw interrupted("qmc_average: stopped before two random shifts finished");
+    sums = std::move(kept);
+    shifts = sums.size();
+  }
 
   // Totals and delete-one-shift totals; every quantity is a function of sums, so the jackknife
   // applies to each: Var_jack = (R - 1)/R sum_r (theta_(r) - mean)^2.
@@ -1569,12 +1653,21 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   std::vector<Real> s_weight(shifts);
   std::vector<std::vector<Real>> s_trace(shifts, std::vector<Real>(n)),
       s_second(shifts, std::vector<Real>(n)), s_cos(shifts, std::vector<Real>(n));
-  // Bring every shift's sums to the largest scale (the weights are exp(log W - log_scale)).
-  Real log_scale = sums[0].log_scale;
-  for (std::size_t r = 1; r < shifts; ++r) log_scale = std::max(log_scale, sums[r].log_scale);
+  // Bring every shift's sums to the largest scale (the weights are exp(log W - log_scale)); a
+  // shift without a finite weight has all sums zero.
+  bool any_scaled = false;
+  Real log_scale = 0;
+  for (std::size_t r = 0; r < shifts; ++r) {
+    if (!sums[r].scaled) continue;
+    log_scale = any_scaled ? std::max(log_scale, sums[r].log_scale) : sums[r].log_scale;
+    any_scaled = true;
+  }
+  if (!any_scaled) {
+    throw invalid_input("qmc_average: every importance weight vanished (use torus_average)");
+  }
   Real total_w = 0, total_w2 = 0;
   for (std::size_t r = 0; r < shifts; ++r) {
-    const Real f = exp(sums[r].log_scale - log_scale);
+    const Real f = sums[r].scaled ? Real(exp(sums[r].log_scale - log_scale)) : Real(0);
     s_weight[r] = f * sums[r].weight.value();
     total_w += s_weight[r];
     total_w2 += f * f * sums[r].weight_squared.value();
@@ -1594,17 +1687,20 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const Real u = unit_roundoff<Real>();
   const Real rounding =
       detail::torus::rounding_ulps(constants, n, Real(sqrt(constants.alpha_sum))) * u;
-  const Real sigmas = Real(options.sigmas);
+  const double sigma_multiplier =
+      options.sigmas > 0 ? options.sigmas : qmc_default_sigmas(shifts);
+  const Real sigmas = Real(sigma_multiplier);
   Averages<Real> a;
   QmcDiagnostics<Real>& diagnostics = a.qmc.emplace();
   diagnostics.points = points;
   diagnostics.shifts = shifts;
-  diagnostics.sigmas = options.sigmas;
+  diagnostics.sigmas = sigma_multiplier;
   a.method = Method::qmc;
   a.error_kind = ErrorKind::statistical;
   a.work_unit = WorkUnit::samples;
   a.evaluations = points * shifts;
-  a.converged = true;
+  a.converged = !stopped;
+  a.interrupted = stopped;
   diagnostics.beta_kinetic_standard_error.assign(standard_error.begin(), standard_error.begin() + n);
   diagnostics.beta2_kinetic_variance_standard_error.assign(standard_error.begin() + n,
                                                            standard_error.begin() + 2 * n);
@@ -1622,6 +1718,16 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   add_chain_extras(a, chain);
   diagnostics.effective_sample_fraction =
       total_w * total_w / (total_w2 * Real(static_cast<double>(points * shifts)));
+  // Never a non-finite value reported as converged.
+  using std::isfinite;
+  const auto finite = [](const std::vector<Estimate<Real>>& v) {
+    return std::all_of(v.begin(), v.end(), [](const Estimate<Real>& e) {
+      return isfinite(e.value) && isfinite(e.error);
+    });
+  };
+  if (!finite(a.beta_kinetic) || !finite(a.beta2_kinetic_variance) || !finite(a.cos_angle)) {
+    a.converged = false;
+  }
   return a;
 }
 
@@ -1631,7 +1737,7 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
 // on the torus and beta<K_i> -> <tr X_i>_{sqrt det A} / 2, Var likewise, <cos phi_i> -> 0. That
 // is exactly the torus average of the same chain with g = 0 (at any beta), evaluated here by
 // the tensor trapezoid for N <= max_tensor_particles (to options.tolerance) and by QMC beyond
-// (3-sigma bars). For N = 2 it reproduces the elliptic K/E limit (tested).
+// (statistical bars). For N = 2 it reproduces the elliptic K/E limit (tested).
 // beta -> infinity: the chain hangs, tr X_i(0) = 1 for every i (MATH.md Sec. 2), so
 // beta<K_i> -> 1/2, <cos phi_i> -> 1 and, from Isserlis (Sec. 4) at phi = 0,
 // beta^2 Var K_i -> tr(X_i(0)^2) / 2 (1/2 for N = 2: X_1 has rank one). Closed form.

@@ -13,6 +13,7 @@
 #include "parallel.hpp"
 
 #include "cli/average_options.hpp"
+#include "cli/exact_values.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -33,6 +34,7 @@ namespace pendavg::python {
 namespace {
 
 using cli::Domain;
+using cli::ExactValues;
 
 constexpr std::array<std::string_view, 5> integrator_names{"rattle2", "yoshida4", "suzuki4",
                                                            "kahan-li6", "yoshida6"};
@@ -77,51 +79,6 @@ py::array_t<double> array(const std::vector<double>& v) {
 py::array_t<double> matrix(const std::vector<double>& v, std::size_t columns) {
   const auto rows = static_cast<py::ssize_t>(columns ? v.size() / columns : 0);
   return py::array_t<double>({rows, static_cast<py::ssize_t>(columns)}, v.data());
-}
-
-/// The exact values of the run's ensemble (per particle, energy units), as the CLI's
-/// microcanonical_values and canonical_values compute them.
-struct ExactValues {
-  std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
-  double kinetic_canonical = 0, kinetic_canonical_error = 0;
-  std::string method, error_kind;
-};
-
-ExactValues microcanonical_values(const Chain<double>& chain, double energy) {
-  MicrocanonicalOptions options;
-  options.threads = hardware_threads();
-  const MicrocanonicalAverages<double> r = microcanonical_average(chain, energy, options);
-  ExactValues out;
-  for (const Estimate<double>& k : r.kinetic) {
-    out.kinetic.push_back(k.value);
-    out.kinetic_error.push_back(k.error);
-  }
-  for (const Estimate<double>& c : r.cos_angle) {
-    out.cos_angle.push_back(c.value);
-    out.cos_angle_error.push_back(c.error);
-  }
-  out.kinetic_canonical = r.kinetic_canonical.value;
-  out.kinetic_canonical_error = r.kinetic_canonical.error;
-  out.method = std::string(method_name(r.method)) + "/" + method_name(r.quadrature);
-  out.error_kind = error_kind_name(r.error_kind);
-  return out;
-}
-
-ExactValues canonical_values(const Chain<double>& chain, double beta) {
-  AverageOptions options;
-  options.threads = hardware_threads();
-  const Averages<double> a = average(chain, beta, options);
-  ExactValues out;
-  for (std::size_t i = 0; i < chain.size(); ++i) {
-    out.kinetic.push_back(a.beta_kinetic[i].value / beta);
-    out.kinetic_error.push_back(a.beta_kinetic[i].error / beta);
-    out.cos_angle.push_back(a.cos_angle[i].value);
-    out.cos_angle_error.push_back(a.cos_angle[i].error);
-  }
-  out.kinetic_canonical = a.beta_kinetic_canonical.front().value / beta;  // 1/(2 beta) exactly
-  out.method = method_name(a.method);
-  out.error_kind = error_kind_name(a.error_kind);
-  return out;
 }
 
 py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handle theta,
@@ -197,7 +154,9 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   std::optional<ExactValues> reference;
   if (with_exact) {
     py::gil_scoped_release release;
-    reference = langevin ? canonical_values(chain, run.beta) : microcanonical_values(chain, energy);
+    reference = langevin ? cli::canonical_values(chain, run.beta)
+                         : cli::microcanonical_values(
+                               chain, cli::initial_excitation(chain, initial, angles));
   }
   std::vector<double> t, e, phis, phidots;  // the trajectory, filled by the run's thread
   DynamicsObserver<double> observer;
@@ -270,6 +229,15 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     for (const char* name : {"exact_K", "exact_K_error", "exact_Kc", "exact_Kc_error",
                              "exact_cos_phi", "exact_cos_phi_error", "K_deviation_sigmas",
                              "exact_method", "exact_error_kind"})
+      out[name] = py::none();
+  }
+  // NVE: the microcanonical state as D = E - E_min (excitation form) and Var K_i, as the CLI.
+  if (reference && !langevin) {
+    out["exact_excitation"] = reference->excitation;
+    out["exact_var_K"] = array(reference->variance);
+    out["exact_var_K_error"] = array(reference->variance_error);
+  } else {
+    for (const char* name : {"exact_excitation", "exact_var_K", "exact_var_K_error"})
       out[name] = py::none();
   }
   const bool unknown_errors =

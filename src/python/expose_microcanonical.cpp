@@ -4,6 +4,8 @@
 #include "bindings.hpp"
 #include "inputs.hpp"
 
+#include "cli/average_options.hpp"
+
 #include "pendavg/pendavg.hpp"
 
 #include <pybind11/numpy.h>
@@ -27,7 +29,7 @@ py::array_t<double> values(const std::vector<Estimate<double>>& v, bool errors) 
 
 py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy, py::handle g,
                         py::handle method, py::handle tol, py::handle samples, py::handle shifts,
-                        py::handle seed) {
+                        py::handle seed, py::handle excitation) {
   std::vector<double> m, l;
   for (const py::object& x : entries(masses)) m.push_back(number_double(x, "--masses", Domain::positive));
   for (const py::object& x : entries(lengths)) l.push_back(number_double(x, "--lengths", Domain::positive));
@@ -36,46 +38,35 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
     throw cli::usage_error(std::to_string(m.size()) + " masses but " + std::to_string(l.size()) +
                            " lengths");
   const Chain<double> chain(std::move(m), std::move(l), gravity);
+  // The options as `pendavg average --energy/--excitation` reads them (one rule for both).
+  const AverageOptions settings = average_options(py::none(), method, tol, samples, shifts, seed);
   MicrocanonicalOptions options;
-  constexpr std::array<std::string_view, 4> rules{"auto", "integral", "torus-trapezoid", "qmc"};
-  const std::string rule_text = choice_text(method);
-  options.rule = static_cast<MicrocanonicalOptions::Rule>(cli::parse_choice(rule_text, "method", rules));
-  const std::string chosen = "method " + rule_text;
-  const bool qmc = options.rule == MicrocanonicalOptions::Rule::qmc ||
-                   (options.rule == MicrocanonicalOptions::Rule::automatic && chain.size() >= 5);
-  if (!tol.is_none()) {
-    if (qmc) throw invalid_input("microcanonical: tol is used by integral and torus-trapezoid, not by qmc");
-    const std::string text = number_text(tol);
-    options.tolerance = cli::parse_real<double>(text, "--tol", Domain::positive);
-    if (!(options.tolerance < 1)) throw cli::usage_error("--tol: '" + text + "' must be < 1");
+  try {
+    options = cli::microcanonical_options(settings, chain.size());
+  } catch (const invalid_input& bad) {
+    throw cli::usage_error("average: " + std::string(bad.what()));  // the CLI's message
   }
-  for (const auto& [value, name] : {std::pair{samples, "samples"}, std::pair{shifts, "shifts"},
-                                     std::pair{seed, "seed"}})
-    if (!value.is_none() && !qmc)
-      throw invalid_input(std::string("microcanonical: ") + name + " is used by qmc only, not by " +
-                          (options.rule == MicrocanonicalOptions::Rule::automatic
-                               ? chosen + " (integral for N <= 4)"
-                               : chosen));
-  if (!samples.is_none())
-    options.points = static_cast<std::size_t>(
-        cli::parse_integer(number_text(samples), "--samples", 1, 1L << 40));
-  if (!shifts.is_none())
-    options.shifts = static_cast<std::size_t>(
-        cli::parse_integer(number_text(shifts), "--shifts", 1, 1L << 40));
-  if (!seed.is_none()) options.seed = cli::parse_unsigned(number_text(seed), "--seed");
   options.threads = hardware_threads();
-  const double e = number_double(energy, "--energy", Domain::any);
+  if (energy.is_none() == excitation.is_none())
+    throw cli::usage_error("microcanonical: give one of energy and excitation");
+  const bool by_excitation = !excitation.is_none();
+  const std::string what = by_excitation ? "--excitation" : "--energy";
+  const double state = cli::microcanonical_state(
+      chain, by_excitation ? "excitation" : "energy",
+      number_text(by_excitation ? excitation : energy), what);
   MicrocanonicalAverages<double> r;
   double seconds = 0;
   {
     py::gil_scoped_release release;
     const Stopwatch watch;
-    r = microcanonical_average(chain, e, options);
+    r = by_excitation ? microcanonical_average_excitation(chain, state, options)
+                      : microcanonical_average(chain, state, options);
     seconds = watch.seconds();
   }
   py::dict out;
   out["N"] = chain.size();
   out["energy"] = r.energy;
+  out["excitation"] = r.excitation;
   out["K"] = values(r.kinetic, false);
   out["K_error"] = values(r.kinetic, true);
   out["Kc"] = r.kinetic_canonical.value;
@@ -84,6 +75,8 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
   out["K_total_error"] = r.kinetic_total.error;
   out["cos_phi"] = values(r.cos_angle, false);
   out["cos_phi_error"] = values(r.cos_angle, true);
+  out["var_K"] = values(r.kinetic_variance, false);
+  out["var_K_error"] = values(r.kinetic_variance, true);
   out["density_of_states"] = r.density_of_states.value;
   out["density_of_states_error"] = r.density_of_states.error;
   out["method"] = std::string(method_name(r.method)) + "/" + method_name(r.quadrature);
@@ -101,7 +94,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
 void expose_microcanonical(py::module_& m) {
   using namespace pybind11::literals;
   m.def("microcanonical", &microcanonical, "masses"_a, "lengths"_a, "energy"_a, "g"_a, "method"_a,
-        "tol"_a, "samples"_a, "shifts"_a, "seed"_a,
+        "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "excitation"_a,
         "Microcanonical averages at one energy as a dict (see pendavg.microcanonical).");
 }
 

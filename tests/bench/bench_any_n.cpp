@@ -5,7 +5,8 @@
 //  * randomized lattice QMC (issue 3 target: a bar <= 1e-4 on every beta<K_i> in <= 10 s on 2
 //    threads for N = 16 and N = 64 at beta = 1, unit chain, g = 1):
 //      BM_qmc_to_target/N/beta*10: doubles the points per shift from 2^12 (16 shifts) until the
-//        largest 3-sigma bar over the beta<K_i> is <= 1e-4; the time is that of the whole ladder
+//        largest bar over the beta<K_i> (the default multiplier, qmc_default_sigmas) is <= 1e-4;
+//        the time is that of the whole ladder
 //        (every smaller run included), counters: points per shift needed, the bar, the
 //        effective sample fraction;
 //      BM_qmc_fixed/N/log2(points)/proposal: one run (proposal 0 = pivot_sequential, 1 =

@@ -753,6 +753,163 @@ bad "poincare heavy mass"      poincare --masses 1,1e308 --lengths 1,1 --energy 
 bad "poincare long link"       poincare --masses 1,1 --lengths 1,1e308 --energy 1 --orbits 2 --points 5
 bad "poincare dt 1e-320"       poincare --masses 1,1 --lengths 1,1 --energy -2.5 --dt 1e-320 --orbits 2 --points 5
 
+# ---------------------------------------------------------------- microcanonical (issue 15)
+micro_keys='N energy excitation digits ensemble method K K_error Kc Kc_error cos_phi cos_phi_error var_K var_K_error K_total K_total_error density_of_states density_of_states_error error_kind evaluations work_unit seconds converged run'
+check_micro_json() { # N DIGITS [K1 reference: |K1 - reference| <= K_error1]
+  "$python" - "$micro_keys" "$1" "$2" "${3:-}" "$work/out" <<'PY'
+import json, sys
+keys, n, digits, prefix = sys.argv[1].split(), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+lines = open(sys.argv[5]).read().splitlines()
+assert len(lines) == 1, "one JSON line"
+o = json.loads(lines[0])
+assert list(o) == keys, list(o)
+assert o["N"] == n and o["digits"] == digits and o["ensemble"] == "microcanonical", o
+assert o["converged"] is True and o["error_kind"] in ("estimate", "statistical"), o
+for k in ("K", "K_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error"):
+    assert isinstance(o[k], list) and len(o[k]) == n, k
+    assert all(v.lower().find("nan") < 0 for v in o[k]), (k, o[k])
+significant = sum(c.isdigit() for c in o["K"][0].lower().split("e")[0].lstrip("0.-"))
+assert significant == digits, (o["K"][0], significant)
+for value, error in zip(o["K"], o["K_error"]):
+    assert 0 < float(error) < 1e-8 * float(value) or o["error_kind"] == "statistical", (value, error)
+assert abs(sum(map(float, o["K"])) - float(o["K_total"])) <= 1e-12 * float(o["K_total"])
+assert abs(float(o["Kc"]) * n - float(o["K_total"])) <= 1e-12 * float(o["K_total"])
+if prefix:  # the printed value and its printed error (which includes the rounding to print)
+    from decimal import Decimal, getcontext
+    getcontext().prec = 60
+    deviation = abs(Decimal(o["K"][0]) - Decimal(prefix))
+    assert deviation <= Decimal(o["K_error"][0]), (o["K"][0], o["K_error"][0], prefix)
+    assert deviation <= Decimal(10) ** (1 - digits) * Decimal(prefix), (o["K"][0], prefix)
+PY
+}
+# Near the bottom of the unit double pendulum (issue 15). References: the 40-digit mpmath
+# quadrature of the definition, `python3 tests/bench/near_minimum_ladder.py --reference 1,1 1,1 1 D`:
+# at the double E = -2.99999999 (D = 9.99999993922529029...e-9, exactly) <K_1>_E =
+# 2.4999999684000729769e-9 (the issue's audit: 2.49999996840007298e-09; the old engine was off by
+# 3e-9 relative); at D = 1e-8 (the double in double runs, the decimal in MPFR runs; they differ
+# by 2e-17 relative) <K_1>_E = 2.49999998359375020479329115840663e-9.
+good "micro --energy near the minimum" 'check_micro_json 2 16 2.4999999684000729769e-9' \
+  average --masses 1,1 --lengths 1,1 --energy -2.99999999
+good "micro --excitation"      'check_micro_json 2 16 2.49999998359375020479329115840663e-9' \
+  average --masses 1,1 --lengths 1,1 --excitation 1e-8
+good "micro --excitation digits 30" 'check_micro_json 2 30 2.49999998359375020479329115840663e-9' \
+  average --masses 1,1 --lengths 1,1 --excitation 1e-8 --digits 30
+good "micro N = 3 unit, E = 0" 'check_micro_json 3 16 && cp "$work/out" "$work/micro3.json"' \
+  average --masses 1,1,1 --lengths 1,1,1 --energy 0
+# the torus-trapezoid rule (a different quadrature of the same integrals) against the integral rule
+good "micro N = 3 torus-trapezoid agrees" '"$python" -c "
+import json, sys
+t, i = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert t[\"method\"] == \"torus-trapezoid\" and i[\"method\"] == \"integral\", (t, i)
+for key in (\"K\", \"cos_phi\", \"var_K\"):
+    for a, ea, b, eb in zip(t[key], t[key + \"_error\"], i[key], i[key + \"_error\"]):
+        assert abs(float(a) - float(b)) <= float(ea) + float(eb) and float(ea) < 1e-4 * abs(float(a)), (key, a, ea, b, eb)
+" "$work/out" "$work/micro3.json"' average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --tol 1e-5
+good "micro N = 5 qmc"         'check_micro_json 5 16' \
+  average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 1024 --shifts 8
+good "micro csv"               '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q "^N,energy,excitation,digits,ensemble,method,K1,K2,K_error1" && [ "$(head -1 "$work/out" | tr , "\n" | wc -l)" -eq "$(tail -1 "$work/out" | tr , "\n" | wc -l)" ]' \
+  average --masses 1,1 --lengths 1,1 --energy 0.5 --format csv
+good "micro text"              'grep -q "microcanonical" "$work/out" && grep -q "Var K_i" "$work/out"' \
+  average --masses 1,1 --lengths 1,1 --energy 0.5 --format text
+bad "micro energy below the minimum" average --masses 1,1 --lengths 1,1 --energy -4
+grep -q 'minimum energy E_min = -3' "$work/err" && pass || fail "micro energy below the minimum: no valid range"
+bad "micro energy at the minimum" average --masses 1,1 --lengths 1,1 --energy -3
+bad "micro excitation 0"       average --masses 1,1 --lengths 1,1 --excitation 0
+bad "micro excitation -1"      average --masses 1,1 --lengths 1,1 --excitation -1
+bad "micro energy nan"         average --masses 1,1 --lengths 1,1 --energy nan
+bad "micro beta and energy"    average --masses 1,1 --lengths 1,1 --beta 1 --energy 0
+bad "micro energy and excitation" average --masses 1,1 --lengths 1,1 --energy 0 --excitation 1
+bad "micro method series"      average --masses 1,1 --lengths 1,1 --energy 0 --method series
+bad "micro qmc digits 20"      average --masses 1,1 --lengths 1,1 --energy 0 --method qmc --digits 20
+bad "micro N = 5 digits 20"    average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --digits 20
+bad "micro N = 3 torus digits 20" average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --digits 20
+bad "micro tol with qmc"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --tol 1e-5
+bad "micro samples with integral" average --masses 1,1 --lengths 1,1 --energy 0 --samples 1024
+bad "micro samples 2^17"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 131072
+
+printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
+micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'
+good "cases energy column" \
+  '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$micro_cases_header" ] && sed -n 3p "$work/out" | cut -d, -f7 | grep -q "^2.4999999684000"' \
+  average --cases "$work/energy.csv"
+printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
+# the mpmath reference above, to 20 digits: 2.4999999835937502048e-9
+good "cases excitation column, digits 20" \
+  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
+  average --cases "$work/excitation.csv" --digits 20
+printf 'beta,energy,g,m1,m2,l1,l2\n1,1,1,1,1,1,1\n' >"$work/beta_energy.csv"
+bad "cases beta and energy"    average --cases "$work/beta_energy.csv"
+printf 'energy,g,m1,m2,l1,l2\n0,1,1,1,1,1\n-4,1,1,1,1,1\n' >"$work/energy_low.csv"
+bad "cases energy below min"   average --cases "$work/energy_low.csv"
+grep -q 'line 3' "$work/err" && pass || fail "cases energy below min: stderr does not name line 3"
+# microcanonical rows run through the same sweep engine: --timing as for beta rows
+run average --cases "$work/energy.csv"
+cp "$work/out" "$work/energy_out.csv"
+run average --cases "$work/energy.csv" --timing
+[ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/energy_out.csv" && [ "$(wc -l <"$work/err")" -eq 1 ] &&
+  grep -Eq '^pendavg: timing: rows=3 median_us=' "$work/err" && pass ||
+  fail "cases energy --timing: stdout or the stderr summary line"
+bad "cases energy and --energy" average --cases "$work/energy.csv" --energy 1
+
+check_micro_table() { # ROWS STATE
+  "$python" - "$work/out" "$1" "$2" <<'PY'
+import csv, sys
+lines = [l for l in open(sys.argv[1]) if not l.startswith("#")]
+rows = list(csv.DictReader(lines))
+assert len(rows) == int(sys.argv[2]), len(rows)
+state = sys.argv[3]
+other = "excitation" if state == "energy" else "energy"
+header = lines[0].strip().split(",")
+assert header[2] == state and header[-1] == other, header
+for r in rows:
+    assert r["converged"] == "true", r
+    n = int(r["N"])
+    total = sum(float(r["K%d" % (i + 1)]) for i in range(n))
+    assert abs(float(r["Kc"]) * n - total) <= 1e-12 * total, r
+    for i in range(n):
+        assert float(r["K_error%d" % (i + 1)]) > 0, r
+PY
+}
+good "table --excitation log sweep" 'check_micro_table 6 excitation' \
+  table --excitation log:1e-12:1:3 --mu1 0.5,0.2
+good "table --energy chains"   'check_micro_table 4 energy' \
+  table --chain 3,5 --energy 0,1 --samples 1024 --shifts 8
+good "table --energy digits 20" 'check_micro_table 2 energy' \
+  table --energy -1,1 --digits 20 --l2 2
+bad "table beta and energy"    table --beta 1 --energy 0
+bad "table energy below min"   table --energy -2,0 --l2 2
+bad "table energy method series" table --energy 0 --method series
+bad "table energy qmc digits 20" table --chain 5 --energy 0 --digits 20
+
+# simulate: exact values with every digit of the double
+good "simulate exact full digits" '"$python" -c "
+import json, sys
+o = json.load(open(sys.argv[1]))
+digits = lambda v: sum(c.isdigit() for c in v.lower().split(\"e\")[0].lstrip(\"0.-\"))
+raw = open(sys.argv[1]).read()
+import re
+k = re.search(r\"\\\"exact_K\\\": \\[([^]]*)\\]\", raw).group(1).split(\", \")
+assert all(digits(v) == 17 for v in k), k
+assert o[\"exact_excitation\"] > 0 and len(o[\"exact_var_K\"]) == 2, o
+assert abs(o[\"exact_excitation\"] - (o[\"energy\"] + 3)) < 1e-8, o
+" "$work/out"' simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 50
+
+# qmc weights cannot underflow (issue 15: this run printed NaN with "converged": true); its
+# values within their bars of the tensor torus rule's
+good "torus beta 100 (reference)" 'cp "$work/out" "$work/torus100.json"' \
+  average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method torus-trapezoid
+good "qmc beta 100 seed 16 finite" '"$python" -c "
+import json, sys, math
+o, t = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+for k in (\"beta_K\", \"error\", \"cos_phi\", \"cos_phi_error\", \"var_K\", \"var_K_error\"):
+    assert all(math.isfinite(float(v)) for v in o[k]), (k, o[k])
+assert o[\"converged\"] is True and o[\"method\"] == \"qmc\", o
+for key, error in ((\"beta_K\", \"error\"), (\"cos_phi\", \"cos_phi_error\"), (\"var_K\", \"var_K_error\")):
+    for a, ea, b, eb in zip(o[key], o[error], t[key], t[error]):
+        assert abs(float(a) - float(b)) <= float(ea) + float(eb), (key, a, ea, b, eb)
+" "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16
+good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
+
 for command in average limit series simulate poincare; do
   good "$command --help"     'grep -q "usage" "$work/out"' "$command" --help
 done

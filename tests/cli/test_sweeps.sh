@@ -246,6 +246,34 @@ sed '20s/^2,350,[^,]*,/2,350,7.5,/' "$work/reference.csv" >"$work/foreign_row.cs
 bad "resume of a file with a foreign row" "${sweep[@]}" --resume "$work/foreign_row.csv"
 check "failed resumes leave the file" cmp -s "$work/other.csv" "$work/reference.csv"
 
+# Microcanonical sweeps (issue 15) share the engine: a table at fixed excitation and cases with
+# an energy column, rows missing anywhere, resumed = uninterrupted.
+punch_holes() { # FILE OUT: every third row and the last 2 left out, an interrupted line
+  "$python" - "$1" "$2" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines(keepends=True)
+head = [l for l in lines if l.startswith("#")]
+body = [l for l in lines if not l.startswith("#")]
+rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-2]
+open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
+PY
+}
+micro_sweep=(table --excitation log:1e-9:1:10 --g 1,9.81 --chain 3)
+"$pendavg" "${micro_sweep[@]}" --output "$work/micro_reference.csv" 2>/dev/null
+punch_holes "$work/micro_reference.csv" "$work/micro_holes.csv"
+run "${micro_sweep[@]}" --resume "$work/micro_holes.csv"
+check "microcanonical table with missing rows resumed = uninterrupted" \
+  cmp -s "$work/micro_holes.csv" "$work/micro_reference.csv"
+printf 'energy,g,m1,m2,l1,l2\n' >"$work/micro_cases.csv"
+for e in -2.9 -2 -1 0 1 3 10; do printf '%s,1,1,1,1,1\n%s,9.81,0.3,1,2,0.5\n' "$e" "$e"; done >>"$work/micro_cases.csv"
+"$pendavg" average --cases "$work/micro_cases.csv" --output "$work/micro_cases_reference.csv" 2>/dev/null
+punch_holes "$work/micro_cases_reference.csv" "$work/micro_cases_holes.csv"
+run average --cases "$work/micro_cases.csv" --resume "$work/micro_cases_holes.csv"
+check "microcanonical cases with missing rows resumed = uninterrupted" \
+  cmp -s "$work/micro_cases_holes.csv" "$work/micro_cases_reference.csv"
+bad "microcanonical resume of a beta file" table --beta log:1e-9:1:10 --g 1,9.81 --chain 3 \
+  --resume "$work/micro_reference.csv"
+
 # average --cases --output: '#' lines name the cases (by hash), digits, method, version; the
 # rows are stdout's; interrupted and resumed gives the uninterrupted file.
 "$python" - "$work/cases300.csv" <<'PY'

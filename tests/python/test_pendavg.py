@@ -229,6 +229,10 @@ def test_error_kinds():
 # ---------------------------------------------------------------- bad input
 
 BAD = [  # (python call, the CLI's arguments): the same one-line message
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, samples=1024), "average --masses 1,1 --lengths 1,1 --energy 0 --samples 1024"),
+    (lambda: pendavg.microcanonical([1] * 5, [1] * 5, 0, tol=1e-5), "average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --tol 1e-5"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, method="series"), "average --masses 1,1 --lengths 1,1 --energy 0 --method series"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], excitation=-1), "average --masses 1,1 --lengths 1,1 --excitation -1"),
     (lambda: pendavg.average([0, 0.5], [1, 1], 1), "average --masses 0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([-1.0, 0.5], [1, 1], 1), "average --masses -1.0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([float("nan"), 0.5], [1, 1], 1), "average --masses nan,0.5 --lengths 1,1 --beta 1"),
@@ -301,11 +305,17 @@ def test_nothing_crashes_on_odd_arguments():
 def test_simulate_agrees_with_cli():
     r = pendavg.simulate([1, 1], [1, 1], theta="90deg", time=20, every=1000)
     d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", "90deg", "--time", 20)
-    for key in ("K", "K_error", "Kc", "Kc_error", "cos_phi", "exact_K", "exact_K_error",
-                "K_deviation_sigmas"):
+    for key in ("K", "K_error", "Kc", "Kc_error", "cos_phi", "K_deviation_sigmas"):
         assert [float(f"{x:.9e}") for x in getattr(r, key)] == d[key], key
-    for key in ("energy", "exact_Kc"):
-        assert float(f"{getattr(r, key):.9e}") == d[key], key
+    assert float(f"{r.energy:.9e}") == d["energy"]
+    # The exact values: the CLI prints every digit of the double (17), the same doubles here;
+    # their errors with 3 digits, rounded up by at most half a unit of the value's 17th digit.
+    for key in ("exact_K", "exact_var_K"):
+        assert list(getattr(r, key)) == d[key], key
+    assert r.exact_Kc == d["exact_Kc"] and r.exact_excitation == d["exact_excitation"]
+    for key, value_key in (("exact_K_error", "exact_K"), ("exact_var_K_error", "exact_var_K")):
+        for error, printed, value in zip(getattr(r, key), d[key], d[value_key]):
+            assert error <= printed <= 1.01 * error + 1e-16 * abs(value), (key, error, printed)
     assert float(f"{r.energy_error_max:.2e}") == d["energy_error_max"]
     assert r.steps == d["steps"] and r.newton_solves == d["newton_solves"]
     assert r.exact_method == d["exact_method"] and not r.interrupted
@@ -320,9 +330,27 @@ def test_simulate_agrees_with_cli():
 
 def test_microcanonical_is_simulates_exact_reference():
     s = pendavg.simulate([1, 1], [1, 1], theta="90deg", time=1)  # E ~ 0
-    m = pendavg.microcanonical([1, 1], [1, 1], s.energy)
+    m = pendavg.microcanonical([1, 1], [1, 1], excitation=s.exact_excitation)
     np.testing.assert_array_equal(m.K, s.exact_K)
+    np.testing.assert_array_equal(m.var_K, s.exact_var_K)
     assert m.error_kind == "estimate" and m.converged
+    by_energy = pendavg.microcanonical([1, 1], [1, 1], s.energy)  # E from the state: the same shell
+    np.testing.assert_allclose(by_energy.K, s.exact_K, rtol=0, atol=2 * max(s.exact_K_error))
+
+
+def test_microcanonical_agrees_with_cli():
+    for state, value in (("energy", "-2.99999999"), ("excitation", "1e-8"), ("energy", "0")):
+        m = pendavg.microcanonical([1, 0.3], [1.3, 0.6], g=9.81, **{state: value})
+        d = cli_json("average", "--masses", "1,0.3", "--lengths", "1.3,0.6", "--g", "9.81",
+                     f"--{state}", value)
+        for key in ("K", "cos_phi", "var_K"):
+            assert [float(f"{x:.15e}") for x in getattr(m, key)] == [float(x) for x in d[key]], key
+        assert f"{m.excitation:.15e}" == f"{float(d['excitation']):.15e}" or state == "excitation"
+        assert m.method.endswith(d["method"]) and m.converged == d["converged"]
+    with pytest.raises(ValueError, match="one of energy and excitation"):
+        pendavg.microcanonical([1, 1], [1, 1], -1, excitation=1)
+    with pytest.raises(ValueError, match="at or below the minimum energy"):
+        pendavg.microcanonical([1, 1], [1, 1], -3)
 
 
 def test_poincare_agrees_with_cli():

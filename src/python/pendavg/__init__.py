@@ -238,7 +238,8 @@ class MicrocanonicalResult(_Record):
 
     K, K_error: <K_i>_E (energy units); Kc, Kc_error: <K_i^(c)>_E = <K>_E / N (microcanonical
     generalized equipartition, every i); K_total: <K>_E = E - <U>_E; cos_phi, cos_phi_error:
-    <cos phi_i>_E; density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
+    <cos phi_i>_E; var_K, var_K_error: Var K_i on the shell; energy and excitation (E - E_min);
+    density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
     transform is the partition function), with its error; method ('microcanonical/<rule>'),
     error_kind ('estimate', or 'statistical' for qmc), evaluations, converged, proposal_beta and
     effective_sample_fraction (qmc), seconds.
@@ -265,9 +266,9 @@ def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
     return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
 
 
-def microcanonical(masses, lengths, energy, g=1.0, method="auto", tol=None, samples=None,
-                   shifts=None, seed=None):
-    """Exact microcanonical averages <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E at fixed energy E.
+def microcanonical(masses, lengths, energy=None, g=1.0, method="auto", tol=None, samples=None,
+                   shifts=None, seed=None, excitation=None):
+    """Exact microcanonical averages <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E, Var K_i at fixed energy.
 
     The values NVE time averages (pendavg.simulate without thermostat) must reproduce when the
     motion is ergodic. Energies use the paper's U = -sum_j g S_j l_j cos phi_j (S_j the mass at
@@ -275,13 +276,18 @@ def microcanonical(masses, lengths, energy, g=1.0, method="auto", tol=None, samp
     Per angle configuration the momenta are uniform on the shell H = E; the angle integrals
     run over the reduced torus (MATH.md Sec. 7).
 
+    Give one of energy (E > E_min) and excitation (D = E - E_min > 0): near the bottom of the
+    well an E in double carries only ~1e-16 |E_min| / D relative accuracy in D, an excitation
+    all of it (as `pendavg average --energy E | --excitation D`).
     method: 'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut at every
-    singular point; tol: relative target, default 1e-10), 'torus-trapezoid' (a check), 'qmc'
-    (samples: points per shift 2^10..2^16, shifts, seed; statistical 3-sigma bars). In double.
+    singular point; tol: relative target, default 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9
+    beyond), 'torus-trapezoid' (a check), 'qmc' (samples: points per shift 2^10..2^16, shifts,
+    seed; statistical bars, the 99.9% Student-t quantile of the standard error). In double; an
+    option the chosen rule does not use is refused, with the CLI's message.
     Returns a MicrocanonicalResult.
     """
     return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, method, tol,
-                                                     samples, shifts, seed))
+                                                     samples, shifts, seed, excitation))
 
 
 # ---------------------------------------------------------------- dynamics
@@ -293,7 +299,9 @@ class SimulationResult(_Record):
     blocking; NaN, with error_reason saying why, when fewer than 16 blocks finished); Kc, Kc_error: of K_i^(c) = p_phi_i phidot_i / 2; K_autocorrelation_time;
     cos_phi, cos_phi_error; K_total, potential (with errors). exact_K, exact_K_error, exact_Kc,
     exact_cos_phi (+ errors): the exact microcanonical values at the run's energy (NVE) or the
-    exact canonical ones (Langevin), exact_method, exact_error_kind; K_deviation_sigmas =
+    exact canonical ones (Langevin), exact_method, exact_error_kind; NVE also exact_excitation
+    (D = E - E_min of the initial state, formed without cancellation) and exact_var_K,
+    exact_var_K_error (Var K_i on the energy shell; None for Langevin); K_deviation_sigmas =
     (K - exact_K) / combined error. ensemble, integrator, method, N, dt, time (simulated),
     energy (initial), final_energy, energy_drift, energy_error_max, energy_error_rms,
     energy_trend (relative to (sum m) g (sum l)), constraint_residual, steps, samples,
