@@ -835,7 +835,7 @@ paper. See help(pendavg.average) for every field.)");
             });
           },
           "What the errors of beta_K and ratio promise: 'bound' (rigorous), 'estimate' (from "
-          "refinement, checked against independent methods) or 'statistical' (QMC: 3-sigma bars).")
+          "refinement, checked against independent methods) or 'statistical' (QMC: 99.9% Student-t bars over the shifts).")
       .def_property_readonly(
           "error_kinds",
           [](const AveragesResult& r) {

@@ -74,7 +74,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                              'low-temperature-extrapolation' (any N, very stiff joints)
       error_kind             what the errors of beta_K and ratio promise: 'bound' (rigorous),
                              'estimate' (from quadrature refinement, checked against independent
-                             methods), 'statistical' (QMC: 3-sigma bars); error_kinds per
+                             methods), 'statistical' (QMC: 99.9% Student-t bars); error_kinds per
                              observable
       evaluations, work_unit the work done ('terms', 'nodes' or 'samples')
       converged              False when the requested accuracy was not reached (errors still hold)
