@@ -10,7 +10,9 @@
 #include <filesystem>
 #include <utility>
 
+#include <dirent.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -23,6 +25,50 @@ std::string cannot_write(std::string_view command, const std::string& path, std:
 }
 
 constexpr int max_symlinks = 40;  // as the kernel's ELOOP limit
+
+/// "<host>.<pid>." of this process: the part of a temporary's name after "<target>.tmp." that
+/// says who wrote it (host names reduced to [A-Za-z0-9-], at most 64 characters).
+std::string writer_tag(long pid) {
+  char host[256] = {};
+  if (gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  std::string tag;
+  for (const char* c = host; *c != '\0' && tag.size() < 64; ++c)
+    if ((*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') || *c == '-')
+      tag += *c;
+  if (tag.empty()) tag = "host";
+  return tag + "." + std::to_string(pid) + ".";
+}
+
+/// Removes the temporaries of `target` that a process of this host left behind when it was
+/// killed (SIGKILL, a crash, a power cut: no handler runs): "<target>.tmp.<host>.<pid>.XXXXXX"
+/// whose pid no longer exists. Temporaries of other hosts (a shared file system) and of live
+/// processes are left alone.
+void remove_stale_temporaries(const std::string& target) {
+  namespace fs = std::filesystem;
+  const fs::path path = target;
+  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const std::string host_prefix = path.filename().string() + ".tmp." + writer_tag(0);
+  const std::string prefix = host_prefix.substr(0, host_prefix.size() - 2);  // "<...>.<host>."
+  DIR* dir = opendir(parent.c_str());
+  if (dir == nullptr) return;
+  while (const dirent* entry = readdir(dir)) {
+    const std::string_view name = entry->d_name;
+    if (!name.starts_with(prefix)) continue;
+    const std::string_view rest = name.substr(prefix.size());  // "<pid>.XXXXXX"
+    const std::size_t dot = rest.find('.');
+    if (dot == 0 || dot == std::string_view::npos || rest.size() - dot != 7) continue;
+    long pid = 0;
+    bool digits = true;
+    for (const char c : rest.substr(0, dot)) {
+      if (c < '0' || c > '9' || pid > 1'000'000'000) digits = false;
+      pid = pid * 10 + (c - '0');
+    }
+    if (!digits || pid <= 0) continue;
+    if (kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      unlink((parent / std::string(name)).c_str());
+  }
+  closedir(dir);
+}
 
 }  // namespace
 
@@ -58,7 +104,8 @@ AtomicFile::AtomicFile(std::string path, std::string_view command)
     }
   }
   deferred_.emplace();
-  temporary_ = target_ + ".tmp.XXXXXX";
+  remove_stale_temporaries(target_);
+  temporary_ = target_ + ".tmp." + writer_tag(static_cast<long>(getpid())) + "XXXXXX";
   fd_ = mkostemp(temporary_.data(), O_CLOEXEC);
   if (fd_ < 0) {
     const int error = errno;

@@ -2,7 +2,9 @@
 // temporary file next to the target, which is renamed onto it only when complete. A failed or
 // abandoned file leaves nothing behind (the temporary is removed), and SIGINT/SIGTERM/SIGHUP are
 // deferred while the temporary exists (interrupt.hpp, DeferSignals), so no signal leaves one
-// behind either. A symbolic link is followed: its final target is what gets replaced. A target
+// behind either. A temporary is named "<target>.tmp.<host>.<pid>.XXXXXX"; one left by a process
+// that was killed outright (SIGKILL, a crash: no handler runs) is removed by the next write of
+// the same target on the same host. A symbolic link is followed: its final target is what gets replaced. A target
 // that exists and is not a regular file (a device such as /dev/null, a FIFO) is written in place,
 // never replaced.
 #pragma once

@@ -210,6 +210,26 @@ for delay in 0.2 0.5; do
   check "poincare SIGTERM after $delay s: no temporary" no_temporaries
 done
 
+# SIGKILL (no handler runs) leaves the temporary; the next write of the same file removes it
+# (its process is gone), and leaves a live writer's temporary alone.
+"$pendavg" table --beta log:1:1000:400 --mu1 0.001,0.05 --digits 300 --output "$work/killed.csv" \
+  >/dev/null 2>&1 &
+killed=$!
+for _ in $(seq 100); do
+  [ -n "$(find "$work" -name 'killed.csv.tmp.*' | head -1)" ] && break
+  sleep 0.05
+done
+kill -KILL "$killed"
+wait "$killed" 2>/dev/null
+check "SIGKILL leaves a temporary (the setup of the next check)" \
+  test -n "$(find "$work" -name 'killed.csv.tmp.*' | head -1)"
+live="$work/killed.csv.tmp.$(hostname | tr -cd 'A-Za-z0-9-' | cut -c1-64).$$.abcdef"
+: >"$live"  # this shell's pid: a live writer
+run table --beta 1,2 --mu1 0.5 --output "$work/killed.csv"
+check "the next write removes the killed run's temporary" \
+  test "$(find "$work" -name 'killed.csv.tmp.*')" = "$live"
+rm -f "$live"
+
 # ---------------------------------------------------------------- resume
 # A sweep killed at a random moment, then resumed: the same file as an uninterrupted run.
 sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 350)
