@@ -1075,14 +1075,18 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   const std::size_t N = chain.size();
   const Real tol = Real(options.tolerance);
   // The pivot nodes of level k (see "refinement and error estimate" above), never fewer than
-  // the previous level's.
+  // the previous level's. A level whose m is held at max_pivot_nodes hides its pivot error from
+  // the differences: the result is then not converged.
   std::size_t m = 0;
+  bool pivots_capped = false;
   const auto next_pivots = [&](std::size_t level, const Real& last_difference) {
     if (options.pivot_nodes != 0) return options.pivot_nodes;
     const double expected =
         std::max(1e-16, level < 2 ? pivot_first_errors[level]
                                   : pivot_lookahead * static_cast<double>(last_difference));
-    return std::max(m, std::min(options.max_pivot_nodes, transfer_pivot_nodes(chain, expected)));
+    const std::size_t wanted = transfer_pivot_nodes(chain, expected);
+    pivots_capped = wanted > options.max_pivot_nodes;
+    return std::max(m, std::min(options.max_pivot_nodes, wanted));
   };
 
   TransferDiagnostics<Real> run;
@@ -1121,7 +1125,7 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   out.beta_kinetic.resize(N);
   out.beta2_kinetic_variance.resize(N);
   out.cos_angle.resize(N);
-  out.converged = true;
+  out.converged = !pivots_capped;
   for (std::size_t i = 0; i < N; ++i) {
     const auto pack = [&](std::size_t q) {
       const Real e = error[q] + noise[q];

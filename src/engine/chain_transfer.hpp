@@ -93,9 +93,9 @@ struct TransferOptions {
   /// beta^2 Var K_i: relative to beta^2 <K_i^2>; <cos phi_i>: absolute).
   double tolerance = 1e-10;
   std::size_t angle_nodes = 0;        ///< n of the first level; 0: automatic (16)
-  std::size_t pivot_nodes = 0;        ///< fixed m (no pivot refinement); 0: automatic
+  std::size_t pivot_nodes = 0;        ///< fixed m at every level; 0: automatic (see the .cpp)
   std::size_t max_angle_nodes = 512;  ///< refinement stops (converged = false) beyond it
-  std::size_t max_pivot_nodes = 96;   ///< the pivot check stops raising m beyond it
+  std::size_t max_pivot_nodes = 96;   ///< m never exceeds it
   int threads = 1;                    ///< OpenMP threads (results independent of it)
 };
 
