@@ -11,7 +11,6 @@ namespace pendavg::cli {
 
 extern const std::string_view table_usage;
 
-inline constexpr std::array<std::string_view, 13> table_options{
 inline constexpr std::array<std::string_view, 14> table_options{
     "beta",   "mu1",   "l1",      "l2",     "g",    "chain",  "digits",
     "method", "tol",   "samples", "shifts", "seed", "output", "resume"};
