@@ -458,6 +458,10 @@ void check_average(const Chain<Real>& chain, const Real& beta, const AverageOpti
     case AverageMethod::qmc:
       check_stiffness(at_working_precision(chain), at_working_precision(beta));
       break;
+    case AverageMethod::transfer:
+      // double only (check_options refuses more digits): the engine's own domain check
+      if constexpr (!is_mpfr_v<Real>) check_transfer_domain(chain, beta);
+      break;
     case AverageMethod::automatic: break;  // resolved above
   }
 }

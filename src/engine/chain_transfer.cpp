@@ -516,6 +516,18 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
 }  // namespace
 
 template <class Real>
+void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
+  using std::isfinite;
+  check_beta(beta);
+  for (std::size_t j = 0; j < chain.size(); ++j) {
+    if (!isfinite(beta * chain.potential_coefficient(j))) {
+      throw invalid_input("transfer: beta g S_j l_j overflows at particle " +
+                          std::to_string(j + 1) + " (outside the double range)");
+    }
+  }
+}
+
+template <class Real>
 TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
                                               std::size_t angle_nodes, std::size_t pivot_nodes,
                                               int threads) {
@@ -523,7 +535,7 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
   using std::log;
   using std::sin;
   using std::sqrt;
-  check_beta(beta);
+  check_transfer_domain(chain, beta);
   if (angle_nodes < 4 || angle_nodes % 2 != 0) {
     throw invalid_input("chain_transfer: angle_nodes must be even and >= 4");
   }
@@ -539,12 +551,7 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
   std::vector<AngleRule<Real>> angle(N);
   std::vector<PivotRule<Real>> pivot(N);
   for (std::size_t j = 0; j < N; ++j) {
-    const Real alpha = beta * chain.potential_coefficient(j);
-    using std::isfinite;
-    if (!isfinite(alpha)) {
-      throw invalid_input("transfer: beta g S_j l_j overflows at particle " +
-                          std::to_string(j + 1) + " (outside the double range)");
-    }
+    const Real alpha = beta * chain.potential_coefficient(j);  // finite: checked above
     const Real u_max = j > 0 ? mass[j] / mass[j - 1] : Real(0);
     // The marginal of phi_j is below exp(alpha (cos phi - 1)) times the spread of its conditional
     // factor sqrt(D_j) <= sqrt((1 + u_max) S_j / m_j): cut where the product is below roundoff.
@@ -1150,7 +1157,8 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
                                                           std::size_t, std::size_t, int);  \
   template Averages<Real> chain_transfer_average<Real>(const Chain<Real>&, const Real&,    \
                                                        const TransferOptions&);            \
-  template std::size_t transfer_pivot_nodes<Real>(const Chain<Real>&, double);
+  template std::size_t transfer_pivot_nodes<Real>(const Chain<Real>&, double);           \
+  template void check_transfer_domain<Real>(const Chain<Real>&, const Real&);
 PENDAVG_INSTANTIATE_CHAIN_TRANSFER(double)
 PENDAVG_INSTANTIATE_CHAIN_TRANSFER(long double)
 #undef PENDAVG_INSTANTIATE_CHAIN_TRANSFER

@@ -122,6 +122,13 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
 template <class Real>
 std::size_t transfer_pivot_nodes(const Chain<Real>& chain, double expected_error);
 
+/// The transfer operator's domain: beta valid and every alpha_j = beta g S_j l_j finite (any
+/// beta within the double range works; there is no stiffness limit). Throws invalid_input
+/// otherwise. chain_transfer_level checks it; check_average (pendavg/average.hpp) calls it to
+/// refuse a sweep's row before any work.
+template <class Real>
+void check_transfer_domain(const Chain<Real>& chain, const Real& beta);
+
 /// The averages to options.tolerance by refinement (see the header comment): method transfer,
 /// work unit nodes (kernel evaluations over all levels), Averages::transfer the final
 /// resolution. Throws invalid_input for a bad beta or options.

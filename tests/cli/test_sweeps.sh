@@ -98,6 +98,20 @@ with open(sys.argv[1], "w") as f:
 PY
 bad "cases bad last row, refused before any row" average --cases "$work/late_cases.csv" --digits 1000
 grep -q 'line 2002: l2' "$work/err" && pass || fail "cases bad last row: stderr does not name line 2002"
+# A transfer row (N >= 5) whose beta g S_j l_j overflows is refused before the 200 rows above it
+# (N = 64, about 0.4 s each) are computed: it was found only when its turn came.
+"$python" - "$work/late_transfer.csv" <<'PY'
+import sys
+n = 64
+with open(sys.argv[1], "w") as f:
+    f.write(",".join(["beta", "g"] + [f"m{i}" for i in range(1, n + 1)] + [f"l{i}" for i in range(1, n + 1)]) + "\n")
+    for i in range(200):
+        f.write(",".join([str(1 + i % 7), "1"] + ["1"] * (2 * n)) + "\n")
+    f.write(",".join(["1e10", "1e200"] + ["1"] * n + ["1e200"] * n) + "\n")
+PY
+bad "cases transfer row out of the double range, refused before any row" average --cases "$work/late_transfer.csv"
+grep -q 'line 202: transfer: beta g S_j l_j overflows' "$work/err" && pass ||
+  fail "cases transfer row: stderr does not name line 202 and the overflow"
 # A cases header of 100,000 columns (N = 49999) is read in linear time (it took minutes).
 "$python" - "$work/wide.csv" <<'PY'
 import random, sys
