@@ -4,6 +4,7 @@
 // residual).
 #include "pendavg/average.hpp"
 
+#include "engine/chain_transfer.hpp"
 #include "engine/double_pendulum.hpp"
 #include "engine/estimates.hpp"
 #include "engine/precision.hpp"
@@ -32,13 +33,13 @@ struct AverageWorkspaceData {
 namespace {
 
 // automatic runs the torus trapezoid up to automatic_torus_max_particles (n^(N-1) nodes:
-// milliseconds for N <= 4, seconds for N = 5 at the default tolerance) and qmc beyond.
-/// The beta -> 0 limit runs the torus trapezoid (at g = 0) up to this N, qmc beyond.
+// milliseconds for N <= 4, seconds for N = 5 at the default tolerance) and transfer beyond.
+/// The beta -> 0 limit runs the torus trapezoid (at g = 0) up to this N, transfer beyond.
 constexpr std::size_t limit_torus_max_particles = 5;
 constexpr std::size_t max_shifts = 1024;
 
-constexpr std::array<const char*, 6> method_names{"auto",           "integral",    "series",
-                                                  "torus-trapezoid", "torus-gauss", "qmc"};
+constexpr std::array<const char*, 7> method_names{
+    "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc", "transfer"};
 
 std::string particles_text(std::size_t n) { return "N = " + std::to_string(n); }
 
@@ -64,8 +65,9 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
                         std::to_string(max_digits) + ", got " + std::to_string(o.digits));
   if (o.threads < 1) throw invalid_input(context + "threads must be >= 1");
   if (o.tolerance) {
-    if (!is_torus(resolved))
-      throw invalid_input(context + "tol is used by the torus methods only, not by " + chosen);
+    if (!is_torus(resolved) && resolved != AverageMethod::transfer)
+      throw invalid_input(context + "tol is used by the torus and transfer methods only, not by " +
+                          chosen);
     if (o.digits != min_digits)
       throw invalid_input(context + "tol is for double runs (digits 16); with digits " +
                           std::to_string(o.digits) + " the torus tolerance is 1e-" +
@@ -78,6 +80,14 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
                                     std::pair{o.seed.has_value(), "seed"}}) {
     if (given && resolved != AverageMethod::qmc)
       throw invalid_input(context + name + " is used by qmc only, not by " + chosen);
+  }
+  if (resolved == AverageMethod::transfer) {
+    if (o.digits != min_digits)
+      throw invalid_input(context + "digits " + std::to_string(o.digits) +
+                          " is not available with " + chosen + " (transfer runs in double only)");
+    if (n > transfer_max_particles)
+      throw invalid_input(context + "transfer takes N <= " +
+                          std::to_string(transfer_max_particles) + ", not " + particles_text(n));
   }
   if (resolved == AverageMethod::qmc) {
     if (o.digits != min_digits)
@@ -116,6 +126,13 @@ TorusOptions torus_options(const AverageOptions& o, AverageMethod method, std::s
   torus.threads = o.threads;
   torus.control = &o.control;
   return torus;
+}
+
+TransferOptions transfer_options(const AverageOptions& o) {
+  TransferOptions transfer;
+  transfer.tolerance = o.tolerance.value_or(default_transfer_tolerance);
+  transfer.threads = o.threads;
+  return transfer;
 }
 
 QmcOptions qmc_options(const AverageOptions& o) {
@@ -303,6 +320,15 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
                                      workspace.data().integral);
       break;
     case AverageMethod::series: out = series_average(chain, beta, o.digits); break;
+    case AverageMethod::transfer:
+      // Any beta: the engine's angle windows shrink with the Boltzmann peaks (width
+      // alpha_j^-1/2), so neither the stiffness limits nor the low-temperature extrapolation of
+      // the torus and qmc methods (below) apply; alpha_j beyond the double range is refused.
+      if constexpr (is_mpfr_v<Real>) {
+        throw invalid_input("average: transfer runs in double only");  // refused by check_options
+      } else {
+        return chain_transfer_average(chain, beta, transfer_options(o));
+      }
     case AverageMethod::torus_trapezoid:
     case AverageMethod::torus_gauss:
     case AverageMethod::qmc: {
@@ -331,7 +357,7 @@ AverageMethod parse_average_method(const char* name) {
   for (std::size_t m = 0; m < method_names.size(); ++m)
     if (std::strcmp(name, method_names[m]) == 0) return static_cast<AverageMethod>(m);
   throw invalid_input(std::string("unknown method '") + name +
-                      "' (auto, integral, series, torus-trapezoid, torus-gauss or qmc)");
+                      "' (auto, integral, series, torus-trapezoid, torus-gauss, qmc or transfer)");
 }
 
 AverageMethod resolve_average_method(std::size_t n, const AverageOptions& options) {
@@ -339,16 +365,16 @@ AverageMethod resolve_average_method(std::size_t n, const AverageOptions& option
   AverageMethod method = options.method;
   switch (options.method) {
     case AverageMethod::automatic:
-      method = n == 2                          ? AverageMethod::integral
+      method = n == 2                               ? AverageMethod::integral
                : n <= automatic_torus_max_particles ? AverageMethod::torus_trapezoid
-                                               : AverageMethod::qmc;
+                                                    : AverageMethod::transfer;
       break;
     case AverageMethod::integral:
     case AverageMethod::series:
       if (n != 2)
         throw invalid_input(std::string("average: method ") + average_method_name(options.method) +
                             " is a double-pendulum engine (N = 2), not for " + particles_text(n) +
-                            " (use auto, torus-trapezoid, torus-gauss or qmc)");
+                            " (use auto, torus-trapezoid, torus-gauss, transfer or qmc)");
       break;
     default: break;
   }
@@ -433,6 +459,10 @@ void check_average(const Chain<Real>& chain, const Real& beta, const AverageOpti
     case AverageMethod::qmc:
       check_stiffness(at_working_precision(chain), at_working_precision(beta));
       break;
+    case AverageMethod::transfer:
+      // double only (check_options refuses more digits): the engine's own domain check
+      if constexpr (!is_mpfr_v<Real>) check_transfer_domain(chain, beta);
+      break;
     case AverageMethod::automatic: break;  // resolved above
   }
 }
@@ -446,7 +476,7 @@ Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOpt
   // N = 2: the elliptic formula, which takes no method options (resolved as "automatic").
   const AverageMethod method = n == 2                           ? AverageMethod::automatic
                                : n <= limit_torus_max_particles ? AverageMethod::torus_trapezoid
-                                                                : AverageMethod::qmc;
+                                                                : AverageMethod::transfer;
   check_options(options, method, n, "limit",
                 n == 2 ? std::string("the beta -> 0 limit of N = 2 (the elliptic formula)")
                        : std::string("the beta -> 0 limit of ") + particles_text(n) + " (" +
@@ -458,10 +488,20 @@ Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOpt
     add_chain_extras(out, chain);
     return out;
   }
-  TorusOptions torus;
-  if (method == AverageMethod::torus_trapezoid)
-    torus = torus_options(options, method, n, "limit");
-  return high_temperature_limit_any(at_working_precision(chain), torus, qmc_options(options),
+  if (method == AverageMethod::transfer) {
+    if constexpr (is_mpfr_v<Real>) {
+      throw invalid_input("limit: transfer runs in double only");  // refused by check_options
+    } else {
+      // The same chain at g = 0, where <cos phi_i> = 0 by symmetry (phi -> phi + const).
+      const Chain<Real> free(chain.masses(), chain.lengths(), Real(0));
+      Averages<Real> out = chain_transfer_average(free, Real(1), transfer_options(options));
+      for (Estimate<Real>& c : out.cos_angle) c = {Real(0), Real(0), ErrorKind::bound};
+      add_chain_extras(out, chain);
+      return out;
+    }
+  }
+  const TorusOptions torus = torus_options(options, method, n, "limit");
+  return high_temperature_limit_any(at_working_precision(chain), torus, QmcOptions{},
                                     limit_torus_max_particles);
 }
 

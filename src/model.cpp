@@ -95,6 +95,7 @@ const char* method_name(Method m) {
     case Method::torus_trapezoid: return "torus-trapezoid";
     case Method::torus_gauss_legendre: return "torus-gauss";
     case Method::qmc: return "qmc";
+    case Method::transfer: return "transfer";
     case Method::low_temperature_extrapolation: return "low-temperature-extrapolation";
     case Method::microcanonical: return "microcanonical";
     case Method::dynamics_nve: return "dynamics-nve";

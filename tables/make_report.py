@@ -32,6 +32,7 @@ l2_head, l2_rows = read("l2_sweep.csv")
 cos_head, cos_rows = read("cos_phi.csv")
 _, limit_rows = read("high_temperature_limit.csv")
 _, chain_rows = read("chains.csv")
+_, profile_rows = read("chain_profiles.csv")
 _, series_rows = read("series_convergence.csv")
 paper_head, paper_rows = read("dynamics_paper_runs.csv")
 _, confirm_rows = read("dynamics_confirmation.csv")
@@ -106,6 +107,19 @@ check(worst_dev <= 3, f"dynamics_confirmation.csv: N = 2 and N = 3, NVE and Lang
 check(worst_kc <= 3, f"dynamics_confirmation.csv: every <K_i^(c)> within {worst_kc:.2f} error bars of "
                      f"<K>_E/N (NVE) or 1/(2 beta) (Langevin)")
 checks_chain_summary = f"chains.csv: sum_i beta<K_i> = N/2 on all {len(sums)} (N, beta) pairs; largest deviation {worst:.1e}"
+# Chain profiles (issue 13): sum_i beta<K_i> = N/2 for N = 8..1024, converged rows.
+profile_sums = {}
+for r in profile_rows:
+    s = profile_sums.setdefault((r["N"], r["beta"]), [0.0, 0.0, r["converged"] == "true"])
+    s[0] += float(r["beta_K"])
+    s[1] += float(r["error_K"])
+    s[2] = s[2] and r["converged"] == "true"
+profile_worst = 0.0
+for (n, beta), (total, err, converged) in profile_sums.items():
+    profile_worst = max(profile_worst, abs(total - int(n) / 2))
+    check(converged and abs(total - int(n) / 2) <= max(err, 1e-13),
+          f"chain_profiles.csv N = {n}, beta = {beta}: sum beta<K_i> - N/2 = {total - int(n) / 2:.1e} "
+          f"(error bars sum {err:.1e}), converged")
 
 if failures:
     for line in failures:
@@ -114,7 +128,8 @@ if failures:
 
 version = subprocess.run(["date", "-u", "+%Y-%m-%d"], capture_output=True, text=True).stdout.strip()
 gen = [l for l in beta_head if l.startswith("# pendavg ")]
-qmc_err = max((float(r["error_K"]) for r in chain_rows if r["method"] == "qmc"), default=0)
+transfer_err = max((float(r["error_K"]) for r in chain_rows if r["method"] == "transfer"), default=0)
+profile_err = max((float(r["error_K"]) for r in profile_rows), default=0)
 
 print(f"""# pendavg tables report
 
@@ -130,7 +145,9 @@ and date; all were computed by `pendavg table` / `pendavg limit` (exact, not MCM
 | `l2_sweep.csv` | <K1>/<K2> (and all the above) vs l2 = log:0.1:10 (61 points) for mu1 in {{0.05, 0.5, 0.95}}, beta in {{1, 2, 5, 10}}, {len(l2_rows)} rows (paper Fig. 6) |
 | `cos_phi.csv` | <cos phi_i> vs beta (61 points), mu1 = 0.5, l1 = l2 = 1 (paper Fig. 8, exact instead of MCMC) |
 | `high_temperature_limit.csv` | the beta -> 0 limit (paper eq. aveK1-beta0) vs mu1: 41 values log-spaced from 1e-4 to 0.9999, plus mu1 = 0.5, 0.05, 0.95, at 20 digits |
-| `chains.csv` | chains N = 3..8 of unit masses and links: beta<K_i> vs i at beta in {{0.1, 1, 10}}, with the paper's diagonal approximation (eq. ke-linear-tave-1); torus-trapezoid (exact, ~1e-13) for N <= 4, qmc (65536 points x 16 shifts, 99.9% Student-t bars up to {qmc_err:.1e}) for N = 5..8 |
+| `chains.csv` | chains N = 3..8 of unit masses and links: beta<K_i> vs i at beta in {{0.1, 1, 10}}, with the paper's diagonal approximation (eq. ke-linear-tave-1); torus-trapezoid (exact, ~1e-13) for N <= 4, transfer (tolerance 1e-10, error estimates up to {transfer_err:.1e}) for N = 5..8 |
+| `chain_profiles.csv` | unit chains N = 8, 16, ..., 1024: beta<K_i>, <cos phi_i>, Var K_i vs i/N at beta in {{0.1, 1, 10}} by the transfer operator at tolerance 1e-8 (error estimates up to {profile_err:.1e}), {len(profile_rows)} rows |
+| `large_n_work_precision.csv`, `large_n_fits.csv`, `large_n_equal_time.csv`, `large_n_timings.csv` | the large-N study (not regenerated here: `tests/bench/large_n_work_precision.sh`, about 15 minutes): transfer vs qmc, true and reported errors against seconds for N = 5, 16, 64, fitted rates, errors at equal time, the timing targets N = 16..1024 |
 | `series_convergence.csv` | the paper's series (eq. ave-K1-result): terms needed for a certified bound vs mu1 and digits |
 | `work_precision.csv` | speed against error: beta<K1> by every method on four fixed cases, true and reported errors, seconds (dynamics: Langevin time averages) |
 | `dynamics_paper_runs.csv` | the paper's runs (Figs. 3-4): N = 7 and 16 unit chains from phi_i = pi/2, RATTLE + Yoshida-6 (default) and the paper's Yoshida-4, dt = 1e-3, T = 1e4; <K_i>, <K_i^(c)> with error bars beside the exact microcanonical values |
@@ -149,7 +166,9 @@ table m1 is mu1.
 | `fig6_ratio_vs_l2.png` | <K1>/<K2> vs l2 (log x), panels mu1 = 0.05, 0.5, 0.95; colors beta = 1, 2, 5, 10 (blue to red) |
 | `fig7_ratio_vs_beta.png` | <K1>/<K2> vs beta (log x), panels mu1, colors l2 = 0.5, 1, 2; dashed: beta -> 0 limit; symbols (mu1 = 0.5, l2 = 1): Langevin trajectories where the paper had MCMC |
 | `fig8_cos_phi.png` | <cos phi_1>, <cos phi_2> vs beta (log x), mu1 = 0.5, l = 1, 1; symbols: Langevin trajectories (2-sigma bars) where the paper had MCMC |
-| `chains.png` | beta<K_i> vs i for N = 3..8 (error bars: qmc), panels beta = 0.1, 1, 10; dashed: diagonal approximation |
+| `chains.png` | beta<K_i> vs i for N = 3..8 (error bars: the reported errors), panels beta = 0.1, 1, 10; dashed: diagonal approximation |
+| `chain_profiles.png` | beta<K_i> vs i/N for unit chains N = 8..1024 (top, with error bars) and the reported errors (bottom, log scale), panels beta = 0.1, 1, 10 |
+| `large_n_work_precision.png` | large N: seconds vs the largest true error of beta<K_i> for transfer and qmc (N = 16, 64 at beta = 0.1, 1, 10; N = 5 with the torus), fitted rates, and the timing targets |
 | `work_precision.png` | work-precision diagram: seconds vs true error (filled) and reported error (open), per case and method |
 | `fig3_4_kinetic_vs_i.png` | the paper's Figs. 3-4: time averages <K_i> (non-uniform) and <K_i^(c)> (uniform) vs i for N = 16 and 7 with 2-sigma bars; lines: exact microcanonical values |
 | `fig9_poincare.png` | the paper's Fig. 9: Poincare sections at E - E_min = 0.1, 0.2, 1 (the paper's E = 0.1, 0.2, 1.0, read as measured from the minimum: its potential's zero is ambiguous), 2 and 3 (E = 0, the paper's start): regular tori at low energy, a chaotic sea from E - E_min ~ 2 (the outer link can go over the top) that fills the section at 3; grey: the energy boundary |
@@ -157,10 +176,11 @@ table m1 is mu1.
 ## Checks (all passed)
 """)
 for line in checks:
-    if line.startswith("chain N ="):
+    if line.startswith("chain N =") or line.startswith("chain_profiles.csv N ="):
         continue
     print(f"- {line}")
 print(f"- {checks_chain_summary} (within each point's error bars; torus rows to 1e-13)")
+print(f"- chain_profiles.csv: sum_i beta<K_i> = N/2 within the error bars and converged on all {len(profile_sums)} (N, beta) pairs; largest deviation {profile_worst:.1e}")
 print(f"""
 ## Series convergence
 

@@ -58,11 +58,18 @@ TEST_CASE("api: automatic picks the documented method for every N", "[api]") {
   CHECK(pendavg::resolve_average_method(2, automatic) == AverageMethod::integral);
   CHECK(pendavg::resolve_average_method(3, automatic) == AverageMethod::torus_trapezoid);
   CHECK(pendavg::resolve_average_method(4, automatic) == AverageMethod::torus_trapezoid);
-  CHECK(pendavg::resolve_average_method(5, automatic) == AverageMethod::qmc);
-  CHECK(pendavg::resolve_average_method(256, automatic) == AverageMethod::qmc);
-  CHECK_THROWS_AS(pendavg::resolve_average_method(257, automatic), pendavg::invalid_input);
+  CHECK(pendavg::resolve_average_method(5, automatic) == AverageMethod::transfer);
+  CHECK(pendavg::resolve_average_method(256, automatic) == AverageMethod::transfer);
+  CHECK(pendavg::resolve_average_method(1024, automatic) == AverageMethod::transfer);
+  CHECK(pendavg::resolve_average_method(pendavg::transfer_max_particles, automatic) ==
+        AverageMethod::transfer);
+  CHECK_THROWS_AS(pendavg::resolve_average_method(pendavg::transfer_max_particles + 1, automatic),
+                  pendavg::invalid_input);
+  CHECK_THROWS_AS(pendavg::resolve_average_method(257, with_method(AverageMethod::qmc)),
+                  pendavg::invalid_input);
   CHECK_THROWS_AS(pendavg::resolve_average_method(0, automatic), pendavg::invalid_input);
-  for (const char* name : {"auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc"})
+  for (const char* name :
+       {"auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc", "transfer"})
     CHECK(std::string(pendavg::average_method_name(pendavg::parse_average_method(name))) == name);
   CHECK_THROWS_AS(pendavg::parse_average_method("simpson"), pendavg::invalid_input);
 }
@@ -92,9 +99,22 @@ TEST_CASE("api: an option the chosen method does not use is refused with one lin
   o = AverageOptions{};
   o.seed = 3;
   CHECK(refused(4, o, "seed"));  // auto runs the torus for N = 4
+  CHECK(refused(5, o, "seed"));  // and transfer for N = 5
+  o.method = AverageMethod::qmc;
   CHECK_NOTHROW(pendavg::resolve_average_method(5, o));
   o.samples = 3000;
   CHECK(refused(5, o, "power of two"));
+  o = AverageOptions{};
+  o.tolerance = 1e-7;
+  CHECK_NOTHROW(pendavg::resolve_average_method(5, o));  // transfer takes a tolerance
+  o.tolerance = 0;
+  CHECK(refused(5, o, "tol"));
+  o = AverageOptions{};
+  o.digits = 20;
+  CHECK(refused(8, o, "double only"));  // auto runs transfer for N = 8: double only
+  o = with_method(AverageMethod::qmc);
+  o.tolerance = 1e-6;
+  CHECK(refused(8, o, "tol"));
   o = with_method(AverageMethod::qmc);
   o.digits = 20;
   CHECK(refused(3, o, "double only"));
@@ -123,6 +143,7 @@ TEST_CASE("api: every method returns one result type with the kind of its errors
   AverageOptions qmc_options = with_method(AverageMethod::qmc);
   qmc_options.samples = 4096;
   const auto qmc = pendavg::average(pendulum, beta, qmc_options);
+  const auto transfer = pendavg::average(pendulum, beta, with_method(AverageMethod::transfer));
   CHECK(integral.method == pendavg::Method::reduced_integral);
   CHECK(integral.error_kind == ErrorKind::estimate);
   CHECK(integral.work_unit == pendavg::WorkUnit::nodes);
@@ -137,7 +158,13 @@ TEST_CASE("api: every method returns one result type with the kind of its errors
   CHECK(qmc.work_unit == pendavg::WorkUnit::samples);
   REQUIRE(qmc.qmc.has_value());
   CHECK(qmc.evaluations == 4096 * qmc.qmc->shifts);
-  for (const auto* r : {&integral, &series, &torus, &gauss, &qmc}) {
+  CHECK(transfer.method == pendavg::Method::transfer);
+  CHECK(transfer.error_kind == ErrorKind::estimate);
+  CHECK(transfer.work_unit == pendavg::WorkUnit::nodes);
+  REQUIRE(transfer.transfer.has_value());
+  CHECK(transfer.transfer->angle_nodes >= 16);
+  CHECK(transfer.converged);
+  for (const auto* r : {&integral, &series, &torus, &gauss, &qmc, &transfer}) {
     INFO(pendavg::method_name(r->method));
     REQUIRE(r->beta_kinetic.size() == 2);
     REQUIRE(r->ratio.has_value());
@@ -172,6 +199,14 @@ TEST_CASE("api: the limits through the one API", "[api]") {
   const auto high3 = pendavg::high_temperature_limit(three);
   CHECK(high3.method == pendavg::Method::torus_trapezoid);
   CHECK(high3.cos_angle[1].value == 0);
+  // Beyond N = 5 the beta -> 0 limit runs transfer on the chain at g = 0, any length.
+  const Chain<double> seven(std::vector<double>(7, 1.0), std::vector<double>(7, 1.0));
+  const auto high7 = pendavg::high_temperature_limit(seven);
+  CHECK(high7.method == pendavg::Method::transfer);
+  CHECK(high7.cos_angle[6].value == 0);
+  double sum = 0;
+  for (const auto& k : high7.beta_kinetic) sum += k.value;
+  CHECK(std::abs(sum - 3.5) <= 1e-12);
   const auto low3 = pendavg::low_temperature_limit(three);
   CHECK(low3.method == pendavg::Method::low_temperature_limit);
   for (const auto& k : low3.beta_kinetic) CHECK(k.value == 0.5);

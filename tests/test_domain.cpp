@@ -93,7 +93,8 @@ TEST_CASE("domain: large beta, the low-temperature extrapolation against the dir
 }
 
 TEST_CASE("domain: beta -> infinity for any N is finite and reaches the exact limit", "[domain]") {
-  // N = 1 with alpha = beta g m l beyond double (1e315), N = 3 at beta = 1e300, N = 6 (qmc).
+  // N = 1 with alpha = beta g m l beyond double (1e315), N = 3 at beta = 1e300, N = 6 (auto:
+  // transfer; and qmc).
   struct Case {
     std::vector<double> masses, lengths;
     double beta;
@@ -102,17 +103,23 @@ TEST_CASE("domain: beta -> infinity for any N is finite and reaches the exact li
                         Case{{1, 1, 1}, {1, 1, 1}, 1e300}, Case{{1, 2, 3}, {3, 2, 1}, 1e50},
                         Case{{1, 1, 1, 1, 1, 1}, {1, 1, 1, 1, 1, 1}, 1e35}}) {
     const Chain<double> chain(c.masses, c.lengths);
-    AverageOptions o;
+    std::vector<AverageOptions> runs(1);  // auto
     if (chain.size() >= 5) {
-      o.samples = 1024;
-      o.shifts = 8;
+      AverageOptions q;
+      q.method = pendavg::AverageMethod::qmc;
+      q.samples = 1024;
+      q.shifts = 8;
+      runs.push_back(q);
     }
-    const Averages<double> a = pendavg::average(chain, c.beta, o);
     const Averages<double> limit = pendavg::low_temperature_limit(chain);
-    INFO("N = " << chain.size() << ", beta = " << c.beta);
-    REQUIRE(all_finite(a));
-    REQUIRE(a.converged);
-    require_agree(a, limit);
+    for (const AverageOptions& o : runs) {
+      const Averages<double> a = pendavg::average(chain, c.beta, o);
+      INFO("N = " << chain.size() << ", beta = " << c.beta << ", method "
+                  << pendavg::average_method_name(o.method));
+      REQUIRE(all_finite(a));
+      REQUIRE(a.converged);
+      require_agree(a, limit);
+    }
   }
 }
 
@@ -236,6 +243,7 @@ TEST_CASE("run control: a stopped qmc run reports the shifts it finished", "[dom
   // converged answer; stopped before two shifts finished: the `interrupted` exception.
   const Chain<double> chain({1, 0.5, 2, 1, 1}, {1, 2, 0.5, 1, 1});
   AverageOptions o;
+  o.method = pendavg::AverageMethod::qmc;
   o.samples = 4096;
   o.threads = 1;
   const Averages<double> full = pendavg::average(chain, 1.5, o);

@@ -1,4 +1,4 @@
-// pendavg/average.hpp -- the one entry point for canonical averages of any chain (N = 1..256):
+// pendavg/average.hpp -- the one entry point for canonical averages of any chain (N = 1..16384):
 // beta<K_i>, <cos phi_i>, beta^2 Var K_i, <K_1>/<K_2>, beta<K_i^(c)> and the paper's diagonal
 // approximation, each with its error and the kind of guarantee the error carries
 // (result.hpp), and the beta -> 0 and beta -> infinity limits.
@@ -14,9 +14,13 @@
 //                      until `tolerance` (double) or 10^-digits (MPFR); cost n^(N-1), so N <= ~6.
 //                      automatic for N = 1, 3, 4. Error kind: estimate.
 //   * torus_gauss      the same with Gauss-Legendre nodes: an independent check.
+//   * transfer         any N (1..transfer_max_particles): the transfer operator along the chain
+//                      (README, "Large N"), refined until `tolerance` (default 1e-10; double
+//                      only); error geometric in the nodes, cost O(N) per node (timings in
+//                      the README). automatic for N >= 5. Error kind: estimate.
 //   * qmc              any N <= 256: randomized rank-1 lattice QMC, statistical bars (the 99.9%
 //                      Student-t quantile of the standard error over the shifts: 4.07 sigma for
-//                      16 shifts; double only). automatic for N >= 5.
+//                      16 shifts; double only): the independent check of transfer.
 // Options a method does not use are refused (invalid_input), so a typo cannot silently change
 // nothing. `digits` selects the precision: 16 is double (Real = double); 17..1000 need
 // Real = mpfr_real (include pendavg/mpfr.hpp), computed at digits + guard_digits.
@@ -24,8 +28,8 @@
 // Workspaces. average() with an AverageWorkspace reuses its buffers from call to call (one
 // workspace per thread; Pinocchio's Data); the overload without one makes a temporary. Constant
 // tables (quadrature rules, Bessel coefficients) are shared, immutable, by every call.
-// Calls are thread-safe and give the same bits on any thread; the torus and QMC methods use
-// `threads` OpenMP threads inside one call with results independent of their number.
+// Calls are thread-safe and give the same bits on any thread; the torus, QMC and transfer
+// methods use `threads` OpenMP threads inside one call with results independent of their number.
 #pragma once
 
 #include "pendavg/chain.hpp"
@@ -40,9 +44,10 @@
 
 namespace pendavg {
 
-enum class AverageMethod { automatic, integral, series, torus_trapezoid, torus_gauss, qmc };
+enum class AverageMethod { automatic, integral, series, torus_trapezoid, torus_gauss, qmc, transfer };
 
-/// "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc" (the CLI's names).
+/// "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc", "transfer" (the CLI's
+/// names).
 const char* average_method_name(AverageMethod method);
 
 /// Parses one of average_method_name's names; throws invalid_input for anything else.
@@ -53,8 +58,11 @@ inline constexpr double default_torus_tolerance = 1e-13;
 inline constexpr std::size_t default_qmc_samples = std::size_t(1) << 16;
 inline constexpr std::size_t default_qmc_shifts = 16;
 inline constexpr std::uint64_t default_qmc_seed = 1;
-/// automatic: torus_trapezoid for N = 1 and 3..automatic_torus_max_particles, qmc beyond.
+inline constexpr double default_transfer_tolerance = 1e-10;
+/// automatic: torus_trapezoid for N = 1 and 3..automatic_torus_max_particles, transfer beyond.
 inline constexpr std::size_t automatic_torus_max_particles = 4;
+/// The longest chain the transfer method takes (its memory grows like N n m: ~15 MB at 1024).
+inline constexpr std::size_t transfer_max_particles = 16384;
 
 /// Several processes computing one qmc average together (the CLI's MPI ranks; the library itself
 /// has no MPI). Part p of P computes the shifts [R p / P, R (p + 1) / P) of the R shifts and
@@ -76,8 +84,8 @@ struct AverageOptions {
   AverageMethod method = AverageMethod::automatic;
   /// Significant digits requested: 16 (double) or 17..1000 (mpfr_real).
   int digits = 16;
-  /// torus methods in double: relative tolerance (default default_torus_tolerance; with
-  /// digits > 16 it is 10^-digits and may not be set).
+  /// torus and transfer methods in double: relative tolerance (default default_torus_tolerance,
+  /// default_transfer_tolerance; with digits > 16 the torus' is 10^-digits and may not be set).
   std::optional<double> tolerance;
   /// qmc: lattice points per shift, a power of two in [2^10, 2^20] (default 2^16).
   std::optional<std::size_t> samples;
@@ -85,7 +93,8 @@ struct AverageOptions {
   std::optional<std::size_t> shifts;
   /// qmc: seed of the shifts (default 1).
   std::optional<std::uint64_t> seed;
-  /// OpenMP threads for the torus and qmc methods in double (results do not depend on it).
+  /// OpenMP threads for the torus, qmc and transfer methods in double (results do not depend on
+  /// it).
   int threads = 1;
   /// Progress of each torus level and a stop request (RunControl, pendavg/result.hpp): a torus
   /// run stopped after its first level returns that level's values (interrupted = true,
@@ -139,9 +148,9 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
                        AverageWorkspace<Real>& workspace);
 
 /// beta -> 0 (MATH.md Sec. 2): N = 2 the paper's elliptic K/E formula (eq. aveK1-beta0, kind
-/// bound); any N the torus average of the same chain at g = 0 (tensor trapezoid for N <= 5, to
-/// `tolerance` or 10^-digits; qmc beyond, double only). <cos phi_i> -> 0 exactly.
-/// `options.method` must be automatic; the torus or qmc options apply as for average().
+/// bound); any N the average of the same chain at g = 0 (tensor trapezoid for N <= 5, to
+/// `tolerance` or 10^-digits; transfer beyond, double only). <cos phi_i> -> 0 exactly.
+/// `options.method` must be automatic; the torus or transfer options apply as for average().
 template <class Real>
 Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options = {});
 

@@ -51,6 +51,7 @@ enum class Method {
   torus_trapezoid,          ///< any N: periodic trapezoid on the reduced (N-1)-torus
   torus_gauss_legendre,     ///< any N: Gauss-Legendre tensor rule on the reduced torus
   qmc,                      ///< any N: randomized lattice QMC over the von Mises law
+  transfer,                 ///< any N: the transfer operator along the chain (README "Large N")
   /// any N at large beta: Richardson extrapolation in 1/beta of a torus or qmc method's values
   /// at two lower temperatures towards the beta -> infinity limit (src/average.cpp)
   low_temperature_extrapolation,
@@ -115,6 +116,15 @@ struct QmcDiagnostics {
   Real effective_sample_fraction{};
 };
 
+/// The transfer operator's refinement (method transfer).
+template <class Real>
+struct TransferDiagnostics {
+  std::size_t angle_nodes = 0;     ///< n of the final level (nodes per angle)
+  std::size_t pivot_nodes = 0;     ///< m of the final level (Chebyshev nodes per pivot u_j)
+  std::size_t levels = 0;          ///< levels evaluated (angle ladder and pivot checks)
+  double kernel_evaluations = 0;   ///< (phi_j, u_j, phi_{j+1}) triples over all levels and sweeps
+};
+
 /// Thermal averages of one chain at one inverse temperature (or in one of its limits). Arrays have
 /// one entry per particle, index i = particle i + 1 of the paper.
 template <class Real>
@@ -143,6 +153,7 @@ struct Averages {
   bool interrupted = false;
   std::optional<TorusDiagnostics<Real>> torus;  ///< torus methods only
   std::optional<QmcDiagnostics<Real>> qmc;      ///< qmc only
+  std::optional<TransferDiagnostics<Real>> transfer;  ///< transfer only
 };
 
 }  // namespace pendavg

@@ -80,6 +80,9 @@ MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std:
     if (given && !qmc)
       throw usage_error(std::string("--") + name + " is used by qmc only, not by " + chosen);
   if (qmc) {
+    if (particles > 256)
+      throw usage_error("N = " + std::to_string(particles) + " is beyond " + chosen +
+                        ": microcanonical qmc's lattices cover N <= 256");
     if (options.digits != min_digits)
       throw usage_error("--digits " + std::to_string(options.digits) + " is not available with " +
                         chosen + ": microcanonical qmc runs in double only (digits > 16 need "

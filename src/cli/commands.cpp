@@ -74,12 +74,14 @@ constexpr std::string_view average_usage =
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
     "  auto             N = 2: the double-pendulum engine; N = 1 or 3..4: torus-trapezoid;\n"
-    "                   N >= 5: qmc\n"
+    "                   N >= 5: transfer\n"
     "  series, integral the double-pendulum engines (N = 2 only)\n"
     "  torus-trapezoid  exact quadrature on the reduced (N-1)-torus, any N (cost n^(N-1)), also\n"
     "                   in MPFR; --tol T: relative tolerance in double (default 1e-13; with\n"
     "                   --digits D > 16 it is 1e-D)\n"
     "  torus-gauss      the same with Gauss-Legendre nodes (a check)\n"
+    "  transfer         the transfer operator along the chain, double only, any N <= 16384\n"
+    "                   (cost O(N)); --tol T: relative tolerance (default 1e-10)\n"
     "  qmc              randomized lattice QMC, double only, N <= 256, statistical error bars\n"
     "                   (the 99.9% Student-t quantile of the standard error over the shifts:\n"
     "                   4.07 sigma for 16); --samples S points per shift (a power of two,\n"
@@ -92,7 +94,8 @@ constexpr std::string_view average_usage =
     "(bound | estimate | statistical: what the errors of beta_K and ratio promise), K_error,\n"
     "ratio_error, cos_phi_error, var_K_error, error_kinds (per observable), work_unit (terms,\n"
     "nodes or samples: what evaluations counts), equipartition_residual (|sum beta<K_i> - N/2|)\n"
-    "and run (the torus grid or the qmc points, shifts and effective sample fraction). Printed\n"
+    "and run (the torus grid, the qmc points, shifts and effective sample fraction, or the\n"
+    "transfer operator's final angle and pivot nodes and levels). Printed\n"
     "errors include half a unit in the last printed digit of their value.\n"
     "--cases reads a CSV with the columns beta,g,m1..mN,l1..lN (any order, N from the header;\n"
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
@@ -140,7 +143,7 @@ constexpr std::string_view limit_usage =
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
-    "at g = 0 (tensor trapezoid for N <= 5, qmc with statistical bars beyond, double only);\n"
+    "at g = 0 (tensor trapezoid for N <= 5, transfer beyond, double only);\n"
     "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
 
 constexpr std::string_view series_usage =
@@ -313,7 +316,8 @@ std::string average_text(const AverageReport& r) {
          ", converged = " + (v.converged ? "yes" : "no") + "\n";
 }
 
-/// The torus grid or the qmc run of `a` as a JSON object, "null" for the other methods.
+/// The torus grid, the qmc run or the transfer operator's resolution of `a` as a JSON object,
+/// "null" for the other methods.
 template <class Real>
 std::string run_json(const Averages<Real>& a) {
   if (a.torus)
@@ -329,6 +333,12 @@ std::string run_json(const Averages<Real>& a) {
         .raw("sigmas", seconds_text(a.qmc->sigmas))
         .string("effective_sample_fraction",
                 decimal(a.qmc->effective_sample_fraction, error_digits))
+        .str();
+  if (a.transfer)
+    return JsonObject()
+        .integer("angle_nodes", static_cast<long long>(a.transfer->angle_nodes))
+        .integer("pivot_nodes", static_cast<long long>(a.transfer->pivot_nodes))
+        .integer("levels", static_cast<long long>(a.transfer->levels))
         .str();
   return "null";
 }

@@ -44,8 +44,8 @@ const std::string_view table_usage =
     "                     [--digits LIST] [--method auto|integral|series]\n"
     "                     [--output FILE.csv | --resume FILE.csv]\n"
     "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
-    "                     [--method auto|torus-trapezoid|qmc] [--samples S] [--shifts R]\n"
-    "                     [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
+    "                     [--method auto|torus-trapezoid|transfer|qmc] [--tol T] [--samples S]\n"
+    "                     [--shifts R] [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
     "       pendavg table (--energy SPEC | --excitation SPEC) [--mu1 ...] [--chain LIST] ...\n"
     "\n"
     "A parameter sweep: one CSV row per combination of the values. SPEC is one of\n"
@@ -59,13 +59,14 @@ const std::string_view table_usage =
     "MPFR. --g SPEC: gravity (>= 0, default 1).\n"
     "Double pendulum (default): masses m1 = mu1 and m2 = 1 - mu1 (computed in decimal, exactly;\n"
     "0 < mu1 < 1), lengths l1 (default 1) and l2 (default 1).\n"
-    "--chain LIST: chains of N unit masses on unit links (3 <= N <= 256); one table may mix N.\n"
-    "--method auto runs torus-trapezoid for N <= 4 and qmc beyond; torus-trapezoid needs a\n"
-    "feasible grid (8^(N-1) <= 1e9, N <= 10); qmc runs in double only, so with --method auto\n"
-    "its N get rows at --digits 16 only (16 must then be listed). qmc: --samples S points per\n"
-    "shift (a power of two, 1024..1048576, default 65536), --shifts R (4..1024, default 16),\n"
-    "--seed K (default 1; every qmc row uses the same shifts); these are refused when no row\n"
-    "runs qmc.\n"
+    "--chain LIST: chains of N unit masses on unit links (3 <= N <= 16384); one table may mix N.\n"
+    "--method auto runs torus-trapezoid for N <= 4 and transfer beyond; torus-trapezoid needs a\n"
+    "feasible grid (8^(N-1) <= 1e9, N <= 10); qmc takes N <= 256. transfer and qmc run in\n"
+    "double only, so with --method auto their N get rows at --digits 16 only (16 must then be\n"
+    "listed). --tol T: the relative tolerance of the torus-trapezoid and transfer rows in double\n"
+    "(defaults 1e-13 and 1e-10). qmc: --samples S points per shift (a power of two,\n"
+    "1024..1048576, default 65536), --shifts R (4..1024, default 16), --seed K (default 1; every\n"
+    "qmc row uses the same shifts). Options no row uses are refused.\n"
     "Rows: the loops nest N, digits, mu1, l1, l2, g, beta (outermost first), except that\n"
     "variables given as log:/lin: ranges are moved innermost, so a range varies fastest.\n"
     "Columns (M = the largest N): N, digits, beta, g, m1..mM, l1..lM, beta_K1..M, error_K1..M,\n"
@@ -192,8 +193,8 @@ Sweep parse_integer_sweep(std::string_view name, std::string_view spec, long low
   return sweep;
 }
 
-/// The longest chain qmc's built-in lattices cover.
-constexpr long max_chain_particles = 256;
+/// The longest chain a table takes (the transfer method's limit; qmc's lattices stop at 256).
+constexpr long max_chain_particles = static_cast<long>(transfer_max_particles);
 
 /// The sweep's settings that hold for every row.
 struct TablePlan {
@@ -206,40 +207,45 @@ struct TablePlan {
 };
 
 /// What runs for N particles (the library's rule) and the options a row of N passes: the qmc
-/// options go to qmc rows only.
+/// options go to qmc rows only, the tolerance to torus and transfer rows in double only.
 struct RowMethod {
   AverageMethod method;
   AverageOptions options;
 };
 RowMethod row_method(const TablePlan& plan, std::size_t particles, int digits) {
   AverageOptions options = plan.options;
+  options.samples.reset();
+  options.shifts.reset();
+  options.seed.reset();
+  options.tolerance.reset();
   options.digits = min_digits;
   if (plan.microcanonical()) {
-    AverageOptions bare = options;
-    bare.samples.reset();
-    bare.shifts.reset();
-    bare.seed.reset();
-    const bool qmc =
-        std::string_view(microcanonical_rule_name(microcanonical_options(bare, particles).rule,
-                                                  particles)) == "qmc";
-    if (!qmc) options = bare;
+    // The microcanonical rule (integral for N <= 4, qmc beyond, or the one asked for) takes
+    // qmc's options or the tolerance (double), as average --energy does.
+    const bool qmc = std::string_view(microcanonical_rule_name(
+                         microcanonical_options(options, particles).rule, particles)) == "qmc";
+    if (qmc) {
+      options.samples = plan.options.samples;
+      options.shifts = plan.options.shifts;
+      options.seed = plan.options.seed;
+    } else if (digits == min_digits) {
+      options.tolerance = plan.options.tolerance;
+    }
     options.digits = digits;
     options.threads = 1;
     microcanonical_options(options, particles);  // refuses what the rule does not use
     return {qmc ? AverageMethod::qmc : options.method, options};
   }
-  const bool qmc = resolve_average_method(particles, [&] {
-                     AverageOptions bare = options;
-                     bare.samples.reset();
-                     bare.shifts.reset();
-                     bare.seed.reset();
-                     return bare;
-                   }()) == AverageMethod::qmc;
-  if (!qmc) {
-    options.samples.reset();
-    options.shifts.reset();
-    options.seed.reset();
+  const AverageMethod method = resolve_average_method(particles, options);
+  if (method == AverageMethod::qmc) {
+    options.samples = plan.options.samples;
+    options.shifts = plan.options.shifts;
+    options.seed = plan.options.seed;
   }
+  const bool takes_tolerance = method == AverageMethod::transfer ||
+                               method == AverageMethod::torus_trapezoid ||
+                               method == AverageMethod::torus_gauss;
+  if (takes_tolerance && digits == min_digits) options.tolerance = plan.options.tolerance;
   options.digits = digits;
   options.threads = 1;  // one thread per row: the numbers do not depend on the thread count
   return {resolve_average_method(particles, options), options};
@@ -502,7 +508,8 @@ std::string table_command(const Options& options) {
   TablePlan plan;
   plan.chain = options.has("chain");
   constexpr std::array<std::string_view, 3> qmc_names{"samples", "shifts", "seed"};
-  plan.options = parse_average_options(options, qmc_names);
+  constexpr std::array<std::string_view, 4> read_names{"tol", "samples", "shifts", "seed"};
+  plan.options = parse_average_options(options, read_names);
   {
     std::vector<std::string> given;
     for (const char* name : {"beta", "energy", "excitation"})
@@ -520,7 +527,7 @@ std::string table_command(const Options& options) {
       if (options.has(single))
         throw usage_error("table: --chain has unit masses and lengths; --" +
                           std::string(single) + " is for the double pendulum");
-    constexpr std::array<std::string_view, 3> methods{"auto", "torus-trapezoid", "qmc"};
+    constexpr std::array<std::string_view, 4> methods{"auto", "torus-trapezoid", "transfer", "qmc"};
     constexpr std::array<std::string_view, 4> micro_methods{"auto", "integral", "torus-trapezoid",
                                                             "qmc"};
     plan.method = plan.microcanonical()
@@ -563,7 +570,7 @@ std::string table_command(const Options& options) {
   };
 
   // Which method runs each N (the library's rule, checked here for every N before any work);
-  // qmc is double only, so its N get rows at digits 16 only.
+  // qmc and transfer are double only, so their N get rows at digits 16 only.
   std::vector<std::size_t> particle_values{2};
   if (plan.chain) {
     particle_values.clear();
@@ -571,9 +578,11 @@ std::string table_command(const Options& options) {
       particle_values.push_back(std::stoul(n));
   }
   plan.columns_particles = std::ranges::max(particle_values);
-  std::vector<std::string> torus_n, qmc_n;  // as listed, for messages and the header
-  const auto is_qmc = [&](std::size_t n) {
-    return row_method(plan, n, min_digits).method == AverageMethod::qmc;
+  std::vector<std::string> torus_n, transfer_n, qmc_n;  // as listed, for messages and the header
+  std::vector<std::string> double_only_n;                  // transfer_n and qmc_n, as listed
+  const auto method_of = [&](std::size_t n) { return row_method(plan, n, min_digits).method; };
+  const auto is_double_only = [&](std::size_t n) {
+    return method_of(n) == AverageMethod::qmc || method_of(n) == AverageMethod::transfer;
   };
   for (const std::size_t n : particle_values) {
     try {
@@ -582,10 +591,20 @@ std::string table_command(const Options& options) {
       throw usage_error(std::string("table: ") + bad.what());
     }
     if (!plan.chain && !plan.microcanonical()) continue;
-    std::vector<std::string>& names = is_qmc(n) ? qmc_n : torus_n;
-    if (std::ranges::find(names, std::to_string(n)) == names.end())
-      names.push_back(std::to_string(n));
+    const AverageMethod method = method_of(n);
+    std::vector<std::string>& names = method == AverageMethod::qmc        ? qmc_n
+                                      : method == AverageMethod::transfer ? transfer_n
+                                                                          : torus_n;
+    for (std::vector<std::string>* list : {&names, is_double_only(n) ? &double_only_n : nullptr})
+      if (list && std::ranges::find(*list, std::to_string(n)) == list->end())
+        list->push_back(std::to_string(n));
   }
+  std::string automatic_runs;  // "torus-trapezoid for N = 3, transfer for N = 8, 16"
+  for (const auto& [name, list] : {std::pair{"torus-trapezoid", &torus_n},
+                                   std::pair{"transfer", &transfer_n}, std::pair{"qmc", &qmc_n}})
+    if (!list->empty())
+      automatic_runs += (automatic_runs.empty() ? "" : ", ") + std::string(name) + " for N = " +
+                        join_values(*list);
   const std::string chosen =
       plan.microcanonical()
           ? (plan.method != "auto" ? "--method " + plan.method
@@ -594,17 +613,23 @@ std::string table_command(const Options& options) {
       : !plan.chain ? "the double-pendulum engines (--method " + plan.method + ")"
       : plan.method != "auto"
           ? "--method " + plan.method
-          : "--method auto, which runs torus-trapezoid for N = " + join_values(torus_n);
+          : "--method auto, which runs " + automatic_runs;
   if (qmc_n.empty())
     for (const std::string_view option : qmc_names)
       if (options.has(option))
         throw usage_error("table: --" + std::string(option) + " is used by qmc only, not by " +
                           chosen);
+  if (options.has("tol") && torus_n.empty() && transfer_n.empty())
+    throw usage_error("table: --tol is used by the torus-trapezoid and transfer rows only, not by " +
+                      chosen);
+  const std::string double_only_method = qmc_n.empty()        ? "transfer"
+                                         : transfer_n.empty() ? "qmc"
+                                                              : "transfer or qmc";
   const std::vector<std::string>& digit_values = sweep_named("digits")->values;
   for (const std::string& digits : digit_values) {
     const int d = std::stoi(digits);
     for (const std::size_t n : particle_values) {
-      if (is_qmc(n)) continue;  // qmc N: MPFR digits are skipped (below)
+      if (is_double_only(n)) continue;  // qmc and transfer N: MPFR digits are skipped (below)
       try {
         row_method(plan, n, d);
       } catch (const invalid_input& bad) {
@@ -612,13 +637,15 @@ std::string table_command(const Options& options) {
       }
     }
     if (d == min_digits || !torus_n.empty() || !plan.chain) continue;
-    throw usage_error("table: --digits " + digits + " is not available with qmc (double only; N = " +
-                      join_values(qmc_n) + (plan.method == "auto" ? " with --method auto" : "") +
-                      " runs qmc)");
+    throw usage_error("table: --digits " + digits + " is not available with " +
+                      double_only_method + " (double only; N = " + join_values(double_only_n) +
+                      (plan.method == "auto" ? " with --method auto" : "") + " runs " +
+                      double_only_method + ")");
   }
-  if (!qmc_n.empty() && std::ranges::find(digit_values, std::to_string(min_digits)) == digit_values.end())
-    throw usage_error("table: N = " + join_values(qmc_n) + " runs qmc, which is double only, but "
-                      "--digits has no 16");
+  if (!double_only_n.empty() &&
+      std::ranges::find(digit_values, std::to_string(min_digits)) == digit_values.end())
+    throw usage_error("table: N = " + join_values(double_only_n) + " runs " + double_only_method +
+                      ", which is double only, but --digits has no 16");
 
   // Where the rows go: --output FILE, or --resume FILE (continued and rewritten), or stdout.
   const std::string output(options.get("output", ""));
@@ -634,7 +661,7 @@ std::string table_command(const Options& options) {
   // here on SIGINT/SIGTERM stop the sweep (also while the points are being checked).
   const StopOnSignal signals;
   const PointSpace space(plan, sweeps, [&](std::size_t n, int digits) {
-    return digits == min_digits || !is_qmc(n);  // a qmc N has no MPFR rows
+    return digits == min_digits || !is_double_only(n);  // a qmc or transfer N: no MPFR rows
   });
   const auto row_options = [&](std::size_t n, int digits) {
     return row_method(plan, n, digits).options;
@@ -670,13 +697,17 @@ std::string table_command(const Options& options) {
   out += "# rows = " + std::to_string(row_count) + ", nested " + nesting +
          " (outermost first; the last varies fastest)";
   if (row_count < combinations)
-    out += "; qmc is double only, so N = " + join_values(qmc_n) + " has rows at digits = 16 only";
+    out += "; " + double_only_method + " is double only, so N = " + join_values(double_only_n) +
+           " has rows at digits = 16 only";
   out += "\n# method = " + plan.method;
   if (plan.microcanonical()) {
     out += " (microcanonical averages at fixed " + plan.state +
            (plan.method == "auto" ? "; integral for N <= 4, qmc beyond" : "") +
-           "; tolerance 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond in double, 1e-D at D > 16 "
-           "digits)\n";
+           (plan.options.tolerance
+                ? "; tolerance " + shortest(*plan.options.tolerance) + " in double"
+                : std::string("; tolerance 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond in "
+                              "double")) +
+           ", 1e-D at D > 16 digits)\n";
     if (!qmc_n.empty())
       out += "# qmc (N = " + join_values(qmc_n) + "): " +
              std::to_string(plan.options.samples.value_or(MicrocanonicalOptions{}.points)) +
@@ -686,13 +717,20 @@ std::string table_command(const Options& options) {
              ", double only, statistical error bars (the 99.9% Student-t quantile of the "
              "standard error)\n";
   } else if (plan.chain) {
-    const std::string torus = "torus-trapezoid (tolerance " + shortest(default_torus_tolerance) +
-                              " in double, 1e-D at D > 16 digits)";
+    const std::string torus =
+        "torus-trapezoid (tolerance " +
+        shortest(plan.options.tolerance.value_or(default_torus_tolerance)) +
+        " in double, 1e-D at D > 16 digits)";
+    const std::string transfer =
+        "transfer (tolerance " +
+        shortest(plan.options.tolerance.value_or(default_transfer_tolerance)) + ", double only)";
     if (plan.method == "auto")
       out += ": " + torus + " for N <= " + std::to_string(automatic_torus_max_particles) +
-             ", qmc for N > " + std::to_string(automatic_torus_max_particles);
+             ", " + transfer + " for N > " + std::to_string(automatic_torus_max_particles);
     else if (plan.method == "torus-trapezoid")
       out += ": " + torus;
+    else if (plan.method == "transfer")
+      out += ": " + transfer;
     out += "\n";
     if (!qmc_n.empty())
       out += "# qmc (N = " + join_values(qmc_n) + "): " +

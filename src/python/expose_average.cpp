@@ -394,6 +394,13 @@ py::object run_details(const AveragePoint& p) {
     d["effective_sample_fraction"] = a.qmc->effective_sample_fraction;
     return d;
   }
+  if (a.transfer) {
+    py::dict d;
+    d["angle_nodes"] = a.transfer->angle_nodes;
+    d["pivot_nodes"] = a.transfer->pivot_nodes;
+    d["levels"] = a.transfer->levels;
+    return d;
+  }
   return py::none();
 }
 
@@ -825,7 +832,7 @@ paper. See help(pendavg.average) for every field.)");
           [](const AveragesResult& r) {
             return per_point_text(r, [](const AveragePoint& p) { return method_name(p.values.method); });
           },
-          "The method that ran: integral, series, torus-trapezoid, torus-gauss, qmc, "
+          "The method that ran: integral, series, torus-trapezoid, torus-gauss, qmc, transfer, "
           "low-temperature-extrapolation, limit-beta0, limit-beta-infinity.")
       .def_property_readonly(
           "error_kind",
@@ -899,8 +906,9 @@ paper. See help(pendavg.average) for every field.)");
             for (std::size_t k = 0; k < r.points.size(); ++k) out[py::int_(k)] = items[k];
             return out.attr("reshape")(py::cast(r.shape));
           },
-          "The torus grid {points_per_dim, levels, grid_points} or the qmc run {points, shifts, "
-          "sigmas, effective_sample_fraction}; None for the other methods.")
+          "The torus grid {points_per_dim, levels, grid_points}, the qmc run {points, shifts, "
+          "sigmas, effective_sample_fraction} or the transfer operator's final resolution "
+          "{angle_nodes, pivot_nodes, levels}; None for the other methods.")
       .def_property_readonly("decimal", &decimal_strings,
                              "The CLI's decimal strings (`pendavg average --format json`): values "
                              "with `digits` significant digits, errors with 3 that also cover "

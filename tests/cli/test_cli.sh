@@ -127,6 +127,9 @@ bad "seed with integral"     average "${pendulum[@]}" --beta 1 --method integral
 bad "shifts 3"               average "${unit3[@]}" --beta 1 --method qmc --shifts 3
 bad "qmc digits 20"          average "${unit3[@]}" --beta 1 --method qmc --digits 20
 bad "auto N = 6 digits 20"   average --masses 1,1,1,1,1,1 --lengths 1,1,1,1,1,1 --beta 1 --digits 20
+bad "transfer digits 20"     average "${unit3[@]}" --beta 1 --method transfer --digits 20
+bad "transfer samples"       average "${unit3[@]}" --beta 1 --method transfer --samples 4096
+bad "auto N = 6 seed"        average --masses 1,1,1,1,1,1 --lengths 1,1,1,1,1,1 --beta 1 --seed 2
 bad "torus N = 12"           average --masses 1,1,1,1,1,1,1,1,1,1,1,1 --lengths 1,1,1,1,1,1,1,1,1,1,1,1 --beta 1 --method torus-trapezoid
 bad "method torus"           average "${unit3[@]}" --beta 1 --method torus
 bad "N = 3 counts mismatch"  average --masses 1,1,1 --lengths 1,1 --beta 1
@@ -374,7 +377,7 @@ assert all(float(x) == 0.5 for x in l["beta_K"])
 PY
 }
 good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --lengths 1,0.5,2
-good "limit N = 7 (qmc)"       'check_limit_any 7' limit --masses 1,1,1,1,1,1,1
+good "limit N = 7 (transfer)"  'check_limit_any 7' limit --masses 1,1,1,1,1,1,1
 bad "limit N = 6 at 20 digits" limit --masses 1,1,1,1,1,1 --digits 20
 
 good "series 5 terms text" \
@@ -441,7 +444,10 @@ bad "table malformed value"   table --beta 1,two
 bad "table mu1 = 1"           table --beta 1 --mu1 1
 bad "table mu1 > 1"           table --beta 1 --mu1 0.5,1.5
 bad "table mu1 = 0"           table --beta 1 --mu1 0
-bad "table chain too long"    table --chain 257 --beta 1
+bad "table chain too long"    table --chain 16385 --beta 1
+bad "table chain qmc 257"     table --chain 257 --beta 1 --method qmc
+bad "table tol, qmc only"     table --chain 5 --beta 1 --method qmc --tol 1e-6
+bad "table tol, pendulum"     table --beta 1 --tol 1e-6
 bad "table chain with l2"     table --chain 3 --beta 1 --l2 2
 bad "table chain series"      table --chain 3 --beta 1 --method series
 bad "table chain qmc digits"  table --chain 5 --beta 1 --digits 20
@@ -449,7 +455,8 @@ bad "table unknown option"    table --beta 1 --masses 1,1
 good "table --help"           'grep -q "usage" "$work/out"' table --help
 
 # table: lists of N, digits and g (issue 5). check_mixed_table FILE: a table of chains N = 3 and
-# 5 at digits 16 and 20 (N = 5 runs qmc: digits 16 only) and g = 1, 2, with the mixed-N layout.
+# 5 at digits 16 and 20 (N = 5 runs transfer: digits 16 only) and g = 1, 2, with the mixed-N
+# layout.
 check_mixed_table() {
   "$python" - "$1" <<'PY'
 import csv, sys
@@ -460,7 +467,8 @@ text = "\n".join(comments)
 for needle in ("N = 3,5 (2 values)", "digits = 16,20 (2 values)", "g = 1,2 (2 values)",
                "beta = 0.5 (1 value)", "rows = 6, nested N, digits, g, beta",
                "N = 5 has rows at digits = 16 only", "method = auto: torus-trapezoid",
-               "qmc (N = 5): 1024 points x 4 shifts, seed 1", "cells beyond its N empty", "UTC"):
+               "transfer (tolerance 1e-10, double only) for N > 4", "cells beyond its N empty",
+               "UTC"):
     assert needle in text, needle
 data = [l for l in lines if not l.startswith("#")]
 header = data[0].split(",")
@@ -477,7 +485,7 @@ assert [(r["N"], r["digits"], r["g"]) for r in rows] == [
     ("5", "16", "1"), ("5", "16", "2")], [(r["N"], r["digits"], r["g"]) for r in rows]
 for r in rows:
     n = int(r["N"])
-    assert r["method"] == ("torus-trapezoid" if n == 3 else "qmc") and r["converged"] == "true", r
+    assert r["method"] == ("torus-trapezoid" if n == 3 else "transfer") and r["converged"] == "true", r
     for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx"):
         cells = [r[f"{stem}{i}"] for i in range(1, 6)]
         assert all(cells[:n]) and not any(cells[n:]), (stem, cells)
@@ -493,7 +501,7 @@ for lo, hi in ((rows[0], rows[2]), (rows[1], rows[3])):
         assert D(hi[f"error_K{i}"]) < D("1e-18"), hi[f"error_K{i}"]
 PY
 }
-mixed_table=(table --chain 3,5 --beta 0.5 --g 1,2 --digits 16,20 --samples 1024 --shifts 4)
+mixed_table=(table --chain 3,5 --beta 0.5 --g 1,2 --digits 16,20)
 good "table lists of N, digits, g"   'check_mixed_table "$work/out"' "${mixed_table[@]}"
 good "table mixed N to file"         '[ ! -s "$work/out" ] && check_mixed_table "$work/mixed.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
   "${mixed_table[@]}" --output "$work/mixed.csv"
@@ -567,8 +575,18 @@ good "table qmc options" \
   table --chain 5 --method qmc --beta 1 --samples 2048 --shifts 8 --seed 42
 good "table qmc seed changes values" \
   '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15)" != \
-     "$("$pendavg" table --chain 5 --beta 1 --samples 1024 --shifts 4 --seed 2 | grep -v "^#" | sed 1d | cut -d, -f15)" ]' \
-  table --chain 5 --beta 1 --samples 1024 --shifts 4 --seed 1
+     "$("$pendavg" table --chain 5 --method qmc --beta 1 --samples 1024 --shifts 4 --seed 2 | grep -v "^#" | sed 1d | cut -d, -f15)" ]' \
+  table --chain 5 --method qmc --beta 1 --samples 1024 --shifts 4 --seed 1
+# transfer: the tolerance is recorded and used (the row is the row of `average` with the same
+# tolerance), and chains beyond qmc's 256 particles run.
+good "table transfer tolerance" \
+  'grep -q "transfer (tolerance 1e-06, double only) for N > 4" "$work/out" &&
+   [ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15-19)" = \
+     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --tol 1e-6 --format csv | sed 1d | cut -d, -f5-9)" ]' \
+  table --chain 5 --beta 1 --tol 1e-6
+good "table chain 300 (transfer)" \
+  '[ "$(grep -v "^#" "$work/out" | sed 1d | tr "," "\n" | grep -c "^transfer$")" -eq 1 ]' \
+  table --chain 300 --beta 1 --tol 1e-4
 
 # bad_table NAME ARGS...: bad input with --output: exit 2, one line, and no file left behind.
 bad_table() {
@@ -583,8 +601,8 @@ bad_table "table negative g range"   --beta 1 --g lin:-1:1:3
 bad_table "table g log from 0"       --beta 1 --g log:0:1:3
 bad_table "table malformed g"        --beta 1 --g 1,two
 bad_table "table empty g element"    --beta 1 --g 1,,2
-bad_table "table chain 300"          --chain 300 --beta 1
-bad_table "table chain 257"          --chain 3,257 --beta 1
+bad_table "table chain 16385"        --chain 16385 --beta 1
+bad_table "table chain qmc 300"      --chain 3,300 --method qmc --beta 1
 bad_table "table chain 2"            --chain 2,3 --beta 1
 bad_table "table chain 0"            --chain 0 --beta 1
 bad_table "table chain not integer"  --chain 3,4.5 --beta 1
@@ -600,16 +618,17 @@ bad_table "table digits range"       --beta 1 --digits lin:16:32:3
 bad_table "table qmc digits only"    --chain 5,8 --beta 1 --digits 16,30
 bad_table "table qmc N without 16"   --chain 3,5 --beta 1 --digits 20
 bad_table "table qmc method digits"  --chain 3 --method qmc --beta 1 --digits 16,20
-bad_table "table samples not pow2"   --chain 5 --beta 1 --samples 3000
-bad_table "table samples too few"    --chain 5 --beta 1 --samples 512
-bad_table "table samples too many"   --chain 5 --beta 1 --samples 2097152
-bad_table "table shifts too few"     --chain 5 --beta 1 --shifts 3
-bad_table "table seed negative"      --chain 5 --beta 1 --seed -1
+bad_table "table samples not pow2"   --chain 5 --method qmc --beta 1 --samples 3000
+bad_table "table samples too few"    --chain 5 --method qmc --beta 1 --samples 512
+bad_table "table samples too many"   --chain 5 --method qmc --beta 1 --samples 2097152
+bad_table "table shifts too few"     --chain 5 --method qmc --beta 1 --shifts 3
+bad_table "table seed negative"      --chain 5 --method qmc --beta 1 --seed -1
+bad_table "table samples, transfer"  --chain 5 --beta 1 --samples 1024
 bad_table "table samples with torus" --chain 3 --method torus-trapezoid --beta 1 --samples 1024
 bad_table "table shifts, auto torus" --chain 3,4 --beta 1 --shifts 8
 bad_table "table seed, pendulum"     --beta 1 --seed 2
 bad_table "table samples, series"    --beta 1 --method series --samples 1024
-bad "table mixed unwritable"         table --chain 3,5 --beta 1 --samples 1024 --output "$work/plain_file/t.csv"
+bad "table mixed unwritable"         table --chain 3,5 --beta 1 --output "$work/plain_file/t.csv"
 bad "table mixed missing dir"        table --chain 3,5 --beta 1 --output "$work/no/such/dir/t.csv"
 bad "table g sweep bad point"        table --beta 1 --g 1,2 --l2 0 --output "$work/bad.csv"
 [ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep 'bad.csv')" ] && pass || fail "table g sweep bad point left a file"

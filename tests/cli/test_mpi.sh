@@ -83,12 +83,14 @@ for ranks in 2 3; do
   "${launcher[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" --output "$work/cases_ranks.csv" 2>"$work/err"
   if cmp -s "$work/cases_ranks.csv" "$work/cases_serial.csv"; then pass; else fail "cases --output on $ranks ranks"; fi
 done
-# table: chains of 8 (qmc), and a double-pendulum sweep mixing double and MPFR rows.
-same_on_ranks "table --chain 8" table --chain 3,8 --beta log:0.1:10:12 --g 1,2 --samples 2048 --shifts 8
+# table: chains of 3 and 8 by qmc and by auto (torus, transfer), and a double-pendulum sweep
+# mixing double and MPFR rows.
+same_on_ranks "table --chain 8 qmc" table --chain 3,8 --beta log:0.1:10:12 --g 1,2 --method qmc --samples 2048 --shifts 8
+same_on_ranks "table --chain 8 auto" table --chain 3,8 --beta log:0.1:10:6 --g 1,2 --tol 1e-8
 same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
 # One qmc point at N = 64: its shifts shared by the ranks.
 unit64=$("$python" -c 'print(",".join(["1"] * 64))')
-same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --samples 4096 --shifts 12
+same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --method qmc --samples 4096 --shifts 12
 # Trajectory replicas, N = 3: Langevin (noise streams) and NVE (perturbed starts).
 same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4
 same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no

@@ -51,7 +51,7 @@ def cli_json(*args):
 cases = {
     "N2": ["--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1"],
     "N3": ["--masses", "1,2,0.5", "--lengths", "1,0.5,2", "--g", "9.81", "--beta", "0.3"],
-    "N8": ["--masses", ",".join(["1"] * 8), "--lengths", ",".join(["1"] * 8), "--beta", "1", "--samples", "4096"],
+    "N8": ["--masses", ",".join(["1"] * 8), "--lengths", ",".join(["1"] * 8), "--beta", "1", "--tol", "1e-8"],
 }
 for label, args in cases.items():
     o = cli_json(*args)

@@ -77,7 +77,9 @@ def assert_same_as_cli(r, d):
     ([0.9, 0.1], [1.0, 2.0], 3.0, {"method": "series"}),
     ([1.0, 2.0, 0.5], [1.0, 0.5, 2.0], 0.7, {}),                # N = 3: torus-trapezoid
     ([1.0, 1.0, 1.0], [1.0, 1.0, 1.0], 1.0, {"method": "torus-gauss", "tol": 1e-10}),
-    ([1.0] * 8, [1.0] * 8, 1.0, {"samples": 4096, "seed": 3}),  # N = 8: qmc
+    ([1.0] * 8, [1.0] * 8, 1.0, {"method": "qmc", "samples": 4096, "seed": 3}),  # N = 8: qmc
+    ([1.0] * 8, [1.0] * 8, 1.0, {}),                            # N = 8: transfer
+    ([1.0, 0.5, 2.0, 1.0, 3.0], [1.0, 2.0, 0.5, 1.0, 1.0], 3.0, {"tol": 1e-6}),  # N = 5: transfer
     ([1.0] * 3, [1.0] * 3, 1e9, {}),                            # N = 3, low-temperature extrapolation
 ])
 def test_double_agrees_with_cli(masses, lengths, beta, options):
@@ -215,14 +217,18 @@ def test_error_kinds():
     assert pendavg.average([0.5, 0.5], [1, 1], 1).error_kind == "estimate"
     series = pendavg.average([0.9, 0.1], [1, 1], 1, method="series")
     assert series.error_kind == "bound" and series.error_kinds["beta_K"] == "bound"
-    qmc = pendavg.average([1] * 5, [1] * 5, 1, samples=1024)
+    qmc = pendavg.average([1] * 5, [1] * 5, 1, method="qmc", samples=1024)
     assert qmc.method == "qmc" and qmc.error_kind == "statistical"
     assert qmc.run["points"] == 1024 and qmc.run["shifts"] == 16
+    transfer = pendavg.average([1] * 5, [1] * 5, 1)
+    assert transfer.method == "transfer" and transfer.error_kind == "estimate"
+    assert transfer.run["angle_nodes"] >= 16 and transfer.run["pivot_nodes"] >= 3
+    assert transfer.run["levels"] >= 2
     torus = pendavg.average([1] * 3, [1] * 3, 1)
     assert torus.error_kind == "estimate" and torus.run["points_per_dim"] > 0
     assert pendavg.limit([0.5, 0.5]).high_temperature.error_kind == "bound"
     assert pendavg.limit([0.5, 0.5]).low_temperature.error_kind == "bound"
-    for r in (series, qmc, torus):
+    for r in (series, qmc, transfer, torus):
         assert np.all(r.beta_K_error > 0) and np.all(r.beta_Kc == 0.5)
 
 

@@ -71,6 +71,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                              the exact values
       method                 'integral' (N = 2: the exact 1-D reduced integral), 'series' (the
                              paper's series), 'torus-trapezoid', 'torus-gauss', 'qmc',
+                             'transfer' (the transfer operator along the chain, N >= 5),
                              'low-temperature-extrapolation' (any N, very stiff joints)
       error_kind             what the errors of beta_K and ratio promise: 'bound' (rigorous),
                              'estimate' (from quadrature refinement, checked against independent
@@ -80,7 +81,8 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
       converged              False when the requested accuracy was not reached (errors still hold)
       interrupted            True when Ctrl-C stopped a torus run after a finished level: the
                              values are that level's (converged False, errors still hold)
-      seconds, run           the library call's wall time; the torus grid or qmc run
+      seconds, run           the library call's wall time; the torus grid, the qmc run or
+                             the transfer operator's final resolution
       decimal                the CLI's strings (`pendavg average --format json`), `digits` digits
       mpf                    mpmath.mpf values (exact binary values of the MPFR results)
 
@@ -91,11 +93,13 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                natural scale is beta g m l).
       g        gravitational acceleration >= 0 (default 1); g = 0 is the free chain.
       digits   significant digits requested: 16 (default) runs in double; 17..1000 in MPFR.
-      method   'auto' (default: 'integral' for N = 2, 'torus-trapezoid' for N = 1, 3, 4, 'qmc'
-               for N >= 5), 'integral' or 'series' (N = 2 only), 'torus-trapezoid' or
-               'torus-gauss' (any N, cost n^(N-1)), 'qmc' (any N <= 256, double only).
+      method   'auto' (default: 'integral' for N = 2, 'torus-trapezoid' for N = 1, 3, 4,
+               'transfer' for N >= 5), 'integral' or 'series' (N = 2 only), 'torus-trapezoid'
+               or 'torus-gauss' (any N, cost n^(N-1)), 'transfer' (any N <= 16384, double
+               only), 'qmc' (any N <= 256, double only; the independent check).
       tol      torus methods in double: relative tolerance (default 1e-13; with digits > 16 it
-               is 10^-digits and may not be given).
+               is 10^-digits and may not be given); transfer: relative tolerance (default
+               1e-10).
       samples  qmc: lattice points per shift, a power of two in 1024..1048576 (default 65536).
       shifts   qmc: random shifts, 4..1024 (default 16).
       seed     qmc: seed of the shifts (default 1).
@@ -182,7 +186,7 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
 
     beta -> 0: for N = 2 the paper's closed form beta<K_1> = (mu_1/2) K(k)/E(k), k^2 = mu_2 =
     m_2/M (eq. aveK1-beta0; error kind 'bound'); for any N the torus average of the same chain at
-    g = 0 (trapezoid for N <= 5, qmc beyond, double only). <cos phi_i> -> 0. Independent of g.
+    g = 0 (trapezoid for N <= 5, transfer beyond, double only). <cos phi_i> -> 0. Independent of g.
     beta -> infinity: beta<K_i> -> 1/2 for every particle (equipartition of the harmonic chain),
     <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2)/2, in closed form.
 

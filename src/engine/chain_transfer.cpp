@@ -1,0 +1,1166 @@
+// The transfer operator along the chain (engine/chain_transfer.hpp has the equations).
+#include "engine/chain_transfer.hpp"
+
+#include "engine/estimates.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace pendavg {
+namespace {
+
+template <class Real>
+Real pi_value() {
+  return Real(3.14159265358979323846264338327950288L);
+}
+
+/// Natural logarithm for the interpolation coordinate. In double a branch-free version the
+/// compiler vectorizes (fdlibm's reduction: x = 2^e (1 + f), (1 + f) in [sqrt(1/2), sqrt(2)),
+/// log(1 + f) = 2 atanh(s), s = f / (2 + f), |s| < 0.172, series to s^23; error ~1 ulp);
+/// positive normal arguments only (the caller's are >= eps_j > 0).
+template <class Real>
+inline Real interpolation_log(const Real& x) {
+  using std::log;
+  if constexpr (std::is_same_v<Real, double>) {
+    const std::uint64_t bits = std::bit_cast<std::uint64_t>(x);
+    std::int64_t e = static_cast<std::int64_t>(bits >> 52) - 1023;
+    double mant = std::bit_cast<double>((bits & 0x000fffffffffffffULL) | 0x3ff0000000000000ULL);
+    const bool high = mant > 1.4142135623730951;
+    mant = high ? mant * 0.5 : mant;
+    e += high ? 1 : 0;
+    const double f = mant - 1;
+    const double s = f / (2 + f), s2 = s * s;
+    // 2 atanh(s) = 2 s sum_k s^(2k) / (2k + 1), k = 0..11
+    double p = 1.0 / 23;
+    p = p * s2 + 1.0 / 21;
+    p = p * s2 + 1.0 / 19;
+    p = p * s2 + 1.0 / 17;
+    p = p * s2 + 1.0 / 15;
+    p = p * s2 + 1.0 / 13;
+    p = p * s2 + 1.0 / 11;
+    p = p * s2 + 1.0 / 9;
+    p = p * s2 + 1.0 / 7;
+    p = p * s2 + 1.0 / 5;
+    p = p * s2 + 1.0 / 3;
+    const double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
+    const double ed = static_cast<double>(e);
+    // log = e ln2 + f - f^2/2 + (s (f^2/2 + R)) in fdlibm; here the direct 2 s (1 + s^2 p):
+    return ed * ln2_hi + (2 * s + (2 * s * s2 * p + ed * ln2_lo));
+  } else {
+    return log(x);
+  }
+}
+
+/// The angle rule of one particle: nodes, weights (measure dphi / 2 pi) times the scaled
+/// Boltzmann factor exp(alpha (cos phi - 1)), cos phi, and the reflection phi -> -phi on the
+/// node indices (both rules are symmetric).
+template <class Real>
+struct AngleRule {
+  std::vector<Real> angle, weight_boltzmann, cos_angle;
+  std::vector<Real> boltzmann;  ///< exp(alpha (cos phi - 1)) alone
+  std::vector<std::size_t> mirror;
+  bool periodic = true;
+  Real half_width{0};  ///< pi, or the window's L
+};
+
+template <class Real>
+AngleRule<Real> angle_rule(const Real& alpha, const Real& truncation, std::size_t n) {
+  using std::asin;
+  using std::sqrt;
+  using std::cos;
+  using std::exp;
+  using std::sin;
+  AngleRule<Real> rule;
+  rule.angle.resize(n);
+  rule.weight_boltzmann.resize(n);
+  rule.cos_angle.resize(n);
+  rule.boltzmann.resize(n);
+  rule.mirror.resize(n);
+  const Real pi = pi_value<Real>();
+  const Real nn = Real(static_cast<double>(n));
+  const bool periodic = !(2 * alpha > truncation);
+  Real half_width = pi, weight = 1 / nn;
+  if (!periodic) {
+    // 1 - cos L = truncation / alpha, without the cancellation of acos(1 - x) at large alpha.
+    half_width = 2 * asin(sqrt(truncation / (2 * alpha)));
+    weight = 2 * half_width / (2 * pi * nn);
+  }
+  rule.periodic = periodic;
+  rule.half_width = half_width;
+  for (std::size_t a = 0; a < n; ++a) {
+    const Real k = Real(static_cast<double>(a));
+    // periodic: -pi + 2 pi a / n (-pi and 0 are nodes); window: the midpoints of n cells.
+    const Real x = periodic ? -pi + 2 * pi * k / nn : -half_width + half_width * (2 * k + 1) / nn;
+    const Real h = sin(x / 2);
+    rule.angle[a] = x;
+    rule.cos_angle[a] = cos(x);
+    rule.boltzmann[a] = exp(-2 * alpha * h * h);
+    rule.weight_boltzmann[a] = weight * rule.boltzmann[a];
+    rule.mirror[a] = periodic ? (n - a) % n : n - 1 - a;
+  }
+  return rule;
+}
+
+/// The pivot rule of one particle: Chebyshev-Lobatto nodes t_c = cos(pi c / (m - 1)) in
+/// t = v_scale log(u + eps) + v_shift over u in [0, u_max]; particle 1 has the single node u = 0.
+template <class Real>
+struct PivotRule {
+  std::size_t m = 1;
+  Real eps{1}, v_scale{0}, v_shift{0};
+  std::vector<Real> u, root_factor, inv_one_plus_u;  ///< u_c, sqrt(m_j (1 + u_c)), 1/(1 + u_c)
+  std::vector<Real> to_coefficients;  ///< [k * m + c]: Chebyshev coefficient k from node values
+  /// Messages interpolated divided by their envelopes (message_envelopes): only where u spans a
+  /// wide range (u_max = m_j / m_{j-1} > envelope_range); elsewhere they vary little and the
+  /// sqrt and division per evaluation would cost ~40% of the sweeps for nothing.
+  bool enveloped = false;
+  /// [q * m + c]: the envelope of message q at the node (message_envelopes at u_c + 1), or 1.
+  std::vector<Real> node_envelope;
+};
+
+constexpr double envelope_range = 4;
+
+/// The envelopes of the four messages at x = u + 1: sqrt(x), 1/sqrt(x), x^(-3/2), x^(-3/2) (the
+/// last particle's messages sqrt(m (1 + u)), ... exactly). M0 ~ sqrt(1 + kappa s^2 + u (1 + kappa))
+/// grows like sqrt(u) at large u and its u-derivatives fall like u^-1/2, u^-3/2: over u in
+/// [0, m_j/m_{j-1}] (up to 1e4 for a heavy particle after a light one) they span orders of
+/// magnitude. Chebyshev interpolation has uniform absolute accuracy, so the messages are
+/// interpolated divided by their envelopes (analytic in v = log(u + eps) off the same cut: the
+/// convergence rate is unchanged), which keeps their relative accuracy where they are small and
+/// are multiplied by large factors (Q^2 ~ (m_{j+1}/m_j)^2 u'^2).
+template <class Real>
+inline void message_envelopes(const Real& x, Real* out) {
+  using std::sqrt;
+  const Real r = sqrt(x), ir = 1 / r;
+  out[0] = r;
+  out[1] = ir;
+  out[2] = ir * ir * ir;
+  out[3] = out[2];
+}
+
+template <class Real>
+PivotRule<Real> pivot_rule(const Real& mass, const Real& eps, const Real& u_max, std::size_t m) {
+  using std::cos;
+  using std::expm1;
+  using std::log;
+  using std::sqrt;
+  PivotRule<Real> rule;
+  rule.m = m;
+  rule.eps = eps;
+  if (m == 1) {
+    rule.u.assign(1, Real(0));
+  } else {
+    const Real lo = log(eps), hi = log(u_max + eps);
+    rule.v_scale = 2 / (hi - lo);
+    rule.v_shift = -(hi + lo) / (hi - lo);
+    rule.u.resize(m);
+    rule.to_coefficients.resize(m * m);
+    const Real pi = pi_value<Real>();
+    const Real mm1 = Real(static_cast<double>(m - 1));
+    for (std::size_t c = 0; c < m; ++c) {
+      const Real t = cos(pi * Real(static_cast<double>(c)) / mm1);
+      rule.u[c] = eps * expm1((t + 1) / rule.v_scale);  // u + eps = eps e^{(t + 1)(hi - lo)/2}
+    }
+    rule.u.front() = u_max;
+    rule.u.back() = 0;
+    for (std::size_t k = 0; k < m; ++k) {
+      for (std::size_t c = 0; c < m; ++c) {
+        Real w = 2 / mm1 * cos(pi * Real(static_cast<double>((k * c) % (2 * (m - 1)))) / mm1);
+        if (c == 0 || c + 1 == m) w /= 2;
+        if (k == 0 || k + 1 == m) w /= 2;
+        rule.to_coefficients[k * m + c] = w;
+      }
+    }
+  }
+  for (const Real& u : rule.u) {
+    rule.root_factor.push_back(sqrt(mass * (1 + u)));
+    rule.inv_one_plus_u.push_back(1 / (1 + u));
+  }
+  rule.enveloped = u_max > Real(envelope_range);
+  rule.node_envelope.assign(4 * rule.m, Real(1));
+  for (std::size_t c = 0; rule.enveloped && c < rule.m; ++c) {
+    Real e[4];
+    message_envelopes(Real(rule.u[c] + 1), e);
+    for (std::size_t q = 0; q < 4; ++q) rule.node_envelope[q * rule.m + c] = e[q];
+  }
+  return rule;
+}
+
+/// Scale x by a power of two so that max |x| lies in [1/2, 1) (no rounding: the factor is an
+/// exact power of two, applied as one multiplication per entry).
+template <class Real>
+void normalize(std::vector<Real>& x) {
+  using std::abs;
+  using std::frexp;
+  using std::ldexp;
+  Real top = 0;
+  for (const Real& v : x) top = std::max(top, Real(abs(v)));
+  if (!(top > 0)) return;
+  int e = 0;
+  frexp(top, &e);
+  const Real factor = ldexp(Real(1), -e);
+  for (Real& v : x) v *= factor;
+}
+
+/// Indices a <= mirror(a): each reflection orbit once; multiplicity 1 or 2.
+template <class Real>
+void orbit_representatives(const AngleRule<Real>& rule, std::vector<std::size_t>& index,
+                           std::vector<Real>& multiplicity) {
+  index.clear();
+  multiplicity.clear();
+  for (std::size_t a = 0; a < rule.mirror.size(); ++a) {
+    if (a <= rule.mirror[a]) {
+      index.push_back(a);
+      multiplicity.push_back(a == rule.mirror[a] ? Real(1) : Real(2));
+    }
+  }
+}
+
+/// Links after which a heavy mass follows within two particles are integrated over the relative
+/// angle (see RelativeRule): with kappa = k_{j+1}/m_j, the coupling of phi_j and phi_{j+1} is
+/// sqrt(1 + kappa sin^2 delta + u_j (1 + kappa)) (the split form of det A), a kink of width
+/// ~ kappa^-1/2 along the diagonal delta = 0 of the (phi_j, phi_{j+1}) grid that a product rule
+/// resolves only with O(kappa^1/2) more nodes. kappa >= m_{j+1}/m_j always, and it reaches
+/// (m_{j+1} + k_{j+2})/m_j, k_{j+2} ~ 2 m_{j+2}, when one more link is straight, which a heavy
+/// particle j+2 makes likely. So: relative iff (m_{j+1} + 2 m_{j+2}) / m_j > this. Uniform
+/// chains stay on the product rule (ratio 3), where straight tails are rare.
+constexpr double relative_link_ratio = 4;
+
+/// The relative-angle rule of one light-to-heavy link: delta = phi_{j+1} - phi_j on n nodes
+/// clustered at delta = 0 (and pi) by an entire map, so that the kink of width
+/// w = sqrt(m_j / S_{j+1}) (the smoothing of |sin delta| at u_j = 0) is resolved:
+///   delta in (-pi, pi]:   delta = t - (a/2) sin 2t, t equispaced (periodic trapezoid);
+///   delta in [-D, D] (both angles in windows, D = L_j + L_{j+1} < pi):
+///                         delta = D (t - (a/pi) sin(pi t)), t the midpoints of [-1, 1];
+/// 1 - a = clamp(3 w, 0.02, 1): the node density at 0 is 1/(1 - a) times the mean.
+/// Weights are for the measure d delta / (2 pi).
+template <class Real>
+struct RelativeRule {
+  std::vector<Real> delta, weight, sin2, cos2;
+};
+
+template <class Real>
+RelativeRule<Real> relative_rule(const AngleRule<Real>& from, const AngleRule<Real>& to,
+                                 const Real& width, std::size_t n) {
+  using std::cos;
+  using std::sin;
+  const Real pi = pi_value<Real>();
+  const Real nn = Real(static_cast<double>(n));
+  const Real a = 1 - std::min(Real(1), std::max(Real(0.02), 3 * width));
+  const Real span = from.half_width + to.half_width;
+  RelativeRule<Real> rule;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Real kk = Real(static_cast<double>(k));
+    Real d, w;
+    if (span >= pi) {
+      const Real t = -pi + 2 * pi * kk / nn;
+      d = t - a / 2 * sin(2 * t);
+      w = (1 - a * cos(2 * t)) / nn;
+    } else {
+      const Real t = -1 + (2 * kk + 1) / nn;
+      d = span * (t - a / pi * sin(pi * t));
+      w = span * (1 - a * cos(pi * t)) * 2 / (nn * 2 * pi);
+    }
+    const Real sd = sin(d), cd = cos(d);
+    rule.delta.push_back(d);
+    rule.weight.push_back(w);
+    rule.sin2.push_back(sd * sd);
+    rule.cos2.push_back(cd * cd);
+  }
+  return rule;
+}
+
+/// The trigonometric interpolation weight of node b of `rule` at the angle x (the Dirichlet
+/// kernel of the uniform grid over its period 2 L: sin(n theta / 2) / (n tan(theta / 2)),
+/// theta = pi (x - phi_b) / L); 0 outside a window (the data vanish there to roundoff).
+template <class Real>
+Real trig_interpolation_weight(const AngleRule<Real>& rule, std::size_t b, const Real& x) {
+  using std::abs;
+  using std::remainder;
+  using std::sin;
+  using std::tan;
+  const Real pi = pi_value<Real>();
+  const Real angle = remainder(x, 2 * pi);  // the physical angle in [-pi, pi]
+  if (!rule.periodic && abs(angle) > rule.half_width) return 0;
+  const std::size_t n = rule.angle.size();
+  Real theta = remainder(pi * (angle - rule.angle[b]) / rule.half_width, 2 * pi);  // (-pi, pi]
+  const Real half = theta / 2;
+  if (abs(half) < Real(1e-7)) return 1 - Real(static_cast<double>(n * n + 2)) * half * half / 6;
+  return sin(Real(static_cast<double>(n)) * half) / (Real(static_cast<double>(n)) * tan(half));
+}
+
+/// Vector width of the inner kernels (points kept in registers at once).
+constexpr std::size_t lanes = 8;
+
+/// A link is split over threads only above this much work (kernel evaluations times pivot
+/// nodes, ~0.5 ms): below it the fork and barrier cost more than they save, and much more
+/// when the other cores are busy.
+constexpr double parallel_work_threshold = 1e6;
+
+/// Rounding budget of every quantity, in roundoffs times the sum of the absolute values of the
+/// terms it is made of (NodeSums); the variance takes four times this (see flatten).
+constexpr double rounding_ulps = 64;
+
+/// The node sums of one particle over its (phi, u) nodes, with the forward weight fw = F_j f_c
+/// and the link sums A0 = sum w V0, B1 = sum w Q V1, B2 = sum w Q^2 V2, B3 = sum w dQ V1,
+/// B4 = sum w Q^2 V3 (see chain_transfer_level): Z, Z <cos phi>, Z <tr X>, Z <(tr X)^2>,
+/// Z <d^2 log det A / d(log m)^2>, then the same sums over the absolute values of their terms
+/// (tr X = a0 + 2 Q S cancels for a light particle: its rounding is u times these).
+constexpr std::size_t node_sum_count = 9;
+
+template <class Real>
+struct NodeSums {
+  Real v[node_sum_count] = {};
+  void add(const Real& fw, const Real& u, const Real& ip, const Real& cos_phi, const Real& A0,
+           const Real& B1, const Real& B2, const Real& B3, const Real& B4) {
+    using std::abs;
+    const Real a0 = 1 + u * ip;  // 1 + u/(1 + u)
+    const Real w = fw * A0, afw = abs(fw);
+    v[0] += w;
+    v[1] += w * cos_phi;
+    v[2] += fw * (a0 * A0 + 2 * B1);
+    v[3] += fw * (a0 * a0 * A0 + 4 * a0 * B1 + 4 * B2);
+    v[4] += fw * (u * ip * ip * A0 + 2 * B3 + 2 * B4);
+    v[5] += abs(w * cos_phi);
+    v[6] += afw * (a0 * abs(A0) + 2 * abs(B1));
+    v[7] += afw * (a0 * a0 * abs(A0) + 4 * a0 * abs(B1) + 4 * abs(B2));
+    v[8] += afw * (u * ip * ip * abs(A0) + 2 * abs(B3) + 2 * abs(B4));
+  }
+  void store(Real* out, const Real& multiplicity) const {
+    for (std::size_t q = 0; q < node_sum_count; ++q) out[q] = multiplicity * v[q];
+  }
+};
+
+/// The Chebyshev values T_0..T_{m-1} at t.
+template <class Real>
+void chebyshev_values(const Real& t, std::size_t m, Real* out) {
+  out[0] = 1;
+  if (m > 1) out[1] = t;
+  for (std::size_t k = 2; k < m; ++k) out[k] = 2 * t * out[k - 1] - out[k - 2];
+}
+
+/// The interpolation coordinate of u' = r (u + s^2) / (1 + u) on the pivot rule `to`, and u'.
+template <class Real>
+Real next_pivot_coordinate(const PivotRule<Real>& to, const Real& ratio, const Real& u,
+                           const Real& s2, Real& u_next) {
+  u_next = ratio * (u + s2) / (1 + u);
+  const Real x = to.v_scale * interpolation_log(Real(u_next + to.eps)) + to.v_shift;
+  return std::min(Real(1), std::max(Real(-1), x));
+}
+
+/// Forward step of a light-to-heavy link over the relative angle: F_{j+1}(b, c') = E_b sum_{a,c,k}
+/// F_j(a, c) f_c w_k D_b(phi_a + delta_k) L_{c'}(t(u_c, delta_k)), D_b the trigonometric
+/// interpolation weight of node b (the transpose of relative_backward's interpolation).
+template <class Real>
+void relative_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
+                      const PivotRule<Real>& pj, const PivotRule<Real>& pn,
+                      const RelativeRule<Real>& rel, const Real& ratio,
+                      const std::vector<Real>& forward, std::vector<Real>& next, int team) {
+  const std::size_t n = from.angle.size(), nd = rel.delta.size(), mj = pj.m, mn = pn.m;
+  // basis[(k * mj + c) * mn + c']: the Lagrange basis of the next pivot rule at t(u_c, delta_k)
+  std::vector<Real> basis(nd * mj * mn), tk(mn);
+  for (std::size_t k = 0; k < nd; ++k) {
+    for (std::size_t c = 0; c < mj; ++c) {
+      Real u_next;
+      chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
+                       tk.data());
+      Real e[4] = {1, 1, 1, 1};
+      if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+      for (std::size_t cp = 0; cp < mn; ++cp) {
+        Real acc = 0;
+        for (std::size_t q = 0; q < mn; ++q) acc += tk[q] * pn.to_coefficients[q * mn + cp];
+        basis[(k * mj + c) * mn + cp] = acc * e[0] / pn.node_envelope[cp];
+      }
+    }
+  }
+  std::vector<Real> source(n * mj);
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t c = 0; c < mj; ++c) source[a * mj + c] = forward[a * mj + c] * pj.root_factor[c];
+  }
+  const bool parallel = team > 1 && double(n) * double(n) * double(nd) * double(mj) >=
+                                        parallel_work_threshold;
+  std::vector<std::size_t> orbit;
+  std::vector<Real> multiplicity;
+  orbit_representatives(to, orbit, multiplicity);
+#if defined(_OPENMP)
+#pragma omp parallel for num_threads(team) schedule(static) if (parallel)
+#endif
+  for (std::ptrdiff_t ob = 0; ob < static_cast<std::ptrdiff_t>(orbit.size()); ++ob) {
+    const std::size_t b = orbit[static_cast<std::size_t>(ob)];
+    std::vector<Real> column(n), h(mj), row(mn, Real(0));
+    for (std::size_t k = 0; k < nd; ++k) {
+      for (std::size_t a = 0; a < n; ++a) {
+        column[a] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
+      }
+      for (std::size_t c = 0; c < mj; ++c) {
+        Real acc = 0;
+        for (std::size_t a = 0; a < n; ++a) acc += column[a] * source[a * mj + c];
+        h[c] = rel.weight[k] * acc;
+      }
+      for (std::size_t c = 0; c < mj; ++c) {
+        const Real* L = &basis[(k * mj + c) * mn];
+        for (std::size_t cp = 0; cp < mn; ++cp) row[cp] += h[c] * L[cp];
+      }
+    }
+    for (std::size_t cp = 0; cp < mn; ++cp) {
+      next[b * mn + cp] = to.boltzmann[b] * row[cp];
+      next[to.mirror[b] * mn + cp] = to.boltzmann[b] * row[cp];
+    }
+  }
+}
+
+/// Backward step of a light-to-heavy link over the relative angle (the messages of particle j
+/// and its NodeSums, summed over the nodes into `sums`). The next
+/// messages times E_{j+1} are interpolated in u (Chebyshev) and in phi (trigonometric) at
+/// (phi_a + delta_k, u'(u_c, delta_k)).
+template <class Real>
+void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
+                       const PivotRule<Real>& pj, const PivotRule<Real>& pn,
+                       const RelativeRule<Real>& rel, const Real& ratio,
+                       const std::vector<Real>& coef, std::size_t np,
+                       const std::vector<Real>& forward, std::vector<Real>& current, Real* sums,
+                       int team) {
+  const std::size_t n = from.angle.size(), nd = rel.delta.size(), mj = pj.m, mn = pn.m;
+  // values[((k * mj + c) * 4 + q) * n + b] = E_b M_q(phi_b, u'(u_c, delta_k))
+  std::vector<Real> values(nd * mj * 4 * n);
+  const bool parallel = team > 1 && double(n) * double(n) * double(nd) * double(mj) >=
+                                        parallel_work_threshold;
+#if defined(_OPENMP)
+#pragma omp parallel for num_threads(team) schedule(static) if (parallel)
+#endif
+  for (std::ptrdiff_t kk = 0; kk < static_cast<std::ptrdiff_t>(nd); ++kk) {
+    const std::size_t k = static_cast<std::size_t>(kk);
+    std::vector<Real> tk(mn);
+    for (std::size_t c = 0; c < mj; ++c) {
+      Real u_next;
+      chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
+                       tk.data());
+      Real e[4] = {1, 1, 1, 1};
+      if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+      for (std::size_t q = 0; q < 4; ++q) {
+        Real* out = &values[((k * mj + c) * 4 + q) * n];
+        for (std::size_t b = 0; b < n; ++b) {
+          Real acc = 0;
+          for (std::size_t kp = 0; kp < mn; ++kp) acc += coef[(q * mn + kp) * np + b] * tk[kp];
+          out[b] = to.boltzmann[b] * e[q] * acc;
+        }
+      }
+    }
+  }
+  // Rows a and mirror(a) are equal (the rules are symmetric under phi -> -phi): one per orbit.
+  std::vector<std::size_t> orbit;
+  std::vector<Real> multiplicity;
+  orbit_representatives(from, orbit, multiplicity);
+  std::vector<Real> row_sums(node_sum_count * orbit.size(), Real(0));
+#if defined(_OPENMP)
+#pragma omp parallel for num_threads(team) schedule(static) if (parallel)
+#endif
+  for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
+    const std::size_t a = orbit[static_cast<std::size_t>(oa)];
+    std::vector<Real> interp(n), acc(8 * mj, Real(0));
+    for (std::size_t k = 0; k < nd; ++k) {
+      for (std::size_t b = 0; b < n; ++b) {
+        interp[b] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
+      }
+      const Real s2 = rel.sin2[k], c2 = rel.cos2[k], w = rel.weight[k];
+      for (std::size_t c = 0; c < mj; ++c) {
+        Real v[4];
+        for (std::size_t q = 0; q < 4; ++q) {
+          const Real* vals = &values[((k * mj + c) * 4 + q) * n];
+          Real x = 0;
+          for (std::size_t b = 0; b < n; ++b) x += interp[b] * vals[b];
+          v[q] = w * x;
+        }
+        const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip, ip3 = ip2 * ip;
+        const Real J = ratio * c2 * ip2;
+        const Real Q = -ratio * (u * u + s2 * (1 + 2 * u)) * ip2;
+        const Real dQ = -Q - 2 * ratio * u * u * c2 * ip3;
+        Real* A = &acc[8 * c];
+        A[0] += v[0];
+        A[1] += J * v[1];
+        A[2] += J * J * v[2];
+        A[3] += J * J * v[3];
+        A[4] += Q * v[1];
+        A[5] += Q * Q * v[2];
+        A[6] += dQ * v[1];
+        A[7] += Q * Q * v[3];
+      }
+    }
+    NodeSums<Real> row;
+    for (std::size_t c = 0; c < mj; ++c) {
+      const Real* A = &acc[8 * c];
+      const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip;
+      const Real f = pj.root_factor[c], g = ip / 2;
+      for (const std::size_t r : {a, from.mirror[a]}) {
+        current[(0 * n + r) * mj + c] = f * A[0];
+        current[(1 * n + r) * mj + c] = f * (g * A[0] + A[1]);
+        current[(2 * n + r) * mj + c] = f * (g * g * A[0] + 2 * g * A[1] + A[2]);
+        current[(3 * n + r) * mj + c] = f * (-ip2 / 2 * A[0] - 2 * ip * A[1] + A[3]);
+      }
+      row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A[0], A[4], A[5], A[6], A[7]);
+    }
+    const std::size_t o = static_cast<std::size_t>(oa);
+    row.store(&row_sums[node_sum_count * o], multiplicity[o]);
+  }
+  for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] = 0;
+  for (std::size_t o = 0; o < orbit.size(); ++o) {
+    for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] += row_sums[node_sum_count * o + q];
+  }
+}
+
+}  // namespace
+
+template <class Real>
+void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
+  using std::isfinite;
+  check_beta(beta);
+  for (std::size_t j = 0; j < chain.size(); ++j) {
+    if (!isfinite(beta * chain.potential_coefficient(j))) {
+      throw invalid_input("transfer: beta g S_j l_j overflows at particle " +
+                          std::to_string(j + 1) + " (outside the double range)");
+    }
+  }
+}
+
+template <class Real>
+TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
+                                              std::size_t angle_nodes, std::size_t pivot_nodes,
+                                              int threads) {
+  using std::cos;
+  using std::log;
+  using std::sin;
+  using std::sqrt;
+  check_transfer_domain(chain, beta);
+  if (angle_nodes < 4 || angle_nodes % 2 != 0) {
+    throw invalid_input("chain_transfer: angle_nodes must be even and >= 4");
+  }
+  if (pivot_nodes < 3) throw invalid_input("chain_transfer: pivot_nodes must be >= 3");
+  const std::size_t N = chain.size();
+  const std::size_t n = angle_nodes;
+  const std::size_t np = (n + lanes - 1) / lanes * lanes;  // n padded to whole vector blocks
+  const std::vector<Real>& mass = chain.masses();
+  const int team = std::max(threads, 1);
+
+  // ---- per particle: the angle rule and the pivot rule.
+  const Real roundoff = std::numeric_limits<Real>::epsilon();
+  std::vector<AngleRule<Real>> angle(N);
+  std::vector<PivotRule<Real>> pivot(N);
+  for (std::size_t j = 0; j < N; ++j) {
+    const Real alpha = beta * chain.potential_coefficient(j);  // finite: checked above
+    const Real u_max = j > 0 ? mass[j] / mass[j - 1] : Real(0);
+    // The marginal of phi_j is below exp(alpha (cos phi - 1)) times the spread of its conditional
+    // factor sqrt(D_j) <= sqrt((1 + u_max) S_j / m_j): cut where the product is below roundoff.
+    const Real truncation =
+        -log(roundoff) + 3 + log((1 + u_max) * chain.tail_mass(j) / mass[j]) / 2;
+    angle[j] = angle_rule(alpha, truncation, n);
+    pivot[j] = pivot_rule(mass[j], mass[j] / chain.tail_mass(j), u_max, j > 0 ? pivot_nodes : 1);
+  }
+
+  // Light-to-heavy links: the relative-angle rule (see RelativeRule).
+  std::vector<RelativeRule<Real>> relative(N);
+  std::vector<char> is_relative(N, 0);
+  for (std::size_t j = 0; j + 1 < N; ++j) {
+    const Real reach = mass[j + 1] + (j + 2 < N ? 2 * mass[j + 2] : Real(0));
+    if (reach > Real(relative_link_ratio) * mass[j]) {
+      is_relative[j] = 1;
+      relative[j] = relative_rule(angle[j], angle[j + 1], Real(sqrt(mass[j] / chain.tail_mass(j + 1))), n);
+    }
+  }
+
+  // ---- forward sweep: F_j[a * m_j + c], the measure of (phi_j, u_j), scaled per link.
+  std::vector<std::vector<Real>> forward(N);
+  forward[0] = angle[0].weight_boltzmann;  // u_1 = 0: one pivot node
+  normalize(forward[0]);
+  double kernel_evaluations = 0;
+  std::vector<std::size_t> orbit;
+  std::vector<Real> multiplicity;
+  for (std::size_t j = 0; j + 1 < N; ++j) {
+    const PivotRule<Real>& pj = pivot[j];
+    const PivotRule<Real>& pn = pivot[j + 1];
+    const AngleRule<Real>& from = angle[j];
+    const AngleRule<Real>& to = angle[j + 1];
+    const std::size_t mj = pj.m, mn = pn.m;
+    const Real ratio = mass[j + 1] / mass[j];
+    const std::size_t count = n * mj, padded = (count + lanes - 1) / lanes * lanes;
+    // Sources: F_j sqrt(m_j (1 + u)), padded with zero weights.
+    std::vector<Real> source(padded, Real(0)), source_u(padded, Real(0)),
+        source_ip(padded, Real(1));
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t c = 0; c < mj; ++c) {
+        source[a * mj + c] = forward[j][a * mj + c] * pj.root_factor[c];
+        source_u[a * mj + c] = pj.u[c];
+        source_ip[a * mj + c] = pj.inv_one_plus_u[c];
+      }
+    }
+    std::vector<Real> next(n * mn, Real(0));
+    if (is_relative[j]) {
+      relative_forward(from, to, pj, pn, relative[j], ratio, forward[j], next, team);
+      normalize(next);
+      forward[j + 1] = std::move(next);
+      kernel_evaluations += double(n) * double(mj) * double(n);
+      continue;
+    }
+    orbit_representatives(to, orbit, multiplicity);
+    const bool parallel = team > 1 && double(orbit.size()) * double(count) * double(mn) >=
+                                          parallel_work_threshold;
+#if defined(_OPENMP)
+#pragma omp parallel num_threads(team) if (parallel)
+#endif
+    {
+      std::vector<Real> s2(n), t(padded, Real(0)), weighted(padded, Real(0)), moment(mn),
+          partial(mn * lanes);
+#if defined(_OPENMP)
+#pragma omp for schedule(static)
+#endif
+      for (std::ptrdiff_t ob = 0; ob < static_cast<std::ptrdiff_t>(orbit.size()); ++ob) {
+        const std::size_t b = orbit[static_cast<std::size_t>(ob)];
+        for (std::size_t a = 0; a < n; ++a) {
+          const Real s = sin(to.angle[b] - from.angle[a]);
+          s2[a] = s * s;
+        }
+        for (std::size_t a = 0; a < n; ++a) {
+          const Real sa = s2[a];
+          for (std::size_t c = 0; c < mj; ++c) {
+            const std::size_t q = a * mj + c;
+            const Real up = ratio * (source_u[q] + sa) * source_ip[q];
+            const Real x = pn.v_scale * interpolation_log(Real(up + pn.eps)) + pn.v_shift;
+            t[q] = std::min(Real(1), std::max(Real(-1), x));
+          }
+        }
+        if (pn.enveloped) {  // M0's envelope (message_envelopes) at u' + 1
+          for (std::size_t a = 0; a < n; ++a) {
+            for (std::size_t c = 0; c < mj; ++c) {
+              const std::size_t q = a * mj + c;
+              weighted[q] = source[q] * sqrt(ratio * (source_u[q] + s2[a]) * source_ip[q] + 1);
+            }
+          }
+        }
+        const Real* w_source = pn.enveloped ? weighted.data() : source.data();
+        // moment[k] = sum_q source_q T_k(t_q), `lanes` points at a time.
+        std::fill(partial.begin(), partial.end(), Real(0));
+        for (std::size_t q0 = 0; q0 < padded; q0 += lanes) {
+          Real x[lanes], w[lanes], tk0[lanes], tk1[lanes];
+          for (std::size_t l = 0; l < lanes; ++l) {
+            x[l] = t[q0 + l];
+            w[l] = w_source[q0 + l];
+            tk0[l] = 1;
+            tk1[l] = x[l];
+            partial[l] += w[l];
+            partial[lanes + l] += w[l] * x[l];
+          }
+          for (std::size_t k = 2; k < mn; ++k) {
+            Real* acc = &partial[k * lanes];
+            for (std::size_t l = 0; l < lanes; ++l) {
+              const Real tn = 2 * x[l] * tk1[l] - tk0[l];
+              tk0[l] = tk1[l];
+              tk1[l] = tn;
+              acc[l] += w[l] * tn;
+            }
+          }
+        }
+        for (std::size_t k = 0; k < mn; ++k) {
+          Real acc = 0;
+          for (std::size_t l = 0; l < lanes; ++l) acc += partial[k * lanes + l];
+          moment[k] = acc;
+        }
+        const Real wb = to.weight_boltzmann[b];
+        for (std::size_t c = 0; c < mn; ++c) {
+          Real acc = 0;
+          for (std::size_t k = 0; k < mn; ++k) acc += moment[k] * pn.to_coefficients[k * mn + c];
+          acc /= pn.node_envelope[c];
+          next[b * mn + c] = wb * acc;
+          next[to.mirror[b] * mn + c] = wb * acc;
+        }
+      }
+    }
+    normalize(next);
+    forward[j + 1] = std::move(next);
+    kernel_evaluations += double(orbit.size()) * double(count);
+  }
+
+  // ---- backward sweep: the messages M0..M3 and, at each particle, the node quantities.
+  TransferLevel<Real> out;
+  out.beta_kinetic.assign(N, Real(0));
+  out.cos_angle.assign(N, Real(0));
+  out.beta2_kinetic_variance.assign(N, Real(0));
+  out.beta2_kinetic_second_moment.assign(N, Real(0));
+  out.beta_kinetic_rounding_scale.assign(N, Real(0));
+  out.beta2_kinetic_variance_rounding_scale.assign(N, Real(0));
+  out.cos_angle_rounding_scale.assign(N, Real(0));
+  const auto store = [&](std::size_t j, const Real* sums) {
+    // sums: Z, Z <cos>, Z <tr X>, Z <(tr X)^2>, Z <d^2 log det A>, and the same over |terms|.
+    using std::abs;
+    const Real z = sums[0];
+    const Real k = sums[2] / (2 * z);
+    const Real trace_squared = sums[2] - sums[4];  // Z <tr X^2> = Z <tr X - d^2 log det A>
+    out.beta_kinetic[j] = k;
+    out.cos_angle[j] = sums[1] / z;
+    out.beta2_kinetic_second_moment[j] = (sums[3] + 2 * trace_squared) / (4 * z);
+    out.beta2_kinetic_variance[j] = out.beta2_kinetic_second_moment[j] - k * k;
+    out.beta_kinetic_rounding_scale[j] = sums[6] / (2 * z);
+    out.cos_angle_rounding_scale[j] = sums[5] / z;
+    out.beta2_kinetic_variance_rounding_scale[j] =
+        (sums[7] + 2 * (sums[6] + sums[8])) / (4 * z) + 2 * abs(k) * sums[6] / (2 * z);
+  };
+
+  // Messages of particle j as node values: message[(q * n + a) * m_j + c], q = 0..3.
+  std::vector<Real> message;
+  {
+    const std::size_t j = N - 1;
+    const PivotRule<Real>& pj = pivot[j];
+    const std::size_t mj = pj.m;
+    message.resize(4 * n * mj);
+    NodeSums<Real> last;
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t c = 0; c < mj; ++c) {
+        const Real ip = pj.inv_one_plus_u[c], f = pj.root_factor[c];
+        message[(0 * n + a) * mj + c] = f;                 // W
+        message[(1 * n + a) * mj + c] = f * ip / 2;        // W d_u log W
+        message[(2 * n + a) * mj + c] = f * ip * ip / 4;   // W (d_u log W)^2
+        message[(3 * n + a) * mj + c] = -f * ip * ip / 2;  // W d_u^2 log W
+        // No next link: tr X_N = 1 + u/(1 + u), d^2 log det A = u/(1 + u)^2 (Q = 0).
+        last.add(forward[j][a * mj + c] * f, pj.u[c], ip, angle[j].cos_angle[a], Real(1),
+                 Real(0), Real(0), Real(0), Real(0));
+      }
+    }
+    Real sums[node_sum_count];
+    last.store(sums, Real(1));
+    store(j, sums);
+  }
+  for (std::size_t j = N - 1; j-- > 0;) {
+    const PivotRule<Real>& pj = pivot[j];
+    const PivotRule<Real>& pn = pivot[j + 1];
+    const AngleRule<Real>& from = angle[j];
+    const AngleRule<Real>& to = angle[j + 1];
+    const std::size_t mj = pj.m, mn = pn.m;
+    const Real ratio = mass[j + 1] / mass[j];
+    // Chebyshev coefficients of the messages of particle j + 1: coef[(q * mn + k) * np + b].
+    std::vector<Real> coef(4 * mn * np, Real(0));
+    for (std::size_t q = 0; q < 4; ++q) {
+      for (std::size_t b = 0; b < n; ++b) {
+        const Real* values = &message[(q * n + b) * mn];
+        for (std::size_t k = 0; k < mn; ++k) {
+          Real acc = 0;
+          for (std::size_t c = 0; c < mn; ++c) {
+            acc += pn.to_coefficients[k * mn + c] * values[c] / pn.node_envelope[q * mn + c];
+          }
+          coef[(q * mn + k) * np + b] = acc;
+        }
+      }
+    }
+    if (is_relative[j]) {
+      std::vector<Real> current(4 * n * mj);
+      Real sums[node_sum_count];
+      relative_backward(from, to, pj, pn, relative[j], ratio, coef, np, forward[j], current,
+                        sums, team);
+      store(j, sums);
+      normalize(current);
+      message = std::move(current);
+      kernel_evaluations += double(n) * double(mj) * double(n);
+      continue;
+    }
+    orbit_representatives(from, orbit, multiplicity);
+    std::vector<Real> current(4 * n * mj);
+    std::vector<Real> row_sums(node_sum_count * orbit.size(), Real(0));
+    const bool parallel = team > 1 && double(orbit.size()) * double(mj * n) * double(mn) >=
+                                          parallel_work_threshold;
+#if defined(_OPENMP)
+#pragma omp parallel num_threads(team) if (parallel)
+#endif
+    {
+      std::vector<Real> s2(np, Real(0)), c2(np, Real(0)), t(np, Real(0)), v(4 * np),
+          u_next(np, Real(0));
+#if defined(_OPENMP)
+#pragma omp for schedule(static)
+#endif
+      for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
+        const std::size_t a = orbit[static_cast<std::size_t>(oa)];
+        for (std::size_t b = 0; b < n; ++b) {
+          const Real d = to.angle[b] - from.angle[a];
+          const Real s = sin(d), c = cos(d);
+          s2[b] = s * s;
+          c2[b] = c * c;
+        }
+        NodeSums<Real> row;
+        for (std::size_t c = 0; c < mj; ++c) {
+          const Real u = pj.u[c], ip = pj.inv_one_plus_u[c];
+          for (std::size_t b = 0; b < n; ++b) {
+            const Real up = ratio * (u + s2[b]) * ip;
+            const Real x = pn.v_scale * interpolation_log(Real(up + pn.eps)) + pn.v_shift;
+            t[b] = std::min(Real(1), std::max(Real(-1), x));
+          }
+          if (pn.enveloped) {
+            for (std::size_t b = 0; b < n; ++b) u_next[b] = ratio * (u + s2[b]) * ip;
+          }
+          // v_q(b) = sum_k coef_q[k][b] T_k(t_b), `lanes` targets at a time.
+          for (std::size_t b0 = 0; b0 < np; b0 += lanes) {
+            Real x[lanes], tk0[lanes], tk1[lanes], v0[lanes], v1[lanes], v2[lanes], v3[lanes];
+            for (std::size_t l = 0; l < lanes; ++l) {
+              x[l] = t[b0 + l];
+              tk0[l] = 1;
+              tk1[l] = x[l];
+              v0[l] = coef[(0 * mn) * np + b0 + l] + coef[(0 * mn + 1) * np + b0 + l] * x[l];
+              v1[l] = coef[(1 * mn) * np + b0 + l] + coef[(1 * mn + 1) * np + b0 + l] * x[l];
+              v2[l] = coef[(2 * mn) * np + b0 + l] + coef[(2 * mn + 1) * np + b0 + l] * x[l];
+              v3[l] = coef[(3 * mn) * np + b0 + l] + coef[(3 * mn + 1) * np + b0 + l] * x[l];
+            }
+            for (std::size_t k = 2; k < mn; ++k) {
+              const Real* k0 = &coef[(0 * mn + k) * np + b0];
+              const Real* k1 = &coef[(1 * mn + k) * np + b0];
+              const Real* k2 = &coef[(2 * mn + k) * np + b0];
+              const Real* k3 = &coef[(3 * mn + k) * np + b0];
+              for (std::size_t l = 0; l < lanes; ++l) {
+                const Real tn = 2 * x[l] * tk1[l] - tk0[l];
+                tk0[l] = tk1[l];
+                tk1[l] = tn;
+                v0[l] += k0[l] * tn;
+                v1[l] += k1[l] * tn;
+                v2[l] += k2[l] * tn;
+                v3[l] += k3[l] * tn;
+              }
+            }
+            if (pn.enveloped) {  // times the envelopes (message_envelopes) at u' + 1
+              for (std::size_t l = 0; l < lanes; ++l) {
+                const Real r = sqrt(u_next[b0 + l] + 1), ir = 1 / r, ir3 = ir * ir * ir;
+                v0[l] *= r;
+                v1[l] *= ir;
+                v2[l] *= ir3;
+                v3[l] *= ir3;
+              }
+            }
+            for (std::size_t l = 0; l < lanes; ++l) {
+              v[b0 + l] = v0[l];
+              v[np + b0 + l] = v1[l];
+              v[2 * np + b0 + l] = v2[l];
+              v[3 * np + b0 + l] = v3[l];
+            }
+          }
+          // The step's derivatives: J = d u'/d u, Q = d u'/d log m_j (at fixed r_j), dQ its
+          // log m_j derivative (see the header comment).
+          Real A0 = 0, A1 = 0, A2 = 0, A3 = 0, B1 = 0, B2 = 0, B3 = 0, B4 = 0;
+          const Real ip2 = ip * ip, ip3 = ip2 * ip;
+          for (std::size_t b = 0; b < n; ++b) {
+            const Real w = to.weight_boltzmann[b];
+            const Real J = ratio * c2[b] * ip2;
+            const Real Q = -ratio * (u * u + s2[b] * (1 + 2 * u)) * ip2;
+            const Real dQ = -Q - 2 * ratio * u * u * c2[b] * ip3;
+            const Real v0 = w * v[b], v1 = w * v[np + b], v2 = w * v[2 * np + b],
+                       v3 = w * v[3 * np + b];
+            A0 += v0;
+            A1 += J * v1;
+            A2 += J * J * v2;
+            A3 += J * J * v3;
+            B1 += Q * v1;
+            B2 += Q * Q * v2;
+            B3 += dQ * v1;
+            B4 += Q * Q * v3;
+          }
+          const Real f = pj.root_factor[c];
+          const Real g = ip / 2;  // d_u log sqrt(1 + u)
+          const Real m0 = f * A0;
+          const Real m1 = f * (g * A0 + A1);
+          const Real m2 = f * (g * g * A0 + 2 * g * A1 + A2);
+          const Real m3 = f * (-ip2 / 2 * A0 - 2 * ip * A1 + A3);  // d_u J = -2 J / (1 + u)
+          for (const std::size_t row : {a, from.mirror[a]}) {
+            current[(0 * n + row) * mj + c] = m0;
+            current[(1 * n + row) * mj + c] = m1;
+            current[(2 * n + row) * mj + c] = m2;
+            current[(3 * n + row) * mj + c] = m3;
+          }
+          // Node quantities of particle j: tr X = a0 + 2 Q S, S = d_{u'} log W_{j+1};
+          // d^2 log det A / d(log m)^2 = u/(1+u)^2 + 2 dQ S + 2 Q^2 d_{u'} S.
+          row.add(forward[j][a * mj + c] * f, u, ip, from.cos_angle[a], A0, B1, B2, B3, B4);
+        }
+        const std::size_t o = static_cast<std::size_t>(oa);
+        row.store(&row_sums[node_sum_count * o], multiplicity[o]);
+      }
+    }
+    Real sums[node_sum_count] = {};
+    for (std::size_t o = 0; o < orbit.size(); ++o) {
+      for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] += row_sums[node_sum_count * o + q];
+    }
+    store(j, sums);
+    normalize(current);  // all four messages by one power of two: they are linear in W
+    message = std::move(current);
+    kernel_evaluations += double(orbit.size()) * double(mj) * double(n);
+  }
+  out.kernel_evaluations = kernel_evaluations;
+  return out;
+}
+
+namespace {
+
+// ---------------------------------------------------------------- refinement and error estimate
+//
+// The levels (n_k, m_k) refine both resolutions together: n_k ~ 1.25^k (multiples of 8 from 16),
+// and m_k is the smallest m whose predicted pivot error, rho^-m with rho the Chebyshev rate of
+// the slowest pivot range (pivot_rate; a bound in every case measured), is a tenth of a target
+// eps_k = pivot_lookahead D_{k-1} (D_{k-1}: the largest scaled difference of the last two
+// levels, ~ the error of level k - 2, which two levels on has shrunk 1e3..1e5 times), plus
+// pivot_offset nodes. So the pivot part of every level's error stays well below its angle part,
+// m never stays put while n grows (which would hide the pivot error from the differences), and
+// the last level's m is what its own accuracy needs: light-to-heavy chains converge slowly in
+// n, and m tied to n would waste m^2.
+
+/// The pivot targets of the first two levels, the factor from D_{k-1} to level k's target, and
+/// the pivot nodes added as a margin.
+constexpr double pivot_first_errors[2] = {1e-4, 1e-6};
+constexpr double pivot_lookahead = 1e-5;
+constexpr double pivot_offset = 2;
+/// Factor on the extrapolated error of the last level (ladder_error).
+constexpr double ladder_safety = 1.5;
+/// Each quantity's error is at least this fraction of the largest scaled difference of its
+/// observable (beta<K_i>, Var K_i, <cos phi_i> separately) within local_window particles.
+constexpr double floor_fraction = 0.01;
+/// The local window of ladder_error: the particles within N / local_window_fraction of the
+/// quantity's own, at least local_window_min and at most local_window_max (O(N) work).
+constexpr std::size_t local_window_min = 2;
+constexpr std::size_t local_window_max = 64;
+constexpr std::size_t local_window_fraction = 16;
+
+/// The ladder of angle resolutions: about x1.25 per level, multiples of 8.
+std::size_t next_angle_nodes(std::size_t n) { return std::max(n + 8, (n * 5 / 4 + 7) / 8 * 8); }
+
+/// The predicted Chebyshev rate log rho of the slowest pivot range: interpolation in
+/// v = log(u + eps_j) over a range of half-width h_j = log(1 + S_j / m_{j-1}) / 2 with the
+/// singularities on Im v = +-pi converges like rho_j^-m, rho_j = pi/h_j + sqrt(1 + (pi/h_j)^2)
+/// (Bernstein ellipse). 0 for N = 1 (no pivots).
+template <class Real>
+double pivot_rate(const Chain<Real>& chain) {
+  double rate = 0;
+  for (std::size_t j = 1; j < chain.size(); ++j) {
+    const double h = std::log1p(static_cast<double>(chain.tail_mass(j) / chain.mass(j - 1))) / 2;
+    const double x = 3.14159265358979323846 / h;
+    const double r = std::log(x + std::sqrt(1 + x * x));
+    rate = j == 1 ? r : std::min(rate, r);
+  }
+  return rate;
+}
+
+/// The quantities of one level in one array: beta<K_i>, beta^2 Var K_i, <cos phi_i>; their
+/// scales (beta<K_i>; beta^2 <K_i^2>; 1) and their rounding budgets (rounding_ulps roundoffs
+/// times the sums of |terms| they are made of).
+template <class Real>
+void flatten(const TransferLevel<Real>& level, std::vector<Real>& value,
+             std::vector<Real>& scale, std::vector<Real>& noise) {
+  using std::abs;
+  const std::size_t N = level.beta_kinetic.size();
+  const Real ulps = Real(rounding_ulps) * std::numeric_limits<Real>::epsilon();
+  value.resize(3 * N);
+  scale.resize(3 * N);
+  noise.resize(3 * N);
+  for (std::size_t i = 0; i < N; ++i) {
+    value[i] = level.beta_kinetic[i];
+    value[N + i] = level.beta2_kinetic_variance[i];
+    value[2 * N + i] = level.cos_angle[i];
+    scale[i] = abs(level.beta_kinetic[i]);
+    scale[N + i] = abs(level.beta2_kinetic_second_moment[i]);
+    scale[2 * N + i] = 1;
+    noise[i] = ulps * std::max(scale[i], level.beta_kinetic_rounding_scale[i]);
+    // The variance pairs second u-derivatives of messages that themselves cancel (M3): four
+    // times the budget (measured against long double: light particles, masses 1e-3..1e2).
+    noise[N + i] =
+        4 * ulps * std::max(scale[N + i], level.beta2_kinetic_variance_rounding_scale[i]);
+    noise[2 * N + i] = ulps * std::max(abs(value[2 * N + i]), level.cos_angle_rounding_scale[i]);
+  }
+}
+
+/// Error estimate of the last of a ladder of levels (values[L], values[L-1], ...) from the
+/// successive differences d_L = |v_L - v_{L-1}|, with each
+/// quantity's rounding budget (`noise`) taken off first. The convergence is geometric: once the
+/// differences contract by at least 2 per level, the error of level L is ~ d_L rho / (1 - rho)
+/// times ladder_safety, rho the last ratio D_L / D_{L-1} of the largest scaled differences (the
+/// next step is at least as long as the last, so it contracts at least as much: not credited,
+/// as the convergence per node is uneven), taken both over every quantity and over the
+/// quantity's observable within the local window of its particle (near the root, where
+/// S_j / m_{j-1} is large, the pivot part may contract more slowly than the angle part at the
+/// free end); the larger of the two counts. Each quantity
+/// uses max(d_L, rho d_{L-1}, floor_fraction D_L^loc scale), D^loc the largest scaled difference
+/// of its observable within the window, so that an accidentally small difference (a sign change
+/// of its error) does not hide its error. Before the contraction, the larger of the last two
+/// differences. The result excludes the rounding budget (the caller adds it).
+template <class Real>
+std::vector<Real> ladder_error(const std::vector<std::vector<Real>>& values,
+                               const std::vector<Real>& scale, const std::vector<Real>& noise) {
+  using std::abs;
+  constexpr double max_contraction = 0.5;
+  const std::size_t L = values.size() - 1, count = scale.size(), N = count / 3;
+  std::vector<Real> error(count, std::numeric_limits<Real>::infinity());
+  if (L == 0) return error;
+  const auto ratio = [](const Real& a, const Real& b) { return b > 0 ? Real(a / b) : Real(1); };
+  // The contraction of the last step, D_L / D_{L-1}; not contracting (1) unless the step before
+  // contracted too (D_{L-1} < D_{L-2}).
+  const auto contraction = [&](const Real* D) {
+    return L >= 3 && D[1] < D[2] ? ratio(D[0], D[1]) : Real(1);
+  };
+  const std::size_t window = std::clamp<std::size_t>(
+      (N + local_window_fraction - 1) / local_window_fraction, local_window_min, local_window_max);
+  // scaled[back * count + q]: |v_k - v_{k-1}| / scale of quantity q, k = L - back, with the
+  // rounding taken off; whole[back]: their largest over every quantity.
+  const std::size_t steps = std::min<std::size_t>(L, 3);  // differences L, L-1, L-2 (if any)
+  std::vector<Real> scaled(3 * count);
+  Real whole[3] = {0, 0, 0};
+  for (std::size_t back = 0; back < steps; ++back) {
+    const std::vector<Real>&now = values[L - back], &before = values[L - back - 1];
+    for (std::size_t q = 0; q < count; ++q) {
+      const Real d = abs(now[q] - before[q]) - 2 * noise[q];
+      scaled[back * count + q] = std::max(Real(0), Real(d / scale[q]));
+      whole[back] = std::max(whole[back], scaled[back * count + q]);
+    }
+  }
+  const Real whole_rho = contraction(whole);
+  for (std::size_t o = 0; o < 3; ++o) {  // beta<K_i>, Var K_i, <cos phi_i>
+    for (std::size_t i = 0; i < N; ++i) {
+      const std::size_t q = o * N + i;
+      const std::size_t lo = o * N + (i > window ? i - window : 0);
+      const std::size_t hi = o * N + std::min(N, i + window + 1);
+      Real local[3] = {0, 0, 0};  // the observable's largest near particle i
+      for (std::size_t back = 0; back < steps; ++back) {
+        for (std::size_t p = lo; p < hi; ++p) {
+          local[back] = std::max(local[back], scaled[back * count + p]);
+        }
+      }
+      const Real d = abs(values[L][q] - values[L - 1][q]);
+      const Real dp = L >= 2 ? Real(abs(values[L - 1][q] - values[L - 2][q])) : Real(0);
+      const Real floor = Real(floor_fraction) * local[0] * scale[q];
+      if (L >= 2 && !(whole[0] > 0)) {
+        error[q] = d;  // every difference is rounding
+        continue;
+      }
+      const Real rho = std::max(whole_rho, contraction(local));
+      if (rho <= Real(max_contraction)) {
+        error[q] = Real(ladder_safety) * rho / (1 - rho) * std::max({d, Real(rho * dp), floor});
+      } else {
+        error[q] = std::max({d, dp, floor});
+      }
+    }
+  }
+  return error;
+}
+
+/// Every error within the target, or within the quantity's rounding budget when that is
+/// larger (a tolerance below the rounding of a quantity cannot be met by refinement).
+template <class Real>
+bool within(const std::vector<Real>& error, const std::vector<Real>& scale,
+            const std::vector<Real>& noise, const Real& target) {
+  for (std::size_t q = 0; q < error.size(); ++q) {
+    if (!(error[q] <= std::max(Real(target * scale[q]), noise[q]))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+template <class Real>
+std::size_t transfer_pivot_nodes(const Chain<Real>& chain, double expected_error) {
+  if (chain.size() == 1) return 3;  // particle 1 has the single pivot u = 0 whatever m is
+  const double m = std::ceil(std::log(10 / expected_error) / pivot_rate(chain) + pivot_offset);
+  return std::max<std::size_t>(3, static_cast<std::size_t>(m));
+}
+
+template <class Real>
+Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta,
+                                      const TransferOptions& options) {
+  check_beta(beta);
+  if (!(options.tolerance > 0) || !(options.tolerance < 1)) {
+    throw invalid_input("transfer: tolerance must lie in (0, 1)");
+  }
+  if (options.angle_nodes != 0 && (options.angle_nodes < 4 || options.angle_nodes % 2 != 0)) {
+    throw invalid_input("transfer: angle_nodes must be 0 or even and >= 4");
+  }
+  if (options.pivot_nodes != 0 && options.pivot_nodes < 3) {
+    throw invalid_input("transfer: pivot_nodes must be 0 or >= 3");
+  }
+  if (options.max_angle_nodes < 16 || options.max_pivot_nodes < 8) {
+    throw invalid_input("transfer: max_angle_nodes >= 16 and max_pivot_nodes >= 8");
+  }
+  const std::size_t N = chain.size();
+  const Real tol = Real(options.tolerance);
+  // The pivot nodes of level k (see "refinement and error estimate" above), never fewer than
+  // the previous level's. A level whose m is held at max_pivot_nodes hides its pivot error from
+  // the differences: the result is then not converged.
+  std::size_t m = 0;
+  bool pivots_capped = false;
+  const auto next_pivots = [&](std::size_t level, const Real& last_difference) {
+    if (options.pivot_nodes != 0) return options.pivot_nodes;
+    const double expected =
+        std::max(1e-16, level < 2 ? pivot_first_errors[level]
+                                  : pivot_lookahead * static_cast<double>(last_difference));
+    const std::size_t wanted = transfer_pivot_nodes(chain, expected);
+    pivots_capped = wanted > options.max_pivot_nodes;
+    return std::max(m, std::min(options.max_pivot_nodes, wanted));
+  };
+
+  TransferDiagnostics<Real> run;
+  std::vector<std::vector<Real>> ladder;
+  std::vector<Real> value, scale, noise, error;
+  std::size_t n = options.angle_nodes ? options.angle_nodes : 16;
+  Real last_difference = 1;  // the largest scaled difference of the last two levels
+  for (;;) {
+    m = next_pivots(ladder.size(), last_difference);
+    const TransferLevel<Real> level = chain_transfer_level(chain, beta, n, m, options.threads);
+    run.kernel_evaluations += level.kernel_evaluations;
+    ++run.levels;
+    flatten(level, value, scale, noise);
+    ladder.push_back(value);
+    if (ladder.size() >= 2) {
+      using std::abs;
+      last_difference = 0;
+      const std::vector<Real>& previous = ladder[ladder.size() - 2];
+      for (std::size_t q = 0; q < value.size(); ++q) {
+        last_difference = std::max(last_difference, Real(abs(value[q] - previous[q]) / scale[q]));
+      }
+    }
+    error = ladder_error(ladder, scale, noise);
+    if (ladder.size() >= 2 && within(error, scale, noise, tol)) break;
+    if (next_angle_nodes(n) > options.max_angle_nodes) break;
+    n = next_angle_nodes(n);
+  }
+  run.angle_nodes = n;
+  run.pivot_nodes = m;
+
+  Averages<Real> out;
+  out.method = Method::transfer;
+  out.error_kind = ErrorKind::estimate;
+  out.work_unit = WorkUnit::nodes;
+  out.evaluations = static_cast<std::size_t>(run.kernel_evaluations);
+  out.beta_kinetic.resize(N);
+  out.beta2_kinetic_variance.resize(N);
+  out.cos_angle.resize(N);
+  out.converged = !pivots_capped;
+  for (std::size_t i = 0; i < N; ++i) {
+    const auto pack = [&](std::size_t q) {
+      const Real e = error[q] + noise[q];
+      if (!(e <= tol * scale[q])) out.converged = false;
+      return Estimate<Real>{value[q], e, ErrorKind::estimate};
+    };
+    out.beta_kinetic[i] = pack(i);
+    out.beta2_kinetic_variance[i] = pack(N + i);
+    out.cos_angle[i] = pack(2 * N + i);
+  }
+  if (N >= 2) {
+    out.ratio = kinetic_ratio(out.beta_kinetic[0], out.beta_kinetic[1],
+                              Real(std::numeric_limits<Real>::epsilon()));
+  }
+  out.transfer = run;
+  add_chain_extras(out, chain);
+  return out;
+}
+
+#define PENDAVG_INSTANTIATE_CHAIN_TRANSFER(Real)                                          \
+  template TransferLevel<Real> chain_transfer_level<Real>(const Chain<Real>&, const Real&, \
+                                                          std::size_t, std::size_t, int);  \
+  template Averages<Real> chain_transfer_average<Real>(const Chain<Real>&, const Real&,    \
+                                                       const TransferOptions&);            \
+  template std::size_t transfer_pivot_nodes<Real>(const Chain<Real>&, double);           \
+  template void check_transfer_domain<Real>(const Chain<Real>&, const Real&);
+PENDAVG_INSTANTIATE_CHAIN_TRANSFER(double)
+PENDAVG_INSTANTIATE_CHAIN_TRANSFER(long double)
+#undef PENDAVG_INSTANTIATE_CHAIN_TRANSFER
+
+}  // namespace pendavg
