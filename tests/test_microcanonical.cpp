@@ -938,3 +938,21 @@ TEST_CASE("microcanonical bad input throws invalid_input", "[microcanonical]") {
   const Chain<double> long_chain(std::vector<double>(8, 1.0), std::vector<double>(8, 1.0), 1.0);
   CHECK_THROWS_AS(microcanonical_average(long_chain, 0.0, o), invalid_input);
 }
+
+TEST_CASE("microcanonical rule and default tolerance are the library's (front ends ask them)",
+          "[microcanonical]") {
+  using Rule = MicrocanonicalOptions::Rule;
+  for (std::size_t n = 1; n <= 4; ++n) CHECK(resolve_microcanonical_rule(n, Rule::automatic) == Rule::integral);
+  for (std::size_t n : {5, 8, 256}) CHECK(resolve_microcanonical_rule(n, Rule::automatic) == Rule::qmc);
+  for (const Rule r : {Rule::integral, Rule::torus, Rule::qmc})
+    for (std::size_t n : {2, 7}) CHECK(resolve_microcanonical_rule(n, r) == r);
+  CHECK(default_microcanonical_tolerance(1) == 1e-13);
+  CHECK(default_microcanonical_tolerance(2) == 1e-13);
+  CHECK(default_microcanonical_tolerance(3) == 1e-11);
+  CHECK(default_microcanonical_tolerance(4) == 1e-9);
+  // The automatic rule at N = 5 is qmc, in the result as well.
+  MicrocanonicalOptions o;
+  o.points = 1024;
+  const auto r = microcanonical_average(Chain<double>({1, 1, 1, 1, 1}, {1, 1, 1, 1, 1}), 0.0, o);
+  CHECK(r.quadrature == Method::qmc);
+}

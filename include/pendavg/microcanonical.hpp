@@ -201,6 +201,17 @@ Real minimum_energy(const Chain<Real>& chain);
 template <class Real>
 Real excitation_energy(const Chain<Real>& chain, const Real& energy);
 
+/// The rule `rule` runs for N = `particles`: automatic is integral for N <= 4 and qmc beyond;
+/// any other rule is itself.
+MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
+                                                        MicrocanonicalOptions::Rule rule);
+
+/// The default relative tolerance of the deterministic rules (integral, torus) in double for N
+/// particles: 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond (their cost grows like (nodes per
+/// angle)^(N-1)). MicrocanonicalOptions::tolerance is one fixed number; front ends that take no
+/// tolerance from the user pass this one.
+double default_microcanonical_tolerance(std::size_t particles);
+
 /// Solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E for beta (qmc
 /// proposal), in the excitation form N/(2 beta) + sum_j gamma_j (1 - I1/I0) = E - E_min.
 template <class Real>

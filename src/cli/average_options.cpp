@@ -35,13 +35,9 @@ AverageOptions parse_average_options(const Options& options,
   return out;
 }
 
-double default_microcanonical_tolerance(std::size_t particles) {
-  return particles <= 2 ? 1e-13 : particles == 3 ? 1e-11 : 1e-9;
-}
-
 const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles) {
   using Rule = MicrocanonicalOptions::Rule;
-  if (rule == Rule::automatic) rule = particles <= 4 ? Rule::integral : Rule::qmc;
+  rule = resolve_microcanonical_rule(particles, rule);
   return rule == Rule::integral ? "integral" : rule == Rule::torus ? "torus-trapezoid" : "qmc";
 }
 

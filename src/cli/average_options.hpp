@@ -33,10 +33,6 @@ inline constexpr std::array<std::string_view, 6> average_option_names{
 /// microcanonical engine does not have.
 MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std::size_t particles);
 
-/// Default relative tolerance of the microcanonical integral and torus rules in double: 1e-13
-/// for N <= 2, 1e-11 for N = 3, 1e-9 beyond (their cost grows like (nodes per angle)^(N-1)).
-double default_microcanonical_tolerance(std::size_t particles);
-
 /// "integral", "torus-trapezoid" or "qmc": the rule microcanonical_options resolves to.
 const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles);
 

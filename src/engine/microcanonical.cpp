@@ -355,8 +355,7 @@ MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const 
   using std::pow;
   const std::size_t n = chain.size();
   constexpr bool multiprecision = is_mpfr_v<Real>;
-  Rule rule = options.rule;
-  if (rule == Rule::automatic) rule = n <= 4 ? Rule::integral : Rule::qmc;
+  const Rule rule = resolve_microcanonical_rule(n, options.rule);
   if (rule == Rule::integral && n > 6) {
     throw invalid_input("microcanonical: the integral rule is for N <= 6; use qmc for N = " +
                         std::to_string(n));
@@ -654,6 +653,17 @@ MicrocanonicalAverages<Real> microcanonical_average_excitation(
   const DoubleWord<Real> depth = well_depth(model);
   const Real energy = d - depth.hi - depth.lo;
   return microcanonical_run(model, energy, d, options);
+}
+
+MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
+                                                        MicrocanonicalOptions::Rule rule) {
+  using Rule = MicrocanonicalOptions::Rule;
+  if (rule != Rule::automatic) return rule;
+  return particles <= 4 ? Rule::integral : Rule::qmc;
+}
+
+double default_microcanonical_tolerance(std::size_t particles) {
+  return particles <= 2 ? 1e-13 : particles == 3 ? 1e-11 : 1e-9;
 }
 
 #define PENDAVG_MICROCANONICAL_INSTANTIATE(Real)                                              \
