@@ -64,35 +64,32 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
     throw invalid_input(context + "digits must be in " + std::to_string(min_digits) + ".." +
                         std::to_string(max_digits) + ", got " + std::to_string(o.digits));
   if (o.threads < 1) throw invalid_input(context + "threads must be >= 1");
+  if (!method_supports_digits(resolved, o.digits))
+    throw invalid_input(context + "digits " + std::to_string(o.digits) +
+                        " is not available with " + chosen + " (" +
+                        average_method_name(resolved) + " runs in double only)");
   if (o.tolerance) {
-    if (!is_torus(resolved) && resolved != AverageMethod::transfer)
+    if (!method_uses_option(resolved, AverageOption::tolerance, min_digits))
       throw invalid_input(context + "tol is used by the torus and transfer methods only, not by " +
                           chosen);
-    if (o.digits != min_digits)
+    if (!method_uses_option(resolved, AverageOption::tolerance, o.digits))
       throw invalid_input(context + "tol is for double runs (digits 16); with digits " +
                           std::to_string(o.digits) + " the torus tolerance is 1e-" +
                           std::to_string(o.digits));
     if (!(*o.tolerance > 0 && *o.tolerance < 1))
       throw invalid_input(context + "tol must be in (0, 1)");
   }
-  for (const auto& [given, name] : {std::pair{o.samples.has_value(), "samples"},
-                                    std::pair{o.shifts.has_value(), "shifts"},
-                                    std::pair{o.seed.has_value(), "seed"}}) {
-    if (given && resolved != AverageMethod::qmc)
-      throw invalid_input(context + name + " is used by qmc only, not by " + chosen);
+  for (const auto& [given, option] : {std::pair{o.samples.has_value(), AverageOption::samples},
+                                      std::pair{o.shifts.has_value(), AverageOption::shifts},
+                                      std::pair{o.seed.has_value(), AverageOption::seed}}) {
+    if (given && !method_uses_option(resolved, option, o.digits))
+      throw invalid_input(context + average_option_name(option) + " is used by qmc only, not by " +
+                          chosen);
   }
-  if (resolved == AverageMethod::transfer) {
-    if (o.digits != min_digits)
-      throw invalid_input(context + "digits " + std::to_string(o.digits) +
-                          " is not available with " + chosen + " (transfer runs in double only)");
-    if (n > transfer_max_particles)
-      throw invalid_input(context + "transfer takes N <= " +
-                          std::to_string(transfer_max_particles) + ", not " + particles_text(n));
-  }
+  if (resolved == AverageMethod::transfer && n > transfer_max_particles)
+    throw invalid_input(context + "transfer takes N <= " + std::to_string(transfer_max_particles) +
+                        ", not " + particles_text(n));
   if (resolved == AverageMethod::qmc) {
-    if (o.digits != min_digits)
-      throw invalid_input(context + "digits " + std::to_string(o.digits) +
-                          " is not available with " + chosen + " (qmc runs in double only)");
     if (n > detail::qmc::lattice_max_dimension)
       throw invalid_input(context + "qmc's built-in lattices cover N <= " +
                           std::to_string(detail::qmc::lattice_max_dimension) + ", not " +
@@ -358,6 +355,27 @@ AverageMethod parse_average_method(const char* name) {
     if (std::strcmp(name, method_names[m]) == 0) return static_cast<AverageMethod>(m);
   throw invalid_input(std::string("unknown method '") + name +
                       "' (auto, integral, series, torus-trapezoid, torus-gauss, qmc or transfer)");
+}
+
+const char* average_option_name(AverageOption option) {
+  switch (option) {
+    case AverageOption::tolerance: return "tol";
+    case AverageOption::samples: return "samples";
+    case AverageOption::shifts: return "shifts";
+    case AverageOption::seed: return "seed";
+  }
+  return "?";
+}
+
+bool method_uses_option(AverageMethod method, AverageOption option, int digits) {
+  if (option == AverageOption::tolerance)
+    return method == AverageMethod::transfer || (is_torus(method) && digits == min_digits);
+  return method == AverageMethod::qmc;
+}
+
+bool method_supports_digits(AverageMethod method, int digits) {
+  return digits == min_digits ||
+         (method != AverageMethod::transfer && method != AverageMethod::qmc);
 }
 
 AverageMethod resolve_average_method(std::size_t n, const AverageOptions& options) {

@@ -133,6 +133,49 @@ TEST_CASE("api: an option the chosen method does not use is refused with one lin
   CHECK_THROWS_AS(pendavg::average(pendulum, 0.0), pendavg::invalid_input);
 }
 
+TEST_CASE("api: which options and digits each method takes, as front ends ask it", "[api]") {
+  using pendavg::AverageOption;
+  using pendavg::method_supports_digits;
+  using pendavg::method_uses_option;
+  for (const AverageMethod m : {AverageMethod::torus_trapezoid, AverageMethod::torus_gauss}) {
+    CHECK(method_uses_option(m, AverageOption::tolerance, 16));
+    CHECK_FALSE(method_uses_option(m, AverageOption::tolerance, 30));  // 10^-digits in MPFR
+    CHECK(method_supports_digits(m, 30));
+  }
+  CHECK(method_uses_option(AverageMethod::transfer, AverageOption::tolerance, 16));
+  CHECK_FALSE(method_supports_digits(AverageMethod::transfer, 17));
+  CHECK_FALSE(method_supports_digits(AverageMethod::qmc, 17));
+  CHECK(method_supports_digits(AverageMethod::qmc, 16));
+  for (const AverageMethod m : {AverageMethod::integral, AverageMethod::series}) {
+    CHECK(method_supports_digits(m, 1000));
+    for (const AverageOption o : {AverageOption::tolerance, AverageOption::samples,
+                                  AverageOption::shifts, AverageOption::seed})
+      CHECK_FALSE(method_uses_option(m, o, 16));
+  }
+  for (const AverageOption o : {AverageOption::samples, AverageOption::shifts, AverageOption::seed}) {
+    CHECK(method_uses_option(AverageMethod::qmc, o, 16));
+    CHECK_FALSE(method_uses_option(AverageMethod::transfer, o, 16));
+  }
+  // The predicates and average()'s checks are one rule: every option a method uses is
+  // accepted, every other one refused.
+  for (const AverageMethod m : {AverageMethod::torus_trapezoid, AverageMethod::torus_gauss,
+                                AverageMethod::qmc, AverageMethod::transfer}) {
+    for (const AverageOption option : {AverageOption::tolerance, AverageOption::samples,
+                                       AverageOption::shifts, AverageOption::seed}) {
+      AverageOptions o = with_method(m);
+      if (option == AverageOption::tolerance) o.tolerance = 1e-6;
+      if (option == AverageOption::samples) o.samples = 2048;
+      if (option == AverageOption::shifts) o.shifts = 8;
+      if (option == AverageOption::seed) o.seed = 5;
+      INFO(pendavg::average_method_name(m) << " " << pendavg::average_option_name(option));
+      if (method_uses_option(m, option, 16))
+        CHECK_NOTHROW(pendavg::resolve_average_method(3, o));
+      else
+        CHECK_THROWS_AS(pendavg::resolve_average_method(3, o), pendavg::invalid_input);
+    }
+  }
+}
+
 TEST_CASE("api: every method returns one result type with the kind of its errors", "[api]") {
   const Chain<double> pendulum({0.3, 0.7}, {1.0, 2.0}, 1.0);
   const double beta = 1.5;

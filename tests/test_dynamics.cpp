@@ -371,6 +371,49 @@ TEST_CASE("bad dynamics input throws invalid_input", "[dynamics]") {
   CHECK_THROWS_AS(poincare_section(chain, -3.0, PoincareOptions{}), invalid_input);
 }
 
+TEST_CASE("simulate refuses a setting its thermostat does not use", "[dynamics]") {
+  const Chain<double> chain = unit_chain(2);
+  const ChainState<double> start = state_from_angles(chain, {1.0, 1.0}, {0.0, 0.0});
+  SimulationOptions nve;
+  nve.duration = 0.01;
+  CHECK_NOTHROW(check_simulation_options(nve));
+  for (int field = 0; field < 3; ++field) {
+    SimulationOptions bad = nve;  // beta, friction, seed are Langevin settings
+    if (field == 0) bad.beta = 1;
+    if (field == 1) bad.friction = 1;
+    if (field == 2) bad.seed = 7;
+    CHECK_THROWS_AS(check_simulation_options(bad), invalid_input);
+    CHECK_THROWS_AS(simulate(chain, start, bad), invalid_input);
+  }
+  SimulationOptions langevin = nve;
+  langevin.thermostat = Thermostat::langevin;
+  CHECK_THROWS_AS(simulate(chain, start, langevin), invalid_input);  // needs beta
+  langevin.beta = 2;
+  CHECK_NOTHROW(check_simulation_options(langevin));
+  SimulationOptions bad = langevin;
+  bad.integrator = Integrator::yoshida4;  // BAOAB is the Langevin scheme
+  CHECK_THROWS_AS(simulate(chain, start, bad), invalid_input);
+  bad = langevin;
+  bad.friction = 0;
+  CHECK_THROWS_AS(simulate(chain, start, bad), invalid_input);
+  bad = nve;
+  bad.duration = 2e10;  // 2e13 steps of 1e-3
+  CHECK_THROWS_AS(simulate(chain, start, bad), invalid_input);
+  bad = nve;
+  bad.duration = 0.5e-3;  // shorter than one step
+  CHECK_THROWS_AS(simulate(chain, start, bad), invalid_input);
+  // Unset settings take their documented defaults: the same run as with them spelled out.
+  SimulationOptions spelled = nve;
+  spelled.integrator = default_integrator;
+  CHECK(simulate(chain, start, nve).kinetic[0].value ==
+        simulate(chain, start, spelled).kinetic[0].value);
+  SimulationOptions noise = langevin;
+  noise.friction = 1;
+  noise.seed = 1;
+  CHECK(simulate(chain, start, langevin).kinetic[0].value ==
+        simulate(chain, start, noise).kinetic[0].value);
+}
+
 // ---------------------------------------------------------------- slow validations
 
 TEST_CASE("long NVE and Langevin runs agree with the exact values (N = 2, 3)",

@@ -528,7 +528,7 @@ int check_covered_by_long_double(const Chain<double>& c, const std::vector<doubl
   const std::size_t n = c.size();
   MicrocanonicalOptions fast, exact;
   fast.tolerance = n == 2 ? 1e-13 : 1e-11;
-  exact.tolerance = fast.tolerance * 1e-3;
+  exact.tolerance = *fast.tolerance * 1e-3;
   const Chain<long double> cl = c.cast<long double>();
   int checked = 0;
   for (double e : energies) {
@@ -955,4 +955,86 @@ TEST_CASE("microcanonical rule and default tolerance are the library's (front en
   o.points = 1024;
   const auto r = microcanonical_average(Chain<double>({1, 1, 1, 1, 1}, {1, 1, 1, 1, 1}), 0.0, o);
   CHECK(r.quadrature == Method::qmc);
+}
+
+TEST_CASE("microcanonical_options: one set of options for both ensembles, checked by the library",
+          "[microcanonical][api]") {
+  using Rule = MicrocanonicalOptions::Rule;
+  const auto refused = [](std::size_t n, const AverageOptions& o, const std::string& needle) {
+    try {
+      microcanonical_options(o, n);
+    } catch (const invalid_input& bad) {
+      const std::string message = bad.what();
+      INFO(message);
+      CHECK(message.find('\n') == std::string::npos);
+      CHECK(message.find(needle) != std::string::npos);
+      return true;
+    }
+    return false;
+  };
+  AverageOptions o;
+  CHECK(microcanonical_options(o, 2).rule == Rule::automatic);
+  CHECK_FALSE(microcanonical_options(o, 2).tolerance.has_value());  // the per-N default
+  o.method = AverageMethod::transfer;
+  CHECK(refused(8, o, "not available for microcanonical"));
+  o.method = AverageMethod::series;
+  CHECK(refused(2, o, "not available for microcanonical"));
+  o = {};
+  o.tolerance = 1e-6;
+  CHECK(microcanonical_options(o, 3).tolerance == 1e-6);
+  CHECK(refused(5, o, "tol"));  // auto is qmc for N = 5
+  o.digits = 30;
+  CHECK(refused(3, o, "tol is for double runs"));
+  o = {};
+  o.samples = 2048;
+  CHECK(refused(2, o, "samples"));  // the integral rule
+  o.method = AverageMethod::qmc;
+  CHECK(microcanonical_options(o, 2).points == 2048);
+  o.samples = 131072;
+  CHECK(refused(2, o, "power of two"));
+  o = {};
+  o.seed = 9;
+  CHECK(microcanonical_options(o, 40).seed == 9);  // qmc's lattices cover N <= 256
+  CHECK(refused(257, o, "N <= 256"));
+  o = {};
+  o.digits = 20;
+  CHECK(refused(5, o, "double only"));
+  CHECK(microcanonical_options(o, 4).digits == 20);
+  o.method = AverageMethod::torus_trapezoid;
+  CHECK(refused(3, o, "algebraically"));
+  o = {};
+  o.method = AverageMethod::integral;
+  CHECK(refused(7, o, "N <= 6"));
+  // What the rules use, as front ends ask it (pendavg table spreads one set over its rows).
+  CHECK(microcanonical_rule_uses_option(Rule::integral, AverageOption::tolerance, 16));
+  CHECK_FALSE(microcanonical_rule_uses_option(Rule::integral, AverageOption::tolerance, 30));
+  CHECK_FALSE(microcanonical_rule_uses_option(Rule::qmc, AverageOption::tolerance, 16));
+  for (const AverageOption q : {AverageOption::samples, AverageOption::shifts, AverageOption::seed}) {
+    CHECK(microcanonical_rule_uses_option(Rule::qmc, q, 16));
+    CHECK_FALSE(microcanonical_rule_uses_option(Rule::torus, q, 16));
+  }
+  CHECK(std::string(microcanonical_rule_name(Rule::automatic, 3)) == "integral");
+  CHECK(std::string(microcanonical_rule_name(Rule::automatic, 6)) == "qmc");
+  CHECK(std::string(microcanonical_rule_name(Rule::torus, 2)) == "torus-trapezoid");
+  // Unset tolerance: the per-N default, the same bits as that default spelled out.
+  const Chain<double> c({1.0, 2.0}, {1.0, 0.5}, 1.0);
+  MicrocanonicalOptions implicit, spelled;
+  spelled.tolerance = default_microcanonical_tolerance(2);
+  const auto a = microcanonical_average(c, 0.3, implicit);
+  const auto b = microcanonical_average(c, 0.3, spelled);
+  CHECK(a.kinetic[0].value == b.kinetic[0].value);
+  CHECK(a.kinetic[0].error == b.kinetic[0].error);
+  // A long chain by qmc beyond the old 32-particle cap: finite, with bars.
+  AverageOptions q;
+  q.samples = 1024;
+  q.shifts = 8;
+  const MicrocanonicalOptions long_run = microcanonical_options(q, 40);
+  const auto r = microcanonical_average(
+      Chain<double>(std::vector<double>(40, 1.0), std::vector<double>(40, 1.0), 1.0), 0.0, long_run);
+  CHECK(r.quadrature == Method::qmc);
+  for (const auto& k : r.kinetic) {
+    CHECK(std::isfinite(k.value));
+    CHECK(std::isfinite(k.error));
+    CHECK(k.error > 0);
+  }
 }

@@ -104,6 +104,22 @@ struct AverageOptions {
   const ShiftPartition* partition = nullptr;
 };
 
+/// The optional settings of AverageOptions that only some methods use.
+enum class AverageOption { tolerance, samples, shifts, seed };
+
+/// "tol", "samples", "shifts", "seed": the names in messages (and the CLI's options).
+const char* average_option_name(AverageOption option);
+
+/// Whether `method` (a resolved method, not automatic) uses `option` in a run at `digits`:
+/// the tolerance the torus rules (double only: with more digits it is 10^-digits) and transfer,
+/// samples, shifts and seed qmc. Front ends that spread one set of options over rows of
+/// different methods (pendavg table) ask this instead of knowing the methods.
+bool method_uses_option(AverageMethod method, AverageOption option, int digits);
+
+/// Whether `method` (resolved, not automatic) runs at `digits` > 16 (MPFR): every method but
+/// transfer and qmc, which are double only.
+bool method_supports_digits(AverageMethod method, int digits);
+
 /// Which method average() runs for N particles under `options`, after checking every option
 /// against it (invalid_input otherwise, naming the option and the method). Pure; cheap.
 AverageMethod resolve_average_method(std::size_t particles, const AverageOptions& options);

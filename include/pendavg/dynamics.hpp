@@ -78,6 +78,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -243,23 +244,36 @@ enum class Integrator {
 };
 enum class Thermostat { none, langevin };
 
+/// The integrator of NVE runs when SimulationOptions::integrator is unset: Yoshida-6 meets 1e-9
+/// relative energy error on the paper's N = 16 run at dt = 1e-3; yoshida4 is the paper's own
+/// scheme (2.8e-7 there, half the cost).
+inline constexpr Integrator default_integrator = Integrator::yoshida6;
+
+/// How simulate() runs. The thermostat decides which settings apply; simulate() refuses one that
+/// its thermostat does not use (invalid_input), as average() does for methods.
 struct SimulationOptions {
   double time_step = 1e-3;
-  double duration = 0;     ///< T: steps = round(T / time_step)
+  double duration = 0;     ///< T: steps = round(T / time_step), 1..1e13
   double burn_in = 0;      ///< run this long before averaging starts (in addition to T)
-  /// yoshida6 meets 1e-9 relative energy error on the paper's N = 16 run at dt = 1e-3;
-  /// yoshida4 is the paper's own scheme (2.8e-7 there, half the cost).
-  Integrator integrator = Integrator::yoshida6;
   Thermostat thermostat = Thermostat::none;
-  double beta = 1;         ///< Langevin only
-  double friction = 1;     ///< Langevin only: gamma (1/time)
-  std::uint64_t seed = 1;  ///< Langevin noise: std::mt19937_64(seed)
+  /// NVE only (thermostat none): the composition of RATTLE; unset: default_integrator.
+  std::optional<Integrator> integrator;
+  std::optional<double> beta;      ///< Langevin only, required: inverse temperature
+  std::optional<double> friction;  ///< Langevin only: gamma (1/time); unset: 1
+  std::optional<std::uint64_t> seed;  ///< Langevin only: noise std::mt19937_64(seed); unset: 1
   /// Samples for the averages: every step. The finest blocks hold max(block_samples,
   /// ceil(steps / max_blocks)) samples each.
   std::size_t block_samples = 1;
   /// At most this many finest blocks are stored; beyond it pairs are merged (length doubles).
   std::size_t max_blocks = 1 << 14;
 };
+
+/// The longest run simulate() takes, in steps of time_step (duration and burn-in each).
+inline constexpr double max_simulation_steps = 1e13;
+
+/// Checks `options` as simulate() does before any step (time step, duration and steps, the
+/// settings of the thermostat); throws invalid_input with a one-line message. Cheap.
+void check_simulation_options(const SimulationOptions& options);
 
 /// Callbacks of a run (the library does no I/O). All optional.
 template <class Real>

@@ -125,11 +125,13 @@
 // F_{-1/2} = infinity (<K> = 0, the infinite-period orbit). The library does no I/O.
 #pragma once
 
+#include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace pendavg {
@@ -138,7 +140,9 @@ namespace pendavg {
 struct MicrocanonicalOptions {
   /// automatic: N <= 4 integral, N >= 5 qmc.
   enum class Rule { automatic, integral, torus, qmc } rule = Rule::automatic;
-  double tolerance = 1e-10;  ///< relative target of the deterministic rules (integral, torus)
+  /// Relative target of the deterministic rules (integral, torus) in double; unset:
+  /// default_microcanonical_tolerance(N). With digits > 16 it is 10^-digits.
+  std::optional<double> tolerance;
   int max_level = 10;        ///< integral: tanh-sinh levels per piece (h = 2^-level), 2..12
   std::size_t max_points_per_dim = 4096;  ///< torus: refinement cap
   // qmc
@@ -206,11 +210,29 @@ Real excitation_energy(const Chain<Real>& chain, const Real& energy);
 MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
                                                         MicrocanonicalOptions::Rule rule);
 
+/// "integral", "torus-trapezoid" or "qmc": the name of the rule `rule` resolves to for N =
+/// `particles` (the names average_method_name gives the same methods).
+const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles);
+
+/// Whether the microcanonical rule `rule` (resolved, not automatic) uses `option` in a run at
+/// `digits`: the tolerance the integral and torus rules in double, samples, shifts and seed qmc.
+bool microcanonical_rule_uses_option(MicrocanonicalOptions::Rule rule, AverageOption option,
+                                     int digits);
+
 /// The default relative tolerance of the deterministic rules (integral, torus) in double for N
-/// particles: 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond (their cost grows like (nodes per
-/// angle)^(N-1)). MicrocanonicalOptions::tolerance is one fixed number; front ends that take no
-/// tolerance from the user pass this one.
+/// particles, used when MicrocanonicalOptions::tolerance is unset: 1e-13 for N <= 2, 1e-11 for
+/// N = 3, 1e-9 beyond (their cost grows like (nodes per angle)^(N-1)).
 double default_microcanonical_tolerance(std::size_t particles);
+
+/// The microcanonical run that average()'s options select for N particles, so that one set of
+/// options (AverageOptions: method, digits, tolerance, samples, shifts, seed, threads) serves
+/// both ensembles: method automatic (integral for N <= 4, qmc beyond), integral,
+/// torus_trapezoid or qmc; tolerance for integral and torus_trapezoid in double; samples (a
+/// power of two in 1024..65536), shifts (4..1024) and seed for qmc; digits > 16 (MPFR) for
+/// integral (N <= 4) and torus_trapezoid (N <= 2: it converges only algebraically). Throws
+/// invalid_input naming an option the chosen rule does not use, or a method the microcanonical
+/// engine does not have. Pure; cheap.
+MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std::size_t particles);
 
 /// Solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E for beta (qmc
 /// proposal), in the excitation form N/(2 beta) + sum_j gamma_j (1 - I1/I0) = E - E_min.

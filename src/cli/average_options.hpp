@@ -24,18 +24,6 @@ AverageOptions parse_average_options(const Options& options, std::span<const std
 inline constexpr std::array<std::string_view, 6> average_option_names{
     "method", "digits", "tol", "samples", "shifts", "seed"};
 
-/// The microcanonical run of `average --energy/--excitation` and `table --energy/--excitation`
-/// from the same options: --method auto (integral for N <= 4, qmc beyond), integral,
-/// torus-trapezoid or qmc; --tol for integral and torus-trapezoid in double (default
-/// default_microcanonical_tolerance); --samples, --shifts, --seed for qmc; --digits > 16 (MPFR)
-/// for integral (N <= 4) and torus-trapezoid (N <= 2: it converges only algebraically) only.
-/// Throws usage_error naming the option that the chosen rule does not use, or a method the
-/// microcanonical engine does not have.
-MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std::size_t particles);
-
-/// "integral", "torus-trapezoid" or "qmc": the rule microcanonical_options resolves to.
-const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles);
-
 /// The state `value` of the column or option `state` (energy or excitation), parsed and checked
 /// against `chain` before any work: an excitation must be > 0, an energy above E_min (refused
 /// with the valid range).

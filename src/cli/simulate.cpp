@@ -303,8 +303,8 @@ class ReplicaCombiner : public SweepOutput {
 /// spread and sets `combined` to the combined run.
 ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<double>& phi,
                                 const std::vector<double>& phidot, const SimulationOptions& run,
-                                std::size_t replicas, double perturbation, double energy,
-                                SimulationResult<double>& combined) {
+                                std::uint64_t seed, std::size_t replicas, double perturbation,
+                                double energy, SimulationResult<double>& combined) {
   const std::size_t n = chain.size();
   SweepRows rows;
   rows.count = replicas;
@@ -315,10 +315,11 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   rows.unit = "replicas";
   rows.compute = [&](std::size_t replica, int, std::string& out) {
     SimulationOptions options = run;
-    options.seed = replica_seed(run.seed, replica);
+    const std::uint64_t own_seed = replica_seed(seed, replica);
+    if (run.thermostat == Thermostat::langevin) options.seed = own_seed;
     std::vector<double> start = phi;
     if (run.thermostat == Thermostat::none && replica > 0) {
-      std::mt19937_64 random(options.seed);
+      std::mt19937_64 random(own_seed);
       for (double& angle : start)
         angle += perturbation * (2 * (static_cast<double>(random() >> 11) * 0x1.0p-53) - 1);
     }
@@ -381,16 +382,15 @@ std::string simulate_command(const Options& options) {
                           " values for " + std::to_string(n) + " particles");
     }
   }
+  // The library checks the run (steps, and which settings the thermostat uses) before any work;
+  // only the replicas' use of --seed and --perturb is the CLI's own.
   SimulationOptions run;
   run.duration = parse_real<double>(options.required("time"), "--time", Domain::positive);
   run.time_step = parse_real<double>(options.get("dt", "1e-3"), "--dt", Domain::positive);
   run.burn_in = parse_real<double>(options.get("burn-in", "0"), "--burn-in", Domain::nonnegative);
-  if (run.duration / run.time_step > 1e13 || run.burn_in / run.time_step > 1e13)
-    throw usage_error("simulate: more than 1e13 steps (--time / --dt)");
-  if (run.duration / run.time_step < 1)
-    throw usage_error("simulate: --time is shorter than one step --dt");
-  run.integrator = static_cast<Integrator>(
-      parse_choice(options.get("integrator", "yoshida6"), "integrator", integrator_names));
+  if (options.has("integrator"))
+    run.integrator = static_cast<Integrator>(
+        parse_choice(options.required("integrator"), "integrator", integrator_names));
   run.thermostat = parse_choice(options.get("thermostat", "none"), "thermostat",
                                 thermostat_names) == 1
                        ? Thermostat::langevin
@@ -398,26 +398,28 @@ std::string simulate_command(const Options& options) {
   const bool langevin = run.thermostat == Thermostat::langevin;
   const auto replicas = static_cast<std::size_t>(
       parse_integer(options.get("replicas", "1"), "--replicas", 1, max_replicas));
-  if (langevin) {
+  if (langevin && !options.has("beta")) throw usage_error("simulate: missing required option --beta");
+  if (options.has("beta"))
     run.beta = parse_real<double>(options.required("beta"), "--beta", Domain::positive);
-    run.friction =
-        parse_real<double>(options.get("friction", "1"), "--friction", Domain::positive);
-    run.seed = parse_unsigned(options.get("seed", "1"), "--seed");
-    if (options.has("integrator"))
-      throw usage_error("simulate: --integrator is for NVE runs (Langevin uses BAOAB)");
+  if (options.has("friction"))
+    run.friction = parse_real<double>(options.required("friction"), "--friction", Domain::positive);
+  // --seed: the Langevin noise, or (NVE) the replicas' perturbed starts.
+  const std::uint64_t seed = parse_unsigned(options.get("seed", "1"), "--seed");
+  if (langevin) {
+    if (options.has("seed")) run.seed = seed;
     if (options.has("perturb"))
       throw usage_error("simulate: --perturb is for NVE replicas (Langevin replicas differ by "
                         "their noise)");
-  } else {
-    for (const char* name : {"beta", "friction"})
+  } else if (replicas == 1) {
+    for (const char* name : {"seed", "perturb"})
       if (options.has(name))
-        throw usage_error("simulate: --" + std::string(name) + " needs --thermostat langevin");
-    if (replicas == 1)
-      for (const char* name : {"seed", "perturb"})
-        if (options.has(name))
-          throw usage_error("simulate: --" + std::string(name) +
-                            " needs --thermostat langevin or --replicas R > 1");
-    run.seed = parse_unsigned(options.get("seed", "1"), "--seed");
+        throw usage_error("simulate: --" + std::string(name) +
+                          " needs --thermostat langevin or --replicas R > 1");
+  }
+  try {
+    check_simulation_options(run);
+  } catch (const invalid_input& bad) {
+    throw usage_error(bad.what());
   }
   const double perturbation =
       parse_real<double>(options.get("perturb", "1e-6"), "--perturb", Domain::positive);
@@ -464,7 +466,7 @@ std::string simulate_command(const Options& options) {
   // still prints them.
   std::optional<ExactValues> reference;
   if (exact)
-    reference = langevin ? canonical_values(chain, run.beta)
+    reference = langevin ? canonical_values(chain, *run.beta)
                          : microcanonical_values(chain, initial_excitation(chain, initial, phi));
   Progress progress("simulate");
   SimulationResult<double> r;
@@ -475,7 +477,7 @@ std::string simulate_command(const Options& options) {
     observer.stop = &stop_flag();
     r = simulate(chain, initial, run, observer);
   } else {
-    spread = simulate_replicas(chain, phi, phidot, run, replicas, perturbation, energy, r);
+    spread = simulate_replicas(chain, phi, phidot, run, seed, replicas, perturbation, energy, r);
     if (!is_root()) return {};
   }
   const double seconds = progress.seconds();
@@ -500,7 +502,7 @@ std::string simulate_command(const Options& options) {
   const std::string ensemble = langevin ? "canonical" : "microcanonical";
   const std::string integrator = langevin ? "baoab-rattle"
                                           : std::string(integrator_names[static_cast<std::size_t>(
-                                                run.integrator)]);
+                                                run.integrator.value_or(default_integrator))]);
   if (csv) {
     std::string out = "# pendavg simulate: ensemble " + ensemble + ", integrator " + integrator +
                       ", dt " + number(run.time_step) + ", time " + number(r.simulated_time) +
@@ -569,7 +571,7 @@ std::string simulate_command(const Options& options) {
     json.string("error_reason",
                 "fewer than 16 averaging blocks finished (interrupted early, or --time too short "
                 "for the block length): the error bars are unknown");
-  if (langevin) json.raw("beta", number(run.beta)).raw("friction", number(run.friction));
+  if (langevin) json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
   json.raw("energy_drift", error_number(r.energy_drift))
       .raw("energy_error_max", error_number(r.energy_error_max))
       .raw("energy_error_rms", error_number(r.energy_error_rms))

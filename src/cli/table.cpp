@@ -206,8 +206,9 @@ struct TablePlan {
   std::size_t columns_particles = 2;     ///< the largest N: the per-particle columns
 };
 
-/// What runs for N particles (the library's rule) and the options a row of N passes: the qmc
-/// options go to qmc rows only, the tolerance to torus and transfer rows in double only.
+/// What runs for N particles (the library's rule) and the options a row of N passes: each
+/// table-wide option goes to the rows whose method uses it (the library says which), so that one
+/// sweep can mix methods.
 struct RowMethod {
   AverageMethod method;
   AverageOptions options;
@@ -218,37 +219,31 @@ RowMethod row_method(const TablePlan& plan, std::size_t particles, int digits) {
   options.shifts.reset();
   options.seed.reset();
   options.tolerance.reset();
-  options.digits = min_digits;
+  options.digits = min_digits;  // the method N runs does not depend on the digits
+  options.threads = 1;          // one thread per row: the numbers do not depend on the count
+  AverageMethod method{};
+  std::function<bool(AverageOption)> uses;
   if (plan.microcanonical()) {
-    // The microcanonical rule (integral for N <= 4, qmc beyond, or the one asked for) takes
-    // qmc's options or the tolerance (double), as average --energy does.
-    const bool qmc = std::string_view(microcanonical_rule_name(
-                         microcanonical_options(options, particles).rule, particles)) == "qmc";
-    if (qmc) {
-      options.samples = plan.options.samples;
-      options.shifts = plan.options.shifts;
-      options.seed = plan.options.seed;
-    } else if (digits == min_digits) {
-      options.tolerance = plan.options.tolerance;
-    }
-    options.digits = digits;
-    options.threads = 1;
-    microcanonical_options(options, particles);  // refuses what the rule does not use
-    return {qmc ? AverageMethod::qmc : options.method, options};
+    const MicrocanonicalOptions::Rule rule = resolve_microcanonical_rule(
+        particles, microcanonical_options(options, particles).rule);
+    method = parse_average_method(microcanonical_rule_name(rule, particles));
+    uses = [rule, digits](AverageOption o) {
+      return microcanonical_rule_uses_option(rule, o, digits);
+    };
+  } else {
+    method = resolve_average_method(particles, options);
+    uses = [method, digits](AverageOption o) { return method_uses_option(method, o, digits); };
   }
-  const AverageMethod method = resolve_average_method(particles, options);
-  if (method == AverageMethod::qmc) {
-    options.samples = plan.options.samples;
-    options.shifts = plan.options.shifts;
-    options.seed = plan.options.seed;
-  }
-  const bool takes_tolerance = method == AverageMethod::transfer ||
-                               method == AverageMethod::torus_trapezoid ||
-                               method == AverageMethod::torus_gauss;
-  if (takes_tolerance && digits == min_digits) options.tolerance = plan.options.tolerance;
+  if (uses(AverageOption::tolerance)) options.tolerance = plan.options.tolerance;
+  if (uses(AverageOption::samples)) options.samples = plan.options.samples;
+  if (uses(AverageOption::shifts)) options.shifts = plan.options.shifts;
+  if (uses(AverageOption::seed)) options.seed = plan.options.seed;
   options.digits = digits;
-  options.threads = 1;  // one thread per row: the numbers do not depend on the thread count
-  return {resolve_average_method(particles, options), options};
+  if (plan.microcanonical())
+    microcanonical_options(options, particles);  // refuses what the rule cannot do
+  else
+    resolve_average_method(particles, options);
+  return {method, options};
 }
 
 std::string join_values(const std::vector<std::string>& values) {
@@ -507,7 +502,6 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
 std::string table_command(const Options& options) {
   TablePlan plan;
   plan.chain = options.has("chain");
-  constexpr std::array<std::string_view, 3> qmc_names{"samples", "shifts", "seed"};
   constexpr std::array<std::string_view, 4> read_names{"tol", "samples", "shifts", "seed"};
   plan.options = parse_average_options(options, read_names);
   {
@@ -527,26 +521,15 @@ std::string table_command(const Options& options) {
       if (options.has(single))
         throw usage_error("table: --chain has unit masses and lengths; --" +
                           std::string(single) + " is for the double pendulum");
-    constexpr std::array<std::string_view, 4> methods{"auto", "torus-trapezoid", "transfer", "qmc"};
-    constexpr std::array<std::string_view, 4> micro_methods{"auto", "integral", "torus-trapezoid",
-                                                            "qmc"};
-    plan.method = plan.microcanonical()
-                      ? std::string(micro_methods[parse_choice(options.get("method", "auto"),
-                                                               "method", micro_methods)])
-                      : std::string(methods[parse_choice(options.get("method", "auto"), "method",
-                                                         methods)]);
     sweeps.push_back(parse_integer_sweep("chain", options.required("chain"), 3, max_chain_particles));
-  } else {
-    constexpr std::array<std::string_view, 3> methods{"auto", "integral", "series"};
-    constexpr std::array<std::string_view, 4> micro_methods{"auto", "integral", "torus-trapezoid",
-                                                            "qmc"};
-    plan.method = plan.microcanonical()
-                      ? std::string(micro_methods[parse_choice(options.get("method", "auto"),
-                                                               "method", micro_methods)])
-                      : std::string(methods[parse_choice(options.get("method", "auto"), "method",
-                                                         methods)]);
   }
-  plan.options.method = parse_average_method(plan.method.c_str());
+  // Any method the library has; each row's N (and the ensemble) is checked against it below.
+  plan.method = std::string(options.get("method", "auto"));
+  try {
+    plan.options.method = parse_average_method(plan.method.c_str());
+  } catch (const invalid_input& bad) {
+    throw usage_error(std::string("table: ") + bad.what());
+  }
   sweeps.push_back(parse_integer_sweep("digits", options.get("digits", "16"), min_digits, max_digits));
   if (!plan.chain) {
     sweeps.push_back(parse_sweep("mu1", options.get("mu1", "0.5"), Domain::positive));
@@ -582,7 +565,7 @@ std::string table_command(const Options& options) {
   std::vector<std::string> double_only_n;                  // transfer_n and qmc_n, as listed
   const auto method_of = [&](std::size_t n) { return row_method(plan, n, min_digits).method; };
   const auto is_double_only = [&](std::size_t n) {
-    return method_of(n) == AverageMethod::qmc || method_of(n) == AverageMethod::transfer;
+    return !method_supports_digits(method_of(n), min_digits + 1);
   };
   for (const std::size_t n : particle_values) {
     try {
@@ -614,14 +597,20 @@ std::string table_command(const Options& options) {
       : plan.method != "auto"
           ? "--method " + plan.method
           : "--method auto, which runs " + automatic_runs;
-  if (qmc_n.empty())
-    for (const std::string_view option : qmc_names)
-      if (options.has(option))
-        throw usage_error("table: --" + std::string(option) + " is used by qmc only, not by " +
-                          chosen);
-  if (options.has("tol") && torus_n.empty() && transfer_n.empty())
-    throw usage_error("table: --tol is used by the torus-trapezoid and transfer rows only, not by " +
-                      chosen);
+  // An option that no row's method uses would change nothing: refused.
+  for (const AverageOption option : {AverageOption::tolerance, AverageOption::samples,
+                                     AverageOption::shifts, AverageOption::seed}) {
+    const std::string name = average_option_name(option);
+    if (!options.has(name)) continue;
+    const bool used = std::ranges::any_of(particle_values, [&](std::size_t n) {
+      const AverageOptions row = row_method(plan, n, min_digits).options;
+      return option == AverageOption::tolerance ? row.tolerance.has_value()
+             : option == AverageOption::samples ? row.samples.has_value()
+             : option == AverageOption::shifts  ? row.shifts.has_value()
+                                                : row.seed.has_value();
+    });
+    if (!used) throw usage_error("table: --" + name + " is not used by " + chosen);
+  }
   const std::string double_only_method = qmc_n.empty()        ? "transfer"
                                          : transfer_n.empty() ? "qmc"
                                                               : "transfer or qmc";

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <utility>
 
 namespace pendavg {
 
@@ -38,6 +39,42 @@ DynamicsWorkspace<Real>::DynamicsWorkspace(const Chain<Real>& chain) : n_(chain.
                   &multiplier_estimate, &residual, &diagonal, &sub, &super,
                   &rhs, &pivot})
     v->assign(n_, Real(0));
+}
+
+// ---------------------------------------------------------------- run options
+
+void check_simulation_options(const SimulationOptions& options) {
+  const auto finite_positive = [](double x) { return x > 0 && std::isfinite(x); };
+  if (!finite_positive(options.time_step))
+    throw invalid_input("simulate: the time step must be positive and finite");
+  if (!finite_positive(options.duration))
+    throw invalid_input("simulate: the duration must be positive and finite");
+  if (!(options.burn_in >= 0) || !std::isfinite(options.burn_in))
+    throw invalid_input("simulate: the burn-in must be non-negative and finite");
+  if (options.duration / options.time_step > max_simulation_steps ||
+      options.burn_in / options.time_step > max_simulation_steps)
+    throw invalid_input("simulate: more than 1e13 steps (time / dt)");
+  if (options.duration / options.time_step < 1)
+    throw invalid_input("simulate: the time is shorter than one step dt");
+  if (options.block_samples == 0 || options.max_blocks < 16)
+    throw invalid_input("simulate: block_samples >= 1 and max_blocks >= 16 required");
+  if (options.thermostat == Thermostat::langevin) {
+    if (options.integrator)
+      throw invalid_input("simulate: integrator is for NVE runs (Langevin uses BAOAB)");
+    if (!options.beta) throw invalid_input("simulate: the Langevin thermostat needs beta");
+    if (!finite_positive(*options.beta))
+      throw invalid_input("simulate: beta must be positive and finite");
+    if (options.friction && !finite_positive(*options.friction))
+      throw invalid_input("simulate: the friction must be positive and finite");
+  } else {
+    for (const auto& [given, name] : {std::pair{options.beta.has_value(), "beta"},
+                                      std::pair{options.friction.has_value(), "friction"},
+                                      std::pair{options.seed.has_value(), "seed"}})
+      if (given)
+        throw invalid_input(std::string("simulate: ") + name +
+                            " is for the Langevin thermostat only (an NVE run has no " + name +
+                            ")");
+  }
 }
 
 // ---------------------------------------------------------------- kernels, per instruction set
@@ -149,6 +186,7 @@ template <class Real>
 SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> initial,
                                 const SimulationOptions& options,
                                 const DynamicsObserver<Real>& observer) {
+  check_simulation_options(options);
   PENDAVG_DISPATCH(simulate_kernel(chain, std::move(initial), options, observer));
 }
 

@@ -870,35 +870,18 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
   const std::size_t n = chain.size();
   if (state.position.size() != 2 * n || state.momentum.size() != 2 * n)
     throw invalid_input("simulate: the state does not match the chain");
-  if (!(options.time_step > 0) || !std::isfinite(options.time_step))
-    throw invalid_input("simulate: the time step must be positive and finite");
-  if (!(options.duration > 0) || !std::isfinite(options.duration))
-    throw invalid_input("simulate: the duration must be positive and finite");
-  if (!(options.burn_in >= 0) || !std::isfinite(options.burn_in))
-    throw invalid_input("simulate: the burn-in must be non-negative and finite");
+  // The options are checked by simulate() (check_simulation_options) before it gets here.
   const bool langevin = options.thermostat == Thermostat::langevin;
-  if (langevin) {
-    if (!(options.beta > 0) || !std::isfinite(options.beta))
-      throw invalid_input("simulate: beta must be positive and finite");
-    if (!(options.friction > 0) || !std::isfinite(options.friction))
-      throw invalid_input("simulate: the friction must be positive and finite");
-  }
-  if (options.block_samples == 0 || options.max_blocks < 16)
-    throw invalid_input("simulate: block_samples >= 1 and max_blocks >= 16 required");
-  const double steps_d = std::round(options.duration / options.time_step);
-  const double burn_d = std::round(options.burn_in / options.time_step);
-  if (steps_d < 1 || steps_d > 1e15 || burn_d > 1e15)
-    throw invalid_input("simulate: the duration must be at least one step and at most 1e15 steps");
-  const auto steps = static_cast<std::size_t>(steps_d);
-  const auto burn_steps = static_cast<std::size_t>(burn_d);
+  const auto steps = static_cast<std::size_t>(std::round(options.duration / options.time_step));
+  const auto burn_steps = static_cast<std::size_t>(std::round(options.burn_in / options.time_step));
 
   DynamicsWorkspace<Real> ws(chain);
   // The run lives in the link frame; the state is written back for observers and at the end.
   load_links(state, ws);
   velocity_stage(ws, false);  // the initial momenta onto the cotangent space
   const Real h(options.time_step);
-  const Real beta(options.beta), friction(options.friction);
-  std::mt19937_64 rng(options.seed);
+  const Real beta(options.beta.value_or(1)), friction(options.friction.value_or(1));
+  std::mt19937_64 rng(options.seed.value_or(1));
   const Real start_time = state.time;
 
   Real mass_sum = 0, length_sum = 0;
@@ -927,7 +910,7 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
                         static_cast<long double>(length_sum);
     long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
     if (langevin)
-      kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(options.beta));
+      kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(*options.beta));
     check_stable_time_step(chain, options.time_step, kinetic, "simulate");
   }
 
@@ -935,7 +918,7 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     if (langevin) {
       advance_baoab(chain, ws, h, beta, friction, rng);
     } else {
-      advance_composition(chain, ws, h, options.integrator);
+      advance_composition(chain, ws, h, options.integrator.value_or(default_integrator));
     }
   };
   const std::size_t total_steps = burn_steps + steps;

@@ -107,36 +107,34 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
                                " values for " + std::to_string(n) + " particles");
     }
   }
+  // Read as the CLI reads them; the library checks the run (steps, and which settings the
+  // thermostat uses), with the CLI's messages.
   SimulationOptions run;
   if (time.is_none()) throw cli::usage_error("simulate: missing required option --time");
   run.duration = number_double(time, "--time", Domain::positive);
   run.time_step = option_double(dt, "1e-3", "--dt", Domain::positive);
   run.burn_in = option_double(burn_in, "0", "--burn-in", Domain::nonnegative);
-  if (run.duration / run.time_step > 1e13 || run.burn_in / run.time_step > 1e13)
-    throw cli::usage_error("simulate: more than 1e13 steps (--time / --dt)");
-  if (run.duration / run.time_step < 1)
-    throw cli::usage_error("simulate: --time is shorter than one step --dt");
-  run.integrator = static_cast<Integrator>(cli::parse_choice(
-      integrator.is_none() ? "yoshida6" : choice_text(integrator), "integrator", integrator_names));
+  if (!integrator.is_none())
+    run.integrator = static_cast<Integrator>(
+        cli::parse_choice(choice_text(integrator), "integrator", integrator_names));
   const bool langevin =
       cli::parse_choice(thermostat.is_none() ? "none" : choice_text(thermostat), "thermostat",
                         thermostat_names) == 1;
   run.thermostat = langevin ? Thermostat::langevin : Thermostat::none;
-  if (langevin) {
-    if (beta.is_none()) throw cli::usage_error("simulate: missing required option --beta");
-    run.beta = number_double(beta, "--beta", Domain::positive);
-    run.friction = option_double(friction, "1", "--friction", Domain::positive);
-    run.seed = seed.is_none() ? 1 : cli::parse_unsigned(number_text(seed), "--seed");
-    if (!integrator.is_none())
-      throw cli::usage_error("simulate: --integrator is for NVE runs (Langevin uses BAOAB)");
-  } else {
-    for (const auto& [value, name] : {std::pair{beta, "beta"}, std::pair{friction, "friction"}})
-      if (!value.is_none())
-        throw cli::usage_error("simulate: --" + std::string(name) + " needs --thermostat langevin");
+  if (langevin && beta.is_none()) throw cli::usage_error("simulate: missing required option --beta");
+  if (!beta.is_none()) run.beta = number_double(beta, "--beta", Domain::positive);
+  if (!friction.is_none()) run.friction = number_double(friction, "--friction", Domain::positive);
+  if (!seed.is_none()) {
+    const std::uint64_t value = cli::parse_unsigned(number_text(seed), "--seed");
     // The CLI's message (its NVE --seed is for --replicas, which this function does not run).
-    if (!seed.is_none())
-      throw cli::usage_error(
-          "simulate: --seed needs --thermostat langevin or --replicas R > 1");
+    if (!langevin)
+      throw cli::usage_error("simulate: --seed needs --thermostat langevin or --replicas R > 1");
+    run.seed = value;
+  }
+  try {
+    check_simulation_options(run);
+  } catch (const invalid_input& bad) {
+    throw cli::usage_error(bad.what());
   }
   const bool with_exact =
       PyBool_Check(exact.ptr())
@@ -154,7 +152,7 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   std::optional<ExactValues> reference;
   if (with_exact) {
     py::gil_scoped_release release;
-    reference = langevin ? cli::canonical_values(chain, run.beta)
+    reference = langevin ? cli::canonical_values(chain, *run.beta)
                          : cli::microcanonical_values(
                                chain, cli::initial_excitation(chain, initial, angles));
   }
@@ -194,7 +192,8 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   py::dict out;
   out["ensemble"] = langevin ? "canonical" : "microcanonical";
   out["integrator"] = langevin ? std::string("baoab-rattle")
-                               : std::string(integrator_names[static_cast<std::size_t>(run.integrator)]);
+                               : std::string(integrator_names[static_cast<std::size_t>(
+                                     run.integrator.value_or(default_integrator))]);
   out["method"] = method_name(r.method);
   out["N"] = n;
   out["dt"] = run.time_step;
@@ -247,8 +246,8 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
                            "fewer than 16 averaging blocks finished (interrupted early, or time "
                            "too short for the block length): the error bars are unknown (NaN)"))
                      : py::none();
-  out["beta"] = langevin ? py::object(py::float_(run.beta)) : py::none();
-  out["friction"] = langevin ? py::object(py::float_(run.friction)) : py::none();
+  out["beta"] = langevin ? py::object(py::float_(*run.beta)) : py::none();
+  out["friction"] = langevin ? py::object(py::float_(run.friction.value_or(1))) : py::none();
   out["energy_drift"] = r.energy_drift;
   out["energy_error_max"] = r.energy_error_max;
   out["energy_error_rms"] = r.energy_error_rms;

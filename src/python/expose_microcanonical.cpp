@@ -42,7 +42,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
   const AverageOptions settings = average_options(py::none(), method, tol, samples, shifts, seed);
   MicrocanonicalOptions options;
   try {
-    options = cli::microcanonical_options(settings, chain.size());
+    options = microcanonical_options(settings, chain.size());
   } catch (const invalid_input& bad) {
     throw cli::usage_error("average: " + std::string(bad.what()));  // the CLI's message
   }

@@ -452,6 +452,16 @@ bad "table chain with l2"     table --chain 3 --beta 1 --l2 2
 bad "table chain series"      table --chain 3 --beta 1 --method series
 bad "table chain qmc digits"  table --chain 5 --beta 1 --digits 20
 bad "table unknown option"    table --beta 1 --masses 1,1
+# Any method the library has is taken; the library refuses it per row (before any work).
+bad "table chain integral"    table --chain 3 --beta 1 --method integral
+bad "table energy transfer"   table --chain 5 --energy 0 --method transfer
+bad "table energy series"     table --energy 0 --method series
+bad "table unknown method"    table --beta 1 --method simpson
+good "table chain torus-gauss" 'grep -q "^3,16," "$work/out"' table --chain 3 --beta 1 --method torus-gauss --tol 1e-8
+good "table pendulum torus"   'grep -q "^2,16," "$work/out"' table --beta 1 --method torus-trapezoid --tol 1e-10
+# Microcanonical qmc runs as far as its lattices go (N <= 256), from the CLI as from the library.
+good "micro qmc N = 40"       'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert o[\"N\"] == 40 and len(o[\"K\"]) == 40" "$work/out"' \
+  average --masses "$(printf '1%.0s,' {1..39})1" --lengths "$(printf '1%.0s,' {1..39})1" --energy 0 --samples 1024 --shifts 8
 good "table --help"           'grep -q "usage" "$work/out"' table --help
 
 # table: lists of N, digits and g (issue 5). check_mixed_table FILE: a table of chains N = 3 and

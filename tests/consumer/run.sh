@@ -29,7 +29,11 @@ pc_dir=$(dirname "$(find "$prefix" -name pendavg.pc | head -1)")
 flags=$(PKG_CONFIG_PATH="$pc_dir" pkg-config --cflags --libs pendavg) || fail "pkg-config pendavg"
 c++ -std=c++20 -O1 "$here/consumer_double.cpp" $flags -o "$work/pc_double" 2>"$work/pc.log" ||
   { cat "$work/pc.log" >&2; fail "compile and link with pkg-config's flags: $flags"; }
-"$work/pc_double" >"$work/pc_double.txt" || fail "the pkg-config build runs"
+# pkg-config gives no run path: a program linked against a shared libpendavg outside the loader's
+# directories finds it through LD_LIBRARY_PATH (or its own -Wl,-rpath), as any such library.
+libdir=$(PKG_CONFIG_PATH="$pc_dir" pkg-config --variable=libdir pendavg)
+LD_LIBRARY_PATH="$libdir${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
+  "$work/pc_double" >"$work/pc_double.txt" || fail "the pkg-config build runs"
 cmp -s "$work/double.txt" "$work/pc_double.txt" || fail "pkg-config and CMake builds print different numbers"
 
 # 3. what a double-only consumer's include pulls in
