@@ -151,17 +151,26 @@ QmcOptions qmc_options(const AverageOptions& o) {
 // peaks down to kappa ~ 1e13 in double. When every joint is stiff the chain is near its beta ->
 // infinity limit V_inf (beta<K_i> = 1/2, <cos phi_i> = 1, beta^2 Var K_i = tr X_i(0)^2 / 2), and
 // every average is a series in 1/beta, V = V_inf + c/beta + d/beta^2 + e/beta^3 + ... (Laplace).
+// The expansion's parameter at joint i is not 1/kappa_i alone. The weight sqrt(det A) and the
+// traces tr X_i vary with the joint's angle on the scale delta_i^2 ~ rho_i = m_i / S_{i+1}, the
+// mass at the joint over the tail beyond it: at the straight chain H^{-1} = (S_max(j,k)), so
+// det H(delta_i) = det H(0) (1 + delta_i^2 / rho_i + ...). A light particle (rho_i << 1) makes the
+// weight vary much faster than the Boltzmann peak's width 1/sqrt(kappa_i), and the chain is near
+// its limit only once kappa_i min(1, rho_i) is large: the effective stiffness. (The double
+// pendulum with mu1 -> 0 is the known case: beta<K_1> ~ 0.38 at beta = 100 for mu1 = 0.05.)
 // The values at three lower temperatures beta_k = 2^k beta_1 (k = 0, 1, 2), where the smallest
-// stiffness is 1e3 (fast, to ~1e-13), fix the polynomial y(x) = (V - V_inf)/x in x = 1/beta
+// effective stiffness is 1e3 (fast, to ~1e-13), fix the polynomial y(x) = (V - V_inf)/x in x = 1/beta
 // through them (Richardson), and V(beta) = V_inf + x y(x). Its error is estimated by the change
 // from the two-point (linear) to the three-point (quadratic) fit, plus the references' errors
 // carried by the extrapolation (sum_k |L_k(x)| x beta_k err_k, L_k the Lagrange basis) and
 // rounding.
 /// Smallest and largest kappa_i over the joints (for a single pendulum kappa = alpha_1 itself,
-/// its peak's squared inverse width), in long double: alpha_j = beta g S_j l_j and their products
-/// may leave double's range, which is what the callers check for.
+/// its peak's squared inverse width) and the smallest effective stiffness kappa_i min(1, m_i /
+/// S_{i+1}) (see above), in long double: alpha_j = beta g S_j l_j and their products may leave
+/// double's range, which is what the callers check for.
 struct JointStiffness {
   long double smallest = 0, largest = 0;
+  long double smallest_effective = 0;
 };
 
 template <class Real>
@@ -177,18 +186,21 @@ JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
   }
   JointStiffness k;
   if (n == 1) {
-    k.smallest = k.largest = total;
+    k.smallest = k.largest = k.smallest_effective = total;
     return k;
   }
   std::vector<Wide> below(n + 1, 0);  // below[i] = sum of alpha_j for j >= i, summed directly
   for (std::size_t j = n; j-- > 0;) below[j] = below[j + 1] + alpha[j];
-  k.smallest = std::numeric_limits<Wide>::infinity();
+  k.smallest = k.smallest_effective = std::numeric_limits<Wide>::infinity();
   Wide head = 0;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     head += alpha[i];
     const Wide kappa = total > 0 ? head * (below[i + 1] / total) : 0;
     k.smallest = std::min(k.smallest, kappa);
     k.largest = std::max(k.largest, kappa);
+    const Wide light = static_cast<Wide>(static_cast<double>(chain.mass(i))) /
+                       static_cast<double>(chain.tail_mass(i + 1));
+    k.smallest_effective = std::min(k.smallest_effective, kappa * std::min(Wide(1), light));
   }
   return k;
 }
@@ -245,7 +257,8 @@ Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Rea
                                              const JointStiffness& stiffness,
                                              const std::function<Averages<Real>(const Real&)>& run) {
   const Real beta1 =
-      Real(static_cast<long double>(static_cast<double>(beta)) * stiffness_reference / stiffness.smallest);
+      Real(static_cast<long double>(static_cast<double>(beta)) * stiffness_reference /
+           stiffness.smallest_effective);
   const std::array<Averages<Real>, 3> a{run(beta1), run(2 * beta1), run(4 * beta1)};
   const Averages<Real> limit = low_temperature_limit_any(chain);
   Averages<Real> out;
@@ -275,8 +288,16 @@ Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Rea
   return out;
 }
 
+/// The method that takes a chain the torus and qmc methods cannot: the double-pendulum integral
+/// or the transfer operator (which follows the peaks at any beta).
+template <class Real>
+std::string other_method_advice(const Chain<Real>& chain) {
+  return chain.size() == 2 ? "use method integral (the default for N = 2)"
+                           : "use method transfer (the default for N >= 5)";
+}
+
 /// What the torus and qmc methods do at `beta`: run directly, or extrapolate to low temperature
-/// (every joint stiffer than stiffness_extrapolated, double only). Throws invalid_input when the
+/// (every joint effectively stiffer than stiffness_extrapolated, double only). Throws invalid_input when the
 /// stiffnesses are outside what either resolves.
 enum class StiffnessPlan { direct, extrapolate };
 template <class Real>
@@ -284,19 +305,27 @@ StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta) {
   const JointStiffness stiffness = joint_stiffness(chain, beta);
   if constexpr (!is_mpfr_v<Real>) {
     check_double_mass_range(chain);
-    if (stiffness.smallest >= stiffness_extrapolated) {
-      if (stiffness.largest / stiffness.smallest * stiffness_reference > stiffness_resolved)
+    // Extrapolate when every joint is effectively stiff, or when a joint is too stiff to resolve
+    // directly and the others are at least beyond the references (1e3..4e3).
+    if (stiffness.smallest_effective >= stiffness_extrapolated ||
+        (stiffness.largest > stiffness_resolved &&
+         stiffness.smallest_effective >= 10 * stiffness_reference)) {
+      // The references run at 1, 2, 4 x beta_1, where the smallest effective stiffness is 1e3.
+      if (stiffness.largest / stiffness.smallest_effective * 4 * stiffness_reference >
+          stiffness_resolved)
         throw invalid_input(
-            "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.smallest) +
-            " to " + short_decimal(stiffness.largest) + ") differ by more than 1e9, beyond "
-            "what the low-temperature extrapolation resolves; outside pendavg's domain");
+            "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.largest) +
+            ", and an effective " + short_decimal(stiffness.smallest_effective) +
+            " where a light particle meets a heavy tail) differ by more than 2.5e9, beyond "
+            "what the low-temperature extrapolation resolves; " + other_method_advice(chain));
       return StiffnessPlan::extrapolate;
     }
     if (stiffness.largest > stiffness_resolved)
       throw invalid_input("average: a joint's stiffness beta g S l = " +
                           short_decimal(stiffness.largest) + " is beyond what the torus and "
-                          "qmc methods resolve (1e13) while another joint is soft (" +
-                          short_decimal(stiffness.smallest) + "); outside pendavg's domain");
+                          "qmc methods resolve (1e13) while another joint is soft (effective "
+                          "stiffness " + short_decimal(stiffness.smallest_effective) + "); " +
+                          other_method_advice(chain));
   } else if (stiffness.largest > stiffness_resolved_mpfr) {
     throw invalid_input("average: a joint's stiffness beta g S l = " +
                         short_decimal(stiffness.largest) + " is beyond what the torus "
