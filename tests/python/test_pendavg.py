@@ -252,6 +252,15 @@ BAD = [  # (python call, the CLI's arguments): the same one-line message
     (lambda: pendavg.microcanonical([1] * 5, [1] * 5, 0, tol=1e-5), "average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --tol 1e-5"),
     (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, method="series"), "average --masses 1,1 --lengths 1,1 --energy 0 --method series"),
     (lambda: pendavg.microcanonical([1, 1], [1, 1], excitation=-1), "average --masses 1,1 --lengths 1,1 --excitation -1"),
+    (lambda: pendavg.microcanonical([1] * 5, [1] * 5, 0, digits=30), "average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, method="qmc", digits=20), "average --masses 1,1 --lengths 1,1 --energy 0 --method qmc --digits 20"),
+    (lambda: pendavg.microcanonical([1] * 3, [1] * 3, 0, method="torus-trapezoid", digits=20), "average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --digits 20"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, tol=1e-20, digits=30), "average --masses 1,1 --lengths 1,1 --energy 0 --tol 1e-20 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, digits=15), "average --masses 1,1 --lengths 1,1 --energy 0 --digits 15"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], "-3", digits=30), "average --masses 1,1 --lengths 1,1 --energy -3 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], excitation="0", digits=30), "average --masses 1,1 --lengths 1,1 --excitation 0 --digits 30"),
+    (lambda: pendavg.microcanonical(["0", 1], [1, 1], 0, digits=30), "average --masses 0,1 --lengths 1,1 --energy 0 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1], 0, digits=30), "average --masses 1,1 --lengths 1 --energy 0 --digits 30"),
     (lambda: pendavg.average([0, 0.5], [1, 1], 1), "average --masses 0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([-1.0, 0.5], [1, 1], 1), "average --masses -1.0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([float("nan"), 0.5], [1, 1], 1), "average --masses nan,0.5 --lengths 1,1 --beta 1"),
@@ -305,6 +314,28 @@ def test_bad_input_raises_the_cli_message(call, args):
     with pytest.raises(ValueError) as caught:
         call()
     assert str(caught.value) == message[len("pendavg: error: "):]
+
+
+def test_number_types_are_read_exactly_with_their_sign():
+    """An mpmath.mpf is read by its exact binary value, sign included (as the equal float or
+    decimal string), in double and in MPFR; a negative one is refused as the CLI refuses it."""
+    mpmath = optional_module("mpmath")
+    from decimal import Decimal
+    for digits in (16, 30):
+        by_float = pendavg.microcanonical([1, 1], [1, 1], -1.25, digits=digits)
+        for energy in (mpmath.mpf(-1.25), Decimal("-1.25"), "-1.25", -1.25):
+            r = pendavg.microcanonical([1, 1], [1, 1], energy, digits=digits)
+            assert r.energy == -1.25 and r.decimal["K"] == by_float.decimal["K"], energy
+    tenth = pendavg.average([0.5, 0.5], [1, 1], mpmath.mpf(0.1), digits=30)
+    assert tenth.decimal["beta_K"] == pendavg.average(
+        [0.5, 0.5], [1, 1], "0.1000000000000000055511151231257827021181583404541015625",
+        digits=30).decimal["beta_K"]
+    swept = pendavg.sweep(beta=1, mu1=[mpmath.mpf(0.25), 0.25])
+    np.testing.assert_array_equal(swept.beta_K[0], swept.beta_K[1])
+    with pytest.raises(ValueError, match=r"^--g: '-1' must be >= 0$"):
+        pendavg.average([0.5, 0.5], [1, 1], 1, g=mpmath.mpf(-1))
+    with pytest.raises(ValueError, match=r"^--beta: '-5e-1' must be > 0$"):
+        pendavg.average([0.5, 0.5], [1, 1], mpmath.mpf(-0.5), digits=20)
 
 
 def test_nothing_crashes_on_odd_arguments():
@@ -370,6 +401,61 @@ def test_microcanonical_agrees_with_cli():
         pendavg.microcanonical([1, 1], [1, 1], -1, excitation=1)
     with pytest.raises(ValueError, match="at or below the minimum energy"):
         pendavg.microcanonical([1, 1], [1, 1], -3)
+
+
+MICROCANONICAL_STRINGS = ["energy", "excitation", "K", "K_error", "Kc", "Kc_error", "cos_phi",
+                          "cos_phi_error", "var_K", "var_K_error", "K_total", "K_total_error",
+                          "density_of_states", "density_of_states_error"]
+
+
+@pytest.mark.parametrize("masses, lengths, state", [
+    (["1", "1"], ["1", "1"], {"energy": "0", "digits": 30}),
+    (["1", "0.3"], ["1.3", "0.6"], {"g": "9.81", "excitation": "1e-8", "digits": 25}),
+    ([1, 0.3], [1.3, 0.6], {"g": 9.81, "energy": -2.99999999, "digits": 17}),   # floats as typed
+    (["1", "1"], ["1", "1"], {"energy": "0", "digits": 20, "method": "torus-trapezoid"}),
+    ([1.0, 1.0], [1.0, 1.0], {"energy": 0.5}),                                     # double
+    ([1.0] * 5, [1.0] * 5, {"energy": 0.0, "samples": 1024}),                      # qmc, double
+])
+def test_microcanonical_digits_agree_with_cli(masses, lengths, state):
+    """pendavg.microcanonical(..., digits=D) is `pendavg average --energy E --digits D`, digit
+    for digit (.decimal), and .mpf holds the exact values the strings round."""
+    m = pendavg.microcanonical(masses, lengths, **state)
+    args = ["average", "--masses", ",".join(map(text, masses)), "--lengths",
+            ",".join(map(text, lengths))]
+    for name, value in state.items():
+        args += [f"--{name}", text(value)]
+    d = cli_json(*args, "--format", "json")
+    for key in MICROCANONICAL_STRINGS:
+        assert m.decimal[key] == d[key], key
+    if d["run"] is not None:  # qmc
+        assert m.decimal["proposal_beta"] == d["run"]["proposal_beta"]
+        assert m.decimal["effective_sample_fraction"] == d["run"]["effective_sample_fraction"]
+    assert m.method == "microcanonical/" + d["method"] and m.error_kind == d["error_kind"]
+    assert m.evaluations == d["evaluations"] and m.work_unit == d["work_unit"]
+    assert m.converged == d["converged"] and m.N == d["N"] and m.digits == d["digits"]
+    if m.digits == 16:
+        assert [f"{x:.15e}" for x in m.K] == d["K"]
+        return
+    mpmath = optional_module("mpmath")
+    exact = m.mpf
+    with mpmath.workdps(m.digits + 20):
+        for key in ("K", "cos_phi", "var_K"):
+            for value, printed in zip(exact[key], m.decimal[key]):
+                assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - m.digits)
+    np.testing.assert_array_equal(m.K, [float(x) for x in exact["K"]])  # the doubles round them
+
+
+def test_microcanonical_threads_mixing_digits_give_the_serial_bits():
+    calls = [(energy, digits) for digits in (16, 20, 30) for energy in ("-1", "0.5")]
+
+    def run(call):
+        energy, digits = call
+        r = pendavg.microcanonical(["1", "0.5"], ["1", "2"], energy, digits=digits)
+        return r.decimal, r.K.tolist(), r.exact
+
+    serial = [run(call) for call in calls]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        assert list(pool.map(run, calls * 2)) == serial * 2
 
 
 def test_poincare_agrees_with_cli():

@@ -245,9 +245,37 @@ class MicrocanonicalResult(_Record):
     <cos phi_i>_E; var_K, var_K_error: Var K_i on the shell; energy and excitation (E - E_min);
     density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
     transform is the partition function), with its error; method ('microcanonical/<rule>'),
-    error_kind ('estimate', or 'statistical' for qmc), evaluations, converged, proposal_beta and
-    effective_sample_fraction (qmc), seconds.
+    error_kind ('estimate', or 'statistical' for qmc), evaluations and work_unit ('nodes' or
+    'samples'), converged, proposal_beta and effective_sample_fraction (qmc), seconds, N,
+    digits. All numbers are floats (an MPFR run's rounded to double); decimal: the CLI's strings
+    (`pendavg average --energy E --digits D --format json`: values with `digits` digits, errors
+    with 3 that also cover the printed value's rounding); mpf: exact mpmath values.
     """
+
+    @property
+    def mpf(self):
+        """The values and errors as mpmath.mpf: exact binary values (MPFR runs: at digits + 12
+        guard digits; double runs: the doubles exactly). Per-particle fields (K, cos_phi, var_K
+        and their errors) are lists, the others one mpf. Needs mpmath."""
+        import mpmath
+        out = {}
+        for name in _MICROCANONICAL_EXACT:
+            if self.exact is not None:
+                items = [_to_mpf(x) for x in self.exact[name]]
+            else:
+                value = getattr(self, name)
+                items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x)))
+                         for x in _np.atleast_1d(value)]
+            out[name] = items if name in _MICROCANONICAL_PER_PARTICLE else items[0]
+        return out
+
+
+_MICROCANONICAL_EXACT = ("energy", "excitation", "K", "K_error", "Kc", "Kc_error", "K_total",
+                         "K_total_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
+                         "density_of_states", "density_of_states_error", "proposal_beta",
+                         "effective_sample_fraction")
+_MICROCANONICAL_PER_PARTICLE = ("K", "K_error", "cos_phi", "cos_phi_error", "var_K",
+                                "var_K_error")
 
 
 def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
@@ -270,28 +298,48 @@ def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
     return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
 
 
-def microcanonical(masses, lengths, energy=None, g=1.0, method="auto", tol=None, samples=None,
-                   shifts=None, seed=None, excitation=None):
+def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto", tol=None,
+                   samples=None, shifts=None, seed=None, excitation=None):
     """Exact microcanonical averages <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E, Var K_i at fixed energy.
 
     The values NVE time averages (pendavg.simulate without thermostat) must reproduce when the
     motion is ergodic. Energies use the paper's U = -sum_j g S_j l_j cos phi_j (S_j the mass at
     and below link j), so the hanging chain at rest has E_min = -sum_j g S_j l_j; E > E_min.
     Per angle configuration the momenta are uniform on the shell H = E; the angle integrals
-    run over the reduced torus (MATH.md Sec. 7).
+    run over the reduced torus (MATH.md Sec. 7). The same call as `pendavg average --energy E
+    | --excitation D [--digits D]`, with the CLI's checks, messages and strings.
 
-    Give one of energy (E > E_min) and excitation (D = E - E_min > 0): near the bottom of the
-    well an E in double carries only ~1e-16 |E_min| / D relative accuracy in D, an excitation
-    all of it (as `pendavg average --energy E | --excitation D`).
-    method: 'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut at every
-    singular point; tol: relative target, default 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9
-    beyond), 'torus-trapezoid' (a check), 'qmc' (samples: points per shift 2^10..2^16, shifts,
-    seed; statistical bars, the 99.9% Student-t quantile of the standard error). In double; an
-    option the chosen rule does not use is refused, with the CLI's message.
-    Returns a MicrocanonicalResult.
+    Arguments:
+      masses      the N masses m_i > 0, as for pendavg.average.
+      lengths     the N link lengths l_i > 0.
+      energy      the energy E > E_min. Give one of energy and excitation: near the bottom of
+                  the well an E in double carries only ~1e-16 |E_min| / D relative accuracy in
+                  D, an excitation all of it.
+      g           gravitational acceleration >= 0 (default 1).
+      digits      significant digits requested: 16 (default) runs in double; 17..1000 in MPFR
+                  at digits + 12 guard digits with tolerance 10^-digits, for the integral rule
+                  (N <= 4) and torus-trapezoid (N <= 2); qmc is double only.
+      method      'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut
+                  at every singular point), 'torus-trapezoid' (a check; algebraic
+                  convergence), 'qmc' (statistical bars, the 99.9% Student-t quantile of the
+                  standard error over the shifts).
+      tol         integral and torus-trapezoid in double: relative target (default 1e-13 for
+                  N <= 2, 1e-11 for N = 3, 1e-9 beyond); with digits > 16 it is 10^-digits
+                  and may not be given.
+      samples     qmc: lattice points per shift, a power of two in 1024..65536 (default 16384).
+      shifts      qmc: random shifts, 4..1024 (default 16).
+      seed        qmc: seed of the shifts (default 1).
+      excitation  the excitation D = E - E_min > 0, instead of energy (formed without
+                  cancellation: the way to state a state near the bottom of the well).
+    An option the chosen rule does not use is refused (ValueError, the CLI's message).
+    Progress and Ctrl-C: the library's microcanonical run reports no progress and cannot be
+    stopped midway (its options take no RunControl); it runs with the GIL released, and a
+    Ctrl-C raises KeyboardInterrupt when it returns.
+    Returns a MicrocanonicalResult (with .decimal, the CLI's strings, and .mpf, exact mpmath
+    values; both also in double).
     """
-    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, method, tol,
-                                                     samples, shifts, seed, excitation))
+    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, digits, method,
+                                                     tol, samples, shifts, seed, excitation))
 
 
 # ---------------------------------------------------------------- dynamics
@@ -499,6 +547,11 @@ def _decimal_text(x):
         return str(int(x))
     if isinstance(x, _Decimal):
         return str(x)
+    if type(x).__module__.startswith("mpmath") and type(x).__name__ == "mpf":
+        sign, man, exponent, _ = x._mpf_  # the exact binary value, as the C++ reader takes it
+        if man or not exponent:
+            scaled = str(man << exponent) if exponent >= 0 else f"{man * 5 ** -exponent}e{exponent}"
+            return ("-" if sign else "") + scaled
     return repr(float(x))
 
 
