@@ -1,9 +1,10 @@
-"""The Python module against the CLI (the same library calls: the same bits and the same strings),
-arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, and thread safety.
+"""The Python module against the CLI (the same library calls: the same bits and the same strings)
+and against direct C++ library calls (tests/python/reference_values.cpp: every number bit for
+bit), arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, and thread safety.
 
-Run by ctest (label default) with PYTHONPATH=build/python, PENDAVG_CLI=build/pendavg and
-PENDAVG_TEST_STRICT=1 (nothing may be skipped: a missing matplotlib or mpmath fails the test).
-By hand, with Debian's python3:
+Run by ctest (label default) with PYTHONPATH=build/python, PENDAVG_CLI=build/pendavg,
+PENDAVG_REFERENCE=build/tests/pendavg_reference_values and PENDAVG_TEST_STRICT=1 (nothing may be
+skipped: a missing matplotlib or mpmath fails the test). By hand, with Debian's python3:
     PYTHONPATH=build/python /usr/bin/python3 -m pytest -q tests/python
 """
 import concurrent.futures
@@ -16,6 +17,7 @@ import subprocess
 import sys
 import threading
 import time
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -24,6 +26,8 @@ import pendavg
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 CLI = os.environ.get("PENDAVG_CLI", os.path.join(ROOT, "build", "pendavg"))
+REFERENCE = os.environ.get("PENDAVG_REFERENCE",
+                           os.path.join(ROOT, "build", "tests", "pendavg_reference_values"))
 STRICT = os.environ.get("PENDAVG_TEST_STRICT") == "1"  # set by ctest: skip nothing
 
 
@@ -175,6 +179,189 @@ def test_sweep_agrees_with_table():
             assert r.decimal["beta_K"][b, m, l, i] == row[col[f"beta_K{i + 1}"]]
             assert r.decimal["error"][b, m, l, i] == row[col[f"error_K{i + 1}"]]
         assert r.decimal["ratio"][b, m, l] == row[col["ratio"]]
+
+
+# ---------------------------------------------------------------- the C++ library's own bits
+
+def reference(lines):
+    """The library's results of reference_values.cpp's calls `lines` (direct C++ calls, every
+    number printed exactly: %a, mpfr's %Ra), one dict per line."""
+    if not os.path.exists(REFERENCE):
+        if STRICT:
+            pytest.fail(f"{REFERENCE} is missing (target pendavg_reference_values)")
+        pytest.skip(f"{REFERENCE} not built (cmake --build build --target pendavg_reference_values)")
+    done = subprocess.run([REFERENCE], input="\n".join(lines) + "\n", capture_output=True,
+                          text=True, check=True)
+    out = [json.loads(line) for line in done.stdout.splitlines()]
+    assert len(out) == len(lines)
+    for line, result in zip(lines, out):
+        assert "error" not in result, (line, result)
+    return out
+
+
+def reference_line(kind, masses, lengths, arguments):
+    """reference_values.cpp's line for the Python call kind(masses, lengths, **arguments)."""
+    given = {"g": 1.0, "digits": 16, **arguments}
+    tokens = [kind, "masses=" + ",".join(map(text, masses)),
+              "lengths=" + ",".join(map(text, lengths))]
+    tokens += [f"{name}={text(value)}" for name, value in given.items() if name != "method" or value != "auto"]
+    return " ".join(tokens)
+
+
+def exact_fraction(printed):
+    """The exact value of a number printed by %a (double) or mpfr's %Ra: 0xH.HHHp[+-]E."""
+    sign = -1 if printed.startswith("-") else 1
+    body = printed.lstrip("+-")
+    if body in ("inf", "nan", "@Inf@", "@NaN@"):
+        return printed
+    mantissa, exponent = body[2:].split("p")
+    whole, _, fraction = mantissa.partition(".")
+    return sign * Fraction(int(whole + fraction, 16)) * Fraction(2) ** (int(exponent) - 4 * len(fraction))
+
+
+def mpf_fraction(x):
+    """An mpmath.mpf's exact value (its man * 2^exp), or its text for inf and nan."""
+    mpmath = optional_module("mpmath")
+    if not mpmath.isfinite(x):
+        return ("-" if x < 0 else "") + ("inf" if mpmath.isinf(x) else "nan")
+    sign, man, exponent, _ = x._mpf_  # (x.man_exp holds |man| only)
+    return (-1) ** sign * Fraction(man) * Fraction(2) ** exponent
+
+
+def assert_same_bits(python_value, printed, name):
+    """Every double of python_value (a float or an array) has the bits of the printed one."""
+    values = np.atleast_1d(np.asarray(python_value, dtype=float)).ravel().tolist()
+    assert len(values) == len(printed), name
+    for x, p in zip(values, printed):
+        y = float.fromhex(p) if not isinstance(exact_fraction(p), str) else float(p)
+        assert x.hex() == y.hex(), (name, x.hex(), p)
+
+
+# The Python name of a reference field in Averages.mpf (the others are the same).
+MPF_NAME = {"beta_K_error": "error"}
+
+
+def assert_library_bits(result, library, given_state=None):
+    """result (Averages or MicrocanonicalResult) holds exactly the library's numbers: in double
+    the same doubles; with digits > 16 the same exact MPFR values (.mpf), the doubles they round
+    to, and the CLI's decimal strings of them (.decimal)."""
+    for name, printed in library["values"].items():
+        if result.digits == 16:
+            assert_same_bits(getattr(result, name), printed, name)
+            continue
+        exact = result.mpf[MPF_NAME.get(name, name)]
+        exact = list(exact) if isinstance(exact, (list, np.ndarray)) else [exact]
+        assert [mpf_fraction(x) for x in exact] == [exact_fraction(p) for p in printed], name
+        rounded = [float(f) for f in map(exact_fraction, printed)]
+        assert_same_bits(getattr(result, name), [x.hex() for x in rounded], name)
+    if isinstance(result, pendavg.Averages) and "ratio" not in library["values"]:
+        assert result.ratio is None  # N = 1
+    for name, strings in library.get("decimal", {}).items():
+        if name == given_state:  # printed as given, as the CLI prints it
+            continue
+        assert list(np.atleast_1d(result.decimal[name])) == strings, name
+    assert result.method == library["method"]
+    assert result.error_kind == library["error_kind"]
+    assert result.evaluations == library["evaluations"]
+    assert result.converged == library["converged"]
+
+
+BIT_CASES = [  # (function, masses, lengths, arguments): every method, double and MPFR
+    ("average", [1.0], [1.0], {"beta": 2.0}),                                        # torus-trapezoid
+    ("average", [0.5, 0.5], [1.0, 1.0], {"beta": 1.0}),                               # integral
+    ("average", [TINY, 1.0 - TINY], [1, 1e-4], {"beta": 1e8}),                        # integral, hard
+    ("average", [0.3, 0.7], [1.0, 2.0], {"beta": 0.1, "g": 0.0}),                     # integral, g = 0
+    ("average", [0.9, 0.1], [1.0, 2.0], {"beta": 3.0, "method": "series"}),
+    ("average", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {"beta": 0.7}),                     # torus-trapezoid
+    ("average", [1.0] * 3, [1.0] * 3, {"beta": 1.0, "method": "torus-gauss", "tol": 1e-10}),
+    ("average", [1.0] * 8, [1.0] * 8, {"beta": 1.0, "method": "qmc", "samples": 4096, "seed": 3}),
+    ("average", [1.0] * 8, [1.0] * 8, {"beta": 1.0}),                                 # transfer
+    ("average", [1.0, 0.5, 2.0, 1.0, 3.0], [1.0, 2.0, 0.5, 1.0, 1.0], {"beta": 3.0, "tol": 1e-6}),
+    ("average", [1.0] * 3, [1.0] * 3, {"beta": 1e9}),                # low-temperature extrapolation
+    ("average", ["0.5", "0.5"], ["1", "1"], {"beta": "1", "digits": 30}),             # MPFR integral
+    ("average", ["0.8", "0.2"], ["1", "1.5"], {"beta": "2", "digits": 25, "method": "series"}),
+    ("average", [1, 1, 1], [1, 1, 1], {"beta": "0.5", "digits": 20}),                 # MPFR torus
+    ("average", [1], [1], {"beta": "3", "digits": 40}),                              # MPFR N = 1
+    ("limit", [0.5, 0.5], [1.0, 1.0], {}),
+    ("limit", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {}),                                 # torus at g = 0
+    ("limit", ["0.05", "0.95"], ["1", "2"], {"digits": 20}),
+    ("microcanonical", [1.0, 1.0], [1.0, 1.0], {"energy": 0.0}),                       # integral
+    ("microcanonical", [1.0, 0.3], [1.3, 0.6], {"excitation": 1e-8, "g": 9.81}),
+    ("microcanonical", [1.0, 1.0], [1.0, 1.0], {"energy": -1.0, "method": "torus-trapezoid"}),
+    ("microcanonical", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {"energy": 1.0}),             # N = 3 integral
+    ("microcanonical", [1.0] * 5, [1.0] * 5, {"energy": 0.0, "samples": 1024, "seed": 2}),  # qmc
+    ("microcanonical", ["1", "1"], ["1", "1"], {"energy": "0", "digits": 30}),         # MPFR integral
+    ("microcanonical", ["1", "0.3"], ["1.3", "0.6"], {"excitation": "1e-8", "g": "9.81", "digits": 25}),
+    ("microcanonical", ["1", "1"], ["1", "1"], {"energy": "-1", "digits": 20, "method": "torus-trapezoid"}),
+]
+
+
+@pytest.fixture(scope="module")
+def library_results():
+    return reference([reference_line(*case) for case in BIT_CASES])
+
+
+def python_call(kind, masses, lengths, arguments):
+    if kind == "average":
+        rest = dict(arguments)
+        return pendavg.average(masses, lengths, rest.pop("beta"), **rest)
+    if kind == "limit":
+        return pendavg.limit(masses, lengths, **arguments)
+    return pendavg.microcanonical(masses, lengths, **arguments)
+
+
+@pytest.mark.parametrize("k", range(len(BIT_CASES)),
+                         ids=[reference_line(*case) for case in BIT_CASES])
+def test_python_bits_equal_the_library(library_results, k):
+    kind, masses, lengths, arguments = BIT_CASES[k]
+    result, library = python_call(kind, masses, lengths, arguments), library_results[k]
+    if kind == "limit":
+        assert_library_bits(result.high_temperature, library["high_temperature"])
+        assert_library_bits(result.low_temperature, library["low_temperature"])
+    else:
+        state = next((s for s in ("energy", "excitation") if s in arguments), None)
+        assert_library_bits(result, library, state)
+
+
+def test_methods_of_the_bit_cases():
+    """BIT_CASES covers every method and microcanonical rule, in double and in MPFR."""
+    seen = set()
+    for kind, masses, lengths, arguments in BIT_CASES:
+        r = python_call(kind, masses, lengths, arguments)
+        for one in (r if kind == "limit" else [r]):
+            seen.add((one.method, one.digits > 16))
+    assert {("integral", False), ("series", False), ("torus-trapezoid", False),
+            ("torus-gauss", False), ("qmc", False), ("transfer", False),
+            ("low-temperature-extrapolation", False), ("limit-beta0", False),
+            ("limit-beta-infinity", False), ("integral", True), ("series", True),
+            ("torus-trapezoid", True), ("limit-beta0", True),
+            ("microcanonical/integral", False), ("microcanonical/torus-trapezoid", False),
+            ("microcanonical/qmc", False), ("microcanonical/integral", True),
+            ("microcanonical/torus-trapezoid", True)} <= seen, seen
+
+
+@pytest.mark.parametrize("masses, lengths, beta, options", [
+    ([0.3, 0.7], [1.0, 2.0], np.logspace(-3, 3, 9), {}),
+    ([1.0] * 3, [1.0] * 3, np.array([0.5, 2.0]), {"tol": 1e-10}),
+    ([1.0] * 6, [1.0] * 6, np.array([0.5, 2.0]), {"tol": 1e-8}),
+    (["0.4", "0.6"], ["1", "1"], ["0.1", "1", "10"], {"digits": 30}),
+])
+def test_grid_bits_equal_the_library(masses, lengths, beta, options):
+    """Each point of an array call (one thread per point, a workspace per worker) is the
+    library's scalar call, bit for bit."""
+    grid = pendavg.average(masses, lengths, beta, **options)
+    library = reference([reference_line("average", masses, lengths, {"beta": b, **options})
+                         for b in beta])
+    for b, point in enumerate(library):
+        for name, printed in point["values"].items():
+            if grid.digits == 16:
+                assert_same_bits(getattr(grid, name)[b], printed, name)
+            else:
+                exact = np.atleast_1d(grid.mpf[MPF_NAME.get(name, name)][b]).tolist()
+                assert [mpf_fraction(x) for x in exact] == [exact_fraction(p) for p in printed]
+        for name, strings in point.get("decimal", {}).items():
+            assert list(np.atleast_1d(grid.decimal[name][b])) == strings, name
+        assert grid.method[b] == point["method"] and grid.evaluations[b] == point["evaluations"]
 
 
 # ---------------------------------------------------------------- arrays against scalar calls
