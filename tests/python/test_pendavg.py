@@ -1,6 +1,7 @@
 """The Python module against the CLI (the same library calls: the same bits and the same strings)
 and against direct C++ library calls (tests/python/reference_values.cpp: every number bit for
-bit), arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, and thread safety.
+bit), arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, thread safety, and
+the docstrings.
 
 Run by ctest (label default) with PYTHONPATH=build/python, PENDAVG_CLI=build/pendavg,
 PENDAVG_REFERENCE=build/tests/pendavg_reference_values and PENDAVG_TEST_STRICT=1 (nothing may be
@@ -10,8 +11,10 @@ skipped: a missing matplotlib or mpmath fails the test). By hand, with Debian's 
 import concurrent.futures
 import csv
 import importlib
+import inspect
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -743,14 +746,32 @@ def test_grid_calls_from_threads():
 
 # ---------------------------------------------------------------- documentation
 
-def test_help_explains_every_argument():
-    doc = pendavg.average.__doc__
-    for name in ("masses", "lengths", "beta", "g", "digits", "method", "tol", "samples", "shifts",
-                 "seed"):
-        assert f"\n      {name}" in doc, name
-    for f in (pendavg.sweep, pendavg.limit, pendavg.series, pendavg.microcanonical,
-              pendavg.simulate, pendavg.poincare):
-        assert len(f.__doc__) > 300
+PUBLIC_FUNCTIONS = [name for name in pendavg.__all__ if inspect.isfunction(getattr(pendavg, name))]
+
+
+def documented_arguments(doc):
+    """The names the docstring's 'Arguments:' section explains, one entry per line (six spaces
+    of indent, then the name)."""
+    assert "\n    Arguments:\n" in doc
+    section = doc.split("\n    Arguments:\n", 1)[1]
+    return re.findall(r"^ {6}(\w+) ", section, re.M)
+
+
+@pytest.mark.parametrize("name", PUBLIC_FUNCTIONS)
+def test_help_explains_every_argument(name):
+    """help(pendavg.<function>) explains each argument of the signature, by name, in its
+    Arguments section, and explains no argument the function does not have."""
+    function = getattr(pendavg, name)
+    parameters = list(inspect.signature(function).parameters)
+    assert documented_arguments(function.__doc__) == parameters
+
+
+def test_every_public_function_is_documented():
+    assert set(PUBLIC_FUNCTIONS) == {"average", "sweep", "limit", "series", "microcanonical",
+                                     "simulate", "poincare"}
+    assert pendavg.dynamics_instruction_set.__doc__.count("x86-64-v3") >= 1
+    for name in pendavg.__all__:
+        assert len(getattr(pendavg, name).__doc__.strip()) > 40, name
 
 
 def test_quickstart_reproduces_fig5(tmp_path):

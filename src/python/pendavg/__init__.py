@@ -150,7 +150,16 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
         r.ratio.shape     # (61, 61): <K1>/<K2> over (beta, l2)
         r.beta_K.shape    # (61, 61, 2)
 
-    digits, method ('auto', 'integral' or 'series') and progress as for pendavg.average.
+    Arguments:
+      beta      inverse temperature(s) > 0: a number or a 1-D array.
+      mu1       m1 / M, in (0, 1) (default 0.5): a number or a 1-D array; m2 = 1 - mu1.
+      l1        length(s) of the first link > 0 (default 1).
+      l2        length(s) of the second link > 0 (default 1).
+      g         gravitational acceleration(s) >= 0 (default 1).
+      digits    significant digits: 16 (default, double) or 17..1000 (MPFR), as for
+                pendavg.average.
+      method    'auto' (default: 'integral'), 'integral' or 'series', as for pendavg.average.
+      progress  None, True or a callable f(fraction of points done), as for pendavg.average.
     """
     axes = [beta, mu1, l1, l2, g]
     arrays = [i for i, a in enumerate(axes) if _is_array(a)]
@@ -190,9 +199,17 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
     beta -> infinity: beta<K_i> -> 1/2 for every particle (equipartition of the harmonic chain),
     <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2)/2, in closed form.
 
-    masses, lengths (default: all 1), g, digits, progress as for pendavg.average (Ctrl-C stops
-    the torus run of N >= 3 after a finished level). Returns Limits(high_temperature,
-    low_temperature), two Averages without beta (as `pendavg limit`).
+    Arguments:
+      masses    the N masses m_i > 0, as for pendavg.average.
+      lengths   the N link lengths l_i > 0 (default None: all 1).
+      g         gravitational acceleration >= 0 (default 1), checked as `pendavg limit --g`
+                checks it (beta -> 0 does not depend on it).
+      digits    significant digits: 16 (default, double) or 17..1000 (MPFR; N >= 6 is double
+                only, the transfer operator).
+      progress  None, True (a line on stderr every 2 s) or a callable f(fraction) of the torus
+                level of the beta -> 0 limit (N >= 3), as for pendavg.average.
+    Ctrl-C stops the torus run of N >= 3 after a finished level. Returns
+    Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
     """
     callback = _TextProgress("limit") if progress is True else progress
     high, low = _core.limit(masses, lengths, g, digits, callback)
@@ -287,12 +304,18 @@ def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
     Convergence is geometric in mu_2 = m_2/M, so a light first particle (small mu_1) needs many
     terms: prefer pendavg.average there.
 
-    masses, lengths (N = 2), beta, g as for pendavg.average; digits: the requested digits (the
-    sums always run in MPFR, at digits + 12); terms: how many terms (0, the default: until the
-    bound certifies the digits; refused before any work when that needs over 6000 terms).
-    progress: as for pendavg.average (the Bessel table's fraction done); Ctrl-C raises
-    KeyboardInterrupt (no row exists before the table is complete). Returns a SeriesResult with
-    the rows as arrays.
+    Arguments:
+      masses    the two masses m_1, m_2 > 0 (N = 2 only).
+      lengths   the two link lengths l_1, l_2 > 0.
+      beta      inverse temperature > 0.
+      g         gravitational acceleration >= 0 (default 1).
+      digits    the requested digits, 16..1000 (the sums always run in MPFR, at digits + 12).
+      terms     how many terms (0, the default: until the bound certifies the digits; refused
+                before any work when that needs over 6000 terms).
+      progress  None, True (a line on stderr every 2 s) or a callable f(fraction) of the
+                Bessel table done, as for pendavg.average.
+    Ctrl-C raises KeyboardInterrupt (no row exists before the table is complete). Returns a
+    SeriesResult with the rows as arrays.
     """
     callback = _TextProgress("series") if progress is True else progress
     return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
@@ -385,13 +408,29 @@ def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time,
     BAOAB Langevin dynamics at inverse temperature beta (friction gamma, default 1; seed of the
     noise, default 1) compared with the exact canonical averages.
 
-    Start: theta (every angle, radians, or a str like '90deg'; at rest) or phi (the N angles from
-    the downward vertical) with optional phidot (angular velocities, default 0).
-    time: the averaging time T; dt: time step (default 1e-3); burn_in: extra time before the
-    averaging starts (default 0). exact: compute the exact values (default True; N >= 5 uses
-    QMC: a few seconds). every: also return the trajectory t, E, phi_i, phidot_i every `every`
-    steps (numpy arrays). progress: None (silent), True (a line on stderr every 2 s, as the CLI)
-    or a callable f(fraction) called from this thread about every 1% of the run.
+    Arguments:
+      masses      the N masses m_i > 0.
+      lengths     the N link lengths l_i > 0.
+      g           gravitational acceleration >= 0 (default 1).
+      theta       start at rest with every angle theta (radians, or a str like '90deg'); give
+                  theta or phi.
+      phi         start at the N angles phi_i from the downward vertical (radians).
+      phidot      the N initial angular velocities with phi (default 0).
+      time        the averaging time T (required, keyword only).
+      dt          time step (default 1e-3).
+      burn_in     extra time integrated before the averaging starts (default 0).
+      integrator  the NVE composition: 'yoshida6' (default), 'yoshida4', 'suzuki4',
+                  'kahan-li6', 'rattle2' (not with thermostat='langevin').
+      thermostat  None (NVE, default) or 'langevin' (constrained BAOAB).
+      beta        Langevin: inverse temperature > 0 (required with it, refused without).
+      friction    Langevin: friction gamma > 0 (default 1).
+      seed        Langevin: seed of the noise (default 1).
+      exact       compute the exact values to compare with (default True; N >= 5 uses QMC: a
+                  few seconds).
+      every       also return the trajectory t, E, phi_i, phidot_i every `every` steps (numpy
+                  arrays); None (default): no trajectory.
+      progress    None (silent), True (a line on stderr every 2 s, as the CLI) or a callable
+                  f(fraction) called from this thread about every 1% of the run.
 
     The exact values are computed first (a request they cannot serve is refused before any
     integration). Ctrl-C (KeyboardInterrupt) ends the run cleanly: the averages of the run so far
@@ -416,7 +455,17 @@ def poincare(masses, lengths, energy, g=1.0, *, orbits=None, points=None, dt=Non
     phi_2 = 0 over the allowed p_2, and are integrated (RATTLE + Yoshida-4, dt default 1e-3)
     until each has crossed the section `points` times (default 500); each crossing is refined
     onto the section by a partial step. Energies in the paper's convention (E > -(M l1 + m2 l2) g).
-    progress, Ctrl-C: as for pendavg.simulate. Returns a PoincareSection.
+
+    Arguments:
+      masses    the two masses m_1, m_2 > 0 (N = 2 only).
+      lengths   the two link lengths l_1, l_2 > 0.
+      energy    the energy E of every orbit (E > -(M l1 + m2 l2) g).
+      g         gravitational acceleration >= 0 (default 1).
+      orbits    number of orbits (default 8).
+      points    crossings of the section per orbit (default 500).
+      dt        time step (default 1e-3).
+      progress  None, True or a callable f(fraction), as for pendavg.simulate.
+    Ctrl-C ends the run with the points so far (interrupted = True). Returns a PoincareSection.
     """
     callback = _TextProgress("poincare") if progress is True else progress
     out = PoincareSection(_core.poincare(masses, lengths, g, energy, orbits, points, dt, callback))
