@@ -149,7 +149,9 @@ void keep_mpfr(AveragePoint& p, const Averages<mpfr_real>& a, const mpfr_real* b
 
 // ---------------------------------------------------------------- computing points
 
-/// One point in double; the chain and beta were checked while the GIL was held.
+/// One point in double; the chain and beta were checked while the GIL was held. `workspace`
+/// is the caller's (Pinocchio's Data): a single point makes one for its call, a grid one per
+/// worker thread, owned by the grid call; no workspace outlives the call that made it.
 void compute_double(AveragePoint& out, const Chain<double>& chain, double beta,
                     const AverageOptions& options, AverageWorkspace<double>& workspace) {
   const Stopwatch watch;
@@ -240,12 +242,6 @@ bool observable(std::size_t particles, const AverageOptions& options) {
   } catch (const invalid_input&) {
     return false;  // refused in its turn, with the CLI's message
   }
-}
-
-/// The calling thread's workspace for single points (one per thread, reused call to call).
-AverageWorkspace<double>& thread_workspace() {
-  thread_local AverageWorkspace<double> workspace;
-  return workspace;
 }
 
 // ---------------------------------------------------------------- the result class
@@ -454,8 +450,9 @@ py::object average_point(py::handle masses, py::handle lengths, py::handle beta,
     const Chain<double> chain = double_chain(m, l, g);
     resolve_average_method(chain.size(), run);  // every option checked before any work
     const double b = number_double(beta, "--beta", Domain::positive);
-    run_call([&] { compute_double(point, chain, b, run, thread_workspace()); }, long_run,
-             observation, progress);
+    AverageWorkspace<double> workspace;  // this call's buffers (a grid: one per worker)
+    run_call([&] { compute_double(point, chain, b, run, workspace); }, long_run, observation,
+             progress);
   } else {
     const PointTexts in{texts(m), texts(l), number_text(g), number_text(beta)};
     run_call([&] { compute_mpfr(point, in, run); }, long_run, observation, progress);

@@ -27,17 +27,21 @@ bool is_type(py::handle x, const char* module_prefix, const char* name) {
   return module.rfind(module_prefix, 0) == 0 && std::string(py::str(type.attr("__name__"))) == name;
 }
 
-/// An mpmath.mpf's exact binary value as a decimal literal: man * 2^exp = man * 5^-exp e exp.
+/// An mpmath.mpf's exact binary value as a decimal literal: (-1)^sign man * 2^exp = (-1)^sign
+/// man * 5^-exp e exp, from its raw tuple _mpf_ = (sign, man, exp, bitcount) (mpf.man_exp holds
+/// |man| only).
 std::string mpf_text(py::handle x) {
-  const py::tuple man_exp = x.attr("man_exp");
-  const py::int_ man = man_exp[0];
-  const py::int_ exponent = man_exp[1];
+  const py::tuple raw = x.attr("_mpf_");
+  const bool negative = raw[0].cast<int>() != 0;
+  const py::int_ man = raw[1];
+  const py::int_ exponent = raw[2];
   const long e = exponent.cast<long>();
   if (man.cast<py::object>().equal(py::int_(0)) && e != 0)  // inf, nan: mpmath's specials
     return float_repr(py::float_(py::reinterpret_borrow<py::object>(x)).cast<double>());
-  if (e >= 0) return py::str(man.attr("__lshift__")(exponent));
+  const std::string sign = negative ? "-" : "";
+  if (e >= 0) return sign + std::string(py::str(man.attr("__lshift__")(exponent)));
   const py::object scaled = man * py::module_::import("builtins").attr("pow")(py::int_(5), -e);
-  return std::string(py::str(scaled)) + "e-" + std::to_string(-e);
+  return sign + std::string(py::str(scaled)) + "e-" + std::to_string(-e);
 }
 
 }  // namespace

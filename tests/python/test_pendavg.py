@@ -1,18 +1,26 @@
-"""The Python module against the CLI (the same library calls: the same bits and the same strings),
-arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, and thread safety.
+"""The Python module against the CLI (the same library calls: the same bits and the same strings)
+and against direct C++ library calls (tests/python/reference_values.cpp: every number bit for
+bit), arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, thread safety, and
+the docstrings.
 
-Run by ctest (label default) with PYTHONPATH=build/python and PENDAVG_CLI=build/pendavg:
-    python3 -m pytest -q tests/python
+Run by ctest (label default) with PYTHONPATH=build/python, PENDAVG_CLI=build/pendavg,
+PENDAVG_REFERENCE=build/tests/pendavg_reference_values and PENDAVG_TEST_STRICT=1 (nothing may be
+skipped: a missing matplotlib or mpmath fails the test). By hand, with Debian's python3:
+    PYTHONPATH=build/python /usr/bin/python3 -m pytest -q tests/python
 """
 import concurrent.futures
+import csv
+import importlib
+import inspect
 import json
 import os
-import csv
+import re
 import signal
 import subprocess
 import sys
 import threading
 import time
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -21,6 +29,18 @@ import pendavg
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 CLI = os.environ.get("PENDAVG_CLI", os.path.join(ROOT, "build", "pendavg"))
+REFERENCE = os.environ.get("PENDAVG_REFERENCE",
+                           os.path.join(ROOT, "build", "tests", "pendavg_reference_values"))
+STRICT = os.environ.get("PENDAVG_TEST_STRICT") == "1"  # set by ctest: skip nothing
+
+
+def optional_module(name):
+    """Imports `name`; a missing module skips the test when run by hand, and fails it under ctest
+    (PENDAVG_TEST_STRICT=1: run.sh installs python3-mpmath and python3-matplotlib for the tests)."""
+    if STRICT:
+        return importlib.import_module(name)
+    return pytest.importorskip(name)
+
 
 # The CLI's strings of `average --format json`, all of which Averages.decimal carries.
 STRING_KEYS = ["beta_K", "K", "error", "ratio", "cos_phi", "var_K", "diagonal_approx", "beta_Kc",
@@ -113,7 +133,7 @@ def test_mpfr_agrees_with_cli(masses, lengths, beta, digits):
     r = pendavg.average(masses, lengths, beta, digits=digits)
     assert_same_as_cli(r, cli_average(masses, lengths, beta, digits=digits))
     # mpf: the exact MPFR value, which the printed string rounds
-    mpmath = pytest.importorskip("mpmath")
+    mpmath = optional_module("mpmath")
     with mpmath.workdps(digits + 20):
         for value, printed in zip(r.mpf["beta_K"], r.decimal["beta_K"]):
             assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - digits)
@@ -162,6 +182,189 @@ def test_sweep_agrees_with_table():
             assert r.decimal["beta_K"][b, m, l, i] == row[col[f"beta_K{i + 1}"]]
             assert r.decimal["error"][b, m, l, i] == row[col[f"error_K{i + 1}"]]
         assert r.decimal["ratio"][b, m, l] == row[col["ratio"]]
+
+
+# ---------------------------------------------------------------- the C++ library's own bits
+
+def reference(lines):
+    """The library's results of reference_values.cpp's calls `lines` (direct C++ calls, every
+    number printed exactly: %a, mpfr's %Ra), one dict per line."""
+    if not os.path.exists(REFERENCE):
+        if STRICT:
+            pytest.fail(f"{REFERENCE} is missing (target pendavg_reference_values)")
+        pytest.skip(f"{REFERENCE} not built (cmake --build build --target pendavg_reference_values)")
+    done = subprocess.run([REFERENCE], input="\n".join(lines) + "\n", capture_output=True,
+                          text=True, check=True)
+    out = [json.loads(line) for line in done.stdout.splitlines()]
+    assert len(out) == len(lines)
+    for line, result in zip(lines, out):
+        assert "error" not in result, (line, result)
+    return out
+
+
+def reference_line(kind, masses, lengths, arguments):
+    """reference_values.cpp's line for the Python call kind(masses, lengths, **arguments)."""
+    given = {"g": 1.0, "digits": 16, **arguments}
+    tokens = [kind, "masses=" + ",".join(map(text, masses)),
+              "lengths=" + ",".join(map(text, lengths))]
+    tokens += [f"{name}={text(value)}" for name, value in given.items() if name != "method" or value != "auto"]
+    return " ".join(tokens)
+
+
+def exact_fraction(printed):
+    """The exact value of a number printed by %a (double) or mpfr's %Ra: 0xH.HHHp[+-]E."""
+    sign = -1 if printed.startswith("-") else 1
+    body = printed.lstrip("+-")
+    if body in ("inf", "nan", "@Inf@", "@NaN@"):
+        return printed
+    mantissa, exponent = body[2:].split("p")
+    whole, _, fraction = mantissa.partition(".")
+    return sign * Fraction(int(whole + fraction, 16)) * Fraction(2) ** (int(exponent) - 4 * len(fraction))
+
+
+def mpf_fraction(x):
+    """An mpmath.mpf's exact value (its man * 2^exp), or its text for inf and nan."""
+    mpmath = optional_module("mpmath")
+    if not mpmath.isfinite(x):
+        return ("-" if x < 0 else "") + ("inf" if mpmath.isinf(x) else "nan")
+    sign, man, exponent, _ = x._mpf_  # (x.man_exp holds |man| only)
+    return (-1) ** sign * Fraction(man) * Fraction(2) ** exponent
+
+
+def assert_same_bits(python_value, printed, name):
+    """Every double of python_value (a float or an array) has the bits of the printed one."""
+    values = np.atleast_1d(np.asarray(python_value, dtype=float)).ravel().tolist()
+    assert len(values) == len(printed), name
+    for x, p in zip(values, printed):
+        y = float.fromhex(p) if not isinstance(exact_fraction(p), str) else float(p)
+        assert x.hex() == y.hex(), (name, x.hex(), p)
+
+
+# The Python name of a reference field in Averages.mpf (the others are the same).
+MPF_NAME = {"beta_K_error": "error"}
+
+
+def assert_library_bits(result, library, given_state=None):
+    """result (Averages or MicrocanonicalResult) holds exactly the library's numbers: in double
+    the same doubles; with digits > 16 the same exact MPFR values (.mpf), the doubles they round
+    to, and the CLI's decimal strings of them (.decimal)."""
+    for name, printed in library["values"].items():
+        if result.digits == 16:
+            assert_same_bits(getattr(result, name), printed, name)
+            continue
+        exact = result.mpf[MPF_NAME.get(name, name)]
+        exact = list(exact) if isinstance(exact, (list, np.ndarray)) else [exact]
+        assert [mpf_fraction(x) for x in exact] == [exact_fraction(p) for p in printed], name
+        rounded = [float(f) for f in map(exact_fraction, printed)]
+        assert_same_bits(getattr(result, name), [x.hex() for x in rounded], name)
+    if isinstance(result, pendavg.Averages) and "ratio" not in library["values"]:
+        assert result.ratio is None  # N = 1
+    for name, strings in library.get("decimal", {}).items():
+        if name == given_state:  # printed as given, as the CLI prints it
+            continue
+        assert list(np.atleast_1d(result.decimal[name])) == strings, name
+    assert result.method == library["method"]
+    assert result.error_kind == library["error_kind"]
+    assert result.evaluations == library["evaluations"]
+    assert result.converged == library["converged"]
+
+
+BIT_CASES = [  # (function, masses, lengths, arguments): every method, double and MPFR
+    ("average", [1.0], [1.0], {"beta": 2.0}),                                        # torus-trapezoid
+    ("average", [0.5, 0.5], [1.0, 1.0], {"beta": 1.0}),                               # integral
+    ("average", [TINY, 1.0 - TINY], [1, 1e-4], {"beta": 1e8}),                        # integral, hard
+    ("average", [0.3, 0.7], [1.0, 2.0], {"beta": 0.1, "g": 0.0}),                     # integral, g = 0
+    ("average", [0.9, 0.1], [1.0, 2.0], {"beta": 3.0, "method": "series"}),
+    ("average", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {"beta": 0.7}),                     # torus-trapezoid
+    ("average", [1.0] * 3, [1.0] * 3, {"beta": 1.0, "method": "torus-gauss", "tol": 1e-10}),
+    ("average", [1.0] * 8, [1.0] * 8, {"beta": 1.0, "method": "qmc", "samples": 4096, "seed": 3}),
+    ("average", [1.0] * 8, [1.0] * 8, {"beta": 1.0}),                                 # transfer
+    ("average", [1.0, 0.5, 2.0, 1.0, 3.0], [1.0, 2.0, 0.5, 1.0, 1.0], {"beta": 3.0, "tol": 1e-6}),
+    ("average", [1.0] * 3, [1.0] * 3, {"beta": 1e9}),                # low-temperature extrapolation
+    ("average", ["0.5", "0.5"], ["1", "1"], {"beta": "1", "digits": 30}),             # MPFR integral
+    ("average", ["0.8", "0.2"], ["1", "1.5"], {"beta": "2", "digits": 25, "method": "series"}),
+    ("average", [1, 1, 1], [1, 1, 1], {"beta": "0.5", "digits": 20}),                 # MPFR torus
+    ("average", [1], [1], {"beta": "3", "digits": 40}),                              # MPFR N = 1
+    ("limit", [0.5, 0.5], [1.0, 1.0], {}),
+    ("limit", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {}),                                 # torus at g = 0
+    ("limit", ["0.05", "0.95"], ["1", "2"], {"digits": 20}),
+    ("microcanonical", [1.0, 1.0], [1.0, 1.0], {"energy": 0.0}),                       # integral
+    ("microcanonical", [1.0, 0.3], [1.3, 0.6], {"excitation": 1e-8, "g": 9.81}),
+    ("microcanonical", [1.0, 1.0], [1.0, 1.0], {"energy": -1.0, "method": "torus-trapezoid"}),
+    ("microcanonical", [1.0, 2.0, 0.5], [1.0, 0.5, 2.0], {"energy": 1.0}),             # N = 3 integral
+    ("microcanonical", [1.0] * 5, [1.0] * 5, {"energy": 0.0, "samples": 1024, "seed": 2}),  # qmc
+    ("microcanonical", ["1", "1"], ["1", "1"], {"energy": "0", "digits": 30}),         # MPFR integral
+    ("microcanonical", ["1", "0.3"], ["1.3", "0.6"], {"excitation": "1e-8", "g": "9.81", "digits": 25}),
+    ("microcanonical", ["1", "1"], ["1", "1"], {"energy": "-1", "digits": 20, "method": "torus-trapezoid"}),
+]
+
+
+@pytest.fixture(scope="module")
+def library_results():
+    return reference([reference_line(*case) for case in BIT_CASES])
+
+
+def python_call(kind, masses, lengths, arguments):
+    if kind == "average":
+        rest = dict(arguments)
+        return pendavg.average(masses, lengths, rest.pop("beta"), **rest)
+    if kind == "limit":
+        return pendavg.limit(masses, lengths, **arguments)
+    return pendavg.microcanonical(masses, lengths, **arguments)
+
+
+@pytest.mark.parametrize("k", range(len(BIT_CASES)),
+                         ids=[reference_line(*case) for case in BIT_CASES])
+def test_python_bits_equal_the_library(library_results, k):
+    kind, masses, lengths, arguments = BIT_CASES[k]
+    result, library = python_call(kind, masses, lengths, arguments), library_results[k]
+    if kind == "limit":
+        assert_library_bits(result.high_temperature, library["high_temperature"])
+        assert_library_bits(result.low_temperature, library["low_temperature"])
+    else:
+        state = next((s for s in ("energy", "excitation") if s in arguments), None)
+        assert_library_bits(result, library, state)
+
+
+def test_methods_of_the_bit_cases():
+    """BIT_CASES covers every method and microcanonical rule, in double and in MPFR."""
+    seen = set()
+    for kind, masses, lengths, arguments in BIT_CASES:
+        r = python_call(kind, masses, lengths, arguments)
+        for one in (r if kind == "limit" else [r]):
+            seen.add((one.method, one.digits > 16))
+    assert {("integral", False), ("series", False), ("torus-trapezoid", False),
+            ("torus-gauss", False), ("qmc", False), ("transfer", False),
+            ("low-temperature-extrapolation", False), ("limit-beta0", False),
+            ("limit-beta-infinity", False), ("integral", True), ("series", True),
+            ("torus-trapezoid", True), ("limit-beta0", True),
+            ("microcanonical/integral", False), ("microcanonical/torus-trapezoid", False),
+            ("microcanonical/qmc", False), ("microcanonical/integral", True),
+            ("microcanonical/torus-trapezoid", True)} <= seen, seen
+
+
+@pytest.mark.parametrize("masses, lengths, beta, options", [
+    ([0.3, 0.7], [1.0, 2.0], np.logspace(-3, 3, 9), {}),
+    ([1.0] * 3, [1.0] * 3, np.array([0.5, 2.0]), {"tol": 1e-10}),
+    ([1.0] * 6, [1.0] * 6, np.array([0.5, 2.0]), {"tol": 1e-8}),
+    (["0.4", "0.6"], ["1", "1"], ["0.1", "1", "10"], {"digits": 30}),
+])
+def test_grid_bits_equal_the_library(masses, lengths, beta, options):
+    """Each point of an array call (one thread per point, a workspace per worker) is the
+    library's scalar call, bit for bit."""
+    grid = pendavg.average(masses, lengths, beta, **options)
+    library = reference([reference_line("average", masses, lengths, {"beta": b, **options})
+                         for b in beta])
+    for b, point in enumerate(library):
+        for name, printed in point["values"].items():
+            if grid.digits == 16:
+                assert_same_bits(getattr(grid, name)[b], printed, name)
+            else:
+                exact = np.atleast_1d(grid.mpf[MPF_NAME.get(name, name)][b]).tolist()
+                assert [mpf_fraction(x) for x in exact] == [exact_fraction(p) for p in printed]
+        for name, strings in point.get("decimal", {}).items():
+            assert list(np.atleast_1d(grid.decimal[name][b])) == strings, name
+        assert grid.method[b] == point["method"] and grid.evaluations[b] == point["evaluations"]
 
 
 # ---------------------------------------------------------------- arrays against scalar calls
@@ -239,6 +442,15 @@ BAD = [  # (python call, the CLI's arguments): the same one-line message
     (lambda: pendavg.microcanonical([1] * 5, [1] * 5, 0, tol=1e-5), "average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --tol 1e-5"),
     (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, method="series"), "average --masses 1,1 --lengths 1,1 --energy 0 --method series"),
     (lambda: pendavg.microcanonical([1, 1], [1, 1], excitation=-1), "average --masses 1,1 --lengths 1,1 --excitation -1"),
+    (lambda: pendavg.microcanonical([1] * 5, [1] * 5, 0, digits=30), "average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, method="qmc", digits=20), "average --masses 1,1 --lengths 1,1 --energy 0 --method qmc --digits 20"),
+    (lambda: pendavg.microcanonical([1] * 3, [1] * 3, 0, method="torus-trapezoid", digits=20), "average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --digits 20"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, tol=1e-20, digits=30), "average --masses 1,1 --lengths 1,1 --energy 0 --tol 1e-20 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], 0, digits=15), "average --masses 1,1 --lengths 1,1 --energy 0 --digits 15"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], "-3", digits=30), "average --masses 1,1 --lengths 1,1 --energy -3 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1, 1], excitation="0", digits=30), "average --masses 1,1 --lengths 1,1 --excitation 0 --digits 30"),
+    (lambda: pendavg.microcanonical(["0", 1], [1, 1], 0, digits=30), "average --masses 0,1 --lengths 1,1 --energy 0 --digits 30"),
+    (lambda: pendavg.microcanonical([1, 1], [1], 0, digits=30), "average --masses 1,1 --lengths 1 --energy 0 --digits 30"),
     (lambda: pendavg.average([0, 0.5], [1, 1], 1), "average --masses 0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([-1.0, 0.5], [1, 1], 1), "average --masses -1.0,0.5 --lengths 1,1 --beta 1"),
     (lambda: pendavg.average([float("nan"), 0.5], [1, 1], 1), "average --masses nan,0.5 --lengths 1,1 --beta 1"),
@@ -292,6 +504,28 @@ def test_bad_input_raises_the_cli_message(call, args):
     with pytest.raises(ValueError) as caught:
         call()
     assert str(caught.value) == message[len("pendavg: error: "):]
+
+
+def test_number_types_are_read_exactly_with_their_sign():
+    """An mpmath.mpf is read by its exact binary value, sign included (as the equal float or
+    decimal string), in double and in MPFR; a negative one is refused as the CLI refuses it."""
+    mpmath = optional_module("mpmath")
+    from decimal import Decimal
+    for digits in (16, 30):
+        by_float = pendavg.microcanonical([1, 1], [1, 1], -1.25, digits=digits)
+        for energy in (mpmath.mpf(-1.25), Decimal("-1.25"), "-1.25", -1.25):
+            r = pendavg.microcanonical([1, 1], [1, 1], energy, digits=digits)
+            assert r.energy == -1.25 and r.decimal["K"] == by_float.decimal["K"], energy
+    tenth = pendavg.average([0.5, 0.5], [1, 1], mpmath.mpf(0.1), digits=30)
+    assert tenth.decimal["beta_K"] == pendavg.average(
+        [0.5, 0.5], [1, 1], "0.1000000000000000055511151231257827021181583404541015625",
+        digits=30).decimal["beta_K"]
+    swept = pendavg.sweep(beta=1, mu1=[mpmath.mpf(0.25), 0.25])
+    np.testing.assert_array_equal(swept.beta_K[0], swept.beta_K[1])
+    with pytest.raises(ValueError, match=r"^--g: '-1' must be >= 0$"):
+        pendavg.average([0.5, 0.5], [1, 1], 1, g=mpmath.mpf(-1))
+    with pytest.raises(ValueError, match=r"^--beta: '-5e-1' must be > 0$"):
+        pendavg.average([0.5, 0.5], [1, 1], mpmath.mpf(-0.5), digits=20)
 
 
 def test_nothing_crashes_on_odd_arguments():
@@ -357,6 +591,61 @@ def test_microcanonical_agrees_with_cli():
         pendavg.microcanonical([1, 1], [1, 1], -1, excitation=1)
     with pytest.raises(ValueError, match="at or below the minimum energy"):
         pendavg.microcanonical([1, 1], [1, 1], -3)
+
+
+MICROCANONICAL_STRINGS = ["energy", "excitation", "K", "K_error", "Kc", "Kc_error", "cos_phi",
+                          "cos_phi_error", "var_K", "var_K_error", "K_total", "K_total_error",
+                          "density_of_states", "density_of_states_error"]
+
+
+@pytest.mark.parametrize("masses, lengths, state", [
+    (["1", "1"], ["1", "1"], {"energy": "0", "digits": 30}),
+    (["1", "0.3"], ["1.3", "0.6"], {"g": "9.81", "excitation": "1e-8", "digits": 25}),
+    ([1, 0.3], [1.3, 0.6], {"g": 9.81, "energy": -2.99999999, "digits": 17}),   # floats as typed
+    (["1", "1"], ["1", "1"], {"energy": "0", "digits": 20, "method": "torus-trapezoid"}),
+    ([1.0, 1.0], [1.0, 1.0], {"energy": 0.5}),                                     # double
+    ([1.0] * 5, [1.0] * 5, {"energy": 0.0, "samples": 1024}),                      # qmc, double
+])
+def test_microcanonical_digits_agree_with_cli(masses, lengths, state):
+    """pendavg.microcanonical(..., digits=D) is `pendavg average --energy E --digits D`, digit
+    for digit (.decimal), and .mpf holds the exact values the strings round."""
+    m = pendavg.microcanonical(masses, lengths, **state)
+    args = ["average", "--masses", ",".join(map(text, masses)), "--lengths",
+            ",".join(map(text, lengths))]
+    for name, value in state.items():
+        args += [f"--{name}", text(value)]
+    d = cli_json(*args, "--format", "json")
+    for key in MICROCANONICAL_STRINGS:
+        assert m.decimal[key] == d[key], key
+    if d["run"] is not None:  # qmc
+        assert m.decimal["proposal_beta"] == d["run"]["proposal_beta"]
+        assert m.decimal["effective_sample_fraction"] == d["run"]["effective_sample_fraction"]
+    assert m.method == "microcanonical/" + d["method"] and m.error_kind == d["error_kind"]
+    assert m.evaluations == d["evaluations"] and m.work_unit == d["work_unit"]
+    assert m.converged == d["converged"] and m.N == d["N"] and m.digits == d["digits"]
+    if m.digits == 16:
+        assert [f"{x:.15e}" for x in m.K] == d["K"]
+        return
+    mpmath = optional_module("mpmath")
+    exact = m.mpf
+    with mpmath.workdps(m.digits + 20):
+        for key in ("K", "cos_phi", "var_K"):
+            for value, printed in zip(exact[key], m.decimal[key]):
+                assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - m.digits)
+    np.testing.assert_array_equal(m.K, [float(x) for x in exact["K"]])  # the doubles round them
+
+
+def test_microcanonical_threads_mixing_digits_give_the_serial_bits():
+    calls = [(energy, digits) for digits in (16, 20, 30) for energy in ("-1", "0.5")]
+
+    def run(call):
+        energy, digits = call
+        r = pendavg.microcanonical(["1", "0.5"], ["1", "2"], energy, digits=digits)
+        return r.decimal, r.K.tolist(), r.exact
+
+    serial = [run(call) for call in calls]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        assert list(pool.map(run, calls * 2)) == serial * 2
 
 
 def test_poincare_agrees_with_cli():
@@ -457,18 +746,36 @@ def test_grid_calls_from_threads():
 
 # ---------------------------------------------------------------- documentation
 
-def test_help_explains_every_argument():
-    doc = pendavg.average.__doc__
-    for name in ("masses", "lengths", "beta", "g", "digits", "method", "tol", "samples", "shifts",
-                 "seed"):
-        assert f"\n      {name}" in doc, name
-    for f in (pendavg.sweep, pendavg.limit, pendavg.series, pendavg.microcanonical,
-              pendavg.simulate, pendavg.poincare):
-        assert len(f.__doc__) > 300
+PUBLIC_FUNCTIONS = [name for name in pendavg.__all__ if inspect.isfunction(getattr(pendavg, name))]
+
+
+def documented_arguments(doc):
+    """The names the docstring's 'Arguments:' section explains, one entry per line (six spaces
+    of indent, then the name)."""
+    assert "\n    Arguments:\n" in doc
+    section = doc.split("\n    Arguments:\n", 1)[1]
+    return re.findall(r"^ {6}(\w+) ", section, re.M)
+
+
+@pytest.mark.parametrize("name", PUBLIC_FUNCTIONS)
+def test_help_explains_every_argument(name):
+    """help(pendavg.<function>) explains each argument of the signature, by name, in its
+    Arguments section, and explains no argument the function does not have."""
+    function = getattr(pendavg, name)
+    parameters = list(inspect.signature(function).parameters)
+    assert documented_arguments(function.__doc__) == parameters
+
+
+def test_every_public_function_is_documented():
+    assert set(PUBLIC_FUNCTIONS) == {"average", "sweep", "limit", "series", "microcanonical",
+                                     "simulate", "poincare"}
+    assert pendavg.dynamics_instruction_set.__doc__.count("x86-64-v3") >= 1
+    for name in pendavg.__all__:
+        assert len(getattr(pendavg, name).__doc__.strip()) > 40, name
 
 
 def test_quickstart_reproduces_fig5(tmp_path):
-    pytest.importorskip("matplotlib")
+    optional_module("matplotlib")
     out = tmp_path / "fig5.png"
     subprocess.run([sys.executable, os.path.join(ROOT, "tables", "examples", "quickstart.py"),
                     str(out)], check=True, capture_output=True)

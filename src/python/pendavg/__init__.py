@@ -150,7 +150,16 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
         r.ratio.shape     # (61, 61): <K1>/<K2> over (beta, l2)
         r.beta_K.shape    # (61, 61, 2)
 
-    digits, method ('auto', 'integral' or 'series') and progress as for pendavg.average.
+    Arguments:
+      beta      inverse temperature(s) > 0: a number or a 1-D array.
+      mu1       m1 / M, in (0, 1) (default 0.5): a number or a 1-D array; m2 = 1 - mu1.
+      l1        length(s) of the first link > 0 (default 1).
+      l2        length(s) of the second link > 0 (default 1).
+      g         gravitational acceleration(s) >= 0 (default 1).
+      digits    significant digits: 16 (default, double) or 17..1000 (MPFR), as for
+                pendavg.average.
+      method    'auto' (default: 'integral'), 'integral' or 'series', as for pendavg.average.
+      progress  None, True or a callable f(fraction of points done), as for pendavg.average.
     """
     axes = [beta, mu1, l1, l2, g]
     arrays = [i for i, a in enumerate(axes) if _is_array(a)]
@@ -190,9 +199,17 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
     beta -> infinity: beta<K_i> -> 1/2 for every particle (equipartition of the harmonic chain),
     <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2)/2, in closed form.
 
-    masses, lengths (default: all 1), g, digits, progress as for pendavg.average (Ctrl-C stops
-    the torus run of N >= 3 after a finished level). Returns Limits(high_temperature,
-    low_temperature), two Averages without beta (as `pendavg limit`).
+    Arguments:
+      masses    the N masses m_i > 0, as for pendavg.average.
+      lengths   the N link lengths l_i > 0 (default None: all 1).
+      g         gravitational acceleration >= 0 (default 1), checked as `pendavg limit --g`
+                checks it (beta -> 0 does not depend on it).
+      digits    significant digits: 16 (default, double) or 17..1000 (MPFR; N >= 6 is double
+                only, the transfer operator).
+      progress  None, True (a line on stderr every 2 s) or a callable f(fraction) of the torus
+                level of the beta -> 0 limit (N >= 3), as for pendavg.average.
+    Ctrl-C stops the torus run of N >= 3 after a finished level. Returns
+    Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
     """
     callback = _TextProgress("limit") if progress is True else progress
     high, low = _core.limit(masses, lengths, g, digits, callback)
@@ -245,9 +262,37 @@ class MicrocanonicalResult(_Record):
     <cos phi_i>_E; var_K, var_K_error: Var K_i on the shell; energy and excitation (E - E_min);
     density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
     transform is the partition function), with its error; method ('microcanonical/<rule>'),
-    error_kind ('estimate', or 'statistical' for qmc), evaluations, converged, proposal_beta and
-    effective_sample_fraction (qmc), seconds.
+    error_kind ('estimate', or 'statistical' for qmc), evaluations and work_unit ('nodes' or
+    'samples'), converged, proposal_beta and effective_sample_fraction (qmc), seconds, N,
+    digits. All numbers are floats (an MPFR run's rounded to double); decimal: the CLI's strings
+    (`pendavg average --energy E --digits D --format json`: values with `digits` digits, errors
+    with 3 that also cover the printed value's rounding); mpf: exact mpmath values.
     """
+
+    @property
+    def mpf(self):
+        """The values and errors as mpmath.mpf: exact binary values (MPFR runs: at digits + 12
+        guard digits; double runs: the doubles exactly). Per-particle fields (K, cos_phi, var_K
+        and their errors) are lists, the others one mpf. Needs mpmath."""
+        import mpmath
+        out = {}
+        for name in _MICROCANONICAL_EXACT:
+            if self.exact is not None:
+                items = [_to_mpf(x) for x in self.exact[name]]
+            else:
+                value = getattr(self, name)
+                items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x)))
+                         for x in _np.atleast_1d(value)]
+            out[name] = items if name in _MICROCANONICAL_PER_PARTICLE else items[0]
+        return out
+
+
+_MICROCANONICAL_EXACT = ("energy", "excitation", "K", "K_error", "Kc", "Kc_error", "K_total",
+                         "K_total_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
+                         "density_of_states", "density_of_states_error", "proposal_beta",
+                         "effective_sample_fraction")
+_MICROCANONICAL_PER_PARTICLE = ("K", "K_error", "cos_phi", "cos_phi_error", "var_K",
+                                "var_K_error")
 
 
 def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
@@ -259,39 +304,65 @@ def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
     Convergence is geometric in mu_2 = m_2/M, so a light first particle (small mu_1) needs many
     terms: prefer pendavg.average there.
 
-    masses, lengths (N = 2), beta, g as for pendavg.average; digits: the requested digits (the
-    sums always run in MPFR, at digits + 12); terms: how many terms (0, the default: until the
-    bound certifies the digits; refused before any work when that needs over 6000 terms).
-    progress: as for pendavg.average (the Bessel table's fraction done); Ctrl-C raises
-    KeyboardInterrupt (no row exists before the table is complete). Returns a SeriesResult with
-    the rows as arrays.
+    Arguments:
+      masses    the two masses m_1, m_2 > 0 (N = 2 only).
+      lengths   the two link lengths l_1, l_2 > 0.
+      beta      inverse temperature > 0.
+      g         gravitational acceleration >= 0 (default 1).
+      digits    the requested digits, 16..1000 (the sums always run in MPFR, at digits + 12).
+      terms     how many terms (0, the default: until the bound certifies the digits; refused
+                before any work when that needs over 6000 terms).
+      progress  None, True (a line on stderr every 2 s) or a callable f(fraction) of the
+                Bessel table done, as for pendavg.average.
+    Ctrl-C raises KeyboardInterrupt (no row exists before the table is complete). Returns a
+    SeriesResult with the rows as arrays.
     """
     callback = _TextProgress("series") if progress is True else progress
     return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
 
 
-def microcanonical(masses, lengths, energy=None, g=1.0, method="auto", tol=None, samples=None,
-                   shifts=None, seed=None, excitation=None):
+def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto", tol=None,
+                   samples=None, shifts=None, seed=None, excitation=None):
     """Exact microcanonical averages <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E, Var K_i at fixed energy.
 
     The values NVE time averages (pendavg.simulate without thermostat) must reproduce when the
     motion is ergodic. Energies use the paper's U = -sum_j g S_j l_j cos phi_j (S_j the mass at
     and below link j), so the hanging chain at rest has E_min = -sum_j g S_j l_j; E > E_min.
     Per angle configuration the momenta are uniform on the shell H = E; the angle integrals
-    run over the reduced torus (MATH.md Sec. 7).
+    run over the reduced torus (MATH.md Sec. 7). The same call as `pendavg average --energy E
+    | --excitation D [--digits D]`, with the CLI's checks, messages and strings.
 
-    Give one of energy (E > E_min) and excitation (D = E - E_min > 0): near the bottom of the
-    well an E in double carries only ~1e-16 |E_min| / D relative accuracy in D, an excitation
-    all of it (as `pendavg average --energy E | --excitation D`).
-    method: 'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut at every
-    singular point; tol: relative target, default 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9
-    beyond), 'torus-trapezoid' (a check), 'qmc' (samples: points per shift 2^10..2^16, shifts,
-    seed; statistical bars, the 99.9% Student-t quantile of the standard error). In double; an
-    option the chosen rule does not use is refused, with the CLI's message.
-    Returns a MicrocanonicalResult.
+    Arguments:
+      masses      the N masses m_i > 0, as for pendavg.average.
+      lengths     the N link lengths l_i > 0.
+      energy      the energy E > E_min. Give one of energy and excitation: near the bottom of
+                  the well an E in double carries only ~1e-16 |E_min| / D relative accuracy in
+                  D, an excitation all of it.
+      g           gravitational acceleration >= 0 (default 1).
+      digits      significant digits requested: 16 (default) runs in double; 17..1000 in MPFR
+                  at digits + 12 guard digits with tolerance 10^-digits, for the integral rule
+                  (N <= 4) and torus-trapezoid (N <= 2); qmc is double only.
+      method      'auto' (integral for N <= 4, qmc beyond), 'integral' (nested tanh-sinh, cut
+                  at every singular point), 'torus-trapezoid' (a check; algebraic
+                  convergence), 'qmc' (statistical bars, the 99.9% Student-t quantile of the
+                  standard error over the shifts).
+      tol         integral and torus-trapezoid in double: relative target (default 1e-13 for
+                  N <= 2, 1e-11 for N = 3, 1e-9 beyond); with digits > 16 it is 10^-digits
+                  and may not be given.
+      samples     qmc: lattice points per shift, a power of two in 1024..65536 (default 16384).
+      shifts      qmc: random shifts, 4..1024 (default 16).
+      seed        qmc: seed of the shifts (default 1).
+      excitation  the excitation D = E - E_min > 0, instead of energy (formed without
+                  cancellation: the way to state a state near the bottom of the well).
+    An option the chosen rule does not use is refused (ValueError, the CLI's message).
+    Progress and Ctrl-C: the library's microcanonical run reports no progress and cannot be
+    stopped midway (its options take no RunControl); it runs with the GIL released, and a
+    Ctrl-C raises KeyboardInterrupt when it returns.
+    Returns a MicrocanonicalResult (with .decimal, the CLI's strings, and .mpf, exact mpmath
+    values; both also in double).
     """
-    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, method, tol,
-                                                     samples, shifts, seed, excitation))
+    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, digits, method,
+                                                     tol, samples, shifts, seed, excitation))
 
 
 # ---------------------------------------------------------------- dynamics
@@ -337,13 +408,29 @@ def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time,
     BAOAB Langevin dynamics at inverse temperature beta (friction gamma, default 1; seed of the
     noise, default 1) compared with the exact canonical averages.
 
-    Start: theta (every angle, radians, or a str like '90deg'; at rest) or phi (the N angles from
-    the downward vertical) with optional phidot (angular velocities, default 0).
-    time: the averaging time T; dt: time step (default 1e-3); burn_in: extra time before the
-    averaging starts (default 0). exact: compute the exact values (default True; N >= 5 uses
-    QMC: a few seconds). every: also return the trajectory t, E, phi_i, phidot_i every `every`
-    steps (numpy arrays). progress: None (silent), True (a line on stderr every 2 s, as the CLI)
-    or a callable f(fraction) called from this thread about every 1% of the run.
+    Arguments:
+      masses      the N masses m_i > 0.
+      lengths     the N link lengths l_i > 0.
+      g           gravitational acceleration >= 0 (default 1).
+      theta       start at rest with every angle theta (radians, or a str like '90deg'); give
+                  theta or phi.
+      phi         start at the N angles phi_i from the downward vertical (radians).
+      phidot      the N initial angular velocities with phi (default 0).
+      time        the averaging time T (required, keyword only).
+      dt          time step (default 1e-3).
+      burn_in     extra time integrated before the averaging starts (default 0).
+      integrator  the NVE composition: 'yoshida6' (default), 'yoshida4', 'suzuki4',
+                  'kahan-li6', 'rattle2' (not with thermostat='langevin').
+      thermostat  None (NVE, default) or 'langevin' (constrained BAOAB).
+      beta        Langevin: inverse temperature > 0 (required with it, refused without).
+      friction    Langevin: friction gamma > 0 (default 1).
+      seed        Langevin: seed of the noise (default 1).
+      exact       compute the exact values to compare with (default True; N >= 5 uses QMC: a
+                  few seconds).
+      every       also return the trajectory t, E, phi_i, phidot_i every `every` steps (numpy
+                  arrays); None (default): no trajectory.
+      progress    None (silent), True (a line on stderr every 2 s, as the CLI) or a callable
+                  f(fraction) called from this thread about every 1% of the run.
 
     The exact values are computed first (a request they cannot serve is refused before any
     integration). Ctrl-C (KeyboardInterrupt) ends the run cleanly: the averages of the run so far
@@ -368,7 +455,17 @@ def poincare(masses, lengths, energy, g=1.0, *, orbits=None, points=None, dt=Non
     phi_2 = 0 over the allowed p_2, and are integrated (RATTLE + Yoshida-4, dt default 1e-3)
     until each has crossed the section `points` times (default 500); each crossing is refined
     onto the section by a partial step. Energies in the paper's convention (E > -(M l1 + m2 l2) g).
-    progress, Ctrl-C: as for pendavg.simulate. Returns a PoincareSection.
+
+    Arguments:
+      masses    the two masses m_1, m_2 > 0 (N = 2 only).
+      lengths   the two link lengths l_1, l_2 > 0.
+      energy    the energy E of every orbit (E > -(M l1 + m2 l2) g).
+      g         gravitational acceleration >= 0 (default 1).
+      orbits    number of orbits (default 8).
+      points    crossings of the section per orbit (default 500).
+      dt        time step (default 1e-3).
+      progress  None, True or a callable f(fraction), as for pendavg.simulate.
+    Ctrl-C ends the run with the points so far (interrupted = True). Returns a PoincareSection.
     """
     callback = _TextProgress("poincare") if progress is True else progress
     out = PoincareSection(_core.poincare(masses, lengths, g, energy, orbits, points, dt, callback))
@@ -499,6 +596,11 @@ def _decimal_text(x):
         return str(int(x))
     if isinstance(x, _Decimal):
         return str(x)
+    if type(x).__module__.startswith("mpmath") and type(x).__name__ == "mpf":
+        sign, man, exponent, _ = x._mpf_  # the exact binary value, as the C++ reader takes it
+        if man or not exponent:
+            scaled = str(man << exponent) if exponent >= 0 else f"{man * 5 ** -exponent}e{exponent}"
+            return ("-" if sign else "") + scaled
     return repr(float(x))
 
 
