@@ -358,15 +358,29 @@ std::string exact_error_array(const std::vector<double>& values,
   return out + "]";
 }
 
-}  // namespace
+// ---------------------------------------------------------------- simulate_command's steps
 
-std::string simulate_command(const Options& options) {
-  const Chain<double> chain = parse_chain(options);
-  const std::size_t n = chain.size();
+/// A `simulate` run as asked for: the start, the library's options and the CLI's own.
+struct SimulateRequest {
+  std::vector<double> phi, phidot;  ///< the initial angles and rates
+  SimulationOptions run;
+  bool langevin = false;
+  std::size_t replicas = 1;
+  std::uint64_t seed = 1;     ///< --seed: the Langevin noise, or the replicas' perturbed starts
+  double perturbation = 0;    ///< --perturb (NVE replicas)
+  bool exact = true;          ///< --exact yes
+  bool csv = false;           ///< --format csv
+};
+
+/// Step 1, parse: the initial condition (--theta or --phi [--phidot]), then the run.
+SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
+  SimulateRequest request;
   // Initial condition.
   if (options.has("theta") == options.has("phi"))
     throw usage_error("simulate: give exactly one of --theta and --phi");
-  std::vector<double> phi, phidot(n, 0.0);
+  std::vector<double>& phi = request.phi;
+  std::vector<double>& phidot = request.phidot;
+  phidot.assign(n, 0.0);
   if (options.has("theta")) {
     if (options.has("phidot")) throw usage_error("simulate: --phidot goes with --phi");
     phi.assign(n, parse_angle(options.required("theta"), "--theta"));
@@ -384,7 +398,7 @@ std::string simulate_command(const Options& options) {
   }
   // The library checks the run (steps, and which settings the thermostat uses) before any work;
   // only the replicas' use of --seed and --perturb is the CLI's own.
-  SimulationOptions run;
+  SimulationOptions& run = request.run;
   run.duration = parse_real<double>(options.required("time"), "--time", Domain::positive);
   run.time_step = parse_real<double>(options.get("dt", "1e-3"), "--dt", Domain::positive);
   run.burn_in = parse_real<double>(options.get("burn-in", "0"), "--burn-in", Domain::nonnegative);
@@ -395,8 +409,8 @@ std::string simulate_command(const Options& options) {
                                 thermostat_names) == 1
                        ? Thermostat::langevin
                        : Thermostat::none;
-  const bool langevin = run.thermostat == Thermostat::langevin;
-  const auto replicas = static_cast<std::size_t>(
+  const bool langevin = request.langevin = run.thermostat == Thermostat::langevin;
+  request.replicas = static_cast<std::size_t>(
       parse_integer(options.get("replicas", "1"), "--replicas", 1, max_replicas));
   if (langevin && !options.has("beta")) throw usage_error("simulate: missing required option --beta");
   if (options.has("beta"))
@@ -404,13 +418,13 @@ std::string simulate_command(const Options& options) {
   if (options.has("friction"))
     run.friction = parse_real<double>(options.required("friction"), "--friction", Domain::positive);
   // --seed: the Langevin noise, or (NVE) the replicas' perturbed starts.
-  const std::uint64_t seed = parse_unsigned(options.get("seed", "1"), "--seed");
+  request.seed = parse_unsigned(options.get("seed", "1"), "--seed");
   if (langevin) {
-    if (options.has("seed")) run.seed = seed;
+    if (options.has("seed")) run.seed = request.seed;
     if (options.has("perturb"))
       throw usage_error("simulate: --perturb is for NVE replicas (Langevin replicas differ by "
                         "their noise)");
-  } else if (replicas == 1) {
+  } else if (request.replicas == 1) {
     for (const char* name : {"seed", "perturb"})
       if (options.has(name))
         throw usage_error("simulate: --" + std::string(name) +
@@ -421,138 +435,208 @@ std::string simulate_command(const Options& options) {
   } catch (const invalid_input& bad) {
     throw usage_error(bad.what());
   }
-  const double perturbation =
+  request.perturbation =
       parse_real<double>(options.get("perturb", "1e-6"), "--perturb", Domain::positive);
-  const bool exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
-  const bool csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
+  request.exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
+  request.csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
   if (options.has("trajectory") != options.has("every"))
     throw usage_error("simulate: --trajectory and --every go together");
-  if (replicas > 1 && options.has("trajectory"))
+  if (request.replicas > 1 && options.has("trajectory"))
     throw usage_error("simulate: --trajectory records one run; it does not go with --replicas");
-  if (replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
-  std::optional<AtomicFile> trajectory;
-  DynamicsObserver<double> observer;
-  std::string buffer;
-  if (options.has("trajectory")) {
-    observer.trajectory_every = static_cast<std::size_t>(
+  return request;
+}
+
+/// --trajectory FILE --every K: every K steps a CSV row t,E,phi_i...,phidot_i..., buffered and
+/// written atomically (commit() after the run).
+class TrajectoryFile {
+ public:
+  TrajectoryFile(const Options& options, const Chain<double>& chain) : chain_(chain) {
+    if (!options.has("trajectory")) return;
+    every_ = static_cast<std::size_t>(
         parse_integer(options.required("every"), "--every", 1, 1000000000));
-    trajectory.emplace(std::string(options.required("trajectory")), "simulate");
-    buffer = "t,E";
-    for (std::size_t i = 1; i <= n; ++i) buffer += ",phi" + std::to_string(i);
-    for (std::size_t i = 1; i <= n; ++i) buffer += ",phidot" + std::to_string(i);
-    buffer += "\n";
-    observer.trajectory = [&](const ChainState<double>& state) {
-      const ChainObservables<double> o = observables(chain, state);
-      const auto add = [&](double value) {
-        buffer += ',';
-        append_decimal(buffer, value, 15);
-      };
-      append_decimal(buffer, state.time, 12);
-      add(o.energy);
-      for (const double v : o.phi) add(v);
-      for (const double v : o.phidot) add(v);
-      buffer += '\n';
-      if (buffer.size() > (1 << 20)) {
-        trajectory->append(buffer);
-        buffer.clear();
-      }
-    };
+    file_.emplace(std::string(options.required("trajectory")), "simulate");
+    buffer_ = "t,E";
+    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phi" + std::to_string(i);
+    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phidot" + std::to_string(i);
+    buffer_ += "\n";
+  }
+  TrajectoryFile(const TrajectoryFile&) = delete;
+  TrajectoryFile& operator=(const TrajectoryFile&) = delete;
+
+  /// Makes `observer` record into this file (nothing without --trajectory).
+  void attach(DynamicsObserver<double>& observer) {
+    if (!file_) return;
+    observer.trajectory_every = every_;
+    observer.trajectory = [this](const ChainState<double>& state) { record(state); };
+  }
+  void commit() {
+    if (!file_) return;
+    file_->append(buffer_);
+    file_->commit();
   }
 
-  ChainState<double> initial = state_from_angles(chain, phi, phidot);
-  const double energy = total_energy(chain, initial);
-  // The exact values first: a request they cannot serve (e.g. the chain at rest at the bottom,
-  // no accessible states) is refused before any integration, and a run stopped by a signal
-  // still prints them.
-  std::optional<ExactValues> reference;
-  if (exact)
-    reference = langevin ? canonical_values(chain, *run.beta)
-                         : microcanonical_values(chain, initial_excitation(chain, initial, phi));
+ private:
+  void record(const ChainState<double>& state) {
+    const ChainObservables<double> o = observables(chain_, state);
+    const auto add = [&](double value) {
+      buffer_ += ',';
+      append_decimal(buffer_, value, 15);
+    };
+    append_decimal(buffer_, state.time, 12);
+    add(o.energy);
+    for (const double v : o.phi) add(v);
+    for (const double v : o.phidot) add(v);
+    buffer_ += '\n';
+    if (buffer_.size() > (1 << 20)) {
+      file_->append(buffer_);
+      buffer_.clear();
+    }
+  }
+  const Chain<double>& chain_;
+  std::size_t every_ = 0;
+  std::optional<AtomicFile> file_;
+  std::string buffer_;
+};
+
+/// What a run produced: the (combined) time averages, the replicas' spread, the exact values.
+struct SimulateOutcome {
+  SimulationResult<double> result;
+  std::optional<ReplicaSpread> spread;     ///< --replicas R > 1
+  std::optional<ExactValues> reference;    ///< --exact yes
+  double energy = 0;                       ///< E of the initial state
+  double seconds = 0;                      ///< the trajectories' wall time
+};
+
+/// Step 2, run: the exact values first (a request they cannot serve, e.g. the chain at rest at
+/// the bottom with no accessible states, is refused before any integration, and a run stopped
+/// by a signal still prints them), then one trajectory or the replicas. Only rank 0 returns an
+/// outcome.
+std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
+                                              const SimulateRequest& request,
+                                              TrajectoryFile& trajectory) {
+  SimulateOutcome out;
+  const ChainState<double> initial = state_from_angles(chain, request.phi, request.phidot);
+  out.energy = total_energy(chain, initial);
+  if (request.exact)
+    out.reference =
+        request.langevin
+            ? canonical_values(chain, *request.run.beta)
+            : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
   Progress progress("simulate");
-  SimulationResult<double> r;
-  std::optional<ReplicaSpread> spread;
-  if (replicas == 1) {
+  SimulationResult<double>& r = out.result;
+  if (request.replicas == 1) {
+    DynamicsObserver<double> observer;
+    trajectory.attach(observer);
     observer.progress = [&](double fraction) { progress(fraction); };
     StopOnSignal signals;
     observer.stop = &stop_flag();
-    r = simulate(chain, initial, run, observer);
+    r = simulate(chain, initial, request.run, observer);
   } else {
-    spread = simulate_replicas(chain, phi, phidot, run, seed, replicas, perturbation, energy, r);
-    if (!is_root()) return {};
+    out.spread = simulate_replicas(chain, request.phi, request.phidot, request.run, request.seed,
+                                   request.replicas, request.perturbation, out.energy, r);
+    if (!is_root()) return std::nullopt;
   }
-  const double seconds = progress.seconds();
-  if (trajectory) {
-    trajectory->append(buffer);
-    trajectory->commit();
-  }
+  out.seconds = progress.seconds();
+  trajectory.commit();
   if (r.interrupted)
     std::fprintf(stderr, "[simulate] interrupted at t = %.6g: averages of the run so far\n",
                  r.simulated_time);
+  return out;
+}
 
-  std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
+/// The averages of a run as the formats print them, per particle.
+struct SimulateColumns {
+  std::vector<double> k, k_error, kc, kc_error, tau, cosine, cosine_error;
+  std::string ensemble, integrator;
+};
+
+SimulateColumns simulate_columns(const SimulateRequest& request, const SimulationResult<double>& r) {
+  const std::size_t n = r.kinetic.size();
+  SimulateColumns c;
+  for (std::vector<double>* v : {&c.k, &c.k_error, &c.kc, &c.kc_error, &c.tau, &c.cosine,
+                                 &c.cosine_error})
+    v->resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    cosine[i] = r.cos_angle[i].value;
-    cosine_error[i] = r.cos_angle[i].error;
-    k[i] = r.kinetic[i].value;
-    k_error[i] = r.kinetic[i].error;
-    kc[i] = r.kinetic_canonical[i].value;
-    kc_error[i] = r.kinetic_canonical[i].error;
-    tau[i] = r.kinetic[i].autocorrelation_time;
+    c.cosine[i] = r.cos_angle[i].value;
+    c.cosine_error[i] = r.cos_angle[i].error;
+    c.k[i] = r.kinetic[i].value;
+    c.k_error[i] = r.kinetic[i].error;
+    c.kc[i] = r.kinetic_canonical[i].value;
+    c.kc_error[i] = r.kinetic_canonical[i].error;
+    c.tau[i] = r.kinetic[i].autocorrelation_time;
   }
-  const std::string ensemble = langevin ? "canonical" : "microcanonical";
-  const std::string integrator = langevin ? "baoab-rattle"
-                                          : std::string(integrator_names[static_cast<std::size_t>(
-                                                run.integrator.value_or(default_integrator))]);
-  if (csv) {
-    std::string out = "# pendavg simulate: ensemble " + ensemble + ", integrator " + integrator +
-                      ", dt " + number(run.time_step) + ", time " + number(r.simulated_time) +
-                      ", steps " + std::to_string(r.steps) + (r.interrupted ? " (interrupted)" : "") +
-                      "\n# energy " + number(energy) + ", energy_drift " +
-                      decimal(r.energy_drift, 3) + ", energy_error_max " +
-                      decimal(r.energy_error_max, 3) + ", constraint_residual " +
-                      decimal(r.constraint_residual, 3) +
-                      (reference ? ", exact " + reference->method : std::string()) + "\n";
+  c.ensemble = request.langevin ? "canonical" : "microcanonical";
+  c.integrator = request.langevin
+                     ? "baoab-rattle"
+                     : std::string(integrator_names[static_cast<std::size_t>(
+                           request.run.integrator.value_or(default_integrator))]);
+  return c;
+}
+
+/// Step 3, format (--format csv): '#' lines with the run, then one row per particle.
+std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  const SimulateColumns c = simulate_columns(request, r);
+  std::string out = "# pendavg simulate: ensemble " + c.ensemble + ", integrator " +
+                    c.integrator + ", dt " + number(request.run.time_step) + ", time " +
+                    number(r.simulated_time) + ", steps " + std::to_string(r.steps) +
+                    (r.interrupted ? " (interrupted)" : "") + "\n# energy " +
+                    number(outcome.energy) + ", energy_drift " + decimal(r.energy_drift, 3) +
+                    ", energy_error_max " + decimal(r.energy_error_max, 3) +
+                    ", constraint_residual " + decimal(r.constraint_residual, 3) +
+                    (reference ? ", exact " + reference->method : std::string()) + "\n";
+  if (spread)
+    out += "# replicas " + std::to_string(spread->replicas) + " of " +
+           std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
+           "replica-spread errors\n";
+  out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
+  out += spread ? ",K_error_blocking,K_error_replicas\n" : "\n";
+  for (std::size_t i = 0; i < c.k.size(); ++i) {
+    out += std::to_string(i + 1) + "," + cell(c.k[i], 10) + "," + cell(c.k_error[i], 3) + "," +
+           cell(c.kc[i], 10) + "," + cell(c.kc_error[i], 3) + "," +
+           (reference ? exact_number(reference->kinetic[i]) + "," +
+                            exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
+                            "," + exact_number(reference->kinetic_canonical)
+                      : std::string(",,")) +
+           "," + cell(c.tau[i], 3);
     if (spread)
-      out += "# replicas " + std::to_string(spread->replicas) + " of " +
-             std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
-             "replica-spread errors\n";
-    out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
-    out += spread ? ",K_error_blocking,K_error_replicas\n" : "\n";
-    for (std::size_t i = 0; i < n; ++i) {
-      out += std::to_string(i + 1) + "," + cell(k[i], 10) + "," + cell(k_error[i], 3) + "," +
-             cell(kc[i], 10) + "," + cell(kc_error[i], 3) + "," +
-             (reference ? exact_number(reference->kinetic[i]) + "," +
-                              exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
-                              "," + exact_number(reference->kinetic_canonical)
-                        : std::string(",,")) +
-             "," + cell(tau[i], 3);
-      if (spread)
-        out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
-               cell(spread->kinetic_replicas[i], 3);
-      out += "\n";
-    }
-    return out;
+      out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
+             cell(spread->kinetic_replicas[i], 3);
+    out += "\n";
   }
+  return out;
+}
+
+/// Step 3, format (JSON, the default): one object.
+std::string simulate_json(const SimulateRequest& request, const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  const SimulationOptions& run = request.run;
+  const SimulateColumns c = simulate_columns(request, r);
+  const std::size_t n = c.k.size();
   JsonObject json;
-  json.string("ensemble", ensemble)
-      .string("integrator", integrator)
+  json.string("ensemble", c.ensemble)
+      .string("integrator", c.integrator)
       .integer("particles", static_cast<long long>(n))
       .raw("dt", number(run.time_step))
       .raw("time", number(r.simulated_time))
-      .raw("energy", number(energy))
-      .raw("K", number_array(k))
-      .raw("K_error", number_array(k_error))
-      .raw("Kc", number_array(kc))
-      .raw("Kc_error", number_array(kc_error))
-      .raw("K_autocorrelation_time", number_array(tau))
-      .raw("cos_phi", number_array(cosine))
-      .raw("cos_phi_error", number_array(cosine_error))
+      .raw("energy", number(outcome.energy))
+      .raw("K", number_array(c.k))
+      .raw("K_error", number_array(c.k_error))
+      .raw("Kc", number_array(c.kc))
+      .raw("Kc_error", number_array(c.kc_error))
+      .raw("K_autocorrelation_time", number_array(c.tau))
+      .raw("cos_phi", number_array(c.cosine))
+      .raw("cos_phi_error", number_array(c.cosine_error))
       .string("error_kind", error_kind_name(ErrorKind::statistical));
   if (reference) {
     std::vector<double> deviation(n);
     for (std::size_t i = 0; i < n; ++i)
-      deviation[i] = (k[i] - reference->kinetic[i]) /
-                     std::hypot(k_error[i], reference->kinetic_error[i]);
+      deviation[i] = (c.k[i] - reference->kinetic[i]) /
+                     std::hypot(c.k_error[i], reference->kinetic_error[i]);
     json.raw("exact_K", exact_array(reference->kinetic))
         .raw("exact_K_error", exact_error_array(reference->kinetic, reference->kinetic_error))
         .raw("exact_Kc", exact_number(reference->kinetic_canonical))
@@ -567,11 +651,12 @@ std::string simulate_command(const Options& options) {
   } else {
     json.raw("exact_K", "null");
   }
-  if (std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); }))
+  if (std::any_of(c.k_error.begin(), c.k_error.end(), [](double e) { return !std::isfinite(e); }))
     json.string("error_reason",
                 "fewer than 16 averaging blocks finished (interrupted early, or --time too short "
                 "for the block length): the error bars are unknown");
-  if (langevin) json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
+  if (request.langevin)
+    json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
   json.raw("energy_drift", error_number(r.energy_drift))
       .raw("energy_error_max", error_number(r.energy_error_max))
       .raw("energy_error_rms", error_number(r.energy_error_rms))
@@ -595,15 +680,27 @@ std::string simulate_command(const Options& options) {
     if (spread->replicas < 2)
       json.string("replicas_error_reason", "fewer than two replicas finished");
   }
-  if (reference && !langevin) {
+  if (reference && !request.langevin) {
     // the microcanonical state as D = E - E_min (excitation form) and Var K_i
     json.raw("exact_excitation", exact_number(reference->excitation))
         .raw("exact_var_K", exact_array(reference->variance))
         .raw("exact_var_K_error",
              exact_error_array(reference->variance, reference->variance_error));
   }
-  json.raw("seconds", seconds_text(seconds));
+  json.raw("seconds", seconds_text(outcome.seconds));
   return json.str() + "\n";
+}
+
+}  // namespace
+
+std::string simulate_command(const Options& options) {
+  const Chain<double> chain = parse_chain(options);
+  const SimulateRequest request = parse_simulate_request(options, chain.size());
+  if (request.replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
+  TrajectoryFile trajectory(options, chain);
+  const std::optional<SimulateOutcome> outcome = run_simulation(chain, request, trajectory);
+  if (!outcome) return {};  // another rank's share of the replicas
+  return request.csv ? simulate_csv(request, *outcome) : simulate_json(request, *outcome);
 }
 
 std::string poincare_command(const Options& options) {
