@@ -788,57 +788,47 @@ struct CasesOutput {
   bool timing = false;
 };
 
-/// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
-/// ranks and threads, one thread per row, so the output does not depend on their number) and
-/// streamed in file order. The first bad row (in file order) is reported. A single row runs on
-/// one thread and lets the torus and QMC methods use every core instead. `timing`: see
-/// report_case_timing.
-template <class Real>
-std::string average_cases(const CasesFile& file, const std::string& path,
-                          const AverageOptions& settings, const CasesOutput& where) {
-  const std::vector<CaseRow>& rows = file.rows;
-  const std::size_t n = file.particles;
-  const std::vector<std::string> columns = case_columns(n, file.state);
-  const int digits = settings.digits;
-  const bool microcanonical = file.state != "beta";  // an energy or excitation column
-  AverageOptions options = settings;
+// ---------------------------------------------------------------- average_cases' steps
+
+/// Step 1, plan: the options every row passes to the library (the method resolved, or the
+/// microcanonical rule), checked before any row. A single row runs on one thread and lets the
+/// torus and QMC methods use every core instead.
+struct CasesPlan {
+  bool microcanonical = false;  ///< an energy or excitation column
+  AverageOptions options;
   MicrocanonicalOptions micro;
-  const int threads = hardware_threads();
-  if (rows.size() == 1 && ranks() == 1) options.threads = threads;
-  if (microcanonical) {  // checked before any row
+};
+
+CasesPlan plan_cases(const CasesFile& file, const AverageOptions& settings, int threads) {
+  CasesPlan plan;
+  plan.microcanonical = file.state != "beta";
+  plan.options = settings;
+  if (file.rows.size() == 1 && ranks() == 1) plan.options.threads = threads;
+  if (plan.microcanonical) {  // checked before any row
     try {
-      micro = microcanonical_options(options, n);
+      plan.micro = microcanonical_options(plan.options, file.particles);
     } catch (const invalid_input& bad) {
       throw usage_error("average: " + std::string(bad.what()));
     }
   } else {
-    resolve_average_method(n, options);
+    resolve_average_method(file.particles, plan.options);
   }
+  return plan;
+}
 
-  const auto line_context = [&](std::size_t k) {
-    return path + " line " + std::to_string(rows[k].line) + ": ";
-  };
-  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
-  const auto check = [&](std::size_t k) {
-    try {
-      if (microcanonical)
-        check_microcanonical_case<Real>(file, rows[k], columns, digits);
-      else
-        check_case<Real>(file, rows[k], columns, options);
-    } catch (const invalid_input& bad) {
-      throw usage_error(line_context(k) + bad.what());
-    }
-  };
-  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
-    check(bad);  // throws the first bad row's error, on every rank
-
+/// Step 2, format: with --output, the '#' lines that say what made the file (and that --resume
+/// checks): the cases (by content), digits, method and its options, version; then the column
+/// line.
+std::string cases_header(const CasesFile& file, const std::string& path,
+                         const AverageOptions& settings, const std::vector<std::string>& columns,
+                         bool provenance) {
+  const std::size_t n = file.particles;
   std::string header;
-  if (!where.path.empty()) {
-    // A file says what made it (and --resume checks it): the cases (by content), digits,
-    // method and its options, version.
-    header += "# pendavg average --cases: " + std::to_string(rows.size()) + " rows of N = " +
-              std::to_string(n) + ", cases file fnv1a-64 " + fnv1a_hex(file.text) + "\n";
-    header += "# digits = " + std::to_string(digits) + ", method = " +
+  if (provenance) {
+    header += "# pendavg average --cases: " + std::to_string(file.rows.size()) +
+              " rows of N = " + std::to_string(n) + ", cases file fnv1a-64 " +
+              fnv1a_hex(file.text) + "\n";
+    header += "# digits = " + std::to_string(settings.digits) + ", method = " +
               average_method_name(settings.method);
     if (settings.tolerance) header += ", tol = " + decimal(*settings.tolerance, 17);
     if (settings.samples) header += ", samples = " + std::to_string(*settings.samples);
@@ -852,11 +842,12 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const auto add_names = [&](std::string_view stem) {
     for (const std::string& name : indexed_names(stem, n)) (header += ',') += name;
   };
-  if (microcanonical) {
+  if (file.state != "beta") {
     for (const std::string& name : microcanonical_case_columns(n, file.state))
       (header += ',') += name;
     header += '\n';
-  } else {
+    return header;
+  }
   add_names("beta_K");
   add_names("error_K");
   header += ",ratio";
@@ -866,10 +857,15 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   add_names("var_K");
   add_names("var_K_error");
   header += ",error_kind,converged\n";
-  }
+  return header;
+}
 
-  // Rank 0 checks the outputs (and reads a resumed file); every rank learns the verdict.
-  std::optional<ResumedRows> resumed;
+/// Step 3: rank 0 checks the outputs and reads a resumed file into `resumed`; every rank learns
+/// the verdict (a usage_error on every rank when the outputs cannot be written or the file does
+/// not match).
+void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& columns,
+                        const std::string& header, const CasesOutput& where,
+                        std::optional<ResumedRows>& resumed) {
   std::string verdict;
   if (is_root()) {
     try {
@@ -877,9 +873,9 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       if (!where.timing_rows.empty()) probe_output(where.timing_rows, "average");
       if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
         std::vector<std::string_view> fields(columns.size());
-        resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
+        resumed.emplace(where.resume, "average", header, file.rows.size(), columns.size(),
                         [&](std::size_t k) {
-                          case_fields(file, rows[k], fields);
+                          case_fields(file, file.rows[k], fields);
                           std::string key;
                           for (const std::string_view field : fields)
                             (key += key.empty() ? "" : ",") += field;
@@ -892,7 +888,58 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   }
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
+}
 
+/// --timing-rows FILE: every computed row's time as CSV row,line,us (written atomically).
+void write_timing_rows(const std::string& target, const std::vector<CaseRow>& rows,
+                       const std::vector<double>& row_us) {
+  std::string rows_csv = "row,line,us\n";
+  char number[32];
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (row_us[i] < 0) continue;
+    const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
+    ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
+        .append(number, static_cast<std::size_t>(length)) += '\n';
+  }
+  write_atomically(target, rows_csv, "average");
+}
+
+/// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
+/// ranks and threads, one thread per row, so the output does not depend on their number) and
+/// streamed in file order. The first bad row (in file order) is reported. `timing`: see
+/// report_case_timing.
+template <class Real>
+std::string average_cases(const CasesFile& file, const std::string& path,
+                          const AverageOptions& settings, const CasesOutput& where) {
+  const std::vector<CaseRow>& rows = file.rows;
+  const std::size_t n = file.particles;
+  const std::vector<std::string> columns = case_columns(n, file.state);
+  const int digits = settings.digits;
+  const int threads = hardware_threads();
+  const CasesPlan plan = plan_cases(file, settings, threads);
+
+  const auto line_context = [&](std::size_t k) {
+    return path + " line " + std::to_string(rows[k].line) + ": ";
+  };
+  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
+  const auto check = [&](std::size_t k) {
+    try {
+      if (plan.microcanonical)
+        check_microcanonical_case<Real>(file, rows[k], columns, digits);
+      else
+        check_case<Real>(file, rows[k], columns, plan.options);
+    } catch (const invalid_input& bad) {
+      throw usage_error(line_context(k) + bad.what());
+    }
+  };
+  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
+    check(bad);  // throws the first bad row's error, on every rank
+
+  const std::string header = cases_header(file, path, settings, columns, !where.path.empty());
+  std::optional<ResumedRows> resumed;
+  open_cases_outputs(file, columns, header, where, resumed);
+
+  // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
   std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
   std::optional<SweepFile> output;
@@ -905,7 +952,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   std::vector<std::optional<CaseScratch<Real>>> scratch(static_cast<std::size_t>(threads));
   SweepRows sweep;
   sweep.count = rows.size();
-  sweep.threads = options.threads > 1 ? 1 : threads;
+  sweep.threads = plan.options.threads > 1 ? 1 : threads;
   sweep.timing = where.timing;
   sweep.progress = "average";
   sweep.row_bytes = 1;
@@ -913,15 +960,15 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits) +
                                                      decimal_max_length(digits) + 1);
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
-    if (microcanonical) {
-      microcanonical_case<Real>(text, file, rows[k], columns, micro, digits);
+    if (plan.microcanonical) {
+      microcanonical_case<Real>(text, file, rows[k], columns, plan.micro, digits);
       return;
     }
     std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
     if (!mine) mine.emplace();
     const std::size_t start = text.size();
     text.resize(start + case_line_bound(rows[k], n, digits));
-    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, options, *mine);
+    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, plan.options, *mine);
     text.resize(static_cast<std::size_t>(end - text.data()));
   };
   run_sweep(sweep, output ? &*output : nullptr, [&](const SweepOutcome& outcome) {
@@ -937,17 +984,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                    rows.size());
     }
     output->commit();
-    if (!where.timing_rows.empty()) {
-      std::string rows_csv = "row,line,us\n";
-      char number[32];
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (row_us[i] < 0) continue;
-        const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
-        ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
-            .append(number, static_cast<std::size_t>(length)) += '\n';
-      }
-      write_atomically(where.timing_rows, rows_csv, "average");
-    }
+    if (!where.timing_rows.empty()) write_timing_rows(where.timing_rows, rows, row_us);
     if (where.timing) report_case_timing(row_us, file, timer_us, outcome.threads);
   });
   return {};
