@@ -138,13 +138,21 @@ constexpr std::string_view average_usage =
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
-    "                     [--format json|text]\n"
+    "                     [--format json|csv|text]\n"
     "\n"
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
     "at g = 0 (tensor trapezoid for N <= 5, transfer beyond, double only);\n"
-    "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
+    "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n"
+    "JSON (default): N, digits, and per limit (high_temperature, low_temperature) beta_K, error,\n"
+    "ratio, var_K_beta2, method, error_kind, ratio_error, cos_phi, cos_phi_error,\n"
+    "var_K_beta2_error, error_kinds, evaluations, work_unit, then converged, run (the torus\n"
+    "grid or the transfer operator's resolution, as `average` prints it, or null),\n"
+    "equipartition_residual, beta_Kc and beta_Kc_error; then seconds (both limits). --format\n"
+    "csv: one row per limit with the columns of `average --format csv` (beta, K_i and var_K_i\n"
+    "empty: no finite beta; seconds the limit's own), then limit, beta2_var_K1..N,\n"
+    "beta2_var_K_error1..N, beta_Kc_error1..N, beta_Kc_error_kind.\n";
 
 constexpr std::string_view series_usage =
     "usage: pendavg series --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--digits D]\n"
@@ -255,44 +263,72 @@ std::string average_json(const AverageReport& r) {
   return json.str() + "\n";
 }
 
-std::string average_csv(const AverageReport& r) {
-  const std::size_t n = r.particles;
-  const AveragesText& v = r.values;
-  std::vector<std::string> header{"N", "beta", "digits", "method"}, row{
-      std::to_string(n), std::string(r.beta), std::to_string(r.digits), v.method};
-  const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
-    const auto names = indexed_names(stem, values.size());
-    header.insert(header.end(), names.begin(), names.end());
-    row.insert(row.end(), values.begin(), values.end());
-  };
-  const auto add = [&](std::string name, std::string value) {
+/// One CSV line's column names and cells, built side by side.
+struct CsvLine {
+  std::vector<std::string> header, row;
+  void add(std::string name, std::string value) {
     header.push_back(std::move(name));
     row.push_back(std::move(value));
-  };
-  add_array("beta_K", v.beta_kinetic);
-  add_array("K", v.kinetic);
-  add_array("error_K", v.error);
-  add("ratio", v.ratio);
-  add_array("cos_phi", v.cos_angle);
-  add_array("var_K", v.variance);
-  add("evaluations", std::to_string(v.evaluations));
-  add("seconds", seconds_text(r.seconds));
-  add("converged", v.converged ? "true" : "false");
-  add_array("diagonal_approx", v.diagonal_approximation);
-  add_array("beta_Kc", v.beta_kinetic_canonical);
-  add("error_kind", v.error_kind);
-  add_array("K_error", v.kinetic_error);
-  add("ratio_error", v.ratio_error);
-  add_array("cos_phi_error", v.cos_angle_error);
-  add_array("var_K_error", v.variance_error);
-  add("cos_phi_error_kind", v.cos_angle_error_kind);
-  add("var_K_error_kind", v.variance_error_kind);
-  add("work_unit", v.work_unit);
-  add("equipartition_residual", v.equipartition_residual);
+  }
+  /// stem1..stem`count`; cells past the end of `values` are empty (an array a report does not
+  /// have, e.g. <K_i> of a limit).
+  void add_array(std::string_view stem, const std::vector<std::string>& values,
+                 std::size_t count) {
+    const auto names = indexed_names(stem, count);
+    header.insert(header.end(), names.begin(), names.end());
+    for (std::size_t i = 0; i < count; ++i) row.push_back(i < values.size() ? values[i] : "");
+  }
+};
+
+/// The columns of `average --format csv` for one report; `limit --format csv` writes the same
+/// for each limit (beta, <K_i> and Var K_i empty there) and adds its own after them.
+CsvLine average_csv_line(const AverageReport& r) {
+  const std::size_t n = r.particles;
+  const AveragesText& v = r.values;
+  CsvLine line;
+  line.add("N", std::to_string(n));
+  line.add("beta", std::string(r.beta));
+  line.add("digits", std::to_string(r.digits));
+  line.add("method", v.method);
+  line.add_array("beta_K", v.beta_kinetic, n);
+  line.add_array("K", v.kinetic, n);
+  line.add_array("error_K", v.error, n);
+  line.add("ratio", v.ratio);
+  line.add_array("cos_phi", v.cos_angle, n);
+  line.add_array("var_K", v.variance, n);
+  line.add("evaluations", std::to_string(v.evaluations));
+  line.add("seconds", seconds_text(r.seconds));
+  line.add("converged", v.converged ? "true" : "false");
+  line.add_array("diagonal_approx", v.diagonal_approximation, n);
+  line.add_array("beta_Kc", v.beta_kinetic_canonical, n);
+  line.add("error_kind", v.error_kind);
+  line.add_array("K_error", v.kinetic_error, n);
+  line.add("ratio_error", v.ratio_error);
+  line.add_array("cos_phi_error", v.cos_angle_error, n);
+  line.add_array("var_K_error", v.variance_error, n);
+  line.add("cos_phi_error_kind", v.cos_angle_error_kind);
+  line.add("var_K_error_kind", v.variance_error_kind);
+  line.add("work_unit", v.work_unit);
+  line.add("equipartition_residual", v.equipartition_residual);
+  return line;
+}
+
+std::string average_csv(const AverageReport& r) {
+  const CsvLine line = average_csv_line(r);
   std::string out;
-  append_csv_line(out, header);
-  append_csv_line(out, row);
+  append_csv_line(out, line.header);
+  append_csv_line(out, line.row);
   return out;
+}
+
+/// The lines after a text table: what the errors promise, and the work done.
+std::string errors_and_work_text(const AveragesText& v, double seconds,
+                                 std::string_view variance) {
+  return "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
+         v.cos_angle_error_kind + ", " + std::string(variance) + " " + v.variance_error_kind +
+         "\n" + "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
+         ", seconds = " + seconds_text(seconds) +
+         ", converged = " + (v.converged ? "yes" : "no") + "\n";
 }
 
 std::string average_text(const AverageReport& r) {
@@ -309,11 +345,7 @@ std::string average_text(const AverageReport& r) {
          aligned_table(table) +
          (r.particles >= 2 ? "<K1>/<K2> = " + v.ratio + " +- " + v.ratio_error + "\n"
                            : std::string()) +
-         "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
-         v.cos_angle_error_kind + ", Var K_i " + v.variance_error_kind + "\n" +
-         "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
-         ", seconds = " + seconds_text(r.seconds) +
-         ", converged = " + (v.converged ? "yes" : "no") + "\n";
+         errors_and_work_text(v, r.seconds, "Var K_i");
 }
 
 /// The torus grid, the qmc run or the transfer operator's resolution of `a` as a JSON object,
@@ -1040,7 +1072,17 @@ std::string average_command(const Options& options) {
 
 // ---------------------------------------------------------------- limit
 
-std::string limit_json(const AveragesText& limit) {
+/// One limit as `limit` reports it: its values as text, its run and its wall time.
+struct LimitReport {
+  std::string_view name;  ///< high_temperature or low_temperature (the JSON key)
+  std::string_view label; ///< "beta -> 0" or "beta -> inf" (text)
+  AveragesText values;
+  std::string run;  ///< the torus or transfer run as a JSON object, or "null"
+  double seconds;
+};
+
+std::string limit_json(const LimitReport& r) {
+  const AveragesText& limit = r.values;
   return JsonObject()
       .strings("beta_K", limit.beta_kinetic)
       .strings("error", limit.error)
@@ -1057,10 +1099,37 @@ std::string limit_json(const AveragesText& limit) {
                               .string("ratio", limit.error_kind)
                               .string("cos_phi", limit.cos_angle_error_kind)
                               .string("var_K_beta2", limit.variance_error_kind)
+                              .string("beta_Kc", limit.beta_kinetic_canonical_error_kind)
                               .str())
       .integer("evaluations", static_cast<long long>(limit.evaluations))
       .string("work_unit", limit.work_unit)
+      // as `average` prints them (the wall time of both limits is the top level's seconds)
+      .boolean("converged", limit.converged)
+      .raw("run", r.run)
+      .string("equipartition_residual", limit.equipartition_residual)
+      .strings("beta_Kc", limit.beta_kinetic_canonical)
+      .strings("beta_Kc_error", limit.beta_kinetic_canonical_error)
       .str();
+}
+
+/// `limit --format csv`: a row per limit with `average --format csv`'s columns (beta, <K_i>
+/// and Var K_i empty: a limit has no finite beta), then limit (its JSON key), beta^2 Var K_i
+/// with its errors, and the errors of beta<K_i^(c)> with their kind.
+std::string limit_csv(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
+  std::string out;
+  for (const LimitReport& limit : limits) {
+    const AveragesText& v = limit.values;
+    CsvLine line = average_csv_line(AverageReport{particles, "", digits, v, limit.run,
+                                                  limit.seconds});
+    line.add("limit", std::string(limit.name));
+    line.add_array("beta2_var_K", v.beta2_variance, particles);
+    line.add_array("beta2_var_K_error", v.beta2_variance_error, particles);
+    line.add_array("beta_Kc_error", v.beta_kinetic_canonical_error, particles);
+    line.add("beta_Kc_error_kind", v.beta_kinetic_canonical_error_kind);
+    if (out.empty()) append_csv_line(out, line.header);
+    append_csv_line(out, line.row);
+  }
+  return out;
 }
 
 void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_view name,
@@ -1069,6 +1138,32 @@ void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_vi
     table.push_back({std::string(name), std::to_string(i + 1), limit.beta_kinetic[i],
                      limit.error[i], limit.beta2_variance[i], limit.beta2_variance_error[i],
                      i == 0 ? limit.ratio : "", limit.error_kind});
+}
+
+/// `limit --format text`: both limits in one table, then per limit what its errors promise,
+/// the work done, the equipartition residual and beta<K_i^(c)>.
+std::string limit_text(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
+  std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
+                                               "beta^2 Var K_i", "error", "<K1>/<K2>",
+                                               "error kind"}};
+  for (const LimitReport& limit : limits) add_limit_rows(table, limit.label, limit.values);
+  std::string out = "N = " + std::to_string(particles) + ", digits = " + std::to_string(digits) +
+                    "\n" + aligned_table(table);
+  for (const LimitReport& limit : limits) {
+    const AveragesText& v = limit.values;
+    const std::string prefix = std::string(limit.label) + ": ";
+    const std::string lines = errors_and_work_text(v, limit.seconds, "beta^2 Var K_i");
+    for (std::size_t begin = 0; begin < lines.size();) {
+      const std::size_t end = lines.find('\n', begin) + 1;
+      out += prefix + lines.substr(begin, end - begin);
+      begin = end;
+    }
+    out += prefix + "|sum_i beta<K_i> - N/2| = " + v.equipartition_residual +
+           ", beta<K_i^(c)> = " +
+           (v.beta_kinetic_canonical.empty() ? "" : v.beta_kinetic_canonical.front()) + " (" +
+           v.beta_kinetic_canonical_error_kind + ")\n";
+  }
+  return out;
 }
 
 template <class Real>
@@ -1081,26 +1176,28 @@ std::string limit_report(const Options& options, int digits, Format format) {
   StopOnSignal signals;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
   settings.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
   settings.control.stop = &stop_flag();
+  const Stopwatch high_watch;
   const Averages<Real> high_values = high_temperature_limit(chain, settings);
+  const double high_seconds = high_watch.seconds();
   if (high_values.interrupted)
     std::fprintf(stderr, "[limit] interrupted: the last finished torus level is reported\n");
+  const Stopwatch low_watch;
   const Averages<Real> low_values = low_temperature_limit(chain, settings);
-  const AveragesText high = averages_text(high_values, digits, static_cast<const Real*>(nullptr));
-  const AveragesText low = averages_text(low_values, digits, static_cast<const Real*>(nullptr));
-  if (format == Format::text) {
-    std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
-                                                 "beta^2 Var K_i", "error", "<K1>/<K2>",
-                                                 "error kind"}};
-    add_limit_rows(table, "beta -> 0", high);
-    add_limit_rows(table, "beta -> inf", low);
-    return "N = " + std::to_string(chain.size()) + ", digits = " + std::to_string(digits) +
-           "\n" + aligned_table(table);
-  }
+  const double low_seconds = low_watch.seconds();
+  const Real* no_beta = nullptr;
+  const std::vector<LimitReport> limits{
+      {"high_temperature", "beta -> 0", averages_text(high_values, digits, no_beta),
+       run_json(high_values), high_seconds},
+      {"low_temperature", "beta -> inf", averages_text(low_values, digits, no_beta),
+       run_json(low_values), low_seconds}};
+  if (format == Format::text) return limit_text(chain.size(), digits, limits);
+  if (format == Format::csv) return limit_csv(chain.size(), digits, limits);
   std::string json = JsonObject()
                          .integer("N", static_cast<long long>(chain.size()))
                          .integer("digits", digits)
-                         .raw("high_temperature", limit_json(high))
-                         .raw("low_temperature", limit_json(low))
+                         .raw("high_temperature", limit_json(limits[0]))
+                         .raw("low_temperature", limit_json(limits[1]))
+                         .raw("seconds", seconds_text(high_seconds + low_seconds))
                          .str();
   if (high_values.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
   return json + "\n";
@@ -1108,7 +1205,7 @@ std::string limit_report(const Options& options, int digits, Format format) {
 
 std::string limit_command(const Options& options) {
   const int digits = parse_digits(options.get("digits", "16"));
-  constexpr std::array<std::string_view, 2> formats{"json", "text"};
+  constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
   const Format format = format_option(options, "json", formats);
   return with_number_type(
       digits, [&]<class Real>() { return limit_report<Real>(options, digits, format); });

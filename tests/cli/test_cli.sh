@@ -97,7 +97,7 @@ bad "N = 3 series"      average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method
 bad "N = 3 integral"    average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method integral
 bad "N = 0"             average --masses "" --lengths "" --beta 1
 bad "limit mass 0"      limit --masses 0,1
-bad "limit csv"         limit --masses 1,1 --format csv
+bad "limit xml"         limit --masses 1,1 --format xml
 bad "series beta 0"     series "${pendulum[@]}" --beta 0 --terms 3
 bad "series terms -1"   series "${pendulum[@]}" --beta 1 --terms -1
 bad "help unknown"      help nothing
@@ -937,6 +937,112 @@ for key, error in ((\"beta_K\", \"error\"), (\"cos_phi\", \"cos_phi_error\"), (\
     for a, ea, b, eb in zip(o[key], o[error], t[key], t[error]):
         assert abs(float(a) - float(b)) <= float(ea) + float(eb), (key, a, ea, b, eb)
 " "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16
+# ---------------------------------------------------------------- issue 10: every error in every output
+# The keys and columns added after the original ones: present, finite (JSON never holds a bare
+# nan/inf: json.loads below refuses NaN and Infinity), errors positive, kinds valid, and equal to
+# what `average` prints for the same point where both print it.
+cat >"$work/strict_json.py" <<'PY'
+import json
+def strict(path):
+    def refuse(token):
+        raise ValueError("bare " + token)
+    return json.loads(open(path).read(), parse_constant=refuse)
+KINDS = {"bound", "estimate", "statistical"}
+PY
+strict_python() { PYTHONPATH="$work" "$python" "$@"; }
+
+check_limit_added() { # N RUN_KEYS (the keys of high_temperature.run, "null" for none)
+  strict_python - "$work/out" "$1" "$2" <<'PY'
+from strict_json import strict, KINDS
+import math, sys
+from decimal import Decimal as D
+d = strict(sys.argv[1]); n = int(sys.argv[2])
+original = ["beta_K", "error", "ratio", "var_K_beta2", "method", "error_kind", "ratio_error",
+            "cos_phi", "cos_phi_error", "var_K_beta2_error", "error_kinds", "evaluations", "work_unit"]
+added = ["converged", "run", "equipartition_residual", "beta_Kc", "beta_Kc_error"]
+assert list(d) == ["N", "digits", "high_temperature", "low_temperature", "seconds"], list(d)
+assert isinstance(d["seconds"], float) and 0 <= d["seconds"] < 600, d["seconds"]
+for part in ("high_temperature", "low_temperature"):
+    o = d[part]
+    assert list(o) == original + added, list(o)
+    assert o["converged"] is True, o
+    assert [D(x) for x in o["beta_Kc"]] == [D("0.5")] * n, o["beta_Kc"]
+    assert len(o["beta_Kc_error"]) == n and all(0 < float(e) < 1e-14 for e in o["beta_Kc_error"]), o
+    assert set(o["error_kinds"]) == {"beta_K", "ratio", "cos_phi", "var_K_beta2", "beta_Kc"}, o
+    assert set(o["error_kinds"].values()) <= KINDS and o["error_kinds"]["beta_Kc"] == "bound", o
+    # the residual |sum_i beta<K_i> - N/2| against the printed values (within their errors and
+    # the residual's own 3 digits)
+    residual = D(o["equipartition_residual"])
+    assert residual >= 0, residual
+    total = sum(D(x) for x in o["beta_K"])
+    bars = sum(D(x) for x in o["error"])
+    assert abs(abs(total - D(n) / 2) - residual) <= bars + residual / 100, (total, residual, bars)
+run = d["high_temperature"]["run"]
+if sys.argv[3] == "null":
+    assert run is None, run
+else:
+    assert sorted(run) == sorted(sys.argv[3].split(",")) and all(v > 0 for v in run.values()), run
+assert d["low_temperature"]["run"] is None
+PY
+}
+good "limit json: converged, run, residual, beta_Kc, seconds (N = 2)" 'check_limit_added 2 null' \
+  limit --masses 0.5,0.5
+good "limit json: the torus run (N = 3)" 'check_limit_added 3 points_per_dim,levels,grid_points' \
+  limit --masses 1,2,0.5 --lengths 1,0.5,2
+good "limit json: the transfer run (N = 7)" 'check_limit_added 7 angle_nodes,pivot_nodes,levels' \
+  limit --masses 1,1,1,1,1,1,1
+good "limit json: digits 30" 'check_limit_added 2 null' limit --masses 0.2,0.8 --lengths 1,2 --digits 30
+
+# limit --format csv: average's columns (the same writer), then the limit's own; its values are
+# the JSON's.
+check_limit_csv() { # N MASSES LENGTHS DIGITS
+  "$pendavg" limit --masses "$2" --lengths "$3" --digits "$4" >"$work/limit.json" &&
+  "$pendavg" average --masses "$2" --lengths "$3" --beta 1 --digits "$4" --format csv >"$work/average.csv" &&
+  strict_python - "$work/out" "$work/limit.json" "$work/average.csv" "$1" "$4" <<'PY'
+from strict_json import strict, KINDS
+import csv, math, sys
+from decimal import Decimal as D
+lines = open(sys.argv[1]).read().splitlines()
+d = strict(sys.argv[2]); n = int(sys.argv[4])
+average_header = open(sys.argv[3]).readline().strip().split(",")
+per = lambda stem: [f"{stem}{i}" for i in range(1, n + 1)]
+assert lines[0].split(",") == (average_header + ["limit"] + per("beta2_var_K") + per("beta2_var_K_error")
+                               + per("beta_Kc_error") + ["beta_Kc_error_kind"]), lines[0]
+rows = list(csv.DictReader(lines))
+assert [r["limit"] for r in rows] == ["high_temperature", "low_temperature"], rows
+assert all(len(l.split(",")) == len(average_header) + 3 * n + 2 for l in lines), "ragged"
+for r in rows:
+    o = d[r["limit"]]
+    assert r["N"] == str(n) and r["digits"] == sys.argv[5] and r["method"] == o["method"], r
+    assert r["beta"] == "" and not any(r[k] for k in per("K") + per("var_K") + per("K_error") + per("var_K_error")), r
+    assert [r[k] for k in per("beta_K")] == o["beta_K"] and [r[k] for k in per("error_K")] == o["error"]
+    assert [r[k] for k in per("cos_phi")] == o["cos_phi"] and [r[k] for k in per("cos_phi_error")] == o["cos_phi_error"]
+    assert [r[k] for k in per("beta2_var_K")] == o["var_K_beta2"]
+    assert [r[k] for k in per("beta2_var_K_error")] == o["var_K_beta2_error"]
+    assert [r[k] for k in per("beta_Kc")] == o["beta_Kc"] and [r[k] for k in per("beta_Kc_error")] == o["beta_Kc_error"]
+    assert r["ratio"] == (o["ratio"] or "") and r["ratio_error"] == (o["ratio_error"] or "")
+    assert r["equipartition_residual"] == o["equipartition_residual"] and r["converged"] == "true"
+    assert r["evaluations"] == str(o["evaluations"]) and r["work_unit"] == o["work_unit"]
+    assert r["error_kind"] == o["error_kind"] and r["cos_phi_error_kind"] == o["error_kinds"]["cos_phi"]
+    assert r["var_K_error_kind"] == o["error_kinds"]["var_K_beta2"] and r["beta_Kc_error_kind"] == "bound"
+    assert math.isfinite(float(r["seconds"])) and float(r["seconds"]) >= 0
+    for k in per("error_K") + per("cos_phi_error") + per("beta2_var_K_error") + per("beta_Kc_error"):
+        # positive, or 0 beside an exact 0 (<cos phi_i> = 0 at beta -> 0: kind bound)
+        value = r[k.replace("_error", "").replace("error_K", "beta_K")]
+        assert math.isfinite(float(r[k])) and (float(r[k]) > 0 or float(value) == 0), (k, r[k])
+    for k in per("beta_K") + per("cos_phi") + per("beta2_var_K") + per("diagonal_approx"):
+        assert math.isfinite(float(r[k])), (k, r[k])
+PY
+}
+good "limit --format csv (N = 2)"            'check_limit_csv 2 0.5,0.5 1,1 16' limit --masses 0.5,0.5 --lengths 1,1 --format csv
+good "limit --format csv (N = 3, torus)"     'check_limit_csv 3 1,2,0.5 1,0.5,2 16' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format csv
+good "limit --format csv (N = 2, digits 30)" 'check_limit_csv 2 0.2,0.8 1,2 30' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format csv
+good "limit --format csv (N = 1)"            'check_limit_csv 1 2 3 16' limit --masses 2 --lengths 3 --format csv
+good "limit text: errors, work, residual per limit" \
+  '[ "$(grep -c "^beta -> 0: " "$work/out")" -eq 3 ] && [ "$(grep -c "^beta -> inf: " "$work/out")" -eq 3 ] &&
+   [ "$(grep -c "converged = yes" "$work/out")" -eq 2 ] && grep -q "^beta -> 0: |sum_i beta<K_i> - N/2| = " "$work/out"' \
+  limit --masses 0.5,0.5 --format text
+
 good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
 
 for command in average limit series simulate poincare; do
