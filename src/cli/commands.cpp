@@ -101,7 +101,10 @@ constexpr std::string_view average_usage =
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
     "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
     "evaluations, ratio_error, cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind,\n"
-    "converged. Every row is checked before the first is computed. Rows run on all cores (and,\n"
+    "converged, then cos_phi_error_kind, var_K_error_kind (what those errors promise: a series\n"
+    "row's beta_K error is a bound, its cos_phi and var_K errors estimates), work_unit,\n"
+    "equipartition_residual, beta_Kc1..N, beta_Kc_error1..N, beta_Kc_error_kind. Every row is\n"
+    "checked before the first is computed. Rows run on all cores (and,\n"
     "under mpirun/srun with pendavg built with MPI, on all ranks); the output does not depend\n"
     "on the thread or rank count. Rows are streamed in file order as they finish.\n"
     "--output FILE writes the CSV atomically to FILE, after '#' lines naming the cases (by a\n"
@@ -133,8 +136,9 @@ constexpr std::string_view average_usage =
     "density_of_states_error, error_kind, evaluations, work_unit, seconds, converged, run. An\n"
     "energy at or below E_min is refused. --cases takes an energy or excitation column instead of\n"
     "beta; its rows then have K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,\n"
-    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and then excitation (or\n"
-    "energy), the other way of stating the row's state.\n";
+    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged, then excitation (or\n"
+    "energy), the other way of stating the row's state, then K_total, K_total_error,\n"
+    "density_of_states, density_of_states_error and work_unit.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
@@ -594,8 +598,9 @@ Chain<Real> case_chain(const std::vector<std::string_view>& fields,
 
 /// The output columns of `average --cases` with an energy or excitation column, after the input
 /// columns: K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,
-/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and the other state
-/// (excitation for an energy column, energy for an excitation column).
+/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged, the other state
+/// (excitation for an energy column, energy for an excitation column), then K_total,
+/// K_total_error, density_of_states, density_of_states_error and work_unit.
 std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_view state) {
   std::vector<std::string> header;
   const auto add_names = [&](std::string_view stem) {
@@ -611,7 +616,9 @@ std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_
   add_names("var_K");
   add_names("var_K_error");
   header.insert(header.end(),
-                {"error_kind", "converged", state == "energy" ? "excitation" : "energy"});
+                {"error_kind", "converged", state == "energy" ? "excitation" : "energy",
+                 "K_total", "K_total_error", "density_of_states", "density_of_states_error",
+                 "work_unit"});
   return header;
 }
 
@@ -647,6 +654,8 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
   out.push_back(v.error_kind);
   out.push_back(v.converged ? "true" : "false");
   out.push_back(file.state == "energy" ? v.excitation : v.energy);
+  out.insert(out.end(), {v.kinetic_total, v.kinetic_total_error, v.density_of_states,
+                         v.density_of_states_error, v.work_unit});
   append_csv_line(line, out);
 }
 
@@ -673,10 +682,10 @@ struct CaseScratch {
 };
 
 /// Longest output line of a cases row: the row's text and a comma per field (at most one per
-/// character), 6N + 2 numbers and their commas, the method and error kind (<= 24 each), the
-/// count, "false" and a newline.
+/// character), 8N + 3 numbers and their commas, the method, the count, four error kinds and
+/// the work unit (<= 24 each, with their commas), "false" and a newline.
 std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digits) {
-  return 2 * row.size + 1 + (6 * particles + 2) * (decimal_max_length(digits) + 1) + 3 * 24 + 8;
+  return 2 * row.size + 1 + (8 * particles + 3) * (decimal_max_length(digits) + 1) + 7 * 25 + 8;
 }
 
 /// One output row of `average --cases`: the input fields as written, then the averages.
@@ -737,6 +746,22 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   put(error_kind_name(averages.error_kind));
   *p++ = ',';
   put(averages.converged ? "true" : "false");
+  *p++ = ',';
+  // Added after the original columns: the kinds of the other errors, the work unit, the
+  // equipartition residual and beta<K_i^(c)> with its errors.
+  const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
+    return error_kind_name(estimates.empty() ? averages.error_kind : estimates.front().kind);
+  };
+  put(kind_of(averages.cos_angle));
+  *p++ = ',';
+  put(kind_of(averages.beta2_kinetic_variance));
+  *p++ = ',';
+  put(work_unit_name(averages.work_unit));
+  *p++ = ',';
+  number(averages.equipartition_residual, error_digits);
+  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) number(c.value, digits);
+  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) error(c);
+  put(kind_of(averages.beta_kinetic_canonical));
   *p++ = '\n';
   return p;
 }
@@ -888,7 +913,11 @@ std::string cases_header(const CasesFile& file, const std::string& path,
   add_names("cos_phi_error");
   add_names("var_K");
   add_names("var_K_error");
-  header += ",error_kind,converged\n";
+  header += ",error_kind,converged,cos_phi_error_kind,var_K_error_kind,work_unit,"
+            "equipartition_residual";
+  add_names("beta_Kc");
+  add_names("beta_Kc_error");
+  header += ",beta_Kc_error_kind\n";
   return header;
 }
 

@@ -72,7 +72,11 @@ const std::string_view table_usage =
     "Columns (M = the largest N): N, digits, beta, g, m1..mM, l1..lM, beta_K1..M, error_K1..M,\n"
     "ratio, cos_phi1..M, var_K1..M, diagonal_approx1..M, method, evaluations, converged,\n"
     "error_kind (bound | estimate | statistical), ratio_error, cos_phi_error1..M,\n"
-    "var_K_error1..M. A row with N < M leaves its cells for particles N+1..M empty.\n"
+    "var_K_error1..M, then cos_phi_error_kind, var_K_error_kind (what those errors promise: a\n"
+    "series row's beta_K error is a bound, its cos_phi and var_K errors estimates), work_unit\n"
+    "(what evaluations counts), equipartition_residual (|sum beta<K_i> - N/2|), beta_Kc1..M,\n"
+    "beta_Kc_error1..M (beta<K_i^(c)> = 1/2), beta_Kc_error_kind. A row with N < M leaves its\n"
+    "cells for particles N+1..M empty.\n"
     "The CSV starts with '#' lines naming every swept value, the method (and qmc's samples,\n"
     "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
@@ -95,8 +99,9 @@ const std::string_view table_usage =
     "torus-trapezoid or qmc (--samples 1024..65536, --shifts, --seed); --digits > 16 for N <= 4.\n"
     "Columns (M = the largest N): N, digits, energy (or excitation), g, m1..mM, l1..lM, K1..M,\n"
     "K_error1..M, Kc, cos_phi1..M, var_K1..M, method, evaluations, converged, error_kind,\n"
-    "Kc_error, cos_phi_error1..M, var_K_error1..M, then excitation (or energy): <K_i>_E,\n"
-    "<K_i^(c)>_E = <K>_E/N, <cos phi_i>_E and Var K_i with their errors.\n";
+    "Kc_error, cos_phi_error1..M, var_K_error1..M, then excitation (or energy), K_total,\n"
+    "K_total_error, density_of_states, density_of_states_error, work_unit: <K_i>_E,\n"
+    "<K_i^(c)>_E = <K>_E/N, <cos phi_i>_E, Var K_i, <K>_E and Omega(E) with their errors.\n";
 
 namespace {
 
@@ -314,6 +319,9 @@ std::string microcanonical_row(const Point& point, const TablePlan& plan) {
   add_padded(fields, text.cos_angle_error, width);
   add_padded(fields, text.variance_error, width);
   fields.push_back(plan.state == "energy" ? text.excitation : text.energy);
+  fields.insert(fields.end(), {text.kinetic_total, text.kinetic_total_error,
+                               text.density_of_states, text.density_of_states_error,
+                               text.work_unit});
   std::string out;
   append_csv_line(out, fields);
   return out;
@@ -354,6 +362,11 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   fields.push_back(text.ratio_error);
   add_padded(fields, text.cos_angle_error, width);
   add_padded(fields, text.variance_error, width);
+  fields.insert(fields.end(), {text.cos_angle_error_kind, text.variance_error_kind,
+                               text.work_unit, text.equipartition_residual});
+  add_padded(fields, text.beta_kinetic_canonical, width);
+  add_padded(fields, text.beta_kinetic_canonical_error, width);
+  fields.push_back(text.beta_kinetic_canonical_error_kind);
   std::string out;
   append_csv_line(out, fields);
   return out;
@@ -710,6 +723,8 @@ std::vector<std::string> table_columns(const TablePlan& plan) {
     add_names("cos_phi_error");
     add_names("var_K_error");
     header.push_back(plan.state == "energy" ? "excitation" : "energy");
+    header.insert(header.end(), {"K_total", "K_total_error", "density_of_states",
+                                 "density_of_states_error", "work_unit"});
     return header;
   }
   for (const std::string_view stem : {"beta_K", "error_K", "", "cos_phi", "var_K",
@@ -720,6 +735,11 @@ std::vector<std::string> table_columns(const TablePlan& plan) {
   header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "ratio_error"});
   add_names("cos_phi_error");
   add_names("var_K_error");
+  header.insert(header.end(), {"cos_phi_error_kind", "var_K_error_kind", "work_unit",
+                               "equipartition_residual"});
+  add_names("beta_Kc");
+  add_names("beta_Kc_error");
+  header.push_back("beta_Kc_error_kind");
   return header;
 }
 
@@ -835,8 +855,8 @@ void run_table(const TableRequest& request, const PointSpace& space,
     for (const std::string& d : request.sweep_named("digits")->values)
       most_digits = std::max(most_digits, std::stoi(d));
     const std::size_t m = plan.columns_particles;
-    rows.row_bytes = (6 * m + 3) * (decimal_max_length(most_digits) + 1) +
-                     (2 * m + 2) * 32 + 4 * m + 64;
+    rows.row_bytes = (8 * m + 5) * (decimal_max_length(most_digits) + 1) +
+                     (2 * m + 2) * 32 + 4 * m + 6 * 25 + 64;
   }
   rows.compute = [&](std::size_t k, int, std::string& text) {
     const Point point = space.point(k, row_options);

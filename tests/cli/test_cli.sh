@@ -178,7 +178,15 @@ good "average csv" \
 good "average text"          'grep -q "beta<K_i>" "$work/out"' average "${pendulum[@]}" --beta 1 --format text
 
 printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
-cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'
+# Columns added after the original ones (issue 10): the kinds of the other errors, the work unit,
+# the equipartition residual and beta<K_i^(c)> with its errors.
+canonical_added() { # N
+  local i out=',cos_phi_error_kind,var_K_error_kind,work_unit,equipartition_residual'
+  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc$i"; done
+  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc_error$i"; done
+  echo "$out,beta_Kc_error_kind"
+}
+cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'"$(canonical_added 2)"
 good "cases shuffled" \
   '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$cases_header" ] && [ "$(sed -n 3p "$work/out" | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
   average --cases "$work/cases.csv"
@@ -323,7 +331,7 @@ good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(stri
 # --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
 # match the single-case command.
 printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
-cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'
+cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'"$(canonical_added 3)"
 check_cases3() {
   [ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(head -1 "$work/out")" = "$cases3_header" ] &&
     [ "$(sed -n 3p "$work/out" | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
@@ -387,7 +395,7 @@ good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'
+table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'"$(canonical_added 2)"
 check_table() {
   "$python" -c '
 import csv, sys
@@ -486,7 +494,9 @@ per = lambda stem: [f"{stem}{i}" for i in range(1, 6)]
 expected = (["N", "digits", "beta", "g"] + per("m") + per("l") + per("beta_K") + per("error_K") +
             ["ratio"] + per("cos_phi") + per("var_K") + per("diagonal_approx") +
             ["method", "evaluations", "converged", "error_kind", "ratio_error"] +
-            per("cos_phi_error") + per("var_K_error"))
+            per("cos_phi_error") + per("var_K_error") +
+            ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual"] +
+            per("beta_Kc") + per("beta_Kc_error") + ["beta_Kc_error_kind"])
 assert header == expected, header
 assert all(len(l.split(",")) == len(header) for l in data), "ragged rows"
 rows = list(csv.DictReader(data))
@@ -496,7 +506,8 @@ assert [(r["N"], r["digits"], r["g"]) for r in rows] == [
 for r in rows:
     n = int(r["N"])
     assert r["method"] == ("torus-trapezoid" if n == 3 else "transfer") and r["converged"] == "true", r
-    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx"):
+    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx", "beta_Kc",
+                 "beta_Kc_error"):
         cells = [r[f"{stem}{i}"] for i in range(1, 6)]
         assert all(cells[:n]) and not any(cells[n:]), (stem, cells)
     # beta<K_i> has as many significant digits as the row's digits; equipartition sum = N/2.
@@ -574,7 +585,7 @@ good "table g range innermost" \
   table --beta 1,2 --g lin:0:1:3
 good "table single N, no empty cells" \
   '! grep -v "^#" "$work/out" | grep -q ",," && ! grep -q "cells beyond" "$work/out" &&
-   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K")" -eq 3 ]' \
+   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K[0-9]")" -eq 3 ]' \
   table --chain 3 --beta 1
 # qmc options are recorded and used: the table's row is the row of `average` with the same
 # options (qmc's numbers do not depend on the thread count).
@@ -857,14 +868,15 @@ bad "micro samples with integral" average --masses 1,1 --lengths 1,1 --energy 0 
 bad "micro samples 2^17"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 131072
 
 printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
-micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'
+micro_added=',K_total,K_total_error,density_of_states,density_of_states_error,work_unit'  # issue 10
+micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'"$micro_added"
 good "cases energy column" \
   '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$micro_cases_header" ] && sed -n 3p "$work/out" | cut -d, -f7 | grep -q "^2.4999999684000"' \
   average --cases "$work/energy.csv"
 printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
 # the mpmath reference above, to 20 digits: 2.4999999835937502048e-9
 good "cases excitation column, digits 20" \
-  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
+  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$micro_added$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
   average --cases "$work/excitation.csv" --digits 20
 printf 'beta,energy,g,m1,m2,l1,l2\n1,1,1,1,1,1,1\n' >"$work/beta_energy.csv"
 bad "cases beta and energy"    average --cases "$work/beta_energy.csv"
@@ -889,7 +901,8 @@ assert len(rows) == int(sys.argv[2]), len(rows)
 state = sys.argv[3]
 other = "excitation" if state == "energy" else "energy"
 header = lines[0].strip().split(",")
-assert header[2] == state and header[-1] == other, header
+added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
+assert header[2] == state and header[-6:] == [other] + added, header
 for r in rows:
     assert r["converged"] == "true", r
     n = int(r["N"])
@@ -1042,6 +1055,95 @@ good "limit text: errors, work, residual per limit" \
   '[ "$(grep -c "^beta -> 0: " "$work/out")" -eq 3 ] && [ "$(grep -c "^beta -> inf: " "$work/out")" -eq 3 ] &&
    [ "$(grep -c "converged = yes" "$work/out")" -eq 2 ] && grep -q "^beta -> 0: |sum_i beta<K_i> - N/2| = " "$work/out"' \
   limit --masses 0.5,0.5 --format text
+
+# table and --cases rows: the added columns equal `average --format csv`'s for the same point
+# (the same library call); a series row's beta_K error is a bound, its cos_phi and var_K errors
+# estimates.
+canonical_columns='cos_phi_error_kind var_K_error_kind work_unit equipartition_residual'
+check_rows_as_average() { # FILE KIND (table | cases): every row against `average --format csv`
+  "$python" - "$1" "$2" "$pendavg" "$canonical_columns" <<'PY'
+import csv, math, subprocess, sys
+kind, pendavg, shared = sys.argv[2], sys.argv[3], sys.argv[4].split()
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+rows = list(csv.DictReader(lines))
+assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
+kinds = {"bound", "estimate", "statistical"}
+for r in rows:
+    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    masses = ",".join(r[f"m{i}"] for i in range(1, n + 1))
+    lengths = ",".join(r[f"l{i}"] for i in range(1, n + 1))
+    args = [pendavg, "average", "--masses", masses, "--lengths", lengths, "--beta", r["beta"],
+            "--g", r["g"], "--format", "csv"]
+    if kind == "table":
+        args += ["--digits", r["digits"]]
+    if r["method"] == "series":
+        args += ["--method", "series"]
+    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
+    names = shared + [f"beta_Kc{i}" for i in range(1, n + 1)]
+    names += ["beta_K1", "error_K1", "cos_phi1", "cos_phi_error1", "method", "evaluations", "error_kind"]
+    assert [r[k] for k in names] == [a[k] for k in names], [(k, r[k], a[k]) for k in names if r[k] != a[k]]
+    assert {r["cos_phi_error_kind"], r["var_K_error_kind"], r["beta_Kc_error_kind"]} <= kinds, r
+    assert r["beta_Kc_error_kind"] == "bound" and r["work_unit"] in ("terms", "nodes", "samples"), r
+    assert math.isfinite(float(r["equipartition_residual"])) and float(r["equipartition_residual"]) >= 0
+    for i in range(1, n + 1):
+        assert float(r[f"beta_Kc{i}"]) == 0.5 and 0 < float(r[f"beta_Kc_error{i}"]) < 1e-14, r
+    if r["method"] == "series":
+        assert (r["error_kind"], r["cos_phi_error_kind"], r["var_K_error_kind"]) == ("bound", "estimate", "estimate"), r
+PY
+}
+good "table: error kinds, work_unit, residual, beta_Kc (series rows)" 'check_rows_as_average "$work/out" table' \
+  table --beta 0.5,2 --mu1 0.3 --l2 0.7 --method series
+good "table: the same for chains N = 3, 5 (torus, transfer)" 'check_rows_as_average "$work/out" table' \
+  table --chain 3,5 --beta 1 --g 1,2
+good "table: the same at digits 30" 'check_rows_as_average "$work/out" table' \
+  table --beta 1 --mu1 0.3 --digits 30
+good "cases: error kinds, work_unit, residual, beta_Kc" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases.csv"
+good "cases: the same for N = 3" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases3.csv"
+good "cases: the same for series rows" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases.csv" --method series
+
+# microcanonical rows: K_total, density_of_states (each with its error) and work_unit, equal to
+# `average --energy/--excitation --format csv`'s.
+check_micro_added() { # FILE KIND (table | cases) STATE
+  "$python" - "$1" "$2" "$3" "$pendavg" <<'PY'
+import csv, math, subprocess, sys
+kind, state, pendavg = sys.argv[2], sys.argv[3], sys.argv[4]
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+rows = list(csv.DictReader(lines))
+assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
+added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
+assert lines[0].split(",")[-5:] == added, lines[0]
+for r in rows:
+    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    args = [pendavg, "average", "--masses", ",".join(r[f"m{i}"] for i in range(1, n + 1)),
+            "--lengths", ",".join(r[f"l{i}"] for i in range(1, n + 1)), f"--{state}", r[state],
+            "--g", r["g"], "--format", "csv"]
+    if kind == "table":
+        args += ["--digits", r["digits"]]
+    if r["method"] == "qmc":
+        args += ["--samples", "1024", "--shifts", "8"]
+    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
+    assert [r[k] for k in added] == [a[k] for k in added], [(k, r[k], a[k]) for k in added]
+    for k in ("K_total", "K_total_error", "density_of_states", "density_of_states_error"):
+        assert math.isfinite(float(r[k])) and float(r[k]) > 0, (k, r[k])
+    total = sum(float(r[f"K{i}"]) for i in range(1, n + 1))
+    bars = sum(float(r[f"K_error{i}"]) for i in range(1, n + 1)) + float(r["K_total_error"])
+    assert abs(total - float(r["K_total"])) <= bars, (total, r["K_total"], bars)
+    assert r["work_unit"] == ("samples" if r["method"] == "qmc" else "nodes"), r
+PY
+}
+good "table --excitation: K_total, density_of_states, work_unit" 'check_micro_added "$work/out" table excitation' \
+  table --excitation log:1e-6:1:3 --mu1 0.5,0.2
+good "table --energy chains: the same (integral, qmc)" 'check_micro_added "$work/out" table energy' \
+  table --chain 3,5 --energy 0,1 --samples 1024 --shifts 8
+good "table --energy digits 20: the same" 'check_micro_added "$work/out" table energy' \
+  table --energy -1,1 --digits 20 --l2 2
+good "cases energy column: K_total, density_of_states, work_unit" 'check_micro_added "$work/out" cases energy' \
+  average --cases "$work/energy.csv"
+good "cases excitation column: the same" 'check_micro_added "$work/out" cases excitation' \
+  average --cases "$work/excitation.csv"
 
 good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
 
