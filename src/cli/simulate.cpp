@@ -68,6 +68,17 @@ const std::string_view simulate_usage =
     "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
     "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
     "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
+    "JSON also has, after seconds: K_total and potential (<K> and <U> over time) with their\n"
+    "errors, energy_trend (NVE: the least-squares change of E over the run / the energy scale;\n"
+    "null with energy_trend_reason under Langevin), unconverged_stages, samples, exact_var_K for\n"
+    "Langevin runs (canonical Var K_i), exact_error_kinds (what each exact error promises) and,\n"
+    "with --replicas, K_total_error_blocking/replicas and potential_error_blocking/replicas.\n"
+    "CSV columns: i, K, K_error, Kc, Kc_error, exact_K, exact_K_error, exact_Kc,\n"
+    "K_autocorrelation_time [, K_error_blocking, K_error_replicas], then cos_phi, cos_phi_error,\n"
+    "error_kind, exact_cos_phi, exact_cos_phi_error, exact_Kc_error, exact_var_K,\n"
+    "exact_var_K_error, exact_error_kind, exact_Kc_error_kind, exact_cos_phi_error_kind,\n"
+    "exact_var_K_error_kind [, Kc_error_blocking, Kc_error_replicas, cos_phi_error_blocking,\n"
+    "cos_phi_error_replicas] (cells that do not exist are empty).\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
@@ -144,6 +155,21 @@ std::string exact_error(double value, double error) {
   return decimal(printed_error(value, error, 17), error_digits);
 }
 
+/// An exact value as a JSON number, null when it is not finite (e.g. Var K_i beyond double's
+/// range at a tiny beta).
+std::string exact_json(double x) { return std::isfinite(x) ? exact_number(x) : "null"; }
+
+/// An exact value's error as JSON (null beside a value that is not finite).
+std::string exact_error_json(double value, double error) {
+  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : "null";
+}
+
+/// CSV cells of an exact value and its error: empty when they do not exist.
+std::string exact_cell(double x) { return std::isfinite(x) ? exact_number(x) : std::string(); }
+std::string exact_error_cell(double value, double error) {
+  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : std::string();
+}
+
 std::string number_array(const std::vector<double>& values) {
   std::string out = "[";
   for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + number(values[i]);
@@ -168,6 +194,8 @@ struct ReplicaSpread {
   std::size_t replicas = 0, requested = 0;  ///< finished (also when interrupted), asked for
   std::vector<double> kinetic_blocking, kinetic_replicas, canonical_blocking, canonical_replicas,
       cosine_blocking, cosine_replicas;
+  double total_blocking = 0, total_replicas = 0;          ///< of <K>
+  double potential_blocking = 0, potential_replicas = 0;  ///< of <U>
   double energy_spread = 0;  ///< largest |E_r - E| over the replicas (NVE perturbed starts)
 };
 
@@ -191,15 +219,21 @@ struct ReplicaMean {
   }
 };
 
+/// Doubles in one replica's packed result: 3 per time average (3n + 2 of them) and 10 more.
+std::size_t packed_replica_doubles(std::size_t n) { return 9 * n + 18; }
+
 /// One replica's result as bytes (the sweep engine moves rows as text).
 std::string pack_replica(const SimulationResult<double>& r) {
   std::vector<double> v;
   for (const auto* list : {&r.kinetic, &r.kinetic_canonical, &r.cos_angle})
     for (const TimeAverage<double>& x : *list) v.insert(v.end(), {x.value, x.error, x.autocorrelation_time});
+  for (const TimeAverage<double>* x : {&r.kinetic_total, &r.potential})
+    v.insert(v.end(), {x->value, x->error, x->autocorrelation_time});
   v.insert(v.end(), {r.initial_energy, r.energy_drift, r.energy_error_max, r.energy_error_rms,
                      r.constraint_residual, r.simulated_time, static_cast<double>(r.steps),
                      static_cast<double>(r.samples), static_cast<double>(r.newton_solves),
-                     r.interrupted ? 1.0 : 0.0});
+                     r.interrupted ? 1.0 : 0.0, r.energy_trend,
+                     static_cast<double>(r.unconverged_stages)});
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(double));
 }
 
@@ -216,6 +250,11 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
       x.autocorrelation_time = v[k++];
     }
   }
+  for (TimeAverage<double>* x : {&r.kinetic_total, &r.potential}) {
+    x->value = v[k++];
+    x->error = v[k++];
+    x->autocorrelation_time = v[k++];
+  }
   r.initial_energy = v[k++];
   r.energy_drift = v[k++];
   r.energy_error_max = v[k++];
@@ -226,6 +265,8 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
   r.samples = static_cast<std::size_t>(v[k++]);
   r.newton_solves = static_cast<std::size_t>(v[k++]);
   r.interrupted = v[k++] != 0;
+  r.energy_trend = v[k++];
+  r.unconverged_stages = static_cast<std::size_t>(v[k++]);
   return r;
 }
 
@@ -233,7 +274,7 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
 class ReplicaCombiner : public SweepOutput {
  public:
   ReplicaCombiner(std::size_t n, double energy)
-      : n_(n), energy_(energy), kinetic_(n), canonical_(n), cosine_(n) {}
+      : n_(n), energy_(energy), kinetic_(n), canonical_(n), cosine_(n), total_(1), potential_(1) {}
   void write_rows(std::size_t, std::size_t count, std::string_view text,
                   std::span<const double>) override {
     const std::size_t size = text.size() / count;
@@ -246,10 +287,11 @@ class ReplicaCombiner : public SweepOutput {
     spread.energy_spread = energy_spread_;
     const auto fill = [&](const std::vector<ReplicaMean>& means, std::vector<TimeAverage<double>>& to,
                           std::vector<double>& blocking, std::vector<double>& replicas) {
-      to.resize(n_);
-      blocking.resize(n_);
-      replicas.resize(n_);
-      for (std::size_t i = 0; i < n_; ++i) {
+      const std::size_t count = means.size();
+      to.resize(count);
+      blocking.resize(count);
+      replicas.resize(count);
+      for (std::size_t i = 0; i < count; ++i) {
         blocking[i] = means[i].blocking();  // NaN when a replica's blocking error is unknown
         replicas[i] = replicas_ > 1 ? means[i].replica_error(replicas_)
                                     : std::numeric_limits<double>::quiet_NaN();
@@ -264,6 +306,17 @@ class ReplicaCombiner : public SweepOutput {
     fill(kinetic_, out.kinetic, spread.kinetic_blocking, spread.kinetic_replicas);
     fill(canonical_, out.kinetic_canonical, spread.canonical_blocking, spread.canonical_replicas);
     fill(cosine_, out.cos_angle, spread.cosine_blocking, spread.cosine_replicas);
+    const auto fill_one = [&](const std::vector<ReplicaMean>& mean, TimeAverage<double>& to,
+                              double& blocking, double& replicas) {
+      std::vector<TimeAverage<double>> one;
+      std::vector<double> b, r;
+      fill(mean, one, b, r);
+      to = one[0];
+      blocking = b[0];
+      replicas = r[0];
+    };
+    fill_one(total_, out.kinetic_total, spread.total_blocking, spread.total_replicas);
+    fill_one(potential_, out.potential, spread.potential_blocking, spread.potential_replicas);
     return out;
   }
   std::size_t replicas() const { return replicas_; }
@@ -276,8 +329,11 @@ class ReplicaCombiner : public SweepOutput {
       canonical_[i].add(w, r.kinetic_canonical[i]);
       cosine_[i].add(w, r.cos_angle[i]);
     }
+    total_[0].add(w, r.kinetic_total);
+    potential_[0].add(w, r.potential);
     const auto larger = [](double a, double b) { return std::abs(b) > std::abs(a) ? b : a; };
     totals_.energy_drift = larger(totals_.energy_drift, r.energy_drift);
+    totals_.energy_trend = larger(totals_.energy_trend, r.energy_trend);
     totals_.energy_error_max = std::max(totals_.energy_error_max, r.energy_error_max);
     totals_.energy_error_rms = std::max(totals_.energy_error_rms, r.energy_error_rms);
     totals_.constraint_residual = std::max(totals_.constraint_residual, r.constraint_residual);
@@ -285,6 +341,7 @@ class ReplicaCombiner : public SweepOutput {
     totals_.steps += r.steps;
     totals_.samples += r.samples;
     totals_.newton_solves += r.newton_solves;
+    totals_.unconverged_stages += r.unconverged_stages;
     totals_.interrupted = totals_.interrupted || r.interrupted;
     energy_spread_ = std::max(energy_spread_, std::abs(r.initial_energy - energy_));
     ++replicas_;
@@ -292,6 +349,7 @@ class ReplicaCombiner : public SweepOutput {
   std::size_t n_;
   double energy_;
   std::vector<ReplicaMean> kinetic_, canonical_, cosine_;
+  std::vector<ReplicaMean> total_, potential_;  ///< <K> and <U> (one each)
   SimulationResult<double> totals_;
   std::size_t replicas_ = 0;
   double energy_spread_ = 0;
@@ -309,7 +367,7 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   SweepRows rows;
   rows.count = replicas;
   rows.threads = hardware_threads();
-  rows.row_bytes = (9 * n + 10) * sizeof(double);
+  rows.row_bytes = packed_replica_doubles(n) * sizeof(double);
   rows.grace_seconds = 5;  // a replica stops within 1024 steps and reports its averages so far
   rows.progress = "simulate";
   rows.unit = "replicas";
@@ -346,7 +404,7 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
 
 std::string exact_array(const std::vector<double>& values) {
   std::string out = "[";
-  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_number(values[i]);
+  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_json(values[i]);
   return out + "]";
 }
 
@@ -354,7 +412,7 @@ std::string exact_error_array(const std::vector<double>& values,
                               const std::vector<double>& errors) {
   std::string out = "[";
   for (std::size_t i = 0; i < values.size(); ++i)
-    out += (i ? ", " : "") + exact_error(values[i], errors[i]);
+    out += (i ? ", " : "") + exact_error_json(values[i], errors[i]);
   return out + "]";
 }
 
@@ -573,7 +631,9 @@ SimulateColumns simulate_columns(const SimulateRequest& request, const Simulatio
   return c;
 }
 
-/// Step 3, format (--format csv): '#' lines with the run, then one row per particle.
+/// Step 3, format (--format csv): '#' lines with the run, then one row per particle: the
+/// original columns, then (added later, at the end) <cos phi_i> and the other exact values with
+/// every error and what it promises.
 std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& outcome) {
   const SimulationResult<double>& r = outcome.result;
   const std::optional<ExactValues>& reference = outcome.reference;
@@ -592,7 +652,13 @@ std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& 
            std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
            "replica-spread errors\n";
   out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
-  out += spread ? ",K_error_blocking,K_error_replicas\n" : "\n";
+  if (spread) out += ",K_error_blocking,K_error_replicas";
+  out += ",cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,"
+         "exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,"
+         "exact_cos_phi_error_kind,exact_var_K_error_kind";
+  if (spread)
+    out += ",Kc_error_blocking,Kc_error_replicas,cos_phi_error_blocking,cos_phi_error_replicas";
+  out += "\n";
   for (std::size_t i = 0; i < c.k.size(); ++i) {
     out += std::to_string(i + 1) + "," + cell(c.k[i], 10) + "," + cell(c.k_error[i], 3) + "," +
            cell(c.kc[i], 10) + "," + cell(c.kc_error[i], 3) + "," +
@@ -604,12 +670,30 @@ std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& 
     if (spread)
       out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
              cell(spread->kinetic_replicas[i], 3);
+    out += "," + cell(c.cosine[i], 10) + "," + cell(c.cosine_error[i], 3) + "," +
+           error_kind_name(ErrorKind::statistical);
+    if (reference) {
+      const ExactValues& e = *reference;
+      out += "," + exact_cell(e.cos_angle[i]) + "," +
+             exact_error_cell(e.cos_angle[i], e.cos_angle_error[i]) + "," +
+             exact_error_cell(e.kinetic_canonical, e.kinetic_canonical_error) + "," +
+             exact_cell(e.variance[i]) + "," + exact_error_cell(e.variance[i], e.variance_error[i]) +
+             "," + e.error_kind + "," + e.kinetic_canonical_error_kind + "," +
+             e.cos_angle_error_kind + "," + e.variance_error_kind;
+    } else {
+      out += ",,,,,,,,,";
+    }
+    if (spread)
+      out += "," + cell(spread->canonical_blocking[i], 3) + "," +
+             cell(spread->canonical_replicas[i], 3) + "," + cell(spread->cosine_blocking[i], 3) +
+             "," + cell(spread->cosine_replicas[i], 3);
     out += "\n";
   }
   return out;
 }
 
-/// Step 3, format (JSON, the default): one object.
+/// Step 3, format (JSON, the default): one object; the keys added after the original ones come
+/// last (after seconds).
 std::string simulate_json(const SimulateRequest& request, const SimulateOutcome& outcome) {
   const SimulationResult<double>& r = outcome.result;
   const std::optional<ExactValues>& reference = outcome.reference;
@@ -688,6 +772,42 @@ std::string simulate_json(const SimulateRequest& request, const SimulateOutcome&
              exact_error_array(reference->variance, reference->variance_error));
   }
   json.raw("seconds", seconds_text(outcome.seconds));
+
+  // Added after the original keys: <K> and <U> over time (the same blocking errors), the
+  // secular energy trend (NVE), the work, and the canonical Var K_i beside a Langevin run.
+  json.raw("K_total", number(r.kinetic_total.value))
+      .raw("K_total_error", error_number(r.kinetic_total.error))
+      .raw("potential", number(r.potential.value))
+      .raw("potential_error", error_number(r.potential.error));
+  if (request.langevin)
+    json.raw("energy_trend", "null")
+        .string("energy_trend_reason",
+                "a Langevin run exchanges energy with its bath: the trend of E(t) is reported "
+                "for fixed-energy (NVE) runs only");
+  else
+    json.raw("energy_trend", error_number(r.energy_trend));
+  json.integer("unconverged_stages", static_cast<long long>(r.unconverged_stages))
+      .integer("samples", static_cast<long long>(r.samples));
+  if (reference) {
+    if (request.langevin)
+      json.raw("exact_var_K", exact_array(reference->variance))
+          .raw("exact_var_K_error",
+               exact_error_array(reference->variance, reference->variance_error));
+    if (std::ranges::any_of(reference->variance, [](double v) { return !std::isfinite(v); }))
+      json.string("exact_var_K_reason",
+                  "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
+    json.raw("exact_error_kinds", JsonObject()
+                                      .string("K", reference->error_kind)
+                                      .string("Kc", reference->kinetic_canonical_error_kind)
+                                      .string("cos_phi", reference->cos_angle_error_kind)
+                                      .string("var_K", reference->variance_error_kind)
+                                      .str());
+  }
+  if (spread)
+    json.raw("K_total_error_blocking", error_number(spread->total_blocking))
+        .raw("K_total_error_replicas", error_number(spread->total_replicas))
+        .raw("potential_error_blocking", error_number(spread->potential_blocking))
+        .raw("potential_error_replicas", error_number(spread->potential_replicas));
   return json.str() + "\n";
 }
 

@@ -1056,6 +1056,130 @@ good "limit text: errors, work, residual per limit" \
    [ "$(grep -c "converged = yes" "$work/out")" -eq 2 ] && grep -q "^beta -> 0: |sum_i beta<K_i> - N/2| = " "$work/out"' \
   limit --masses 0.5,0.5 --format text
 
+# simulate JSON: <K> and <U> over time, the energy trend, the work; Langevin: the canonical Var K_i.
+simulate_original='ensemble integrator particles dt time energy K K_error Kc Kc_error K_autocorrelation_time cos_phi cos_phi_error error_kind'
+check_simulate_added() { # ENSEMBLE [AVERAGE_JSON: the canonical values at the run's beta]
+  strict_python - "$work/out" "$1" "${2:-}" "$simulate_original" <<'PY'
+from strict_json import strict, KINDS
+import math, sys
+from decimal import Decimal as D
+d = strict(sys.argv[1]); ensemble = sys.argv[2]; n = d["particles"]
+keys = list(d)
+assert keys[:14] == sys.argv[4].split(), keys
+after = keys[keys.index("seconds") + 1:]
+expected = ["K_total", "K_total_error", "potential", "potential_error", "energy_trend"]
+expected += ["energy_trend_reason"] if ensemble == "canonical" else []
+expected += ["unconverged_stages", "samples"]
+expected += ["exact_var_K", "exact_var_K_error"] if ensemble == "canonical" else []
+expected += ["exact_error_kinds"]
+assert after == expected, after
+for k in ("K_total", "K_total_error", "potential", "potential_error"):
+    assert isinstance(d[k], float) and math.isfinite(d[k]), k
+assert d["K_total_error"] > 0 and d["potential_error"] > 0
+# <K> is the sum of the <K_i> (to the 10 printed digits)
+assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"], (d["K_total"], d["K"])
+assert isinstance(d["unconverged_stages"], int) and d["unconverged_stages"] >= 0
+assert isinstance(d["samples"], int) and 0 < d["samples"] <= d["steps"], d["samples"]
+kinds = d["exact_error_kinds"]
+assert set(kinds) == {"K", "Kc", "cos_phi", "var_K"} and set(kinds.values()) <= KINDS, kinds
+assert kinds["K"] == d["exact_error_kind"]
+for value, error in zip(d["exact_var_K"], d["exact_var_K_error"]):
+    assert math.isfinite(value) and value > 0 and math.isfinite(error) and error > 0, (value, error)
+assert len(d["exact_var_K"]) == n
+if ensemble == "microcanonical":
+    # <K> + <U> = E: every sample lies within energy_error_max x scale of E, scale = (sum m) g (sum l)
+    scale = 2 * 2
+    # (energy_error_max is printed with 3 digits: 1.005 covers its rounding)
+    bound = 1.005 * d["energy_error_max"]
+    assert abs(d["K_total"] + d["potential"] - d["energy"]) <= bound * scale + 1e-8
+    # the least-squares change of E over the run is at most 6 x the largest deviation
+    assert math.isfinite(d["energy_trend"]) and abs(d["energy_trend"]) <= 6 * bound, d
+else:
+    assert d["energy_trend"] is None and d["energy_trend_reason"], d
+    # canonical <K> = N / (2 beta) exactly: within 4 error bars
+    assert abs(d["K_total"] - n / (2 * d["beta"])) <= 4 * d["K_total_error"], (d["K_total"], d["K_total_error"])
+    a = strict(sys.argv[3])  # average --format json at the same chain and beta
+    for i in range(n):  # Var K_i: 17 digits here, 16 there (its printed error covers the rounding)
+        assert abs(D(repr(d["exact_var_K"][i])) - D(a["var_K"][i])) <= D(a["var_K_error"][i]), i
+    assert kinds["K"] == a["error_kind"] and kinds["cos_phi"] == a["error_kinds"]["cos_phi"], (kinds, a["error_kinds"])
+    assert kinds["var_K"] == a["error_kinds"]["var_K"] and kinds["Kc"] == "bound"
+PY
+}
+good "simulate json: K_total, potential, energy_trend, samples (NVE)" 'check_simulate_added microcanonical' \
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300
+"$pendavg" average --masses 1,1 --lengths 1,1 --beta 0.5 >"$work/canonical.json" 2>/dev/null
+good "simulate json: exact_var_K and kinds (Langevin)" 'check_simulate_added canonical "$work/canonical.json"' \
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3
+"$pendavg" average --masses 1,2,1 --lengths 1,1,0.5 --beta 2 >"$work/canonical3.json" 2>/dev/null
+good "simulate json: exact_var_K (Langevin, N = 3)" 'check_simulate_added canonical "$work/canonical3.json"' \
+  simulate --masses 1,2,1 --lengths 1,1,0.5 --theta 0 --time 200 --thermostat langevin --beta 2 --seed 5
+
+# simulate CSV: the added columns hold the JSON's values (the same deterministic run).
+simulate_csv_original='i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time'
+simulate_csv_added='cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,exact_cos_phi_error_kind,exact_var_K_error_kind'
+check_simulate_csv() { # JSON_OF_THE_SAME_RUN [replicas]
+  strict_python - "$work/out" "$1" "$simulate_csv_original" "$simulate_csv_added" "${2:-}" <<'PY'
+from strict_json import strict, KINDS
+import csv, math, sys
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+d = strict(sys.argv[2]); replicas = sys.argv[5] == "replicas"
+header = lines[0].split(",")
+expected = sys.argv[3].split(",") + (["K_error_blocking", "K_error_replicas"] if replicas else [])
+expected += sys.argv[4].split(",")
+expected += ["Kc_error_blocking", "Kc_error_replicas", "cos_phi_error_blocking", "cos_phi_error_replicas"] if replicas else []
+assert header == expected, header
+rows = list(csv.DictReader(lines))
+assert len(rows) == d["particles"] and all(len(l.split(",")) == len(header) for l in lines)
+exact = d["exact_K"] is not None
+# errors: 3 digits in the CSV, 10 in the JSON (the same double)
+same_error = lambda cell, value: abs(float(cell) - value) <= 5e-3 * value
+for i, r in enumerate(rows):
+    assert float(r["cos_phi"]) == d["cos_phi"][i] and same_error(r["cos_phi_error"], d["cos_phi_error"][i]), r
+    assert float(r["cos_phi_error"]) > 0 and r["error_kind"] == "statistical"
+    if not exact:
+        assert not any(r[k] for k in sys.argv[4].split(",")[3:]), r
+        continue
+    assert float(r["exact_cos_phi"]) == d["exact_cos_phi"][i] and float(r["exact_cos_phi_error"]) == d["exact_cos_phi_error"][i]
+    assert float(r["exact_Kc_error"]) == d["exact_Kc_error"] and float(r["exact_Kc_error"]) > 0
+    assert float(r["exact_var_K"]) == d["exact_var_K"][i] and float(r["exact_var_K_error"]) == d["exact_var_K_error"][i]
+    assert float(r["exact_var_K"]) > 0 and float(r["exact_var_K_error"]) > 0 and float(r["exact_cos_phi_error"]) > 0
+    kinds = d["exact_error_kinds"]
+    assert (r["exact_error_kind"], r["exact_Kc_error_kind"], r["exact_cos_phi_error_kind"], r["exact_var_K_error_kind"]) == \
+        (kinds["K"], kinds["Kc"], kinds["cos_phi"], kinds["var_K"]), r
+    if replicas:
+        for stem in ("Kc", "cos_phi"):
+            for part in ("blocking", "replicas"):
+                assert same_error(r[f"{stem}_error_{part}"], d[f"{stem}_error_{part}"][i]), (stem, part)
+                assert d[f"{stem}_error_{part}"][i] > 0, (stem, part)
+PY
+}
+nve3=(simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 50)
+"$pendavg" "${nve3[@]}" >"$work/nve3.json" 2>/dev/null
+good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}" --format csv
+"$pendavg" "${nve3[@]}" --exact no >"$work/nve3_no_exact.json" 2>/dev/null
+good "simulate csv: --exact no leaves the exact cells empty" 'check_simulate_csv "$work/nve3_no_exact.json"' "${nve3[@]}" --exact no --format csv
+langevin2=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 0.5 --seed 3)
+"$pendavg" "${langevin2[@]}" >"$work/langevin2.json" 2>/dev/null
+good "simulate csv: exact_var_K (Langevin)" 'check_simulate_csv "$work/langevin2.json"' "${langevin2[@]}" --format csv
+replicas3=(simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4)
+"$pendavg" "${replicas3[@]}" >"$work/replicas3.json" 2>/dev/null
+good "simulate csv: the replicas' error columns" 'check_simulate_csv "$work/replicas3.json" replicas' "${replicas3[@]}" --format csv
+# --replicas: <K> and <U> combined like the other averages (the larger of the two errors)
+check_replicas_added() {
+  strict_python - "$work/out" <<'PY'
+from strict_json import strict, KINDS
+import sys
+d = strict(sys.argv[1])
+assert d["replicas"] == 4 and d["samples"] > 0 and d["unconverged_stages"] >= 0
+for stem in ("K_total", "potential"):
+    b, r = d[stem + "_error_blocking"], d[stem + "_error_replicas"]
+    assert b > 0 and r > 0 and d[stem + "_error"] == max(b, r), (stem, b, r, d[stem + "_error"])
+assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"]
+assert list(d)[-4:] == ["K_total_error_blocking", "K_total_error_replicas", "potential_error_blocking", "potential_error_replicas"]
+PY
+}
+good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}"
+
 # table and --cases rows: the added columns equal `average --format csv`'s for the same point
 # (the same library call); a series row's beta_K error is a bound, its cos_phi and var_K errors
 # estimates.
