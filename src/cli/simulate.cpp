@@ -692,6 +692,49 @@ std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& 
   return out;
 }
 
+/// The JSON keys added after the original ones (after seconds): <K> and <U> over time (the
+/// same blocking errors), the secular energy trend (NVE), the work, the canonical Var K_i beside
+/// a Langevin run, what each exact error promises, and the replicas' errors of <K> and <U>.
+void add_totals_and_kinds(JsonObject& json, const SimulateRequest& request,
+                          const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  json.raw("K_total", number(r.kinetic_total.value))
+      .raw("K_total_error", error_number(r.kinetic_total.error))
+      .raw("potential", number(r.potential.value))
+      .raw("potential_error", error_number(r.potential.error));
+  if (request.langevin)
+    json.raw("energy_trend", "null")
+        .string("energy_trend_reason",
+                "a Langevin run exchanges energy with its bath: the trend of E(t) is reported "
+                "for fixed-energy (NVE) runs only");
+  else
+    json.raw("energy_trend", error_number(r.energy_trend));
+  json.integer("unconverged_stages", static_cast<long long>(r.unconverged_stages))
+      .integer("samples", static_cast<long long>(r.samples));
+  if (reference) {
+    if (request.langevin)
+      json.raw("exact_var_K", exact_array(reference->variance))
+          .raw("exact_var_K_error",
+               exact_error_array(reference->variance, reference->variance_error));
+    if (std::ranges::any_of(reference->variance, [](double v) { return !std::isfinite(v); }))
+      json.string("exact_var_K_reason",
+                  "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
+    json.raw("exact_error_kinds", JsonObject()
+                                      .string("K", reference->error_kind)
+                                      .string("Kc", reference->kinetic_canonical_error_kind)
+                                      .string("cos_phi", reference->cos_angle_error_kind)
+                                      .string("var_K", reference->variance_error_kind)
+                                      .str());
+  }
+  if (spread)
+    json.raw("K_total_error_blocking", error_number(spread->total_blocking))
+        .raw("K_total_error_replicas", error_number(spread->total_replicas))
+        .raw("potential_error_blocking", error_number(spread->potential_blocking))
+        .raw("potential_error_replicas", error_number(spread->potential_replicas));
+}
+
 /// Step 3, format (JSON, the default): one object; the keys added after the original ones come
 /// last (after seconds).
 std::string simulate_json(const SimulateRequest& request, const SimulateOutcome& outcome) {
@@ -772,42 +815,7 @@ std::string simulate_json(const SimulateRequest& request, const SimulateOutcome&
              exact_error_array(reference->variance, reference->variance_error));
   }
   json.raw("seconds", seconds_text(outcome.seconds));
-
-  // Added after the original keys: <K> and <U> over time (the same blocking errors), the
-  // secular energy trend (NVE), the work, and the canonical Var K_i beside a Langevin run.
-  json.raw("K_total", number(r.kinetic_total.value))
-      .raw("K_total_error", error_number(r.kinetic_total.error))
-      .raw("potential", number(r.potential.value))
-      .raw("potential_error", error_number(r.potential.error));
-  if (request.langevin)
-    json.raw("energy_trend", "null")
-        .string("energy_trend_reason",
-                "a Langevin run exchanges energy with its bath: the trend of E(t) is reported "
-                "for fixed-energy (NVE) runs only");
-  else
-    json.raw("energy_trend", error_number(r.energy_trend));
-  json.integer("unconverged_stages", static_cast<long long>(r.unconverged_stages))
-      .integer("samples", static_cast<long long>(r.samples));
-  if (reference) {
-    if (request.langevin)
-      json.raw("exact_var_K", exact_array(reference->variance))
-          .raw("exact_var_K_error",
-               exact_error_array(reference->variance, reference->variance_error));
-    if (std::ranges::any_of(reference->variance, [](double v) { return !std::isfinite(v); }))
-      json.string("exact_var_K_reason",
-                  "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
-    json.raw("exact_error_kinds", JsonObject()
-                                      .string("K", reference->error_kind)
-                                      .string("Kc", reference->kinetic_canonical_error_kind)
-                                      .string("cos_phi", reference->cos_angle_error_kind)
-                                      .string("var_K", reference->variance_error_kind)
-                                      .str());
-  }
-  if (spread)
-    json.raw("K_total_error_blocking", error_number(spread->total_blocking))
-        .raw("K_total_error_replicas", error_number(spread->total_replicas))
-        .raw("potential_error_blocking", error_number(spread->potential_blocking))
-        .raw("potential_error_replicas", error_number(spread->potential_replicas));
+  add_totals_and_kinds(json, request, outcome);
   return json.str() + "\n";
 }
 
