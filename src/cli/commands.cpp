@@ -101,7 +101,10 @@ constexpr std::string_view average_usage =
     "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
     "input columns in that order, then beta_K1..N, error_K1..N, ratio, cos_phi1..N, method,\n"
     "evaluations, ratio_error, cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind,\n"
-    "converged. Every row is checked before the first is computed. Rows run on all cores (and,\n"
+    "converged, then cos_phi_error_kind, var_K_error_kind (what those errors promise: a series\n"
+    "row's beta_K error is a bound, its cos_phi and var_K errors estimates), work_unit,\n"
+    "equipartition_residual, beta_Kc1..N, beta_Kc_error1..N, beta_Kc_error_kind. Every row is\n"
+    "checked before the first is computed. Rows run on all cores (and,\n"
     "under mpirun/srun with pendavg built with MPI, on all ranks); the output does not depend\n"
     "on the thread or rank count. Rows are streamed in file order as they finish.\n"
     "--output FILE writes the CSV atomically to FILE, after '#' lines naming the cases (by a\n"
@@ -133,18 +136,27 @@ constexpr std::string_view average_usage =
     "density_of_states_error, error_kind, evaluations, work_unit, seconds, converged, run. An\n"
     "energy at or below E_min is refused. --cases takes an energy or excitation column instead of\n"
     "beta; its rows then have K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,\n"
-    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and then excitation (or\n"
-    "energy), the other way of stating the row's state.\n";
+    "cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged, then excitation (or\n"
+    "energy), the other way of stating the row's state, then K_total, K_total_error,\n"
+    "density_of_states, density_of_states_error and work_unit.\n";
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
-    "                     [--format json|text]\n"
+    "                     [--format json|csv|text]\n"
     "\n"
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
     "at g = 0 (tensor trapezoid for N <= 5, transfer beyond, double only);\n"
-    "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n";
+    "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n"
+    "JSON (default): N, digits, and per limit (high_temperature, low_temperature) beta_K, error,\n"
+    "ratio, var_K_beta2, method, error_kind, ratio_error, cos_phi, cos_phi_error,\n"
+    "var_K_beta2_error, error_kinds, evaluations, work_unit, then converged, run (the torus\n"
+    "grid or the transfer operator's resolution, as `average` prints it, or null),\n"
+    "equipartition_residual, beta_Kc and beta_Kc_error; then seconds (both limits). --format\n"
+    "csv: one row per limit with the columns of `average --format csv` (beta, K_i and var_K_i\n"
+    "empty: no finite beta; seconds the limit's own), then limit, beta2_var_K1..N,\n"
+    "beta2_var_K_error1..N, beta_Kc_error1..N, beta_Kc_error_kind.\n";
 
 constexpr std::string_view series_usage =
     "usage: pendavg series --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--digits D]\n"
@@ -255,44 +267,72 @@ std::string average_json(const AverageReport& r) {
   return json.str() + "\n";
 }
 
-std::string average_csv(const AverageReport& r) {
-  const std::size_t n = r.particles;
-  const AveragesText& v = r.values;
-  std::vector<std::string> header{"N", "beta", "digits", "method"}, row{
-      std::to_string(n), std::string(r.beta), std::to_string(r.digits), v.method};
-  const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
-    const auto names = indexed_names(stem, values.size());
-    header.insert(header.end(), names.begin(), names.end());
-    row.insert(row.end(), values.begin(), values.end());
-  };
-  const auto add = [&](std::string name, std::string value) {
+/// One CSV line's column names and cells, built side by side.
+struct CsvLine {
+  std::vector<std::string> header, row;
+  void add(std::string name, std::string value) {
     header.push_back(std::move(name));
     row.push_back(std::move(value));
-  };
-  add_array("beta_K", v.beta_kinetic);
-  add_array("K", v.kinetic);
-  add_array("error_K", v.error);
-  add("ratio", v.ratio);
-  add_array("cos_phi", v.cos_angle);
-  add_array("var_K", v.variance);
-  add("evaluations", std::to_string(v.evaluations));
-  add("seconds", seconds_text(r.seconds));
-  add("converged", v.converged ? "true" : "false");
-  add_array("diagonal_approx", v.diagonal_approximation);
-  add_array("beta_Kc", v.beta_kinetic_canonical);
-  add("error_kind", v.error_kind);
-  add_array("K_error", v.kinetic_error);
-  add("ratio_error", v.ratio_error);
-  add_array("cos_phi_error", v.cos_angle_error);
-  add_array("var_K_error", v.variance_error);
-  add("cos_phi_error_kind", v.cos_angle_error_kind);
-  add("var_K_error_kind", v.variance_error_kind);
-  add("work_unit", v.work_unit);
-  add("equipartition_residual", v.equipartition_residual);
+  }
+  /// stem1..stem`count`; cells past the end of `values` are empty (an array a report does not
+  /// have, e.g. <K_i> of a limit).
+  void add_array(std::string_view stem, const std::vector<std::string>& values,
+                 std::size_t count) {
+    const auto names = indexed_names(stem, count);
+    header.insert(header.end(), names.begin(), names.end());
+    for (std::size_t i = 0; i < count; ++i) row.push_back(i < values.size() ? values[i] : "");
+  }
+};
+
+/// The columns of `average --format csv` for one report; `limit --format csv` writes the same
+/// for each limit (beta, <K_i> and Var K_i empty there) and adds its own after them.
+CsvLine average_csv_line(const AverageReport& r) {
+  const std::size_t n = r.particles;
+  const AveragesText& v = r.values;
+  CsvLine line;
+  line.add("N", std::to_string(n));
+  line.add("beta", std::string(r.beta));
+  line.add("digits", std::to_string(r.digits));
+  line.add("method", v.method);
+  line.add_array("beta_K", v.beta_kinetic, n);
+  line.add_array("K", v.kinetic, n);
+  line.add_array("error_K", v.error, n);
+  line.add("ratio", v.ratio);
+  line.add_array("cos_phi", v.cos_angle, n);
+  line.add_array("var_K", v.variance, n);
+  line.add("evaluations", std::to_string(v.evaluations));
+  line.add("seconds", seconds_text(r.seconds));
+  line.add("converged", v.converged ? "true" : "false");
+  line.add_array("diagonal_approx", v.diagonal_approximation, n);
+  line.add_array("beta_Kc", v.beta_kinetic_canonical, n);
+  line.add("error_kind", v.error_kind);
+  line.add_array("K_error", v.kinetic_error, n);
+  line.add("ratio_error", v.ratio_error);
+  line.add_array("cos_phi_error", v.cos_angle_error, n);
+  line.add_array("var_K_error", v.variance_error, n);
+  line.add("cos_phi_error_kind", v.cos_angle_error_kind);
+  line.add("var_K_error_kind", v.variance_error_kind);
+  line.add("work_unit", v.work_unit);
+  line.add("equipartition_residual", v.equipartition_residual);
+  return line;
+}
+
+std::string average_csv(const AverageReport& r) {
+  const CsvLine line = average_csv_line(r);
   std::string out;
-  append_csv_line(out, header);
-  append_csv_line(out, row);
+  append_csv_line(out, line.header);
+  append_csv_line(out, line.row);
   return out;
+}
+
+/// The lines after a text table: what the errors promise, and the work done.
+std::string errors_and_work_text(const AveragesText& v, double seconds,
+                                 std::string_view variance) {
+  return "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
+         v.cos_angle_error_kind + ", " + std::string(variance) + " " + v.variance_error_kind +
+         "\n" + "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
+         ", seconds = " + seconds_text(seconds) +
+         ", converged = " + (v.converged ? "yes" : "no") + "\n";
 }
 
 std::string average_text(const AverageReport& r) {
@@ -309,11 +349,7 @@ std::string average_text(const AverageReport& r) {
          aligned_table(table) +
          (r.particles >= 2 ? "<K1>/<K2> = " + v.ratio + " +- " + v.ratio_error + "\n"
                            : std::string()) +
-         "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
-         v.cos_angle_error_kind + ", Var K_i " + v.variance_error_kind + "\n" +
-         "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
-         ", seconds = " + seconds_text(r.seconds) +
-         ", converged = " + (v.converged ? "yes" : "no") + "\n";
+         errors_and_work_text(v, r.seconds, "Var K_i");
 }
 
 /// The torus grid, the qmc run or the transfer operator's resolution of `a` as a JSON object,
@@ -562,8 +598,9 @@ Chain<Real> case_chain(const std::vector<std::string_view>& fields,
 
 /// The output columns of `average --cases` with an energy or excitation column, after the input
 /// columns: K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,
-/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged and the other state
-/// (excitation for an energy column, energy for an excitation column).
+/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged, the other state
+/// (excitation for an energy column, energy for an excitation column), then K_total,
+/// K_total_error, density_of_states, density_of_states_error and work_unit.
 std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_view state) {
   std::vector<std::string> header;
   const auto add_names = [&](std::string_view stem) {
@@ -579,7 +616,9 @@ std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_
   add_names("var_K");
   add_names("var_K_error");
   header.insert(header.end(),
-                {"error_kind", "converged", state == "energy" ? "excitation" : "energy"});
+                {"error_kind", "converged", state == "energy" ? "excitation" : "energy",
+                 "K_total", "K_total_error", "density_of_states", "density_of_states_error",
+                 "work_unit"});
   return header;
 }
 
@@ -615,6 +654,8 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
   out.push_back(v.error_kind);
   out.push_back(v.converged ? "true" : "false");
   out.push_back(file.state == "energy" ? v.excitation : v.energy);
+  out.insert(out.end(), {v.kinetic_total, v.kinetic_total_error, v.density_of_states,
+                         v.density_of_states_error, v.work_unit});
   append_csv_line(line, out);
 }
 
@@ -641,10 +682,10 @@ struct CaseScratch {
 };
 
 /// Longest output line of a cases row: the row's text and a comma per field (at most one per
-/// character), 6N + 2 numbers and their commas, the method and error kind (<= 24 each), the
-/// count, "false" and a newline.
+/// character), 8N + 3 numbers and their commas, the method, the count, four error kinds and
+/// the work unit (<= 24 each, with their commas), "false" and a newline.
 std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digits) {
-  return 2 * row.size + 1 + (6 * particles + 2) * (decimal_max_length(digits) + 1) + 3 * 24 + 8;
+  return 2 * row.size + 1 + (8 * particles + 3) * (decimal_max_length(digits) + 1) + 7 * 25 + 8;
 }
 
 /// One output row of `average --cases`: the input fields as written, then the averages.
@@ -705,6 +746,22 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   put(error_kind_name(averages.error_kind));
   *p++ = ',';
   put(averages.converged ? "true" : "false");
+  *p++ = ',';
+  // Added after the original columns: the kinds of the other errors, the work unit, the
+  // equipartition residual and beta<K_i^(c)> with its errors.
+  const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
+    return error_kind_name(estimates.empty() ? averages.error_kind : estimates.front().kind);
+  };
+  put(kind_of(averages.cos_angle));
+  *p++ = ',';
+  put(kind_of(averages.beta2_kinetic_variance));
+  *p++ = ',';
+  put(work_unit_name(averages.work_unit));
+  *p++ = ',';
+  number(averages.equipartition_residual, error_digits);
+  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) number(c.value, digits);
+  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) error(c);
+  put(kind_of(averages.beta_kinetic_canonical));
   *p++ = '\n';
   return p;
 }
@@ -788,57 +845,47 @@ struct CasesOutput {
   bool timing = false;
 };
 
-/// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
-/// ranks and threads, one thread per row, so the output does not depend on their number) and
-/// streamed in file order. The first bad row (in file order) is reported. A single row runs on
-/// one thread and lets the torus and QMC methods use every core instead. `timing`: see
-/// report_case_timing.
-template <class Real>
-std::string average_cases(const CasesFile& file, const std::string& path,
-                          const AverageOptions& settings, const CasesOutput& where) {
-  const std::vector<CaseRow>& rows = file.rows;
-  const std::size_t n = file.particles;
-  const std::vector<std::string> columns = case_columns(n, file.state);
-  const int digits = settings.digits;
-  const bool microcanonical = file.state != "beta";  // an energy or excitation column
-  AverageOptions options = settings;
+// ---------------------------------------------------------------- average_cases' steps
+
+/// Step 1, plan: the options every row passes to the library (the method resolved, or the
+/// microcanonical rule), checked before any row. A single row runs on one thread and lets the
+/// torus and QMC methods use every core instead.
+struct CasesPlan {
+  bool microcanonical = false;  ///< an energy or excitation column
+  AverageOptions options;
   MicrocanonicalOptions micro;
-  const int threads = hardware_threads();
-  if (rows.size() == 1 && ranks() == 1) options.threads = threads;
-  if (microcanonical) {  // checked before any row
+};
+
+CasesPlan plan_cases(const CasesFile& file, const AverageOptions& settings, int threads) {
+  CasesPlan plan;
+  plan.microcanonical = file.state != "beta";
+  plan.options = settings;
+  if (file.rows.size() == 1 && ranks() == 1) plan.options.threads = threads;
+  if (plan.microcanonical) {  // checked before any row
     try {
-      micro = microcanonical_options(options, n);
+      plan.micro = microcanonical_options(plan.options, file.particles);
     } catch (const invalid_input& bad) {
       throw usage_error("average: " + std::string(bad.what()));
     }
   } else {
-    resolve_average_method(n, options);
+    resolve_average_method(file.particles, plan.options);
   }
+  return plan;
+}
 
-  const auto line_context = [&](std::size_t k) {
-    return path + " line " + std::to_string(rows[k].line) + ": ";
-  };
-  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
-  const auto check = [&](std::size_t k) {
-    try {
-      if (microcanonical)
-        check_microcanonical_case<Real>(file, rows[k], columns, digits);
-      else
-        check_case<Real>(file, rows[k], columns, options);
-    } catch (const invalid_input& bad) {
-      throw usage_error(line_context(k) + bad.what());
-    }
-  };
-  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
-    check(bad);  // throws the first bad row's error, on every rank
-
+/// Step 2, format: with --output, the '#' lines that say what made the file (and that --resume
+/// checks): the cases (by content), digits, method and its options, version; then the column
+/// line.
+std::string cases_header(const CasesFile& file, const std::string& path,
+                         const AverageOptions& settings, const std::vector<std::string>& columns,
+                         bool provenance) {
+  const std::size_t n = file.particles;
   std::string header;
-  if (!where.path.empty()) {
-    // A file says what made it (and --resume checks it): the cases (by content), digits,
-    // method and its options, version.
-    header += "# pendavg average --cases: " + std::to_string(rows.size()) + " rows of N = " +
-              std::to_string(n) + ", cases file fnv1a-64 " + fnv1a_hex(file.text) + "\n";
-    header += "# digits = " + std::to_string(digits) + ", method = " +
+  if (provenance) {
+    header += "# pendavg average --cases: " + std::to_string(file.rows.size()) +
+              " rows of N = " + std::to_string(n) + ", cases file fnv1a-64 " +
+              fnv1a_hex(file.text) + "\n";
+    header += "# digits = " + std::to_string(settings.digits) + ", method = " +
               average_method_name(settings.method);
     if (settings.tolerance) header += ", tol = " + decimal(*settings.tolerance, 17);
     if (settings.samples) header += ", samples = " + std::to_string(*settings.samples);
@@ -852,11 +899,12 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const auto add_names = [&](std::string_view stem) {
     for (const std::string& name : indexed_names(stem, n)) (header += ',') += name;
   };
-  if (microcanonical) {
+  if (file.state != "beta") {
     for (const std::string& name : microcanonical_case_columns(n, file.state))
       (header += ',') += name;
     header += '\n';
-  } else {
+    return header;
+  }
   add_names("beta_K");
   add_names("error_K");
   header += ",ratio";
@@ -865,11 +913,20 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   add_names("cos_phi_error");
   add_names("var_K");
   add_names("var_K_error");
-  header += ",error_kind,converged\n";
-  }
+  header += ",error_kind,converged,cos_phi_error_kind,var_K_error_kind,work_unit,"
+            "equipartition_residual";
+  add_names("beta_Kc");
+  add_names("beta_Kc_error");
+  header += ",beta_Kc_error_kind\n";
+  return header;
+}
 
-  // Rank 0 checks the outputs (and reads a resumed file); every rank learns the verdict.
-  std::optional<ResumedRows> resumed;
+/// Step 3: rank 0 checks the outputs and reads a resumed file into `resumed`; every rank learns
+/// the verdict (a usage_error on every rank when the outputs cannot be written or the file does
+/// not match).
+void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& columns,
+                        const std::string& header, const CasesOutput& where,
+                        std::optional<ResumedRows>& resumed) {
   std::string verdict;
   if (is_root()) {
     try {
@@ -877,9 +934,9 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       if (!where.timing_rows.empty()) probe_output(where.timing_rows, "average");
       if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
         std::vector<std::string_view> fields(columns.size());
-        resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
+        resumed.emplace(where.resume, "average", header, file.rows.size(), columns.size(),
                         [&](std::size_t k) {
-                          case_fields(file, rows[k], fields);
+                          case_fields(file, file.rows[k], fields);
                           std::string key;
                           for (const std::string_view field : fields)
                             (key += key.empty() ? "" : ",") += field;
@@ -892,7 +949,58 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   }
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
+}
 
+/// --timing-rows FILE: every computed row's time as CSV row,line,us (written atomically).
+void write_timing_rows(const std::string& target, const std::vector<CaseRow>& rows,
+                       const std::vector<double>& row_us) {
+  std::string rows_csv = "row,line,us\n";
+  char number[32];
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (row_us[i] < 0) continue;
+    const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
+    ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
+        .append(number, static_cast<std::size_t>(length)) += '\n';
+  }
+  write_atomically(target, rows_csv, "average");
+}
+
+/// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
+/// ranks and threads, one thread per row, so the output does not depend on their number) and
+/// streamed in file order. The first bad row (in file order) is reported. `timing`: see
+/// report_case_timing.
+template <class Real>
+std::string average_cases(const CasesFile& file, const std::string& path,
+                          const AverageOptions& settings, const CasesOutput& where) {
+  const std::vector<CaseRow>& rows = file.rows;
+  const std::size_t n = file.particles;
+  const std::vector<std::string> columns = case_columns(n, file.state);
+  const int digits = settings.digits;
+  const int threads = hardware_threads();
+  const CasesPlan plan = plan_cases(file, settings, threads);
+
+  const auto line_context = [&](std::size_t k) {
+    return path + " line " + std::to_string(rows[k].line) + ": ";
+  };
+  const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
+  const auto check = [&](std::size_t k) {
+    try {
+      if (plan.microcanonical)
+        check_microcanonical_case<Real>(file, rows[k], columns, digits);
+      else
+        check_case<Real>(file, rows[k], columns, plan.options);
+    } catch (const invalid_input& bad) {
+      throw usage_error(line_context(k) + bad.what());
+    }
+  };
+  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
+    check(bad);  // throws the first bad row's error, on every rank
+
+  const std::string header = cases_header(file, path, settings, columns, !where.path.empty());
+  std::optional<ResumedRows> resumed;
+  open_cases_outputs(file, columns, header, where, resumed);
+
+  // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
   std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
   std::optional<SweepFile> output;
@@ -905,7 +1013,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   std::vector<std::optional<CaseScratch<Real>>> scratch(static_cast<std::size_t>(threads));
   SweepRows sweep;
   sweep.count = rows.size();
-  sweep.threads = options.threads > 1 ? 1 : threads;
+  sweep.threads = plan.options.threads > 1 ? 1 : threads;
   sweep.timing = where.timing;
   sweep.progress = "average";
   sweep.row_bytes = 1;
@@ -913,15 +1021,15 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits) +
                                                      decimal_max_length(digits) + 1);
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
-    if (microcanonical) {
-      microcanonical_case<Real>(text, file, rows[k], columns, micro, digits);
+    if (plan.microcanonical) {
+      microcanonical_case<Real>(text, file, rows[k], columns, plan.micro, digits);
       return;
     }
     std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
     if (!mine) mine.emplace();
     const std::size_t start = text.size();
     text.resize(start + case_line_bound(rows[k], n, digits));
-    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, options, *mine);
+    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, plan.options, *mine);
     text.resize(static_cast<std::size_t>(end - text.data()));
   };
   run_sweep(sweep, output ? &*output : nullptr, [&](const SweepOutcome& outcome) {
@@ -937,17 +1045,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                    rows.size());
     }
     output->commit();
-    if (!where.timing_rows.empty()) {
-      std::string rows_csv = "row,line,us\n";
-      char number[32];
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (row_us[i] < 0) continue;
-        const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
-        ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
-            .append(number, static_cast<std::size_t>(length)) += '\n';
-      }
-      write_atomically(where.timing_rows, rows_csv, "average");
-    }
+    if (!where.timing_rows.empty()) write_timing_rows(where.timing_rows, rows, row_us);
     if (where.timing) report_case_timing(row_us, file, timer_us, outcome.threads);
   });
   return {};
@@ -1003,7 +1101,17 @@ std::string average_command(const Options& options) {
 
 // ---------------------------------------------------------------- limit
 
-std::string limit_json(const AveragesText& limit) {
+/// One limit as `limit` reports it: its values as text, its run and its wall time.
+struct LimitReport {
+  std::string_view name;  ///< high_temperature or low_temperature (the JSON key)
+  std::string_view label; ///< "beta -> 0" or "beta -> inf" (text)
+  AveragesText values;
+  std::string run;  ///< the torus or transfer run as a JSON object, or "null"
+  double seconds;
+};
+
+std::string limit_json(const LimitReport& r) {
+  const AveragesText& limit = r.values;
   return JsonObject()
       .strings("beta_K", limit.beta_kinetic)
       .strings("error", limit.error)
@@ -1020,10 +1128,37 @@ std::string limit_json(const AveragesText& limit) {
                               .string("ratio", limit.error_kind)
                               .string("cos_phi", limit.cos_angle_error_kind)
                               .string("var_K_beta2", limit.variance_error_kind)
+                              .string("beta_Kc", limit.beta_kinetic_canonical_error_kind)
                               .str())
       .integer("evaluations", static_cast<long long>(limit.evaluations))
       .string("work_unit", limit.work_unit)
+      // as `average` prints them (the wall time of both limits is the top level's seconds)
+      .boolean("converged", limit.converged)
+      .raw("run", r.run)
+      .string("equipartition_residual", limit.equipartition_residual)
+      .strings("beta_Kc", limit.beta_kinetic_canonical)
+      .strings("beta_Kc_error", limit.beta_kinetic_canonical_error)
       .str();
+}
+
+/// `limit --format csv`: a row per limit with `average --format csv`'s columns (beta, <K_i>
+/// and Var K_i empty: a limit has no finite beta), then limit (its JSON key), beta^2 Var K_i
+/// with its errors, and the errors of beta<K_i^(c)> with their kind.
+std::string limit_csv(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
+  std::string out;
+  for (const LimitReport& limit : limits) {
+    const AveragesText& v = limit.values;
+    CsvLine line = average_csv_line(AverageReport{particles, "", digits, v, limit.run,
+                                                  limit.seconds});
+    line.add("limit", std::string(limit.name));
+    line.add_array("beta2_var_K", v.beta2_variance, particles);
+    line.add_array("beta2_var_K_error", v.beta2_variance_error, particles);
+    line.add_array("beta_Kc_error", v.beta_kinetic_canonical_error, particles);
+    line.add("beta_Kc_error_kind", v.beta_kinetic_canonical_error_kind);
+    if (out.empty()) append_csv_line(out, line.header);
+    append_csv_line(out, line.row);
+  }
+  return out;
 }
 
 void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_view name,
@@ -1032,6 +1167,32 @@ void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_vi
     table.push_back({std::string(name), std::to_string(i + 1), limit.beta_kinetic[i],
                      limit.error[i], limit.beta2_variance[i], limit.beta2_variance_error[i],
                      i == 0 ? limit.ratio : "", limit.error_kind});
+}
+
+/// `limit --format text`: both limits in one table, then per limit what its errors promise,
+/// the work done, the equipartition residual and beta<K_i^(c)>.
+std::string limit_text(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
+  std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
+                                               "beta^2 Var K_i", "error", "<K1>/<K2>",
+                                               "error kind"}};
+  for (const LimitReport& limit : limits) add_limit_rows(table, limit.label, limit.values);
+  std::string out = "N = " + std::to_string(particles) + ", digits = " + std::to_string(digits) +
+                    "\n" + aligned_table(table);
+  for (const LimitReport& limit : limits) {
+    const AveragesText& v = limit.values;
+    const std::string prefix = std::string(limit.label) + ": ";
+    const std::string lines = errors_and_work_text(v, limit.seconds, "beta^2 Var K_i");
+    for (std::size_t begin = 0; begin < lines.size();) {
+      const std::size_t end = lines.find('\n', begin) + 1;
+      out += prefix + lines.substr(begin, end - begin);
+      begin = end;
+    }
+    out += prefix + "|sum_i beta<K_i> - N/2| = " + v.equipartition_residual +
+           ", beta<K_i^(c)> = " +
+           (v.beta_kinetic_canonical.empty() ? "" : v.beta_kinetic_canonical.front()) + " (" +
+           v.beta_kinetic_canonical_error_kind + ")\n";
+  }
+  return out;
 }
 
 template <class Real>
@@ -1044,26 +1205,28 @@ std::string limit_report(const Options& options, int digits, Format format) {
   StopOnSignal signals;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
   settings.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
   settings.control.stop = &stop_flag();
+  const Stopwatch high_watch;
   const Averages<Real> high_values = high_temperature_limit(chain, settings);
+  const double high_seconds = high_watch.seconds();
   if (high_values.interrupted)
     std::fprintf(stderr, "[limit] interrupted: the last finished torus level is reported\n");
+  const Stopwatch low_watch;
   const Averages<Real> low_values = low_temperature_limit(chain, settings);
-  const AveragesText high = averages_text(high_values, digits, static_cast<const Real*>(nullptr));
-  const AveragesText low = averages_text(low_values, digits, static_cast<const Real*>(nullptr));
-  if (format == Format::text) {
-    std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
-                                                 "beta^2 Var K_i", "error", "<K1>/<K2>",
-                                                 "error kind"}};
-    add_limit_rows(table, "beta -> 0", high);
-    add_limit_rows(table, "beta -> inf", low);
-    return "N = " + std::to_string(chain.size()) + ", digits = " + std::to_string(digits) +
-           "\n" + aligned_table(table);
-  }
+  const double low_seconds = low_watch.seconds();
+  const Real* no_beta = nullptr;
+  const std::vector<LimitReport> limits{
+      {"high_temperature", "beta -> 0", averages_text(high_values, digits, no_beta),
+       run_json(high_values), high_seconds},
+      {"low_temperature", "beta -> inf", averages_text(low_values, digits, no_beta),
+       run_json(low_values), low_seconds}};
+  if (format == Format::text) return limit_text(chain.size(), digits, limits);
+  if (format == Format::csv) return limit_csv(chain.size(), digits, limits);
   std::string json = JsonObject()
                          .integer("N", static_cast<long long>(chain.size()))
                          .integer("digits", digits)
-                         .raw("high_temperature", limit_json(high))
-                         .raw("low_temperature", limit_json(low))
+                         .raw("high_temperature", limit_json(limits[0]))
+                         .raw("low_temperature", limit_json(limits[1]))
+                         .raw("seconds", seconds_text(high_seconds + low_seconds))
                          .str();
   if (high_values.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
   return json + "\n";
@@ -1071,7 +1234,7 @@ std::string limit_report(const Options& options, int digits, Format format) {
 
 std::string limit_command(const Options& options) {
   const int digits = parse_digits(options.get("digits", "16"));
-  constexpr std::array<std::string_view, 2> formats{"json", "text"};
+  constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
   const Format format = format_option(options, "json", formats);
   return with_number_type(
       digits, [&]<class Real>() { return limit_report<Real>(options, digits, format); });

@@ -42,6 +42,9 @@ ExactValues microcanonical_values(const Chain<double>& chain, double excitation)
   out.kinetic_canonical_error = r.kinetic_canonical.error;
   out.method = std::string(method_name(r.method)) + "/" + method_name(r.quadrature);
   out.error_kind = error_kind_name(r.error_kind);
+  out.kinetic_canonical_error_kind = error_kind_name(r.kinetic_canonical.kind);
+  out.cos_angle_error_kind = error_kind_name(r.cos_angle.front().kind);
+  out.variance_error_kind = error_kind_name(r.kinetic_variance.front().kind);
   return out;
 }
 
@@ -55,11 +58,19 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
     out.kinetic_error.push_back(a.beta_kinetic[i].error / beta);
     out.cos_angle.push_back(a.cos_angle[i].value);
     out.cos_angle_error.push_back(a.cos_angle[i].error);
+    // Var K_i = beta^2 Var K_i / beta^2 (divided twice: beta^2 may underflow where the
+    // quotient does not)
+    out.variance.push_back(a.beta2_kinetic_variance[i].value / beta / beta);
+    out.variance_error.push_back(a.beta2_kinetic_variance[i].error / beta / beta);
   }
   // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4).
   out.kinetic_canonical = a.beta_kinetic_canonical.front().value / beta;
+  out.kinetic_canonical_error = a.beta_kinetic_canonical.front().error / beta;
   out.method = method_name(a.method);
   out.error_kind = error_kind_name(a.error_kind);
+  out.kinetic_canonical_error_kind = error_kind_name(a.beta_kinetic_canonical.front().kind);
+  out.cos_angle_error_kind = error_kind_name(a.cos_angle.front().kind);
+  out.variance_error_kind = error_kind_name(a.beta2_kinetic_variance.front().kind);
   return out;
 }
 

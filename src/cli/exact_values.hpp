@@ -14,10 +14,13 @@ namespace pendavg::cli {
 /// Exact values of the run's ensemble, per particle, in energy units.
 struct ExactValues {
   std::vector<double> kinetic, kinetic_error, cos_angle, cos_angle_error;
-  std::vector<double> variance, variance_error;  ///< microcanonical Var K_i
+  std::vector<double> variance, variance_error;  ///< Var K_i (energy units squared)
   double kinetic_canonical = 0, kinetic_canonical_error = 0;
   double excitation = 0;  ///< microcanonical: D = E - E_min of the initial state
-  std::string method, error_kind;
+  std::string method;
+  /// What the errors promise: error_kind those of kinetic (as the library's error_kind), the
+  /// others their own (a series' beta<K_i> error is a bound, its <cos phi_i> error an estimate).
+  std::string error_kind, kinetic_canonical_error_kind, cos_angle_error_kind, variance_error_kind;
 };
 
 /// D = E - E_min of the state (phi, phidot) in the excitation form: its kinetic energy plus

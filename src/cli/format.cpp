@@ -99,8 +99,8 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
         [b](const Real& value) -> Wide { return Wide(value) / (b * b); }, text.variance,
         text.variance_error);
   }
-  for (const Estimate<Real>& c : averages.beta_kinetic_canonical)
-    text.beta_kinetic_canonical.push_back(decimal(c.value, digits));
+  put(averages.beta_kinetic_canonical, same, text.beta_kinetic_canonical,
+      text.beta_kinetic_canonical_error);
   for (const Real& d : averages.diagonal_approximation)
     text.diagonal_approximation.push_back(decimal(d, digits));
   if (averages.ratio) {
@@ -117,6 +117,7 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   };
   text.cos_angle_error_kind = kind_of(averages.cos_angle);
   text.variance_error_kind = kind_of(averages.beta2_kinetic_variance);
+  text.beta_kinetic_canonical_error_kind = kind_of(averages.beta_kinetic_canonical);
   text.work_unit = work_unit_name(averages.work_unit);
   text.evaluations = averages.evaluations;
   text.converged = averages.converged;

@@ -60,10 +60,12 @@ struct AveragesText {
   std::vector<std::string> variance;              ///< Var K_i (empty without beta)
   std::vector<std::string> variance_error;
   std::vector<std::string> beta_kinetic_canonical;  ///< beta <K_i^(c)> = 1/2
+  std::vector<std::string> beta_kinetic_canonical_error;
   std::vector<std::string> diagonal_approximation;  ///< eq. ke-linear-tave-1
   std::string ratio, ratio_error;  ///< empty for N = 1
   std::string equipartition_residual;
   std::string method, error_kind, cos_angle_error_kind, variance_error_kind, work_unit;
+  std::string beta_kinetic_canonical_error_kind;  ///< bound (1/2 is exact)
   std::size_t evaluations = 0;
   bool converged = true;
 };

@@ -68,6 +68,17 @@ const std::string_view simulate_usage =
     "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
     "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
     "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
+    "JSON also has, after seconds: K_total and potential (<K> and <U> over time) with their\n"
+    "errors, energy_trend (NVE: the least-squares change of E over the run / the energy scale;\n"
+    "null with energy_trend_reason under Langevin), unconverged_stages, samples, exact_var_K for\n"
+    "Langevin runs (canonical Var K_i), exact_error_kinds (what each exact error promises) and,\n"
+    "with --replicas, K_total_error_blocking/replicas and potential_error_blocking/replicas.\n"
+    "CSV columns: i, K, K_error, Kc, Kc_error, exact_K, exact_K_error, exact_Kc,\n"
+    "K_autocorrelation_time [, K_error_blocking, K_error_replicas], then cos_phi, cos_phi_error,\n"
+    "error_kind, exact_cos_phi, exact_cos_phi_error, exact_Kc_error, exact_var_K,\n"
+    "exact_var_K_error, exact_error_kind, exact_Kc_error_kind, exact_cos_phi_error_kind,\n"
+    "exact_var_K_error_kind [, Kc_error_blocking, Kc_error_replicas, cos_phi_error_blocking,\n"
+    "cos_phi_error_replicas] (cells that do not exist are empty).\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
@@ -144,6 +155,21 @@ std::string exact_error(double value, double error) {
   return decimal(printed_error(value, error, 17), error_digits);
 }
 
+/// An exact value as a JSON number, null when it is not finite (e.g. Var K_i beyond double's
+/// range at a tiny beta).
+std::string exact_json(double x) { return std::isfinite(x) ? exact_number(x) : "null"; }
+
+/// An exact value's error as JSON (null beside a value that is not finite).
+std::string exact_error_json(double value, double error) {
+  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : "null";
+}
+
+/// CSV cells of an exact value and its error: empty when they do not exist.
+std::string exact_cell(double x) { return std::isfinite(x) ? exact_number(x) : std::string(); }
+std::string exact_error_cell(double value, double error) {
+  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : std::string();
+}
+
 std::string number_array(const std::vector<double>& values) {
   std::string out = "[";
   for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + number(values[i]);
@@ -168,6 +194,8 @@ struct ReplicaSpread {
   std::size_t replicas = 0, requested = 0;  ///< finished (also when interrupted), asked for
   std::vector<double> kinetic_blocking, kinetic_replicas, canonical_blocking, canonical_replicas,
       cosine_blocking, cosine_replicas;
+  double total_blocking = 0, total_replicas = 0;          ///< of <K>
+  double potential_blocking = 0, potential_replicas = 0;  ///< of <U>
   double energy_spread = 0;  ///< largest |E_r - E| over the replicas (NVE perturbed starts)
 };
 
@@ -191,15 +219,21 @@ struct ReplicaMean {
   }
 };
 
+/// Doubles in one replica's packed result: 3 per time average (3n + 2 of them) and 10 more.
+std::size_t packed_replica_doubles(std::size_t n) { return 9 * n + 18; }
+
 /// One replica's result as bytes (the sweep engine moves rows as text).
 std::string pack_replica(const SimulationResult<double>& r) {
   std::vector<double> v;
   for (const auto* list : {&r.kinetic, &r.kinetic_canonical, &r.cos_angle})
     for (const TimeAverage<double>& x : *list) v.insert(v.end(), {x.value, x.error, x.autocorrelation_time});
+  for (const TimeAverage<double>* x : {&r.kinetic_total, &r.potential})
+    v.insert(v.end(), {x->value, x->error, x->autocorrelation_time});
   v.insert(v.end(), {r.initial_energy, r.energy_drift, r.energy_error_max, r.energy_error_rms,
                      r.constraint_residual, r.simulated_time, static_cast<double>(r.steps),
                      static_cast<double>(r.samples), static_cast<double>(r.newton_solves),
-                     r.interrupted ? 1.0 : 0.0});
+                     r.interrupted ? 1.0 : 0.0, r.energy_trend,
+                     static_cast<double>(r.unconverged_stages)});
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(double));
 }
 
@@ -216,6 +250,11 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
       x.autocorrelation_time = v[k++];
     }
   }
+  for (TimeAverage<double>* x : {&r.kinetic_total, &r.potential}) {
+    x->value = v[k++];
+    x->error = v[k++];
+    x->autocorrelation_time = v[k++];
+  }
   r.initial_energy = v[k++];
   r.energy_drift = v[k++];
   r.energy_error_max = v[k++];
@@ -226,6 +265,8 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
   r.samples = static_cast<std::size_t>(v[k++]);
   r.newton_solves = static_cast<std::size_t>(v[k++]);
   r.interrupted = v[k++] != 0;
+  r.energy_trend = v[k++];
+  r.unconverged_stages = static_cast<std::size_t>(v[k++]);
   return r;
 }
 
@@ -233,7 +274,7 @@ SimulationResult<double> unpack_replica(std::string_view bytes, std::size_t n) {
 class ReplicaCombiner : public SweepOutput {
  public:
   ReplicaCombiner(std::size_t n, double energy)
-      : n_(n), energy_(energy), kinetic_(n), canonical_(n), cosine_(n) {}
+      : n_(n), energy_(energy), kinetic_(n), canonical_(n), cosine_(n), total_(1), potential_(1) {}
   void write_rows(std::size_t, std::size_t count, std::string_view text,
                   std::span<const double>) override {
     const std::size_t size = text.size() / count;
@@ -246,10 +287,11 @@ class ReplicaCombiner : public SweepOutput {
     spread.energy_spread = energy_spread_;
     const auto fill = [&](const std::vector<ReplicaMean>& means, std::vector<TimeAverage<double>>& to,
                           std::vector<double>& blocking, std::vector<double>& replicas) {
-      to.resize(n_);
-      blocking.resize(n_);
-      replicas.resize(n_);
-      for (std::size_t i = 0; i < n_; ++i) {
+      const std::size_t count = means.size();
+      to.resize(count);
+      blocking.resize(count);
+      replicas.resize(count);
+      for (std::size_t i = 0; i < count; ++i) {
         blocking[i] = means[i].blocking();  // NaN when a replica's blocking error is unknown
         replicas[i] = replicas_ > 1 ? means[i].replica_error(replicas_)
                                     : std::numeric_limits<double>::quiet_NaN();
@@ -264,6 +306,17 @@ class ReplicaCombiner : public SweepOutput {
     fill(kinetic_, out.kinetic, spread.kinetic_blocking, spread.kinetic_replicas);
     fill(canonical_, out.kinetic_canonical, spread.canonical_blocking, spread.canonical_replicas);
     fill(cosine_, out.cos_angle, spread.cosine_blocking, spread.cosine_replicas);
+    const auto fill_one = [&](const std::vector<ReplicaMean>& mean, TimeAverage<double>& to,
+                              double& blocking, double& replicas) {
+      std::vector<TimeAverage<double>> one;
+      std::vector<double> b, r;
+      fill(mean, one, b, r);
+      to = one[0];
+      blocking = b[0];
+      replicas = r[0];
+    };
+    fill_one(total_, out.kinetic_total, spread.total_blocking, spread.total_replicas);
+    fill_one(potential_, out.potential, spread.potential_blocking, spread.potential_replicas);
     return out;
   }
   std::size_t replicas() const { return replicas_; }
@@ -276,8 +329,11 @@ class ReplicaCombiner : public SweepOutput {
       canonical_[i].add(w, r.kinetic_canonical[i]);
       cosine_[i].add(w, r.cos_angle[i]);
     }
+    total_[0].add(w, r.kinetic_total);
+    potential_[0].add(w, r.potential);
     const auto larger = [](double a, double b) { return std::abs(b) > std::abs(a) ? b : a; };
     totals_.energy_drift = larger(totals_.energy_drift, r.energy_drift);
+    totals_.energy_trend = larger(totals_.energy_trend, r.energy_trend);
     totals_.energy_error_max = std::max(totals_.energy_error_max, r.energy_error_max);
     totals_.energy_error_rms = std::max(totals_.energy_error_rms, r.energy_error_rms);
     totals_.constraint_residual = std::max(totals_.constraint_residual, r.constraint_residual);
@@ -285,6 +341,7 @@ class ReplicaCombiner : public SweepOutput {
     totals_.steps += r.steps;
     totals_.samples += r.samples;
     totals_.newton_solves += r.newton_solves;
+    totals_.unconverged_stages += r.unconverged_stages;
     totals_.interrupted = totals_.interrupted || r.interrupted;
     energy_spread_ = std::max(energy_spread_, std::abs(r.initial_energy - energy_));
     ++replicas_;
@@ -292,6 +349,7 @@ class ReplicaCombiner : public SweepOutput {
   std::size_t n_;
   double energy_;
   std::vector<ReplicaMean> kinetic_, canonical_, cosine_;
+  std::vector<ReplicaMean> total_, potential_;  ///< <K> and <U> (one each)
   SimulationResult<double> totals_;
   std::size_t replicas_ = 0;
   double energy_spread_ = 0;
@@ -309,7 +367,7 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   SweepRows rows;
   rows.count = replicas;
   rows.threads = hardware_threads();
-  rows.row_bytes = (9 * n + 10) * sizeof(double);
+  rows.row_bytes = packed_replica_doubles(n) * sizeof(double);
   rows.grace_seconds = 5;  // a replica stops within 1024 steps and reports its averages so far
   rows.progress = "simulate";
   rows.unit = "replicas";
@@ -346,7 +404,7 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
 
 std::string exact_array(const std::vector<double>& values) {
   std::string out = "[";
-  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_number(values[i]);
+  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_json(values[i]);
   return out + "]";
 }
 
@@ -354,19 +412,33 @@ std::string exact_error_array(const std::vector<double>& values,
                               const std::vector<double>& errors) {
   std::string out = "[";
   for (std::size_t i = 0; i < values.size(); ++i)
-    out += (i ? ", " : "") + exact_error(values[i], errors[i]);
+    out += (i ? ", " : "") + exact_error_json(values[i], errors[i]);
   return out + "]";
 }
 
-}  // namespace
+// ---------------------------------------------------------------- simulate_command's steps
 
-std::string simulate_command(const Options& options) {
-  const Chain<double> chain = parse_chain(options);
-  const std::size_t n = chain.size();
+/// A `simulate` run as asked for: the start, the library's options and the CLI's own.
+struct SimulateRequest {
+  std::vector<double> phi, phidot;  ///< the initial angles and rates
+  SimulationOptions run;
+  bool langevin = false;
+  std::size_t replicas = 1;
+  std::uint64_t seed = 1;     ///< --seed: the Langevin noise, or the replicas' perturbed starts
+  double perturbation = 0;    ///< --perturb (NVE replicas)
+  bool exact = true;          ///< --exact yes
+  bool csv = false;           ///< --format csv
+};
+
+/// Step 1, parse: the initial condition (--theta or --phi [--phidot]), then the run.
+SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
+  SimulateRequest request;
   // Initial condition.
   if (options.has("theta") == options.has("phi"))
     throw usage_error("simulate: give exactly one of --theta and --phi");
-  std::vector<double> phi, phidot(n, 0.0);
+  std::vector<double>& phi = request.phi;
+  std::vector<double>& phidot = request.phidot;
+  phidot.assign(n, 0.0);
   if (options.has("theta")) {
     if (options.has("phidot")) throw usage_error("simulate: --phidot goes with --phi");
     phi.assign(n, parse_angle(options.required("theta"), "--theta"));
@@ -384,7 +456,7 @@ std::string simulate_command(const Options& options) {
   }
   // The library checks the run (steps, and which settings the thermostat uses) before any work;
   // only the replicas' use of --seed and --perturb is the CLI's own.
-  SimulationOptions run;
+  SimulationOptions& run = request.run;
   run.duration = parse_real<double>(options.required("time"), "--time", Domain::positive);
   run.time_step = parse_real<double>(options.get("dt", "1e-3"), "--dt", Domain::positive);
   run.burn_in = parse_real<double>(options.get("burn-in", "0"), "--burn-in", Domain::nonnegative);
@@ -395,8 +467,8 @@ std::string simulate_command(const Options& options) {
                                 thermostat_names) == 1
                        ? Thermostat::langevin
                        : Thermostat::none;
-  const bool langevin = run.thermostat == Thermostat::langevin;
-  const auto replicas = static_cast<std::size_t>(
+  const bool langevin = request.langevin = run.thermostat == Thermostat::langevin;
+  request.replicas = static_cast<std::size_t>(
       parse_integer(options.get("replicas", "1"), "--replicas", 1, max_replicas));
   if (langevin && !options.has("beta")) throw usage_error("simulate: missing required option --beta");
   if (options.has("beta"))
@@ -404,13 +476,13 @@ std::string simulate_command(const Options& options) {
   if (options.has("friction"))
     run.friction = parse_real<double>(options.required("friction"), "--friction", Domain::positive);
   // --seed: the Langevin noise, or (NVE) the replicas' perturbed starts.
-  const std::uint64_t seed = parse_unsigned(options.get("seed", "1"), "--seed");
+  request.seed = parse_unsigned(options.get("seed", "1"), "--seed");
   if (langevin) {
-    if (options.has("seed")) run.seed = seed;
+    if (options.has("seed")) run.seed = request.seed;
     if (options.has("perturb"))
       throw usage_error("simulate: --perturb is for NVE replicas (Langevin replicas differ by "
                         "their noise)");
-  } else if (replicas == 1) {
+  } else if (request.replicas == 1) {
     for (const char* name : {"seed", "perturb"})
       if (options.has(name))
         throw usage_error("simulate: --" + std::string(name) +
@@ -421,138 +493,277 @@ std::string simulate_command(const Options& options) {
   } catch (const invalid_input& bad) {
     throw usage_error(bad.what());
   }
-  const double perturbation =
+  request.perturbation =
       parse_real<double>(options.get("perturb", "1e-6"), "--perturb", Domain::positive);
-  const bool exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
-  const bool csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
+  request.exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
+  request.csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
   if (options.has("trajectory") != options.has("every"))
     throw usage_error("simulate: --trajectory and --every go together");
-  if (replicas > 1 && options.has("trajectory"))
+  if (request.replicas > 1 && options.has("trajectory"))
     throw usage_error("simulate: --trajectory records one run; it does not go with --replicas");
-  if (replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
-  std::optional<AtomicFile> trajectory;
-  DynamicsObserver<double> observer;
-  std::string buffer;
-  if (options.has("trajectory")) {
-    observer.trajectory_every = static_cast<std::size_t>(
+  return request;
+}
+
+/// --trajectory FILE --every K: every K steps a CSV row t,E,phi_i...,phidot_i..., buffered and
+/// written atomically (commit() after the run).
+class TrajectoryFile {
+ public:
+  TrajectoryFile(const Options& options, const Chain<double>& chain) : chain_(chain) {
+    if (!options.has("trajectory")) return;
+    every_ = static_cast<std::size_t>(
         parse_integer(options.required("every"), "--every", 1, 1000000000));
-    trajectory.emplace(std::string(options.required("trajectory")), "simulate");
-    buffer = "t,E";
-    for (std::size_t i = 1; i <= n; ++i) buffer += ",phi" + std::to_string(i);
-    for (std::size_t i = 1; i <= n; ++i) buffer += ",phidot" + std::to_string(i);
-    buffer += "\n";
-    observer.trajectory = [&](const ChainState<double>& state) {
-      const ChainObservables<double> o = observables(chain, state);
-      const auto add = [&](double value) {
-        buffer += ',';
-        append_decimal(buffer, value, 15);
-      };
-      append_decimal(buffer, state.time, 12);
-      add(o.energy);
-      for (const double v : o.phi) add(v);
-      for (const double v : o.phidot) add(v);
-      buffer += '\n';
-      if (buffer.size() > (1 << 20)) {
-        trajectory->append(buffer);
-        buffer.clear();
-      }
-    };
+    file_.emplace(std::string(options.required("trajectory")), "simulate");
+    buffer_ = "t,E";
+    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phi" + std::to_string(i);
+    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phidot" + std::to_string(i);
+    buffer_ += "\n";
+  }
+  TrajectoryFile(const TrajectoryFile&) = delete;
+  TrajectoryFile& operator=(const TrajectoryFile&) = delete;
+
+  /// Makes `observer` record into this file (nothing without --trajectory).
+  void attach(DynamicsObserver<double>& observer) {
+    if (!file_) return;
+    observer.trajectory_every = every_;
+    observer.trajectory = [this](const ChainState<double>& state) { record(state); };
+  }
+  void commit() {
+    if (!file_) return;
+    file_->append(buffer_);
+    file_->commit();
   }
 
-  ChainState<double> initial = state_from_angles(chain, phi, phidot);
-  const double energy = total_energy(chain, initial);
-  // The exact values first: a request they cannot serve (e.g. the chain at rest at the bottom,
-  // no accessible states) is refused before any integration, and a run stopped by a signal
-  // still prints them.
-  std::optional<ExactValues> reference;
-  if (exact)
-    reference = langevin ? canonical_values(chain, *run.beta)
-                         : microcanonical_values(chain, initial_excitation(chain, initial, phi));
+ private:
+  void record(const ChainState<double>& state) {
+    const ChainObservables<double> o = observables(chain_, state);
+    const auto add = [&](double value) {
+      buffer_ += ',';
+      append_decimal(buffer_, value, 15);
+    };
+    append_decimal(buffer_, state.time, 12);
+    add(o.energy);
+    for (const double v : o.phi) add(v);
+    for (const double v : o.phidot) add(v);
+    buffer_ += '\n';
+    if (buffer_.size() > (1 << 20)) {
+      file_->append(buffer_);
+      buffer_.clear();
+    }
+  }
+  const Chain<double>& chain_;
+  std::size_t every_ = 0;
+  std::optional<AtomicFile> file_;
+  std::string buffer_;
+};
+
+/// What a run produced: the (combined) time averages, the replicas' spread, the exact values.
+struct SimulateOutcome {
+  SimulationResult<double> result;
+  std::optional<ReplicaSpread> spread;     ///< --replicas R > 1
+  std::optional<ExactValues> reference;    ///< --exact yes
+  double energy = 0;                       ///< E of the initial state
+  double seconds = 0;                      ///< the trajectories' wall time
+};
+
+/// Step 2, run: the exact values first (a request they cannot serve, e.g. the chain at rest at
+/// the bottom with no accessible states, is refused before any integration, and a run stopped
+/// by a signal still prints them), then one trajectory or the replicas. Only rank 0 returns an
+/// outcome.
+std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
+                                              const SimulateRequest& request,
+                                              TrajectoryFile& trajectory) {
+  SimulateOutcome out;
+  const ChainState<double> initial = state_from_angles(chain, request.phi, request.phidot);
+  out.energy = total_energy(chain, initial);
+  if (request.exact)
+    out.reference =
+        request.langevin
+            ? canonical_values(chain, *request.run.beta)
+            : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
   Progress progress("simulate");
-  SimulationResult<double> r;
-  std::optional<ReplicaSpread> spread;
-  if (replicas == 1) {
+  SimulationResult<double>& r = out.result;
+  if (request.replicas == 1) {
+    DynamicsObserver<double> observer;
+    trajectory.attach(observer);
     observer.progress = [&](double fraction) { progress(fraction); };
     StopOnSignal signals;
     observer.stop = &stop_flag();
-    r = simulate(chain, initial, run, observer);
+    r = simulate(chain, initial, request.run, observer);
   } else {
-    spread = simulate_replicas(chain, phi, phidot, run, seed, replicas, perturbation, energy, r);
-    if (!is_root()) return {};
+    out.spread = simulate_replicas(chain, request.phi, request.phidot, request.run, request.seed,
+                                   request.replicas, request.perturbation, out.energy, r);
+    if (!is_root()) return std::nullopt;
   }
-  const double seconds = progress.seconds();
-  if (trajectory) {
-    trajectory->append(buffer);
-    trajectory->commit();
-  }
+  out.seconds = progress.seconds();
+  trajectory.commit();
   if (r.interrupted)
     std::fprintf(stderr, "[simulate] interrupted at t = %.6g: averages of the run so far\n",
                  r.simulated_time);
+  return out;
+}
 
-  std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
+/// The averages of a run as the formats print them, per particle.
+struct SimulateColumns {
+  std::vector<double> k, k_error, kc, kc_error, tau, cosine, cosine_error;
+  std::string ensemble, integrator;
+};
+
+SimulateColumns simulate_columns(const SimulateRequest& request, const SimulationResult<double>& r) {
+  const std::size_t n = r.kinetic.size();
+  SimulateColumns c;
+  for (std::vector<double>* v : {&c.k, &c.k_error, &c.kc, &c.kc_error, &c.tau, &c.cosine,
+                                 &c.cosine_error})
+    v->resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    cosine[i] = r.cos_angle[i].value;
-    cosine_error[i] = r.cos_angle[i].error;
-    k[i] = r.kinetic[i].value;
-    k_error[i] = r.kinetic[i].error;
-    kc[i] = r.kinetic_canonical[i].value;
-    kc_error[i] = r.kinetic_canonical[i].error;
-    tau[i] = r.kinetic[i].autocorrelation_time;
+    c.cosine[i] = r.cos_angle[i].value;
+    c.cosine_error[i] = r.cos_angle[i].error;
+    c.k[i] = r.kinetic[i].value;
+    c.k_error[i] = r.kinetic[i].error;
+    c.kc[i] = r.kinetic_canonical[i].value;
+    c.kc_error[i] = r.kinetic_canonical[i].error;
+    c.tau[i] = r.kinetic[i].autocorrelation_time;
   }
-  const std::string ensemble = langevin ? "canonical" : "microcanonical";
-  const std::string integrator = langevin ? "baoab-rattle"
-                                          : std::string(integrator_names[static_cast<std::size_t>(
-                                                run.integrator.value_or(default_integrator))]);
-  if (csv) {
-    std::string out = "# pendavg simulate: ensemble " + ensemble + ", integrator " + integrator +
-                      ", dt " + number(run.time_step) + ", time " + number(r.simulated_time) +
-                      ", steps " + std::to_string(r.steps) + (r.interrupted ? " (interrupted)" : "") +
-                      "\n# energy " + number(energy) + ", energy_drift " +
-                      decimal(r.energy_drift, 3) + ", energy_error_max " +
-                      decimal(r.energy_error_max, 3) + ", constraint_residual " +
-                      decimal(r.constraint_residual, 3) +
-                      (reference ? ", exact " + reference->method : std::string()) + "\n";
+  c.ensemble = request.langevin ? "canonical" : "microcanonical";
+  c.integrator = request.langevin
+                     ? "baoab-rattle"
+                     : std::string(integrator_names[static_cast<std::size_t>(
+                           request.run.integrator.value_or(default_integrator))]);
+  return c;
+}
+
+/// Step 3, format (--format csv): '#' lines with the run, then one row per particle: the
+/// original columns, then (added later, at the end) <cos phi_i> and the other exact values with
+/// every error and what it promises.
+std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  const SimulateColumns c = simulate_columns(request, r);
+  std::string out = "# pendavg simulate: ensemble " + c.ensemble + ", integrator " +
+                    c.integrator + ", dt " + number(request.run.time_step) + ", time " +
+                    number(r.simulated_time) + ", steps " + std::to_string(r.steps) +
+                    (r.interrupted ? " (interrupted)" : "") + "\n# energy " +
+                    number(outcome.energy) + ", energy_drift " + decimal(r.energy_drift, 3) +
+                    ", energy_error_max " + decimal(r.energy_error_max, 3) +
+                    ", constraint_residual " + decimal(r.constraint_residual, 3) +
+                    (reference ? ", exact " + reference->method : std::string()) + "\n";
+  if (spread)
+    out += "# replicas " + std::to_string(spread->replicas) + " of " +
+           std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
+           "replica-spread errors\n";
+  out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
+  if (spread) out += ",K_error_blocking,K_error_replicas";
+  out += ",cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,"
+         "exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,"
+         "exact_cos_phi_error_kind,exact_var_K_error_kind";
+  if (spread)
+    out += ",Kc_error_blocking,Kc_error_replicas,cos_phi_error_blocking,cos_phi_error_replicas";
+  out += "\n";
+  for (std::size_t i = 0; i < c.k.size(); ++i) {
+    out += std::to_string(i + 1) + "," + cell(c.k[i], 10) + "," + cell(c.k_error[i], 3) + "," +
+           cell(c.kc[i], 10) + "," + cell(c.kc_error[i], 3) + "," +
+           (reference ? exact_number(reference->kinetic[i]) + "," +
+                            exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
+                            "," + exact_number(reference->kinetic_canonical)
+                      : std::string(",,")) +
+           "," + cell(c.tau[i], 3);
     if (spread)
-      out += "# replicas " + std::to_string(spread->replicas) + " of " +
-             std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
-             "replica-spread errors\n";
-    out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
-    out += spread ? ",K_error_blocking,K_error_replicas\n" : "\n";
-    for (std::size_t i = 0; i < n; ++i) {
-      out += std::to_string(i + 1) + "," + cell(k[i], 10) + "," + cell(k_error[i], 3) + "," +
-             cell(kc[i], 10) + "," + cell(kc_error[i], 3) + "," +
-             (reference ? exact_number(reference->kinetic[i]) + "," +
-                              exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
-                              "," + exact_number(reference->kinetic_canonical)
-                        : std::string(",,")) +
-             "," + cell(tau[i], 3);
-      if (spread)
-        out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
-               cell(spread->kinetic_replicas[i], 3);
-      out += "\n";
+      out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
+             cell(spread->kinetic_replicas[i], 3);
+    out += "," + cell(c.cosine[i], 10) + "," + cell(c.cosine_error[i], 3) + "," +
+           error_kind_name(ErrorKind::statistical);
+    if (reference) {
+      const ExactValues& e = *reference;
+      out += "," + exact_cell(e.cos_angle[i]) + "," +
+             exact_error_cell(e.cos_angle[i], e.cos_angle_error[i]) + "," +
+             exact_error_cell(e.kinetic_canonical, e.kinetic_canonical_error) + "," +
+             exact_cell(e.variance[i]) + "," + exact_error_cell(e.variance[i], e.variance_error[i]) +
+             "," + e.error_kind + "," + e.kinetic_canonical_error_kind + "," +
+             e.cos_angle_error_kind + "," + e.variance_error_kind;
+    } else {
+      out += ",,,,,,,,,";
     }
-    return out;
+    if (spread)
+      out += "," + cell(spread->canonical_blocking[i], 3) + "," +
+             cell(spread->canonical_replicas[i], 3) + "," + cell(spread->cosine_blocking[i], 3) +
+             "," + cell(spread->cosine_replicas[i], 3);
+    out += "\n";
   }
+  return out;
+}
+
+/// The JSON keys added after the original ones (after seconds): <K> and <U> over time (the
+/// same blocking errors), the secular energy trend (NVE), the work, the canonical Var K_i beside
+/// a Langevin run, what each exact error promises, and the replicas' errors of <K> and <U>.
+void add_totals_and_kinds(JsonObject& json, const SimulateRequest& request,
+                          const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  json.raw("K_total", number(r.kinetic_total.value))
+      .raw("K_total_error", error_number(r.kinetic_total.error))
+      .raw("potential", number(r.potential.value))
+      .raw("potential_error", error_number(r.potential.error));
+  if (request.langevin)
+    json.raw("energy_trend", "null")
+        .string("energy_trend_reason",
+                "a Langevin run exchanges energy with its bath: the trend of E(t) is reported "
+                "for fixed-energy (NVE) runs only");
+  else
+    json.raw("energy_trend", error_number(r.energy_trend));
+  json.integer("unconverged_stages", static_cast<long long>(r.unconverged_stages))
+      .integer("samples", static_cast<long long>(r.samples));
+  if (reference) {
+    if (request.langevin)
+      json.raw("exact_var_K", exact_array(reference->variance))
+          .raw("exact_var_K_error",
+               exact_error_array(reference->variance, reference->variance_error));
+    if (std::ranges::any_of(reference->variance, [](double v) { return !std::isfinite(v); }))
+      json.string("exact_var_K_reason",
+                  "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
+    json.raw("exact_error_kinds", JsonObject()
+                                      .string("K", reference->error_kind)
+                                      .string("Kc", reference->kinetic_canonical_error_kind)
+                                      .string("cos_phi", reference->cos_angle_error_kind)
+                                      .string("var_K", reference->variance_error_kind)
+                                      .str());
+  }
+  if (spread)
+    json.raw("K_total_error_blocking", error_number(spread->total_blocking))
+        .raw("K_total_error_replicas", error_number(spread->total_replicas))
+        .raw("potential_error_blocking", error_number(spread->potential_blocking))
+        .raw("potential_error_replicas", error_number(spread->potential_replicas));
+}
+
+/// Step 3, format (JSON, the default): one object; the keys added after the original ones come
+/// last (after seconds).
+std::string simulate_json(const SimulateRequest& request, const SimulateOutcome& outcome) {
+  const SimulationResult<double>& r = outcome.result;
+  const std::optional<ExactValues>& reference = outcome.reference;
+  const std::optional<ReplicaSpread>& spread = outcome.spread;
+  const SimulationOptions& run = request.run;
+  const SimulateColumns c = simulate_columns(request, r);
+  const std::size_t n = c.k.size();
   JsonObject json;
-  json.string("ensemble", ensemble)
-      .string("integrator", integrator)
+  json.string("ensemble", c.ensemble)
+      .string("integrator", c.integrator)
       .integer("particles", static_cast<long long>(n))
       .raw("dt", number(run.time_step))
       .raw("time", number(r.simulated_time))
-      .raw("energy", number(energy))
-      .raw("K", number_array(k))
-      .raw("K_error", number_array(k_error))
-      .raw("Kc", number_array(kc))
-      .raw("Kc_error", number_array(kc_error))
-      .raw("K_autocorrelation_time", number_array(tau))
-      .raw("cos_phi", number_array(cosine))
-      .raw("cos_phi_error", number_array(cosine_error))
+      .raw("energy", number(outcome.energy))
+      .raw("K", number_array(c.k))
+      .raw("K_error", number_array(c.k_error))
+      .raw("Kc", number_array(c.kc))
+      .raw("Kc_error", number_array(c.kc_error))
+      .raw("K_autocorrelation_time", number_array(c.tau))
+      .raw("cos_phi", number_array(c.cosine))
+      .raw("cos_phi_error", number_array(c.cosine_error))
       .string("error_kind", error_kind_name(ErrorKind::statistical));
   if (reference) {
     std::vector<double> deviation(n);
     for (std::size_t i = 0; i < n; ++i)
-      deviation[i] = (k[i] - reference->kinetic[i]) /
-                     std::hypot(k_error[i], reference->kinetic_error[i]);
+      deviation[i] = (c.k[i] - reference->kinetic[i]) /
+                     std::hypot(c.k_error[i], reference->kinetic_error[i]);
     json.raw("exact_K", exact_array(reference->kinetic))
         .raw("exact_K_error", exact_error_array(reference->kinetic, reference->kinetic_error))
         .raw("exact_Kc", exact_number(reference->kinetic_canonical))
@@ -567,11 +778,12 @@ std::string simulate_command(const Options& options) {
   } else {
     json.raw("exact_K", "null");
   }
-  if (std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); }))
+  if (std::any_of(c.k_error.begin(), c.k_error.end(), [](double e) { return !std::isfinite(e); }))
     json.string("error_reason",
                 "fewer than 16 averaging blocks finished (interrupted early, or --time too short "
                 "for the block length): the error bars are unknown");
-  if (langevin) json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
+  if (request.langevin)
+    json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
   json.raw("energy_drift", error_number(r.energy_drift))
       .raw("energy_error_max", error_number(r.energy_error_max))
       .raw("energy_error_rms", error_number(r.energy_error_rms))
@@ -595,15 +807,28 @@ std::string simulate_command(const Options& options) {
     if (spread->replicas < 2)
       json.string("replicas_error_reason", "fewer than two replicas finished");
   }
-  if (reference && !langevin) {
+  if (reference && !request.langevin) {
     // the microcanonical state as D = E - E_min (excitation form) and Var K_i
     json.raw("exact_excitation", exact_number(reference->excitation))
         .raw("exact_var_K", exact_array(reference->variance))
         .raw("exact_var_K_error",
              exact_error_array(reference->variance, reference->variance_error));
   }
-  json.raw("seconds", seconds_text(seconds));
+  json.raw("seconds", seconds_text(outcome.seconds));
+  add_totals_and_kinds(json, request, outcome);
   return json.str() + "\n";
+}
+
+}  // namespace
+
+std::string simulate_command(const Options& options) {
+  const Chain<double> chain = parse_chain(options);
+  const SimulateRequest request = parse_simulate_request(options, chain.size());
+  if (request.replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
+  TrajectoryFile trajectory(options, chain);
+  const std::optional<SimulateOutcome> outcome = run_simulation(chain, request, trajectory);
+  if (!outcome) return {};  // another rank's share of the replicas
+  return request.csv ? simulate_csv(request, *outcome) : simulate_json(request, *outcome);
 }
 
 std::string poincare_command(const Options& options) {

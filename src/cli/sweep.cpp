@@ -487,66 +487,91 @@ void report_distribution(const SweepOutcome& outcome, const std::vector<Peer>& p
 
 double thread_cpu_seconds() { return 1e-6 * thread_cpu_microseconds(); }
 
-SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
-                      const std::function<void(const SweepOutcome&)>& finish) {
-  const Clock::time_point start = Clock::now();
-  const double start_cpu = thread_cpu_seconds();
-  const int size = ranks();
-  SweepOutcome outcome;
-  outcome.count = rows.count;
-  outcome.threads = rows.threads * size;
-  const std::size_t total_threads = static_cast<std::size_t>(outcome.threads);
-  const std::size_t window =
-      std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
-                    std::max<std::size_t>(rows.row_bytes, 1),
-                16 * total_threads, std::size_t(64)});
-  Scheduler scheduler(rows.count, window, outcome.threads, output);
-  OrderedWriter writer(output, rows.count);
-  Progress progress(rows);
-  PollInterval poll(size == 1, 4000);
-  std::vector<Peer> peers(static_cast<std::size_t>(size));
-  std::optional<RowFailure> failure;
-  bool closing = false;
-  Clock::time_point deadline{};
-  ComputeTeam team(rows, rows.threads);
+/// Rank 0's side of one sweep: its main thread schedules chunks (to its own compute team and to
+/// the other ranks), receives the finished rows and writes them in order; run() loops over
+/// these steps until every row is written, or a signal or a failing row closes the sweep.
+class RootSweep {
+ public:
+  RootSweep(const SweepRows& rows, SweepOutput& output)
+      : rows_(rows), output_(output), size_(ranks()),
+        scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
+                   output),
+        writer_(output, rows.count), progress_(rows), poll_(size_ == 1, 4000),
+        peers_(static_cast<std::size_t>(size_)), team_(rows, rows.threads) {
+    outcome_.count = rows.count;
+    outcome_.threads = rows.threads * size_;
+  }
 
-  std::size_t messages = 0;
-  const auto accept = [&](Finished&& rows_done, int source) {
-    Peer& from = peers[static_cast<std::size_t>(source)];
+  SweepOutcome run(const std::function<void(const SweepOutcome&)>& finish) {
+    for (;;) {
+      bool active = collect();
+      if (!closing_ && stop_flag().load()) {
+        outcome_.interrupted = true;
+        close(rows_.grace_seconds);
+      }
+      if (!closing_ && failure_) close(rows_.grace_seconds);
+      if (!closing_) active = hand_out() || active;
+      write_ready();
+      progress_.report(outcome_.computed + output_.kept_count());
+      if (!closing_ && writer_.complete()) close(0);
+      if (closing_ && closed()) break;
+      sends_pending();
+      team_.wait(poll_.next(active));
+    }
+    release_peers();
+    return conclude(finish);
+  }
+
+ private:
+  /// Rows that may wait in the reorder buffer (see sweep.hpp: window).
+  static std::size_t reorder_window(const SweepRows& rows, int threads) {
+    const auto total_threads = static_cast<std::size_t>(threads);
+    return std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
+                         std::max<std::size_t>(rows.row_bytes, 1),
+                     16 * total_threads, std::size_t(64)});
+  }
+
+  /// Finished rows from rank `source` (0: this rank's team) go to the writer.
+  void accept(Finished&& rows_done, int source) {
+    Peer& from = peers_[static_cast<std::size_t>(source)];
     from.rows += rows_done.count;
     from.chunks += 1;
     from.seconds += rows_done.seconds;
-    outcome.computed += rows_done.count;
-    scheduler.record(rows_done.count + (rows_done.failure ? 1 : 0), rows_done.seconds);
-    if (rows_done.failure && (!failure || rows_done.failure->row < failure->row))
-      failure = rows_done.failure;
-    writer.add(std::move(rows_done));
-  };
-  const auto close = [&](double grace) {  // the end: complete, interrupted or failed
-    if (closing) return;
-    closing = true;
-    team.stop();
-    deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                  std::chrono::duration<double>(grace));
-    for (int r = 1; r < size; ++r) post(r, tag_stop, {});
-  };
+    outcome_.computed += rows_done.count;
+    scheduler_.record(rows_done.count + (rows_done.failure ? 1 : 0), rows_done.seconds);
+    if (rows_done.failure && (!failure_ || rows_done.failure->row < failure_->row))
+      failure_ = rows_done.failure;
+    writer_.add(std::move(rows_done));
+  }
 
-  for (;;) {
+  /// The end: complete, interrupted or failed. No more rows start anywhere; running rows get
+  /// `grace` seconds.
+  void close(double grace) {
+    if (closing_) return;
+    closing_ = true;
+    team_.stop();
+    deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                   std::chrono::duration<double>(grace));
+    for (int r = 1; r < size_; ++r) post(r, tag_stop, {});
+  }
+
+  /// This rank's finished rows and every message from the other ranks; true when anything came.
+  bool collect() {
     bool active = false;
-    for (Finished& f : team.take()) {
+    for (Finished& f : team_.take()) {
       accept(std::move(f), 0);
       active = true;
     }
     while (std::optional<Message> message = receive()) {
       active = true;
-      ++messages;
-      Peer& peer = peers[static_cast<std::size_t>(message->source)];
+      ++messages_;
+      Peer& peer = peers_[static_cast<std::size_t>(message->source)];
       switch (message->tag) {
         case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
         case tag_result: accept(unpack_finished(message->payload), message->source); break;
         case tag_stopping:
-          outcome.interrupted = true;
-          close(rows.grace_seconds);
+          outcome_.interrupted = true;
+          close(rows_.grace_seconds);
           break;
         case tag_finished:
           peer.finished = true;
@@ -555,98 +580,133 @@ SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
         default: break;
       }
     }
-    if (!closing && stop_flag().load()) {
-      outcome.interrupted = true;
-      close(rows.grace_seconds);
-    }
-    if (!closing && failure) close(rows.grace_seconds);
-    if (!closing) {
-      for (std::size_t k = team.wanted(); k > 0; --k) {
-        const std::optional<Range> chunk = scheduler.next(writer.position());
-        if (!chunk) break;
-        team.add(*chunk);
-        active = true;
-      }
-      for (int r = 1; r < size; ++r) {
-        Peer& peer = peers[static_cast<std::size_t>(r)];
-        if (peer.wanted == 0 && !(scheduler.exhausted() && !peer.told_exhausted)) continue;
-        std::vector<Range> chunks;
-        for (; peer.wanted > 0; --peer.wanted) {
-          const std::optional<Range> chunk = scheduler.next(writer.position());
-          if (!chunk) break;
-          chunks.push_back(*chunk);
-        }
-        const bool exhausted = scheduler.exhausted();
-        if (chunks.empty() && !(exhausted && !peer.told_exhausted)) continue;
-        Packer grant;
-        grant.put<std::uint64_t>(chunks.size());
-        for (const Range& chunk : chunks) grant.put<std::uint64_t>(chunk.first).put<std::uint64_t>(chunk.count);
-        grant.put<std::uint8_t>(exhausted);
-        peer.told_exhausted = exhausted;
-        if (exhausted) peer.wanted = 0;
-        post(r, tag_grant, grant.take());
-        active = true;
-      }
-      if (scheduler.exhausted()) team.close();
-    }
-    try {
-      writer.advance();
-    } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
-      if (!failure) failure = RowFailure{rows.count, true, bad.what()};
-    } catch (const std::exception& error) {
-      if (!failure) failure = RowFailure{rows.count, false, error.what()};
-    }
-    progress.report(outcome.computed + output.kept_count());
-    if (!closing && writer.complete()) close(0);
-    if (closing) {
-      const bool peers_finished =
-          std::all_of(peers.begin() + 1, peers.end(), [](const Peer& p) { return p.finished; });
-      if (peers_finished && (team.idle() || Clock::now() >= deadline)) {
-        for (Finished& f : team.take()) accept(std::move(f), 0);
-        break;
-      }
-    }
-    sends_pending();
-    team.wait(poll.next(active));
+    return active;
   }
-  for (int r = 1; r < size; ++r) post(r, tag_done, {});
-  while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
 
-  const bool abandoned = !team.idle() || std::any_of(peers.begin(), peers.end(),
-                                                     [](const Peer& p) { return p.abandoned; });
-  if (!failure) {
+  /// Chunks to this rank's team and to every rank that asked (or must learn that the rows are
+  /// exhausted); true when any went out.
+  bool hand_out() {
+    bool active = false;
+    for (std::size_t k = team_.wanted(); k > 0; --k) {
+      const std::optional<Range> chunk = scheduler_.next(writer_.position());
+      if (!chunk) break;
+      team_.add(*chunk);
+      active = true;
+    }
+    for (int r = 1; r < size_; ++r) {
+      Peer& peer = peers_[static_cast<std::size_t>(r)];
+      if (peer.wanted == 0 && !(scheduler_.exhausted() && !peer.told_exhausted)) continue;
+      std::vector<Range> chunks;
+      for (; peer.wanted > 0; --peer.wanted) {
+        const std::optional<Range> chunk = scheduler_.next(writer_.position());
+        if (!chunk) break;
+        chunks.push_back(*chunk);
+      }
+      const bool exhausted = scheduler_.exhausted();
+      if (chunks.empty() && !(exhausted && !peer.told_exhausted)) continue;
+      Packer grant;
+      grant.put<std::uint64_t>(chunks.size());
+      for (const Range& chunk : chunks)
+        grant.put<std::uint64_t>(chunk.first).put<std::uint64_t>(chunk.count);
+      grant.put<std::uint8_t>(exhausted);
+      peer.told_exhausted = exhausted;
+      if (exhausted) peer.wanted = 0;
+      post(r, tag_grant, grant.take());
+      active = true;
+    }
+    if (scheduler_.exhausted()) team_.close();
+    return active;
+  }
+
+  /// Writes every row that is next in order; an output that cannot be written fails the sweep.
+  void write_ready() {
     try {
-      if (outcome.interrupted) writer.drain();
-      else writer.advance();
-    } catch (const invalid_input& bad) {
-      failure = RowFailure{rows.count, true, bad.what()};
+      writer_.advance();
+    } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
+      if (!failure_) failure_ = RowFailure{rows_.count, true, bad.what()};
     } catch (const std::exception& error) {
-      failure = RowFailure{rows.count, false, error.what()};
+      if (!failure_) failure_ = RowFailure{rows_.count, false, error.what()};
     }
   }
-  outcome.written = writer.written();
-  outcome.seconds = seconds_since(start);
-  if (failure) {
-    outcome.failed = true;
-    outcome.failed_row = failure->row;
-    outcome.failure = failure->message;
-    outcome.bad_input = failure->bad_input;
+
+  /// While closing: true once every other rank finished and this rank's rows ended (or their
+  /// grace ran out); takes this rank's last rows.
+  bool closed() {
+    const bool peers_finished =
+        std::all_of(peers_.begin() + 1, peers_.end(), [](const Peer& p) { return p.finished; });
+    if (!peers_finished || !(team_.idle() || Clock::now() >= deadline_)) return false;
+    for (Finished& f : team_.take()) accept(std::move(f), 0);
+    return true;
   }
-  progress.report(outcome.computed + output.kept_count(), true);
-  report_distribution(outcome, peers, messages, thread_cpu_seconds() - start_cpu);
-  if (!abandoned) {
-    finish(outcome);
-    return outcome;
+
+  /// Tells every other rank that the sweep is over and waits until the messages are out.
+  void release_peers() {
+    for (int r = 1; r < size_; ++r) post(r, tag_done, {});
+    while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
-  // Rows are still running: complete the output, then end the process (their threads use what
-  // the caller's stack holds).
-  int code = 0;
-  try {
-    finish(outcome);
-  } catch (...) {
-    code = report_failure(std::current_exception());
+
+  /// Writes what is left (after an interruption: every row there is, past the missing ones),
+  /// fills the outcome and lets `finish` complete the output. When rows had to be abandoned the
+  /// process ends here.
+  SweepOutcome conclude(const std::function<void(const SweepOutcome&)>& finish) {
+    const bool abandoned = !team_.idle() || std::any_of(peers_.begin(), peers_.end(),
+                                                        [](const Peer& p) { return p.abandoned; });
+    if (!failure_) {
+      try {
+        if (outcome_.interrupted) writer_.drain();
+        else writer_.advance();
+      } catch (const invalid_input& bad) {
+        failure_ = RowFailure{rows_.count, true, bad.what()};
+      } catch (const std::exception& error) {
+        failure_ = RowFailure{rows_.count, false, error.what()};
+      }
+    }
+    outcome_.written = writer_.written();
+    outcome_.seconds = seconds_since(start_);
+    if (failure_) {
+      outcome_.failed = true;
+      outcome_.failed_row = failure_->row;
+      outcome_.failure = failure_->message;
+      outcome_.bad_input = failure_->bad_input;
+    }
+    progress_.report(outcome_.computed + output_.kept_count(), true);
+    report_distribution(outcome_, peers_, messages_, thread_cpu_seconds() - start_cpu_);
+    if (!abandoned) {
+      finish(outcome_);
+      return outcome_;
+    }
+    // Rows are still running: complete the output, then end the process (their threads use what
+    // the caller's stack holds).
+    int code = 0;
+    try {
+      finish(outcome_);
+    } catch (...) {
+      code = report_failure(std::current_exception());
+    }
+    exit_process(code);
   }
-  exit_process(code);
+
+  const Clock::time_point start_ = Clock::now();
+  const double start_cpu_ = thread_cpu_seconds();
+  const SweepRows& rows_;
+  SweepOutput& output_;
+  const int size_;
+  SweepOutcome outcome_;
+  Scheduler scheduler_;
+  OrderedWriter writer_;
+  Progress progress_;
+  PollInterval poll_;
+  std::vector<Peer> peers_;
+  std::optional<RowFailure> failure_;
+  bool closing_ = false;
+  Clock::time_point deadline_{};
+  std::size_t messages_ = 0;
+  ComputeTeam team_;  // last: its threads stop (destructor) before the state above goes
+};
+
+SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
+                      const std::function<void(const SweepOutcome&)>& finish) {
+  return RootSweep(rows, output).run(finish);
 }
 
 SweepOutcome run_worker(const SweepRows& rows) {

@@ -72,7 +72,11 @@ const std::string_view table_usage =
     "Columns (M = the largest N): N, digits, beta, g, m1..mM, l1..lM, beta_K1..M, error_K1..M,\n"
     "ratio, cos_phi1..M, var_K1..M, diagonal_approx1..M, method, evaluations, converged,\n"
     "error_kind (bound | estimate | statistical), ratio_error, cos_phi_error1..M,\n"
-    "var_K_error1..M. A row with N < M leaves its cells for particles N+1..M empty.\n"
+    "var_K_error1..M, then cos_phi_error_kind, var_K_error_kind (what those errors promise: a\n"
+    "series row's beta_K error is a bound, its cos_phi and var_K errors estimates), work_unit\n"
+    "(what evaluations counts), equipartition_residual (|sum beta<K_i> - N/2|), beta_Kc1..M,\n"
+    "beta_Kc_error1..M (beta<K_i^(c)> = 1/2), beta_Kc_error_kind. A row with N < M leaves its\n"
+    "cells for particles N+1..M empty.\n"
     "The CSV starts with '#' lines naming every swept value, the method (and qmc's samples,\n"
     "shifts and seed), the version and the UTC date.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
@@ -95,8 +99,9 @@ const std::string_view table_usage =
     "torus-trapezoid or qmc (--samples 1024..65536, --shifts, --seed); --digits > 16 for N <= 4.\n"
     "Columns (M = the largest N): N, digits, energy (or excitation), g, m1..mM, l1..lM, K1..M,\n"
     "K_error1..M, Kc, cos_phi1..M, var_K1..M, method, evaluations, converged, error_kind,\n"
-    "Kc_error, cos_phi_error1..M, var_K_error1..M, then excitation (or energy): <K_i>_E,\n"
-    "<K_i^(c)>_E = <K>_E/N, <cos phi_i>_E and Var K_i with their errors.\n";
+    "Kc_error, cos_phi_error1..M, var_K_error1..M, then excitation (or energy), K_total,\n"
+    "K_total_error, density_of_states, density_of_states_error, work_unit: <K_i>_E,\n"
+    "<K_i^(c)>_E = <K>_E/N, <cos phi_i>_E, Var K_i, <K>_E and Omega(E) with their errors.\n";
 
 namespace {
 
@@ -314,6 +319,9 @@ std::string microcanonical_row(const Point& point, const TablePlan& plan) {
   add_padded(fields, text.cos_angle_error, width);
   add_padded(fields, text.variance_error, width);
   fields.push_back(plan.state == "energy" ? text.excitation : text.energy);
+  fields.insert(fields.end(), {text.kinetic_total, text.kinetic_total_error,
+                               text.density_of_states, text.density_of_states_error,
+                               text.work_unit});
   std::string out;
   append_csv_line(out, fields);
   return out;
@@ -354,6 +362,11 @@ std::string table_row(const Point& point, const TablePlan& plan) {
   fields.push_back(text.ratio_error);
   add_padded(fields, text.cos_angle_error, width);
   add_padded(fields, text.variance_error, width);
+  fields.insert(fields.end(), {text.cos_angle_error_kind, text.variance_error_kind,
+                               text.work_unit, text.equipartition_residual});
+  add_padded(fields, text.beta_kinetic_canonical, width);
+  add_padded(fields, text.beta_kinetic_canonical_error, width);
+  fields.push_back(text.beta_kinetic_canonical_error_kind);
   std::string out;
   append_csv_line(out, fields);
   return out;
@@ -499,8 +512,28 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
   return "0." + result;
 }
 
-std::string table_command(const Options& options) {
+namespace {
+
+// ---------------------------------------------------------------- table_command's steps
+
+/// The sweep as asked for: the settings of every row and the swept variables in their nesting
+/// (outermost first; ranges moved innermost).
+struct TableRequest {
   TablePlan plan;
+  std::vector<Sweep> sweeps;
+  std::size_t combinations = 1;  ///< the product of the sweeps' sizes
+
+  const Sweep* sweep_named(std::string_view name) const {
+    const auto found = std::ranges::find(sweeps, name, &Sweep::name);
+    return found == sweeps.end() ? nullptr : &*found;
+  }
+};
+
+/// Step 1, parse: the ensemble, the method and its options, and every swept variable (each
+/// value checked against its domain).
+TableRequest parse_table_request(const Options& options) {
+  TableRequest request;
+  TablePlan& plan = request.plan;
   plan.chain = options.has("chain");
   constexpr std::array<std::string_view, 4> read_names{"tol", "samples", "shifts", "seed"};
   plan.options = parse_average_options(options, read_names);
@@ -515,7 +548,7 @@ std::string table_command(const Options& options) {
   }
 
   // Swept variables in their default nesting (outermost first); ranges are moved innermost.
-  std::vector<Sweep> sweeps;
+  std::vector<Sweep>& sweeps = request.sweeps;
   if (plan.chain) {
     for (const std::string_view single : {"mu1", "l1", "l2"})
       if (options.has(single))
@@ -541,33 +574,44 @@ std::string table_command(const Options& options) {
   sweeps.push_back(parse_sweep(plan.state, options.required(plan.state),
                                plan.state == "energy" ? Domain::any : Domain::positive));
   std::ranges::stable_partition(sweeps, [](const Sweep& s) { return !s.range; });
-  std::size_t combinations = 1;
   for (const Sweep& s : sweeps) {
-    combinations *= s.values.size();
-    if (combinations > max_sweep_rows)
+    request.combinations *= s.values.size();
+    if (request.combinations > max_sweep_rows)
       throw usage_error("table: more than " + std::to_string(max_sweep_rows) + " points");
   }
-  const auto sweep_named = [&](std::string_view name) -> const Sweep* {
-    const auto found = std::ranges::find(sweeps, name, &Sweep::name);
-    return found == sweeps.end() ? nullptr : &*found;
-  };
+  return request;
+}
 
+/// Which method runs each N of the sweep (the library's rule), as the header and the messages
+/// name them.
+struct TableMethods {
+  std::vector<std::size_t> particle_values{2};  ///< the N of the rows, as listed
+  std::vector<std::string> torus_n, transfer_n, qmc_n;  ///< as listed, for messages and the header
+  std::vector<std::string> double_only_n;              ///< transfer_n and qmc_n, as listed
+  std::string chosen;              ///< what runs, in words ("--method auto, which runs ...")
+  std::string double_only_method;  ///< "transfer", "qmc" or "transfer or qmc"
+};
+
+/// Whether N particles run a double-only method (qmc, transfer): no MPFR rows.
+bool is_double_only(const TablePlan& plan, std::size_t particles) {
+  return !method_supports_digits(row_method(plan, particles, min_digits).method, min_digits + 1);
+}
+
+/// Step 2, plan: the method of every N, checked (with every listed digits) before any work;
+/// an option that no row's method uses is refused. Sets plan.columns_particles.
+TableMethods plan_table_methods(const Options& options, TableRequest& request) {
+  TablePlan& plan = request.plan;
+  TableMethods m;
   // Which method runs each N (the library's rule, checked here for every N before any work);
   // qmc and transfer are double only, so their N get rows at digits 16 only.
-  std::vector<std::size_t> particle_values{2};
   if (plan.chain) {
-    particle_values.clear();
-    for (const std::string& n : sweep_named("chain")->values)
-      particle_values.push_back(std::stoul(n));
+    m.particle_values.clear();
+    for (const std::string& n : request.sweep_named("chain")->values)
+      m.particle_values.push_back(std::stoul(n));
   }
-  plan.columns_particles = std::ranges::max(particle_values);
-  std::vector<std::string> torus_n, transfer_n, qmc_n;  // as listed, for messages and the header
-  std::vector<std::string> double_only_n;                  // transfer_n and qmc_n, as listed
+  plan.columns_particles = std::ranges::max(m.particle_values);
   const auto method_of = [&](std::size_t n) { return row_method(plan, n, min_digits).method; };
-  const auto is_double_only = [&](std::size_t n) {
-    return !method_supports_digits(method_of(n), min_digits + 1);
-  };
-  for (const std::size_t n : particle_values) {
+  for (const std::size_t n : m.particle_values) {
     try {
       row_method(plan, n, min_digits);
     } catch (const invalid_input& bad) {
@@ -575,24 +619,26 @@ std::string table_command(const Options& options) {
     }
     if (!plan.chain && !plan.microcanonical()) continue;
     const AverageMethod method = method_of(n);
-    std::vector<std::string>& names = method == AverageMethod::qmc        ? qmc_n
-                                      : method == AverageMethod::transfer ? transfer_n
-                                                                          : torus_n;
-    for (std::vector<std::string>* list : {&names, is_double_only(n) ? &double_only_n : nullptr})
+    std::vector<std::string>& names = method == AverageMethod::qmc        ? m.qmc_n
+                                      : method == AverageMethod::transfer ? m.transfer_n
+                                                                          : m.torus_n;
+    for (std::vector<std::string>* list :
+         {&names, is_double_only(plan, n) ? &m.double_only_n : nullptr})
       if (list && std::ranges::find(*list, std::to_string(n)) == list->end())
         list->push_back(std::to_string(n));
   }
   std::string automatic_runs;  // "torus-trapezoid for N = 3, transfer for N = 8, 16"
-  for (const auto& [name, list] : {std::pair{"torus-trapezoid", &torus_n},
-                                   std::pair{"transfer", &transfer_n}, std::pair{"qmc", &qmc_n}})
+  for (const auto& [name, list] : {std::pair{"torus-trapezoid", &m.torus_n},
+                                   std::pair{"transfer", &m.transfer_n},
+                                   std::pair{"qmc", &m.qmc_n}})
     if (!list->empty())
       automatic_runs += (automatic_runs.empty() ? "" : ", ") + std::string(name) + " for N = " +
                         join_values(*list);
-  const std::string chosen =
+  m.chosen =
       plan.microcanonical()
           ? (plan.method != "auto" ? "--method " + plan.method
                                    : "--method auto, which runs the microcanonical integral "
-                                     "rule for N = " + join_values(torus_n))
+                                     "rule for N = " + join_values(m.torus_n))
       : !plan.chain ? "the double-pendulum engines (--method " + plan.method + ")"
       : plan.method != "auto"
           ? "--method " + plan.method
@@ -602,92 +648,125 @@ std::string table_command(const Options& options) {
                                      AverageOption::shifts, AverageOption::seed}) {
     const std::string name = average_option_name(option);
     if (!options.has(name)) continue;
-    const bool used = std::ranges::any_of(particle_values, [&](std::size_t n) {
+    const bool used = std::ranges::any_of(m.particle_values, [&](std::size_t n) {
       const AverageOptions row = row_method(plan, n, min_digits).options;
       return option == AverageOption::tolerance ? row.tolerance.has_value()
              : option == AverageOption::samples ? row.samples.has_value()
              : option == AverageOption::shifts  ? row.shifts.has_value()
                                                 : row.seed.has_value();
     });
-    if (!used) throw usage_error("table: --" + name + " is not used by " + chosen);
+    if (!used) throw usage_error("table: --" + name + " is not used by " + m.chosen);
   }
-  const std::string double_only_method = qmc_n.empty()        ? "transfer"
-                                         : transfer_n.empty() ? "qmc"
-                                                              : "transfer or qmc";
-  const std::vector<std::string>& digit_values = sweep_named("digits")->values;
+  m.double_only_method = m.qmc_n.empty()        ? "transfer"
+                         : m.transfer_n.empty() ? "qmc"
+                                                : "transfer or qmc";
+  const std::vector<std::string>& digit_values = request.sweep_named("digits")->values;
   for (const std::string& digits : digit_values) {
     const int d = std::stoi(digits);
-    for (const std::size_t n : particle_values) {
-      if (is_double_only(n)) continue;  // qmc and transfer N: MPFR digits are skipped (below)
+    for (const std::size_t n : m.particle_values) {
+      if (is_double_only(plan, n)) continue;  // qmc and transfer N: MPFR digits are skipped
       try {
         row_method(plan, n, d);
       } catch (const invalid_input& bad) {
         throw usage_error(std::string("table: ") + bad.what());
       }
     }
-    if (d == min_digits || !torus_n.empty() || !plan.chain) continue;
+    if (d == min_digits || !m.torus_n.empty() || !plan.chain) continue;
     throw usage_error("table: --digits " + digits + " is not available with " +
-                      double_only_method + " (double only; N = " + join_values(double_only_n) +
+                      m.double_only_method + " (double only; N = " + join_values(m.double_only_n) +
                       (plan.method == "auto" ? " with --method auto" : "") + " runs " +
-                      double_only_method + ")");
+                      m.double_only_method + ")");
   }
-  if (!double_only_n.empty() &&
+  if (!m.double_only_n.empty() &&
       std::ranges::find(digit_values, std::to_string(min_digits)) == digit_values.end())
-    throw usage_error("table: N = " + join_values(double_only_n) + " runs " + double_only_method +
-                      ", which is double only, but --digits has no 16");
+    throw usage_error("table: N = " + join_values(m.double_only_n) + " runs " +
+                      m.double_only_method + ", which is double only, but --digits has no 16");
+  return m;
+}
 
-  // Where the rows go: --output FILE, or --resume FILE (continued and rewritten), or stdout.
-  const std::string output(options.get("output", ""));
-  const std::string resume(options.get("resume", ""));
-  if (options.has("output") && output.empty()) throw usage_error("table: --output needs a file name");
-  if (options.has("resume") && resume.empty()) throw usage_error("table: --resume needs a file name");
-  if (!resume.empty() && !output.empty() && resolved_path(output, "table") != resolved_path(resume, "table"))
+/// Where the rows go: --output FILE, or --resume FILE (continued and rewritten), or stdout.
+struct TableTarget {
+  std::string output, resume;
+  std::string path;  ///< the file written (resume or output; empty: stdout)
+};
+
+TableTarget parse_table_target(const Options& options) {
+  TableTarget t;
+  t.output = std::string(options.get("output", ""));
+  t.resume = std::string(options.get("resume", ""));
+  if (options.has("output") && t.output.empty()) throw usage_error("table: --output needs a file name");
+  if (options.has("resume") && t.resume.empty()) throw usage_error("table: --resume needs a file name");
+  if (!t.resume.empty() && !t.output.empty() &&
+      resolved_path(t.output, "table") != resolved_path(t.resume, "table"))
     throw usage_error("table: --resume FILE continues FILE and writes it; --output must name the "
                       "same file or be left out");
-  const std::string target = resume.empty() ? output : resume;
+  t.path = t.resume.empty() ? t.output : t.resume;
+  return t;
+}
 
-  // Every point is checked before any is computed (numbers, chain, the method's domain). From
-  // here on SIGINT/SIGTERM stop the sweep (also while the points are being checked).
-  const StopOnSignal signals;
-  const PointSpace space(plan, sweeps, [&](std::size_t n, int digits) {
-    return digits == min_digits || !is_double_only(n);  // a qmc or transfer N: no MPFR rows
-  });
-  const auto row_options = [&](std::size_t n, int digits) {
-    return row_method(plan, n, digits).options;
+/// The column names of a table's rows (see the usage text).
+std::vector<std::string> table_columns(const TablePlan& plan) {
+  std::vector<std::string> header{"N", "digits"};
+  const std::vector<std::string> cases = case_columns(plan.columns_particles, plan.state);
+  header.insert(header.end(), cases.begin(), cases.end());
+  const auto add_names = [&](std::string_view stem) {
+    const auto names = indexed_names(stem, plan.columns_particles);
+    header.insert(header.end(), names.begin(), names.end());
   };
-  const std::size_t row_count = space.count();
-  const auto check = [&](std::size_t k) {
-    const Point point = space.point(k, row_options);
-    try {
-      if (point.options.digits == min_digits) check_point<double>(point);
-      else check_point<mpfr_real>(point);
-    } catch (const invalid_input& bad) {
-      throw usage_error("table: point (" + point.describe() + "): " + bad.what());
-    }
-  };
-  const int threads = hardware_threads();
-  if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
-    check(bad);  // throws the first bad point's error, on every rank
+  if (plan.microcanonical()) {
+    add_names("K");
+    add_names("K_error");
+    header.push_back("Kc");
+    add_names("cos_phi");
+    add_names("var_K");
+    header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "Kc_error"});
+    add_names("cos_phi_error");
+    add_names("var_K_error");
+    header.push_back(plan.state == "energy" ? "excitation" : "energy");
+    header.insert(header.end(), {"K_total", "K_total_error", "density_of_states",
+                                 "density_of_states_error", "work_unit"});
+    return header;
+  }
+  for (const std::string_view stem : {"beta_K", "error_K", "", "cos_phi", "var_K",
+                                      "diagonal_approx"}) {
+    if (stem.empty()) header.push_back("ratio");
+    else add_names(stem);
+  }
+  header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "ratio_error"});
+  add_names("cos_phi_error");
+  add_names("var_K_error");
+  header.insert(header.end(), {"cos_phi_error_kind", "var_K_error_kind", "work_unit",
+                               "equipartition_residual"});
+  add_names("beta_Kc");
+  add_names("beta_Kc_error");
+  header.push_back("beta_Kc_error_kind");
+  return header;
+}
 
+/// Step 3, format: the '#' lines that say what made the file (and that --resume checks), then
+/// the column line.
+std::string table_header(const TableRequest& request, const TableMethods& m,
+                         std::size_t row_count) {
+  const TablePlan& plan = request.plan;
   std::string out;
   if (plan.chain) {
-    out += "# pendavg table: chains of N = " + sweep_named("chain")->spec +
+    out += "# pendavg table: chains of N = " + request.sweep_named("chain")->spec +
            " unit masses on unit links (m_i = l_i = 1)\n";
   } else {
     out += "# pendavg table: double pendulum (N = 2), m1 = mu1, m2 = 1 - mu1 (exact decimals), "
            "M = 1\n";
   }
-  for (const Sweep& s : sweeps)
+  for (const Sweep& s : request.sweeps)
     out += "# " + (s.name == "chain" ? std::string("N") : s.name) + " = " + s.spec + " (" +
            std::to_string(s.values.size()) + (s.values.size() == 1 ? " value)\n" : " values)\n");
   std::string nesting;
-  for (const Sweep& s : sweeps)
+  for (const Sweep& s : request.sweeps)
     nesting += (nesting.empty() ? "" : ", ") + (s.name == "chain" ? std::string("N") : s.name);
   out += "# rows = " + std::to_string(row_count) + ", nested " + nesting +
          " (outermost first; the last varies fastest)";
-  if (row_count < combinations)
-    out += "; " + double_only_method + " is double only, so N = " + join_values(double_only_n) +
-           " has rows at digits = 16 only";
+  if (row_count < request.combinations)
+    out += "; " + m.double_only_method + " is double only, so N = " +
+           join_values(m.double_only_n) + " has rows at digits = 16 only";
   out += "\n# method = " + plan.method;
   if (plan.microcanonical()) {
     out += " (microcanonical averages at fixed " + plan.state +
@@ -697,8 +776,8 @@ std::string table_command(const Options& options) {
                 : std::string("; tolerance 1e-13 for N <= 2, 1e-11 for N = 3, 1e-9 beyond in "
                               "double")) +
            ", 1e-D at D > 16 digits)\n";
-    if (!qmc_n.empty())
-      out += "# qmc (N = " + join_values(qmc_n) + "): " +
+    if (!m.qmc_n.empty())
+      out += "# qmc (N = " + join_values(m.qmc_n) + "): " +
              std::to_string(plan.options.samples.value_or(MicrocanonicalOptions{}.points)) +
              " points x " +
              std::to_string(plan.options.shifts.value_or(MicrocanonicalOptions{}.shifts)) +
@@ -721,8 +800,8 @@ std::string table_command(const Options& options) {
     else if (plan.method == "transfer")
       out += ": " + transfer;
     out += "\n";
-    if (!qmc_n.empty())
-      out += "# qmc (N = " + join_values(qmc_n) + "): " +
+    if (!m.qmc_n.empty())
+      out += "# qmc (N = " + join_values(m.qmc_n) + "): " +
              std::to_string(plan.options.samples.value_or(default_qmc_samples)) + " points x " +
              std::to_string(plan.options.shifts.value_or(default_qmc_shifts)) + " shifts, seed " +
              std::to_string(plan.options.seed.value_or(default_qmc_seed)) +
@@ -731,54 +810,29 @@ std::string table_command(const Options& options) {
   } else {
     out += " (the double-pendulum engines)\n";
   }
-  if (plan.columns_particles > 1 && particle_values.size() > 1 &&
-      std::ranges::min(particle_values) < plan.columns_particles)
+  if (plan.columns_particles > 1 && m.particle_values.size() > 1 &&
+      std::ranges::min(m.particle_values) < plan.columns_particles)
     out += "# per-particle columns run to N = " + std::to_string(plan.columns_particles) +
            "; a row of a shorter chain leaves the cells beyond its N empty\n";
   out += "# pendavg " + std::string(version()) + ", generated " + utc_timestamp() + " (UTC)\n";
-  std::vector<std::string> header{"N", "digits"};
-  const std::vector<std::string> cases = case_columns(plan.columns_particles, plan.state);
-  header.insert(header.end(), cases.begin(), cases.end());
-  if (plan.microcanonical()) {
-    const auto add_names = [&](std::string_view stem) {
-      const auto names = indexed_names(stem, plan.columns_particles);
-      header.insert(header.end(), names.begin(), names.end());
-    };
-    add_names("K");
-    add_names("K_error");
-    header.push_back("Kc");
-    add_names("cos_phi");
-    add_names("var_K");
-    header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "Kc_error"});
-    add_names("cos_phi_error");
-    add_names("var_K_error");
-    header.push_back(plan.state == "energy" ? "excitation" : "energy");
-  } else {
-  for (const std::string_view stem :
-       {std::string_view("beta_K"), std::string_view("error_K"), std::string_view(""),
-        std::string_view("cos_phi"), std::string_view("var_K"),
-        std::string_view("diagonal_approx")}) {
-    if (stem.empty()) { header.push_back("ratio"); continue; }
-    const auto names = indexed_names(stem, plan.columns_particles);
-    header.insert(header.end(), names.begin(), names.end());
-  }
-  header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "ratio_error"});
-  for (const std::string_view stem : {std::string_view("cos_phi_error"), std::string_view("var_K_error")}) {
-    const auto names = indexed_names(stem, plan.columns_particles);
-    header.insert(header.end(), names.begin(), names.end());
-  }
-  }
-  append_csv_line(out, header);
+  append_csv_line(out, table_columns(plan));
+  return out;
+}
 
-
-  // Rank 0 checks the output (and reads a resumed file); every rank learns the verdict.
+/// Step 4, run: rank 0 checks the output (and reads a resumed file); then every rank computes
+/// rows (sweep.hpp) and rank 0 streams them, in order, after `header`.
+void run_table(const TableRequest& request, const PointSpace& space,
+               const std::function<AverageOptions(std::size_t, int)>& row_options,
+               const TableTarget& target, const std::string& header, int threads) {
+  const TablePlan& plan = request.plan;
+  const std::size_t row_count = space.count();
   std::optional<ResumedRows> resumed;
   std::string verdict;
   if (is_root()) {
     try {
-      if (!target.empty()) probe_output(target, "table");
-      if (!resume.empty() && std::filesystem::exists(resume))
-        resumed.emplace(resume, "table", out, row_count, 4 + 2 * plan.columns_particles,
+      if (!target.path.empty()) probe_output(target.path, "table");
+      if (!target.resume.empty() && std::filesystem::exists(target.resume))
+        resumed.emplace(target.resume, "table", header, row_count, 4 + 2 * plan.columns_particles,
                         [&](std::size_t k) {
                           return row_key(space.point(k, row_options), plan.columns_particles);
                         });
@@ -790,7 +844,7 @@ std::string table_command(const Options& options) {
   if (!verdict.empty()) throw usage_error(verdict);
 
   std::optional<SweepFile> file;
-  if (is_root()) file.emplace(target, "table", out, resumed ? &*resumed : nullptr);
+  if (is_root()) file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
   SweepRows rows;
   rows.count = row_count;
   rows.threads = threads;
@@ -798,10 +852,11 @@ std::string table_command(const Options& options) {
   rows.unit = "points";
   {
     int most_digits = min_digits;
-    for (const std::string& d : sweep_named("digits")->values) most_digits = std::max(most_digits, std::stoi(d));
+    for (const std::string& d : request.sweep_named("digits")->values)
+      most_digits = std::max(most_digits, std::stoi(d));
     const std::size_t m = plan.columns_particles;
-    rows.row_bytes = (6 * m + 3) * (decimal_max_length(most_digits) + 1) +
-                     (2 * m + 2) * 32 + 4 * m + 64;
+    rows.row_bytes = (8 * m + 5) * (decimal_max_length(most_digits) + 1) +
+                     (2 * m + 2) * 32 + 4 * m + 6 * 25 + 64;
   }
   rows.compute = [&](std::size_t k, int, std::string& text) {
     const Point point = space.point(k, row_options);
@@ -826,6 +881,42 @@ std::string table_command(const Options& options) {
     }
     file->commit();
   });
+}
+
+}  // namespace
+
+std::string table_command(const Options& options) {
+  TableRequest request = parse_table_request(options);
+  const TableMethods methods = plan_table_methods(options, request);
+  const TableTarget target = parse_table_target(options);
+  const TablePlan& plan = request.plan;
+
+  // Every point is checked before any is computed (numbers, chain, the method's domain). From
+  // here on SIGINT/SIGTERM stop the sweep (also while the points are being checked).
+  const StopOnSignal signals;
+  const PointSpace space(plan, request.sweeps, [&](std::size_t n, int digits) {
+    return digits == min_digits || !is_double_only(plan, n);  // a qmc or transfer N: no MPFR rows
+  });
+  const std::function<AverageOptions(std::size_t, int)> row_options = [&](std::size_t n,
+                                                                           int digits) {
+    return row_method(plan, n, digits).options;
+  };
+  const std::size_t row_count = space.count();
+  const auto check = [&](std::size_t k) {
+    const Point point = space.point(k, row_options);
+    try {
+      if (point.options.digits == min_digits) check_point<double>(point);
+      else check_point<mpfr_real>(point);
+    } catch (const invalid_input& bad) {
+      throw usage_error("table: point (" + point.describe() + "): " + bad.what());
+    }
+  };
+  const int threads = hardware_threads();
+  if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
+    check(bad);  // throws the first bad point's error, on every rank
+
+  run_table(request, space, row_options, target, table_header(request, methods, row_count),
+            threads);
   return {};
 }
 

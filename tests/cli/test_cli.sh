@@ -97,7 +97,7 @@ bad "N = 3 series"      average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method
 bad "N = 3 integral"    average --masses 1,1,1 --lengths 1,1,1 --beta 1 --method integral
 bad "N = 0"             average --masses "" --lengths "" --beta 1
 bad "limit mass 0"      limit --masses 0,1
-bad "limit csv"         limit --masses 1,1 --format csv
+bad "limit xml"         limit --masses 1,1 --format xml
 bad "series beta 0"     series "${pendulum[@]}" --beta 0 --terms 3
 bad "series terms -1"   series "${pendulum[@]}" --beta 1 --terms -1
 bad "help unknown"      help nothing
@@ -178,7 +178,15 @@ good "average csv" \
 good "average text"          'grep -q "beta<K_i>" "$work/out"' average "${pendulum[@]}" --beta 1 --format text
 
 printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
-cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'
+# Columns added after the original ones (issue 10): the kinds of the other errors, the work unit,
+# the equipartition residual and beta<K_i^(c)> with its errors.
+canonical_added() { # N
+  local i out=',cos_phi_error_kind,var_K_error_kind,work_unit,equipartition_residual'
+  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc$i"; done
+  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc_error$i"; done
+  echo "$out,beta_Kc_error_kind"
+}
+cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'"$(canonical_added 2)"
 good "cases shuffled" \
   '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$cases_header" ] && [ "$(sed -n 3p "$work/out" | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
   average --cases "$work/cases.csv"
@@ -323,7 +331,7 @@ good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(stri
 # --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
 # match the single-case command.
 printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
-cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'
+cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'"$(canonical_added 3)"
 check_cases3() {
   [ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(head -1 "$work/out")" = "$cases3_header" ] &&
     [ "$(sed -n 3p "$work/out" | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
@@ -387,7 +395,7 @@ good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'
+table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'"$(canonical_added 2)"
 check_table() {
   "$python" -c '
 import csv, sys
@@ -486,7 +494,9 @@ per = lambda stem: [f"{stem}{i}" for i in range(1, 6)]
 expected = (["N", "digits", "beta", "g"] + per("m") + per("l") + per("beta_K") + per("error_K") +
             ["ratio"] + per("cos_phi") + per("var_K") + per("diagonal_approx") +
             ["method", "evaluations", "converged", "error_kind", "ratio_error"] +
-            per("cos_phi_error") + per("var_K_error"))
+            per("cos_phi_error") + per("var_K_error") +
+            ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual"] +
+            per("beta_Kc") + per("beta_Kc_error") + ["beta_Kc_error_kind"])
 assert header == expected, header
 assert all(len(l.split(",")) == len(header) for l in data), "ragged rows"
 rows = list(csv.DictReader(data))
@@ -496,7 +506,8 @@ assert [(r["N"], r["digits"], r["g"]) for r in rows] == [
 for r in rows:
     n = int(r["N"])
     assert r["method"] == ("torus-trapezoid" if n == 3 else "transfer") and r["converged"] == "true", r
-    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx"):
+    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx", "beta_Kc",
+                 "beta_Kc_error"):
         cells = [r[f"{stem}{i}"] for i in range(1, 6)]
         assert all(cells[:n]) and not any(cells[n:]), (stem, cells)
     # beta<K_i> has as many significant digits as the row's digits; equipartition sum = N/2.
@@ -574,7 +585,7 @@ good "table g range innermost" \
   table --beta 1,2 --g lin:0:1:3
 good "table single N, no empty cells" \
   '! grep -v "^#" "$work/out" | grep -q ",," && ! grep -q "cells beyond" "$work/out" &&
-   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K")" -eq 3 ]' \
+   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K[0-9]")" -eq 3 ]' \
   table --chain 3 --beta 1
 # qmc options are recorded and used: the table's row is the row of `average` with the same
 # options (qmc's numbers do not depend on the thread count).
@@ -857,14 +868,15 @@ bad "micro samples with integral" average --masses 1,1 --lengths 1,1 --energy 0 
 bad "micro samples 2^17"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 131072
 
 printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
-micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'
+micro_added=',K_total,K_total_error,density_of_states,density_of_states_error,work_unit'  # issue 10
+micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'"$micro_added"
 good "cases energy column" \
   '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$micro_cases_header" ] && sed -n 3p "$work/out" | cut -d, -f7 | grep -q "^2.4999999684000"' \
   average --cases "$work/energy.csv"
 printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
 # the mpmath reference above, to 20 digits: 2.4999999835937502048e-9
 good "cases excitation column, digits 20" \
-  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
+  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$micro_added$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
   average --cases "$work/excitation.csv" --digits 20
 printf 'beta,energy,g,m1,m2,l1,l2\n1,1,1,1,1,1,1\n' >"$work/beta_energy.csv"
 bad "cases beta and energy"    average --cases "$work/beta_energy.csv"
@@ -889,7 +901,8 @@ assert len(rows) == int(sys.argv[2]), len(rows)
 state = sys.argv[3]
 other = "excitation" if state == "energy" else "energy"
 header = lines[0].strip().split(",")
-assert header[2] == state and header[-1] == other, header
+added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
+assert header[2] == state and header[-6:] == [other] + added, header
 for r in rows:
     assert r["converged"] == "true", r
     n = int(r["N"])
@@ -937,6 +950,325 @@ for key, error in ((\"beta_K\", \"error\"), (\"cos_phi\", \"cos_phi_error\"), (\
     for a, ea, b, eb in zip(o[key], o[error], t[key], t[error]):
         assert abs(float(a) - float(b)) <= float(ea) + float(eb), (key, a, ea, b, eb)
 " "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16
+# ---------------------------------------------------------------- issue 10: every error in every output
+# The keys and columns added after the original ones: present, finite (JSON never holds a bare
+# nan/inf: json.loads below refuses NaN and Infinity), errors positive, kinds valid, and equal to
+# what `average` prints for the same point where both print it.
+cat >"$work/strict_json.py" <<'PY'
+import json
+def strict(path):
+    def refuse(token):
+        raise ValueError("bare " + token)
+    return json.loads(open(path).read(), parse_constant=refuse)
+KINDS = {"bound", "estimate", "statistical"}
+PY
+strict_python() { PYTHONPATH="$work" "$python" "$@"; }
+
+check_limit_added() { # N RUN_KEYS (the keys of high_temperature.run, "null" for none)
+  strict_python - "$work/out" "$1" "$2" <<'PY'
+from strict_json import strict, KINDS
+import math, sys
+from decimal import Decimal as D
+d = strict(sys.argv[1]); n = int(sys.argv[2])
+original = ["beta_K", "error", "ratio", "var_K_beta2", "method", "error_kind", "ratio_error",
+            "cos_phi", "cos_phi_error", "var_K_beta2_error", "error_kinds", "evaluations", "work_unit"]
+added = ["converged", "run", "equipartition_residual", "beta_Kc", "beta_Kc_error"]
+assert list(d) == ["N", "digits", "high_temperature", "low_temperature", "seconds"], list(d)
+assert isinstance(d["seconds"], float) and 0 <= d["seconds"] < 600, d["seconds"]
+for part in ("high_temperature", "low_temperature"):
+    o = d[part]
+    assert list(o) == original + added, list(o)
+    assert o["converged"] is True, o
+    assert [D(x) for x in o["beta_Kc"]] == [D("0.5")] * n, o["beta_Kc"]
+    assert len(o["beta_Kc_error"]) == n and all(0 < float(e) < 1e-14 for e in o["beta_Kc_error"]), o
+    assert set(o["error_kinds"]) == {"beta_K", "ratio", "cos_phi", "var_K_beta2", "beta_Kc"}, o
+    assert set(o["error_kinds"].values()) <= KINDS and o["error_kinds"]["beta_Kc"] == "bound", o
+    # the residual |sum_i beta<K_i> - N/2| against the printed values (within their errors and
+    # the residual's own 3 digits)
+    residual = D(o["equipartition_residual"])
+    assert residual >= 0, residual
+    total = sum(D(x) for x in o["beta_K"])
+    bars = sum(D(x) for x in o["error"])
+    assert abs(abs(total - D(n) / 2) - residual) <= bars + residual / 100, (total, residual, bars)
+run = d["high_temperature"]["run"]
+if sys.argv[3] == "null":
+    assert run is None, run
+else:
+    assert sorted(run) == sorted(sys.argv[3].split(",")) and all(v > 0 for v in run.values()), run
+assert d["low_temperature"]["run"] is None
+PY
+}
+good "limit json: converged, run, residual, beta_Kc, seconds (N = 2)" 'check_limit_added 2 null' \
+  limit --masses 0.5,0.5
+good "limit json: the torus run (N = 3)" 'check_limit_added 3 points_per_dim,levels,grid_points' \
+  limit --masses 1,2,0.5 --lengths 1,0.5,2
+good "limit json: the transfer run (N = 7)" 'check_limit_added 7 angle_nodes,pivot_nodes,levels' \
+  limit --masses 1,1,1,1,1,1,1
+good "limit json: digits 30" 'check_limit_added 2 null' limit --masses 0.2,0.8 --lengths 1,2 --digits 30
+
+# limit --format csv: average's columns (the same writer), then the limit's own; its values are
+# the JSON's.
+check_limit_csv() { # N MASSES LENGTHS DIGITS
+  "$pendavg" limit --masses "$2" --lengths "$3" --digits "$4" >"$work/limit.json" &&
+  "$pendavg" average --masses "$2" --lengths "$3" --beta 1 --digits "$4" --format csv >"$work/average.csv" &&
+  strict_python - "$work/out" "$work/limit.json" "$work/average.csv" "$1" "$4" <<'PY'
+from strict_json import strict, KINDS
+import csv, math, sys
+from decimal import Decimal as D
+lines = open(sys.argv[1]).read().splitlines()
+d = strict(sys.argv[2]); n = int(sys.argv[4])
+average_header = open(sys.argv[3]).readline().strip().split(",")
+per = lambda stem: [f"{stem}{i}" for i in range(1, n + 1)]
+assert lines[0].split(",") == (average_header + ["limit"] + per("beta2_var_K") + per("beta2_var_K_error")
+                               + per("beta_Kc_error") + ["beta_Kc_error_kind"]), lines[0]
+rows = list(csv.DictReader(lines))
+assert [r["limit"] for r in rows] == ["high_temperature", "low_temperature"], rows
+assert all(len(l.split(",")) == len(average_header) + 3 * n + 2 for l in lines), "ragged"
+for r in rows:
+    o = d[r["limit"]]
+    assert r["N"] == str(n) and r["digits"] == sys.argv[5] and r["method"] == o["method"], r
+    assert r["beta"] == "" and not any(r[k] for k in per("K") + per("var_K") + per("K_error") + per("var_K_error")), r
+    assert [r[k] for k in per("beta_K")] == o["beta_K"] and [r[k] for k in per("error_K")] == o["error"]
+    assert [r[k] for k in per("cos_phi")] == o["cos_phi"] and [r[k] for k in per("cos_phi_error")] == o["cos_phi_error"]
+    assert [r[k] for k in per("beta2_var_K")] == o["var_K_beta2"]
+    assert [r[k] for k in per("beta2_var_K_error")] == o["var_K_beta2_error"]
+    assert [r[k] for k in per("beta_Kc")] == o["beta_Kc"] and [r[k] for k in per("beta_Kc_error")] == o["beta_Kc_error"]
+    assert r["ratio"] == (o["ratio"] or "") and r["ratio_error"] == (o["ratio_error"] or "")
+    assert r["equipartition_residual"] == o["equipartition_residual"] and r["converged"] == "true"
+    assert r["evaluations"] == str(o["evaluations"]) and r["work_unit"] == o["work_unit"]
+    assert r["error_kind"] == o["error_kind"] and r["cos_phi_error_kind"] == o["error_kinds"]["cos_phi"]
+    assert r["var_K_error_kind"] == o["error_kinds"]["var_K_beta2"] and r["beta_Kc_error_kind"] == "bound"
+    assert math.isfinite(float(r["seconds"])) and float(r["seconds"]) >= 0
+    for k in per("error_K") + per("cos_phi_error") + per("beta2_var_K_error") + per("beta_Kc_error"):
+        # positive, or 0 beside an exact 0 (<cos phi_i> = 0 at beta -> 0: kind bound)
+        value = r[k.replace("_error", "").replace("error_K", "beta_K")]
+        assert math.isfinite(float(r[k])) and (float(r[k]) > 0 or float(value) == 0), (k, r[k])
+    for k in per("beta_K") + per("cos_phi") + per("beta2_var_K") + per("diagonal_approx"):
+        assert math.isfinite(float(r[k])), (k, r[k])
+PY
+}
+good "limit --format csv (N = 2)"            'check_limit_csv 2 0.5,0.5 1,1 16' limit --masses 0.5,0.5 --lengths 1,1 --format csv
+good "limit --format csv (N = 3, torus)"     'check_limit_csv 3 1,2,0.5 1,0.5,2 16' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format csv
+good "limit --format csv (N = 2, digits 30)" 'check_limit_csv 2 0.2,0.8 1,2 30' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format csv
+good "limit --format csv (N = 1)"            'check_limit_csv 1 2 3 16' limit --masses 2 --lengths 3 --format csv
+good "limit text: errors, work, residual per limit" \
+  '[ "$(grep -c "^beta -> 0: " "$work/out")" -eq 3 ] && [ "$(grep -c "^beta -> inf: " "$work/out")" -eq 3 ] &&
+   [ "$(grep -c "converged = yes" "$work/out")" -eq 2 ] && grep -q "^beta -> 0: |sum_i beta<K_i> - N/2| = " "$work/out"' \
+  limit --masses 0.5,0.5 --format text
+
+# simulate JSON: <K> and <U> over time, the energy trend, the work; Langevin: the canonical Var K_i.
+simulate_original='ensemble integrator particles dt time energy K K_error Kc Kc_error K_autocorrelation_time cos_phi cos_phi_error error_kind'
+check_simulate_added() { # ENSEMBLE [AVERAGE_JSON: the canonical values at the run's beta]
+  strict_python - "$work/out" "$1" "${2:-}" "$simulate_original" <<'PY'
+from strict_json import strict, KINDS
+import math, sys
+from decimal import Decimal as D
+d = strict(sys.argv[1]); ensemble = sys.argv[2]; n = d["particles"]
+keys = list(d)
+assert keys[:14] == sys.argv[4].split(), keys
+after = keys[keys.index("seconds") + 1:]
+expected = ["K_total", "K_total_error", "potential", "potential_error", "energy_trend"]
+expected += ["energy_trend_reason"] if ensemble == "canonical" else []
+expected += ["unconverged_stages", "samples"]
+expected += ["exact_var_K", "exact_var_K_error"] if ensemble == "canonical" else []
+expected += ["exact_error_kinds"]
+assert after == expected, after
+for k in ("K_total", "K_total_error", "potential", "potential_error"):
+    assert isinstance(d[k], float) and math.isfinite(d[k]), k
+assert d["K_total_error"] > 0 and d["potential_error"] > 0
+# <K> is the sum of the <K_i> (to the 10 printed digits)
+assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"], (d["K_total"], d["K"])
+assert isinstance(d["unconverged_stages"], int) and d["unconverged_stages"] >= 0
+assert isinstance(d["samples"], int) and 0 < d["samples"] <= d["steps"], d["samples"]
+kinds = d["exact_error_kinds"]
+assert set(kinds) == {"K", "Kc", "cos_phi", "var_K"} and set(kinds.values()) <= KINDS, kinds
+assert kinds["K"] == d["exact_error_kind"]
+for value, error in zip(d["exact_var_K"], d["exact_var_K_error"]):
+    assert math.isfinite(value) and value > 0 and math.isfinite(error) and error > 0, (value, error)
+assert len(d["exact_var_K"]) == n
+if ensemble == "microcanonical":
+    # <K> + <U> = E: every sample lies within energy_error_max x scale of E, scale = (sum m) g (sum l)
+    scale = 2 * 2
+    # (energy_error_max is printed with 3 digits: 1.005 covers its rounding)
+    bound = 1.005 * d["energy_error_max"]
+    assert abs(d["K_total"] + d["potential"] - d["energy"]) <= bound * scale + 1e-8
+    # the least-squares change of E over the run is at most 6 x the largest deviation
+    assert math.isfinite(d["energy_trend"]) and abs(d["energy_trend"]) <= 6 * bound, d
+else:
+    assert d["energy_trend"] is None and d["energy_trend_reason"], d
+    # canonical <K> = N / (2 beta) exactly: within 4 error bars
+    assert abs(d["K_total"] - n / (2 * d["beta"])) <= 4 * d["K_total_error"], (d["K_total"], d["K_total_error"])
+    a = strict(sys.argv[3])  # average --format json at the same chain and beta
+    for i in range(n):  # Var K_i: 17 digits here, 16 there (its printed error covers the rounding)
+        assert abs(D(repr(d["exact_var_K"][i])) - D(a["var_K"][i])) <= D(a["var_K_error"][i]), i
+    assert kinds["K"] == a["error_kind"] and kinds["cos_phi"] == a["error_kinds"]["cos_phi"], (kinds, a["error_kinds"])
+    assert kinds["var_K"] == a["error_kinds"]["var_K"] and kinds["Kc"] == "bound"
+PY
+}
+good "simulate json: K_total, potential, energy_trend, samples (NVE)" 'check_simulate_added microcanonical' \
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300
+"$pendavg" average --masses 1,1 --lengths 1,1 --beta 0.5 >"$work/canonical.json" 2>/dev/null
+good "simulate json: exact_var_K and kinds (Langevin)" 'check_simulate_added canonical "$work/canonical.json"' \
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3
+"$pendavg" average --masses 1,2,1 --lengths 1,1,0.5 --beta 2 >"$work/canonical3.json" 2>/dev/null
+good "simulate json: exact_var_K (Langevin, N = 3)" 'check_simulate_added canonical "$work/canonical3.json"' \
+  simulate --masses 1,2,1 --lengths 1,1,0.5 --theta 0 --time 200 --thermostat langevin --beta 2 --seed 5
+
+# simulate CSV: the added columns hold the JSON's values (the same deterministic run).
+simulate_csv_original='i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time'
+simulate_csv_added='cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,exact_cos_phi_error_kind,exact_var_K_error_kind'
+check_simulate_csv() { # JSON_OF_THE_SAME_RUN [replicas]
+  strict_python - "$work/out" "$1" "$simulate_csv_original" "$simulate_csv_added" "${2:-}" <<'PY'
+from strict_json import strict, KINDS
+import csv, math, sys
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+d = strict(sys.argv[2]); replicas = sys.argv[5] == "replicas"
+header = lines[0].split(",")
+expected = sys.argv[3].split(",") + (["K_error_blocking", "K_error_replicas"] if replicas else [])
+expected += sys.argv[4].split(",")
+expected += ["Kc_error_blocking", "Kc_error_replicas", "cos_phi_error_blocking", "cos_phi_error_replicas"] if replicas else []
+assert header == expected, header
+rows = list(csv.DictReader(lines))
+assert len(rows) == d["particles"] and all(len(l.split(",")) == len(header) for l in lines)
+exact = d["exact_K"] is not None
+# errors: 3 digits in the CSV, 10 in the JSON (the same double)
+same_error = lambda cell, value: abs(float(cell) - value) <= 5e-3 * value
+for i, r in enumerate(rows):
+    assert float(r["cos_phi"]) == d["cos_phi"][i] and same_error(r["cos_phi_error"], d["cos_phi_error"][i]), r
+    assert float(r["cos_phi_error"]) > 0 and r["error_kind"] == "statistical"
+    if not exact:
+        assert not any(r[k] for k in sys.argv[4].split(",")[3:]), r
+        continue
+    assert float(r["exact_cos_phi"]) == d["exact_cos_phi"][i] and float(r["exact_cos_phi_error"]) == d["exact_cos_phi_error"][i]
+    assert float(r["exact_Kc_error"]) == d["exact_Kc_error"] and float(r["exact_Kc_error"]) > 0
+    assert float(r["exact_var_K"]) == d["exact_var_K"][i] and float(r["exact_var_K_error"]) == d["exact_var_K_error"][i]
+    assert float(r["exact_var_K"]) > 0 and float(r["exact_var_K_error"]) > 0 and float(r["exact_cos_phi_error"]) > 0
+    kinds = d["exact_error_kinds"]
+    assert (r["exact_error_kind"], r["exact_Kc_error_kind"], r["exact_cos_phi_error_kind"], r["exact_var_K_error_kind"]) == \
+        (kinds["K"], kinds["Kc"], kinds["cos_phi"], kinds["var_K"]), r
+    if replicas:
+        for stem in ("Kc", "cos_phi"):
+            for part in ("blocking", "replicas"):
+                assert same_error(r[f"{stem}_error_{part}"], d[f"{stem}_error_{part}"][i]), (stem, part)
+                assert d[f"{stem}_error_{part}"][i] > 0, (stem, part)
+PY
+}
+nve3=(simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 50)
+"$pendavg" "${nve3[@]}" >"$work/nve3.json" 2>/dev/null
+good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}" --format csv
+"$pendavg" "${nve3[@]}" --exact no >"$work/nve3_no_exact.json" 2>/dev/null
+good "simulate csv: --exact no leaves the exact cells empty" 'check_simulate_csv "$work/nve3_no_exact.json"' "${nve3[@]}" --exact no --format csv
+langevin2=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 0.5 --seed 3)
+"$pendavg" "${langevin2[@]}" >"$work/langevin2.json" 2>/dev/null
+good "simulate csv: exact_var_K (Langevin)" 'check_simulate_csv "$work/langevin2.json"' "${langevin2[@]}" --format csv
+replicas3=(simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4)
+"$pendavg" "${replicas3[@]}" >"$work/replicas3.json" 2>/dev/null
+good "simulate csv: the replicas' error columns" 'check_simulate_csv "$work/replicas3.json" replicas' "${replicas3[@]}" --format csv
+# --replicas: <K> and <U> combined like the other averages (the larger of the two errors)
+check_replicas_added() {
+  strict_python - "$work/out" <<'PY'
+from strict_json import strict, KINDS
+import sys
+d = strict(sys.argv[1])
+assert d["replicas"] == 4 and d["samples"] > 0 and d["unconverged_stages"] >= 0
+for stem in ("K_total", "potential"):
+    b, r = d[stem + "_error_blocking"], d[stem + "_error_replicas"]
+    assert b > 0 and r > 0 and d[stem + "_error"] == max(b, r), (stem, b, r, d[stem + "_error"])
+assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"]
+assert list(d)[-4:] == ["K_total_error_blocking", "K_total_error_replicas", "potential_error_blocking", "potential_error_replicas"]
+PY
+}
+good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}"
+
+# table and --cases rows: the added columns equal `average --format csv`'s for the same point
+# (the same library call); a series row's beta_K error is a bound, its cos_phi and var_K errors
+# estimates.
+canonical_columns='cos_phi_error_kind var_K_error_kind work_unit equipartition_residual'
+check_rows_as_average() { # FILE KIND (table | cases): every row against `average --format csv`
+  "$python" - "$1" "$2" "$pendavg" "$canonical_columns" <<'PY'
+import csv, math, subprocess, sys
+kind, pendavg, shared = sys.argv[2], sys.argv[3], sys.argv[4].split()
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+rows = list(csv.DictReader(lines))
+assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
+kinds = {"bound", "estimate", "statistical"}
+for r in rows:
+    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    masses = ",".join(r[f"m{i}"] for i in range(1, n + 1))
+    lengths = ",".join(r[f"l{i}"] for i in range(1, n + 1))
+    args = [pendavg, "average", "--masses", masses, "--lengths", lengths, "--beta", r["beta"],
+            "--g", r["g"], "--format", "csv"]
+    if kind == "table":
+        args += ["--digits", r["digits"]]
+    if r["method"] == "series":
+        args += ["--method", "series"]
+    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
+    names = shared + [f"beta_Kc{i}" for i in range(1, n + 1)]
+    names += ["beta_K1", "error_K1", "cos_phi1", "cos_phi_error1", "method", "evaluations", "error_kind"]
+    assert [r[k] for k in names] == [a[k] for k in names], [(k, r[k], a[k]) for k in names if r[k] != a[k]]
+    assert {r["cos_phi_error_kind"], r["var_K_error_kind"], r["beta_Kc_error_kind"]} <= kinds, r
+    assert r["beta_Kc_error_kind"] == "bound" and r["work_unit"] in ("terms", "nodes", "samples"), r
+    assert math.isfinite(float(r["equipartition_residual"])) and float(r["equipartition_residual"]) >= 0
+    for i in range(1, n + 1):
+        assert float(r[f"beta_Kc{i}"]) == 0.5 and 0 < float(r[f"beta_Kc_error{i}"]) < 1e-14, r
+    if r["method"] == "series":
+        assert (r["error_kind"], r["cos_phi_error_kind"], r["var_K_error_kind"]) == ("bound", "estimate", "estimate"), r
+PY
+}
+good "table: error kinds, work_unit, residual, beta_Kc (series rows)" 'check_rows_as_average "$work/out" table' \
+  table --beta 0.5,2 --mu1 0.3 --l2 0.7 --method series
+good "table: the same for chains N = 3, 5 (torus, transfer)" 'check_rows_as_average "$work/out" table' \
+  table --chain 3,5 --beta 1 --g 1,2
+good "table: the same at digits 30" 'check_rows_as_average "$work/out" table' \
+  table --beta 1 --mu1 0.3 --digits 30
+good "cases: error kinds, work_unit, residual, beta_Kc" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases.csv"
+good "cases: the same for N = 3" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases3.csv"
+good "cases: the same for series rows" 'check_rows_as_average "$work/out" cases' \
+  average --cases "$work/cases.csv" --method series
+
+# microcanonical rows: K_total, density_of_states (each with its error) and work_unit, equal to
+# `average --energy/--excitation --format csv`'s.
+check_micro_added() { # FILE KIND (table | cases) STATE
+  "$python" - "$1" "$2" "$3" "$pendavg" <<'PY'
+import csv, math, subprocess, sys
+kind, state, pendavg = sys.argv[2], sys.argv[3], sys.argv[4]
+lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
+rows = list(csv.DictReader(lines))
+assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
+added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
+assert lines[0].split(",")[-5:] == added, lines[0]
+for r in rows:
+    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    args = [pendavg, "average", "--masses", ",".join(r[f"m{i}"] for i in range(1, n + 1)),
+            "--lengths", ",".join(r[f"l{i}"] for i in range(1, n + 1)), f"--{state}", r[state],
+            "--g", r["g"], "--format", "csv"]
+    if kind == "table":
+        args += ["--digits", r["digits"]]
+    if r["method"] == "qmc":
+        args += ["--samples", "1024", "--shifts", "8"]
+    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
+    assert [r[k] for k in added] == [a[k] for k in added], [(k, r[k], a[k]) for k in added]
+    for k in ("K_total", "K_total_error", "density_of_states", "density_of_states_error"):
+        assert math.isfinite(float(r[k])) and float(r[k]) > 0, (k, r[k])
+    total = sum(float(r[f"K{i}"]) for i in range(1, n + 1))
+    bars = sum(float(r[f"K_error{i}"]) for i in range(1, n + 1)) + float(r["K_total_error"])
+    assert abs(total - float(r["K_total"])) <= bars, (total, r["K_total"], bars)
+    assert r["work_unit"] == ("samples" if r["method"] == "qmc" else "nodes"), r
+PY
+}
+good "table --excitation: K_total, density_of_states, work_unit" 'check_micro_added "$work/out" table excitation' \
+  table --excitation log:1e-6:1:3 --mu1 0.5,0.2
+good "table --energy chains: the same (integral, qmc)" 'check_micro_added "$work/out" table energy' \
+  table --chain 3,5 --energy 0,1 --samples 1024 --shifts 8
+good "table --energy digits 20: the same" 'check_micro_added "$work/out" table energy' \
+  table --energy -1,1 --digits 20 --l2 2
+good "cases energy column: K_total, density_of_states, work_unit" 'check_micro_added "$work/out" cases energy' \
+  average --cases "$work/energy.csv"
+good "cases excitation column: the same" 'check_micro_added "$work/out" cases excitation' \
+  average --cases "$work/excitation.csv"
+
 good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
 
 for command in average limit series simulate poincare; do

@@ -338,6 +338,29 @@ sed '2s/^0.001,/0.002,/' "$work/cases300.csv" >"$work/cases300b.csv"
 cp "$work/cases_reference.csv" "$work/cases_other.csv"
 bad "cases resume with other cases" average --cases "$work/cases300b.csv" --digits 250 --resume "$work/cases_other.csv"
 bad "cases resume with another method" average --cases "$work/cases300.csv" --digits 250 --method series --resume "$work/cases_other.csv"
+# Issue 10 added columns at the end of the rows (the kinds of every error, work_unit, the
+# equipartition residual, beta<K_i^(c)>): the resumed files above carry them; a file written
+# with the columns before them (same version) is refused, not extended with ragged rows.
+strip_added_columns() { # FILE OUT: the column line and rows cut before cos_phi_error_kind
+  "$python" - "$1" "$2" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines(keepends=True)
+columns = next(l for l in lines if not l.startswith("#")).rstrip("\n").split(",")
+keep = columns.index("cos_phi_error_kind")
+assert columns[keep:keep + 4] == ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual"]
+assert columns[-1] == "beta_Kc_error_kind" and "beta_Kc1" in columns and "beta_Kc_error1" in columns
+out = [l if l.startswith("#") else ",".join(l.rstrip("\n").split(",")[:keep]) + "\n" for l in lines]
+open(sys.argv[2], "w").write("".join(out))
+PY
+}
+strip_added_columns "$work/reference.csv" "$work/before_issue10.csv"
+cp "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
+bad "table resume of a file with the columns before issue 10" "${sweep[@]}" --resume "$work/before_issue10.csv"
+grep -q "is not an output of this sweep" "$work/err" && pass || fail "table resume before issue 10: reason"
+check "table resume before issue 10: the file is left as it was" cmp -s "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
+strip_added_columns "$work/cases_reference.csv" "$work/cases_before_issue10.csv"
+bad "cases resume of a file with the columns before issue 10" average --cases "$work/cases300.csv" --digits 250 \
+  --resume "$work/cases_before_issue10.csv"
 
 # ---------------------------------------------------------------- simulate --replicas
 replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4)
@@ -361,7 +384,7 @@ check "--replicas 1 is the single run" \
   bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
 run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
 check "NVE replicas (perturbed starts), csv" \
-  bash -c "[ $rc -eq 0 ] && grep -q '^# replicas 3 of 3' '$work/out' && grep -q ',K_error_blocking,K_error_replicas$' '$work/out'"
+  bash -c "[ $rc -eq 0 ] && grep -q '^# replicas 3 of 3' '$work/out' && grep -q ',K_autocorrelation_time,K_error_blocking,K_error_replicas,' '$work/out'"
 bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --trajectory "$work/t.csv" --every 1
 bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
 bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3
