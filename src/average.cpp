@@ -129,6 +129,7 @@ TransferOptions transfer_options(const AverageOptions& o) {
   TransferOptions transfer;
   transfer.tolerance = o.tolerance.value_or(default_transfer_tolerance);
   transfer.threads = o.threads;
+  transfer.control = &o.control;
   return transfer;
 }
 

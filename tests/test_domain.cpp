@@ -315,6 +315,118 @@ TEST_CASE("run control: a stopped qmc run reports the shifts it finished", "[dom
   CHECK_THROWS_AS(pendavg::average(chain, 1.5, o), pendavg::interrupted);
 }
 
+TEST_CASE("run control: one big qmc point stops within its first shift", "[domain]") {
+  // 2^16 points per shift are polled every 4096: a stop request ends the shift at the next
+  // poll (no shift finished: the `interrupted` exception), and progress counts points.
+  const Chain<double> chain({1, 0.5, 2, 1, 1, 1, 1, 1}, {1, 2, 0.5, 1, 1, 1, 1, 1});
+  AverageOptions o;
+  o.method = pendavg::AverageMethod::qmc;
+  o.samples = 65536;
+  o.threads = 1;
+  std::atomic<bool> stop{false};
+  std::vector<double> fractions;
+  o.control.stop = &stop;
+  o.control.progress = [&](double fraction) {
+    fractions.push_back(fraction);
+    if (fractions.size() == 3) stop = true;
+  };
+  CHECK_THROWS_AS(pendavg::average(chain, 1.0, o), pendavg::interrupted);
+  REQUIRE(fractions.size() == 3);  // nothing more after the stop
+  for (std::size_t k = 0; k < 3; ++k)
+    CHECK(fractions[k] == static_cast<double>((k + 1) * 4096) / (16.0 * 65536));
+}
+
+TEST_CASE("run control: a stopped transfer run reports its last verified level", "[domain]") {
+  // Polled between links (2N - 2 polls per level): stopped in the fourth level, the run reports
+  // the second verified by the third, interrupted, not converged, covering the converged answer.
+  // Stopped before two levels finished: the `interrupted` exception.
+  const Chain<double> chain({1, 0.5, 2, 1, 1.5, 1, 0.7, 1}, {1, 2, 0.5, 1, 1, 0.8, 1, 1.2});
+  AverageOptions o;
+  o.tolerance = 1e-12;
+  const Averages<double> converged = pendavg::average(chain, 2.0, o);
+  REQUIRE(converged.method == Method::transfer);
+  REQUIRE(converged.converged);
+  const std::size_t polls_per_level = 2 * chain.size() - 2;
+  for (const std::size_t stop_after : {3 * polls_per_level + 5, polls_per_level + 5, std::size_t(1)}) {
+    std::atomic<bool> stop{false};
+    std::size_t calls = 0;
+    AverageOptions s = o;
+    s.control.stop = &stop;
+    s.control.progress = [&](double fraction) {
+      CHECK(fraction >= 0);
+      CHECK(fraction < 1);
+      if (++calls == stop_after) stop = true;
+    };
+    INFO("stopped after " << stop_after << " polls");
+    if (stop_after < 2 * polls_per_level) {
+      CHECK_THROWS_AS(pendavg::average(chain, 2.0, s), pendavg::interrupted);
+      continue;
+    }
+    const Averages<double> stopped = pendavg::average(chain, 2.0, s);
+    CHECK(stopped.interrupted);
+    CHECK_FALSE(stopped.converged);
+    REQUIRE(stopped.transfer);
+    CHECK(stopped.transfer->levels == 3);
+    CHECK(stopped.evaluations < converged.evaluations);
+    require_agree(stopped, converged);
+  }
+}
+
+TEST_CASE("run control: microcanonical runs report progress and stop on request", "[domain]") {
+  using pendavg::MicrocanonicalOptions;
+  const Chain<double> pair({1, 2}, {1, 0.5});
+  MicrocanonicalOptions o;
+  std::vector<double> fractions;
+  o.control.progress = [&](double f) { fractions.push_back(f); };
+  const auto r = pendavg::microcanonical_average(pair, 0.3, o);
+  CHECK(r.converged);
+  REQUIRE_FALSE(fractions.empty());
+  CHECK(fractions.back() == 1.0);
+  for (const double f : fractions) CHECK((f > 0 && f <= 1));
+  // A stop request ends the integral (within 256 nodes) and qmc (between shifts): no partial
+  // result carries an error, so both throw `interrupted`.
+  std::atomic<bool> stop{true};
+  MicrocanonicalOptions stopped;
+  stopped.control.stop = &stop;
+  const Chain<double> three({1, 1, 1}, {1, 1, 1});
+  CHECK_THROWS_AS(pendavg::microcanonical_average(three, 0.0, stopped), pendavg::interrupted);
+  stopped.rule = MicrocanonicalOptions::Rule::qmc;
+  stopped.points = 1024;
+  const Chain<double> six(std::vector<double>(6, 1.0), std::vector<double>(6, 1.0));
+  CHECK_THROWS_AS(pendavg::microcanonical_average(six, 0.0, stopped), pendavg::interrupted);
+}
+
+TEST_CASE("domain: the microcanonical engine's double range is checked before any work",
+          "[domain]") {
+  using pendavg::MicrocanonicalOptions;
+  const Chain<double> pair({1, 1}, {1, 1});
+  for (const auto& [chain, energy] :
+       {std::pair{pair, 1e308}, std::pair{Chain<double>({1}, {1}), 1e300},
+        std::pair{Chain<double>({1, 1, 1e300}, {1, 1, 1}), 0.0}}) {
+    const std::string message = rejection([&] { pendavg::check_microcanonical(chain, energy); });
+    CHECK_THAT(message, Catch::Contains("17 or more digits"));
+    // check_microcanonical refuses exactly what the run refuses, with the same line.
+    CHECK(rejection([&] { pendavg::microcanonical_average(chain, energy); }) == message);
+  }
+  CHECK_THAT(rejection([&] { pendavg::check_microcanonical_excitation(pair, 1e-310); }),
+             Catch::Contains("subnormal"));
+  CHECK_NOTHROW(pendavg::check_microcanonical(pair, 1e100));
+  // The advice works: the MPFR run at E = 1e300 is finite and at the beta -> 0 limit
+  // (mu1/2) K(k)/E(k) = 0.34318348147092485... of <K_1>_E / E for unit masses and lengths.
+  pendavg::working_precision wp(20 + pendavg::guard_digits);
+  MicrocanonicalOptions o;
+  o.digits = 20;
+  const auto r = pendavg::microcanonical_average(pair.cast<mpfr_real>(), mpfr_real(1e300), o);
+  const mpfr_real ratio = r.kinetic[0].value / mpfr_real(1e300);
+  CHECK(abs(ratio - mpfr_real("0.3431834814709248549")) < mpfr_real(1e-18));
+}
+
+TEST_CASE("domain: the transfer operator's mass range is checked before any work", "[domain]") {
+  const Chain<double> extreme({1e-100, 1e100, 1, 1e-100, 1e100}, {1, 1, 1, 1, 1});
+  CHECK_THAT(rejection([&] { pendavg::check_average(extreme, 1.0, AverageOptions{}); }),
+             Catch::Contains("1e150"));
+}
+
 TEST_CASE("run control: the series refuses unbounded work and stops on request", "[domain]") {
   const Chain<mpfr_real> slow(std::vector<mpfr_real>{1, 1000}, std::vector<mpfr_real>{1, 1});
   CHECK_THAT(rejection([&] { pendavg::series_convergence(slow, mpfr_real(1), 16); }),

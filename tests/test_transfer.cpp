@@ -254,16 +254,26 @@ namespace {
 /// largest true error (tightness; only where the true error is above 1e-12, i.e. not rounding).
 struct Coverage {
   int covered = 0, quantities = 0;
+  int repetitions = 0, repetitions_covered = 0;  ///< repetitions with every quantity covered
+  double worst_miss = 0;  ///< the largest true error / reported error over the misses
   std::vector<double> pessimism;  ///< per repetition and observable: max error / max true error
   double geometric_mean_pessimism() const {
     double s = 0;
     for (const double p : pessimism) s += std::log(p);
     return std::exp(s / static_cast<double>(pessimism.size()));
   }
+  double arithmetic_mean_pessimism() const {
+    double s = 0;
+    for (const double p : pessimism) s += p;
+    return s / static_cast<double>(pessimism.size());
+  }
 };
 
+/// Random chains: N from 5 to max_particles (log-uniform), masses within a factor up to
+/// mass_ratio of 1 either way, lengths within length_ratio, beta 1e-2..1e3, g 0.5..2, tolerance
+/// 1e-9..1e-4; every quantity's reported error against the true error of a much finer level.
 Coverage transfer_coverage(int repetitions, std::uint64_t seed, double max_particles,
-                           double mass_ratio) {
+                           double mass_ratio, double length_ratio = 2) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
   Coverage out;
@@ -274,7 +284,7 @@ Coverage transfer_coverage(int repetitions, std::uint64_t seed, double max_parti
     const double ratio = std::pow(mass_ratio, unit(rng));
     std::vector<double> m(n), l(n);
     for (double& x : m) x = std::exp((2 * unit(rng) - 1) * std::log(ratio));
-    for (double& x : l) x = std::exp((2 * unit(rng) - 1) * std::log(2.0));
+    for (double& x : l) x = std::exp((2 * unit(rng) - 1) * std::log(length_ratio));
     const double g = 0.5 + 1.5 * unit(rng);
     const double tolerance = std::pow(10.0, -9 + 5 * unit(rng));
     const Chain<double> chain(m, l, g);
@@ -304,6 +314,7 @@ Coverage transfer_coverage(int repetitions, std::uint64_t seed, double max_parti
     }
     const std::vector<double>* reference[] = {&ref.beta_kinetic, &ref.beta2_kinetic_variance,
                                               &ref.cos_angle};
+    bool all = true;
     for (std::size_t q = 0; q < 3; ++q) {
       double largest_true = 0, largest_reported = 0;
       for (std::size_t i = 0; i < n; ++i) {
@@ -311,34 +322,53 @@ Coverage transfer_coverage(int repetitions, std::uint64_t seed, double max_parti
         const double r = (*reference[q])[i];
         const double true_error = std::abs(x.value - r);
         ++out.quantities;
-        if (true_error <= x.error) ++out.covered;
+        if (true_error <= x.error) {
+          ++out.covered;
+        } else {
+          all = false;
+          out.worst_miss = std::max(out.worst_miss, true_error / x.error);
+        }
         largest_true = std::max(largest_true, true_error);
         largest_reported = std::max(largest_reported, x.error);
       }
       if (largest_true > 1e-12) out.pessimism.push_back(largest_reported / largest_true);
     }
+    ++out.repetitions;
+    if (all) ++out.repetitions_covered;
   }
   return out;
 }
 
+/// The coverage targets (issue 13): every quantity covered in >= 95% of the repetitions, errors
+/// not more than 10x pessimistic on average (arithmetic mean over repetitions and observables).
+void check_coverage(const Coverage& c) {
+  INFO(c.covered << " of " << c.quantities << " quantities covered; " << c.repetitions_covered
+                 << " of " << c.repetitions << " repetitions fully covered; worst miss "
+                 << c.worst_miss << "x; pessimism: arithmetic mean " << c.arithmetic_mean_pessimism()
+                 << ", geometric mean " << c.geometric_mean_pessimism() << " over "
+                 << c.pessimism.size());
+  CHECK(c.repetitions_covered >= 0.95 * c.repetitions);
+  CHECK(c.covered >= 0.99 * c.quantities);
+  CHECK(c.arithmetic_mean_pessimism() <= 10);
+  CHECK(c.worst_miss <= 2);
+}
+
 }  // namespace
 
-TEST_CASE("transfer error estimates cover the true errors, and tightly (16 random chains)",
+TEST_CASE("transfer error estimates cover the true errors, and tightly (20 random chains)",
           "[transfer]") {
-  const Coverage c = transfer_coverage(16, 2024, 8, 10);
-  INFO(c.covered << " of " << c.quantities << " quantities covered; geometric-mean pessimism "
-                 << c.geometric_mean_pessimism() << " over " << c.pessimism.size());
-  CHECK(c.covered >= 0.95 * c.quantities);
-  CHECK(c.geometric_mean_pessimism() <= 10);
+  check_coverage(transfer_coverage(20, 2024, 8, 10));
 }
 
 TEST_CASE("transfer error estimates cover the true errors in 100 random repetitions (N <= 32)",
           "[transfer][.slow]") {
-  const Coverage c = transfer_coverage(100, 13, 32, 10);
-  INFO(c.covered << " of " << c.quantities << " quantities covered; geometric-mean pessimism "
-                 << c.geometric_mean_pessimism() << " over " << c.pessimism.size());
-  CHECK(c.covered >= 0.95 * c.quantities);
-  CHECK(c.geometric_mean_pessimism() <= 10);
+  check_coverage(transfer_coverage(100, 13, 32, 10));
+}
+
+TEST_CASE("transfer error estimates cover the true errors on wide chains (masses 1e-2..1e2, "
+          "lengths 0.1..10, N <= 64)",
+          "[transfer][.slow]") {
+  check_coverage(transfer_coverage(60, 7, 64, 100, 10));
 }
 
 namespace {

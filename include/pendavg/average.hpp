@@ -96,9 +96,11 @@ struct AverageOptions {
   /// OpenMP threads for the torus, qmc and transfer methods in double (results do not depend on
   /// it).
   int threads = 1;
-  /// Progress of each torus level and a stop request (RunControl, pendavg/result.hpp): a torus
-  /// run stopped after its first level returns that level's values (interrupted = true,
-  /// converged = false, errors still hold); before it, average() throws `interrupted`.
+  /// Progress (of each torus or transfer level, of the qmc shifts) and a stop request
+  /// (RunControl, pendavg/result.hpp): a torus run stopped after its first level returns that
+  /// level's values, a transfer run after two levels the first of them verified by the second,
+  /// a qmc run the shifts it finished (interrupted = true, converged = false, errors still hold);
+  /// before, average() throws `interrupted`.
   RunControl control;
   /// qmc: share the shifts with other processes (see ShiftPartition); null: compute them all.
   const ShiftPartition* partition = nullptr;

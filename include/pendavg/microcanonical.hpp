@@ -154,6 +154,10 @@ struct MicrocanonicalOptions {
   double sigmas = 0;
   double proposal_beta = 0;  ///< qmc: beta* of the von Mises proposal; 0: automatic (see header)
   int threads = 1;  ///< OpenMP threads (results bitwise independent of the count; MPFR: 1)
+  /// Progress (integral: the outermost angle's pieces; torus: each level's rows; qmc: the
+  /// shifts) and a stop request, polled within a fraction of a second: a stopped run throws
+  /// `interrupted` (no partial result carries an error estimate).
+  RunControl control;
   /// 0: run at the caller's precision with `tolerance`. > 0: check_digits<Real>(digits) (16 for
   /// double; 17..1000 for mpfr_real, run at digits + guard_digits with tolerance 10^-digits;
   /// the integral and torus rules only).
@@ -196,6 +200,19 @@ MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, co
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average_excitation(
     const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options = {});
+
+/// Checks, without computing, everything microcanonical_average(chain, energy, options) checks
+/// before its work (options, the state, the rule against N and digits, the engine's double
+/// range); throws the invalid_input it would throw. Cheap: a sweep checks every row with it
+/// before the first. For mpfr_real with options.digits = 0, call it under the working precision.
+template <class Real>
+void check_microcanonical(const Chain<Real>& chain, const Real& energy,
+                          const MicrocanonicalOptions& options = {});
+
+/// The same for microcanonical_average_excitation.
+template <class Real>
+void check_microcanonical_excitation(const Chain<Real>& chain, const Real& excitation,
+                                     const MicrocanonicalOptions& options = {});
 
 /// E_min = -sum_j g S_j l_j of the chain's stored parameters (double-double sum, rounded once).
 template <class Real>

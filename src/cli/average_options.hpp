@@ -26,10 +26,11 @@ inline constexpr std::array<std::string_view, 6> average_option_names{
 
 /// The state `value` of the column or option `state` (energy or excitation), parsed and checked
 /// against `chain` before any work: an excitation must be > 0, an energy above E_min (refused
-/// with the valid range).
+/// with the valid range), and the run `options` select must be in the engine's domain
+/// (check_microcanonical: e.g. the double range of the energy scale and the masses).
 template <class Real>
 Real microcanonical_state(const Chain<Real>& chain, std::string_view state, std::string_view value,
-                          std::string_view what) {
+                          std::string_view what, const MicrocanonicalOptions& options) {
   const Real x = parse_real<Real>(value, what, Domain::any);
   if (state == "excitation") {
     if (!(x > 0))
@@ -41,6 +42,14 @@ Real microcanonical_state(const Chain<Real>& chain, std::string_view state, std:
                       "' is at or below the minimum energy E_min = " +
                       decimal(minimum_energy(chain), 17) +
                       " of this chain: give E > E_min (or --excitation D > 0)");
+  }
+  try {
+    if (state == "excitation")
+      check_microcanonical_excitation(chain, x, options);
+    else
+      check_microcanonical(chain, x, options);
+  } catch (const invalid_input& bad) {
+    throw usage_error(std::string(what) + " " + std::string(value) + ": " + bad.what());
   }
   return x;
 }

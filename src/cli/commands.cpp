@@ -401,16 +401,18 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   Progress progress("average");
   StopOnSignal signals;  // a torus run stopped after its first level reports the last one, a
                          // qmc run its finished shifts
-  const bool qmc = resolve_average_method(chain.size(), run) == AverageMethod::qmc;
-  run.control.progress = [&](double fraction) {
-    progress(fraction, qmc ? "of the qmc shifts " : "of a torus level ");
-  };
+  const AverageMethod method = resolve_average_method(chain.size(), run);
+  const std::string unit = method == AverageMethod::qmc ? std::string("of the qmc points ")
+                                                        : std::string("of a ") +
+                                                              average_method_name(method) +
+                                                              " level ";
+  run.control.progress = [&](double fraction) { progress(fraction, unit); };
   run.control.stop = &stop_flag();
   const Averages<Real> result = average(chain, beta, run);
   const double seconds = stopwatch.seconds();
   if (result.interrupted)
-    std::fprintf(stderr, "[average] interrupted: the last finished torus level (or the qmc "
-                         "shifts finished) is reported\n");
+    std::fprintf(stderr, "[average] interrupted: the last finished level (torus; transfer: "
+                         "the last verified one; qmc: the shifts finished) is reported\n");
   const AverageReport report{chain.size(), beta_text, digits,
                              averages_text(result, digits, &beta), run_json(result), seconds};
   switch (format) {
@@ -442,7 +444,7 @@ template <class Real>
 MicrocanonicalAverages<Real> microcanonical_at(const Chain<Real>& chain, std::string_view state,
                                                std::string_view value, std::string_view what,
                                                const MicrocanonicalOptions& options) {
-  const Real x = microcanonical_state(chain, state, value, what);
+  const Real x = microcanonical_state(chain, state, value, what, options);
   return state == "excitation" ? microcanonical_average_excitation(chain, x, options)
                                : microcanonical_average(chain, x, options);
 }
@@ -568,6 +570,17 @@ std::string microcanonical_one(const Options& options, const AverageOptions& set
   }
   const std::string what = "--" + std::string(state);
   const Stopwatch stopwatch;
+  // Progress on stderr, and SIGINT/SIGTERM stop the run (no partial result: exit 130).
+  Progress progress("average");
+  StopOnSignal signals;
+  const std::string unit = std::string("of the microcanonical ") +
+                           microcanonical_rule_name(micro.rule, chain.size()) +
+                           (resolve_microcanonical_rule(chain.size(), micro.rule) ==
+                                    MicrocanonicalOptions::Rule::qmc
+                                ? " shifts "
+                                : " rule's outer pieces ");
+  micro.control.progress = [&](double fraction) { progress(fraction, unit); };
+  micro.control.stop = &stop_flag();
   const MicrocanonicalAverages<Real> result =
       microcanonical_at(chain, state, state_text, what, micro);
   const double seconds = stopwatch.seconds();
@@ -663,14 +676,15 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
 /// state against E_min) without computing it.
 template <class Real>
 void check_microcanonical_case(const CasesFile& file, const CaseRow& row,
-                               const std::vector<std::string>& columns, int digits) {
+                               const std::vector<std::string>& columns, int digits,
+                               const MicrocanonicalOptions& options) {
   std::optional<working_precision> precision;
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
   std::vector<std::string_view> fields(columns.size());
   case_fields(file, row, fields);
   std::vector<Real> masses, lengths;
   const Chain<Real> chain = case_chain<Real>(fields, columns, file.particles, masses, lengths);
-  microcanonical_state(chain, file.state, fields[0], columns[0]);
+  microcanonical_state(chain, file.state, fields[0], columns[0], options);
 }
 
 /// Per-thread scratch of `average --cases`: reused from row to row.
@@ -986,7 +1000,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const auto check = [&](std::size_t k) {
     try {
       if (plan.microcanonical)
-        check_microcanonical_case<Real>(file, rows[k], columns, digits);
+        check_microcanonical_case<Real>(file, rows[k], columns, digits, plan.micro);
       else
         check_case<Real>(file, rows[k], columns, plan.options);
     } catch (const invalid_input& bad) {
@@ -1203,13 +1217,14 @@ std::string limit_report(const Options& options, int digits, Format format) {
   settings.threads = hardware_threads();
   Progress progress("limit");
   StopOnSignal signals;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
-  settings.control.progress = [&](double fraction) { progress(fraction, "of a torus level "); };
+  const char* unit = chain.size() <= 5 ? "of a torus level " : "of a transfer level ";
+  settings.control.progress = [&](double fraction) { progress(fraction, unit); };
   settings.control.stop = &stop_flag();
   const Stopwatch high_watch;
   const Averages<Real> high_values = high_temperature_limit(chain, settings);
   const double high_seconds = high_watch.seconds();
   if (high_values.interrupted)
-    std::fprintf(stderr, "[limit] interrupted: the last finished torus level is reported\n");
+    std::fprintf(stderr, "[limit] interrupted: the last finished level is reported\n");
   const Stopwatch low_watch;
   const Averages<Real> low_values = low_temperature_limit(chain, settings);
   const double low_seconds = low_watch.seconds();

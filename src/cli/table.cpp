@@ -296,7 +296,8 @@ std::string microcanonical_row(const Point& point, const TablePlan& plan) {
     lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
   const Chain<Real> chain(std::move(masses), std::move(lengths), g);
   const MicrocanonicalOptions options = microcanonical_options(point.options, n);
-  const Real state = microcanonical_state(chain, plan.state, point.beta, "--" + plan.state);
+  const Real state =
+      microcanonical_state(chain, plan.state, point.beta, "--" + plan.state, options);
   const MicrocanonicalAverages<Real> averages =
       plan.state == "excitation" ? microcanonical_average_excitation(chain, state, options)
                                  : microcanonical_average(chain, state, options);
@@ -446,8 +447,8 @@ void check_point(const Point& point) {
     lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
   Chain<Real> chain(std::move(masses), std::move(lengths), g);
   if (point.state != "beta") {  // microcanonical: the state against E_min, the rule's options
-    microcanonical_state(chain, point.state, point.beta, "--" + point.state);
-    microcanonical_options(point.options, point.particles);
+    microcanonical_state(chain, point.state, point.beta, "--" + point.state,
+                         microcanonical_options(point.options, point.particles));
     return;
   }
   const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);

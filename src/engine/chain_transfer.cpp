@@ -525,12 +525,22 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
                           std::to_string(j + 1) + " (outside the double range)");
     }
   }
+  // The pivots u_j <= m_j / m_{j-1}, their offsets m_j / S_j and the node sums carry ratios up to
+  // M / m_min and their squares: finite only for M / m_min <= 1e150 (as the torus).
+  const Real lightest = *std::min_element(chain.masses().begin(), chain.masses().end());
+  using std::log10;
+  if (!(chain.total_mass() / lightest <= Real(1e150))) {
+    throw invalid_input("transfer: the total mass is 1e" +
+                        std::to_string(static_cast<int>(log10(chain.total_mass() / lightest))) +
+                        " times the lightest mass, beyond the double range of the transfer "
+                        "operator (1e150)");
+  }
 }
 
 template <class Real>
 TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
                                               std::size_t angle_nodes, std::size_t pivot_nodes,
-                                              int threads) {
+                                              int threads, const RunControl* control) {
   using std::cos;
   using std::log;
   using std::sin;
@@ -579,7 +589,14 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
   double kernel_evaluations = 0;
   std::vector<std::size_t> orbit;
   std::vector<Real> multiplicity;
+  // Between links (outside every parallel region): progress over both sweeps, and a stop.
+  const auto poll = [&](std::size_t links_done) {
+    if (control == nullptr) return;
+    if (control->stop_requested()) throw interrupted("transfer: stopped during a level");
+    control->report(static_cast<double>(links_done) / static_cast<double>(2 * N));
+  };
   for (std::size_t j = 0; j + 1 < N; ++j) {
+    poll(j);
     const PivotRule<Real>& pj = pivot[j];
     const PivotRule<Real>& pn = pivot[j + 1];
     const AngleRule<Real>& from = angle[j];
@@ -733,6 +750,7 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
     store(j, sums);
   }
   for (std::size_t j = N - 1; j-- > 0;) {
+    poll(2 * N - 1 - j);
     const PivotRule<Real>& pj = pivot[j];
     const PivotRule<Real>& pn = pivot[j + 1];
     const AngleRule<Real>& from = angle[j];
@@ -912,12 +930,10 @@ namespace {
 constexpr double pivot_first_errors[2] = {1e-4, 1e-6};
 constexpr double pivot_lookahead = 1e-5;
 constexpr double pivot_offset = 2;
-/// Factor on the extrapolated error of the last level (ladder_error).
-constexpr double ladder_safety = 1.5;
 /// Each quantity's error is at least this fraction of the largest scaled difference of its
 /// observable (beta<K_i>, Var K_i, <cos phi_i> separately) within local_window particles.
 constexpr double floor_fraction = 0.01;
-/// The local window of ladder_error: the particles within N / local_window_fraction of the
+/// The local window of verified_error: the particles within N / local_window_fraction of the
 /// quantity's own, at least local_window_min and at most local_window_max (O(N) work).
 constexpr std::size_t local_window_min = 2;
 constexpr std::size_t local_window_max = 64;
@@ -970,41 +986,40 @@ void flatten(const TransferLevel<Real>& level, std::vector<Real>& value,
   }
 }
 
-/// Error estimate of the last of a ladder of levels (values[L], values[L-1], ...) from the
-/// successive differences d_L = |v_L - v_{L-1}|, with each
-/// quantity's rounding budget (`noise`) taken off first. The convergence is geometric: once the
-/// differences contract by at least 2 per level, the error of level L is ~ d_L rho / (1 - rho)
-/// times ladder_safety, rho the last ratio D_L / D_{L-1} of the largest scaled differences (the
-/// next step is at least as long as the last, so it contracts at least as much: not credited,
-/// as the convergence per node is uneven), taken both over every quantity and over the
+/// The error of level L - 1 verified by level L (values[L], values[L-1], ...). The difference
+/// d = |v_L - v_{L-1}| bounds the error of v_{L-1} up to the (smaller) error of v_L: with a
+/// geometric contraction rho per level, err(v_{L-1}) <= d / (1 - rho). rho is measured as the last
+/// ratio D_L / D_{L-1} of the largest scaled differences, over every quantity and over the
 /// quantity's observable within the local window of its particle (near the root, where
-/// S_j / m_{j-1} is large, the pivot part may contract more slowly than the angle part at the
-/// free end); the larger of the two counts. Each quantity
-/// uses max(d_L, rho d_{L-1}, floor_fraction D_L^loc scale), D^loc the largest scaled difference
-/// of its observable within the window, so that an accidentally small difference (a sign change
-/// of its error) does not hide its error. Before the contraction, the larger of the last two
-/// differences. The result excludes the rounding budget (the caller adds it).
+/// S_j / m_{j-1} is large, the pivot part may contract more slowly than the angle part at the free
+/// end; where an angle rule switches from the window to the periodic trapezoid a few particles
+/// converge unevenly); the larger of the two counts, and the factor 1 / (1 - rho) is taken in
+/// [2, 10]. `contracting` is set when rho is measured (three levels at least) and <= 1/2: only
+/// then may the caller stop. Each quantity uses max(d, floor_fraction D^loc scale), D^loc the
+/// largest scaled difference of its observable within the window, so that an accidentally small
+/// difference (a sign change of its error) does not hide its error. The rounding budget of v_L is
+/// taken off d first and not included (the caller adds v_{L-1}'s). Reporting the verified level
+/// rather than extrapolating the last one costs one level (about the work of all before it) and
+/// keeps the estimate honest when a slow component surfaces late (an extrapolated ladder credited
+/// contractions that component never showed, and missed by up to 48x).
 template <class Real>
-std::vector<Real> ladder_error(const std::vector<std::vector<Real>>& values,
-                               const std::vector<Real>& scale, const std::vector<Real>& noise) {
+std::vector<Real> verified_error(const std::vector<std::vector<Real>>& values,
+                                 const std::vector<Real>& scale, const std::vector<Real>& noise,
+                                 bool& contracting) {
   using std::abs;
-  constexpr double max_contraction = 0.5;
+  constexpr double max_contraction = 0.5, largest_factor = 10, smallest_factor = 2;
   const std::size_t L = values.size() - 1, count = scale.size(), N = count / 3;
   std::vector<Real> error(count, std::numeric_limits<Real>::infinity());
+  contracting = false;
   if (L == 0) return error;
   const auto ratio = [](const Real& a, const Real& b) { return b > 0 ? Real(a / b) : Real(1); };
-  // The contraction of the last step, D_L / D_{L-1}; not contracting (1) unless the step before
-  // contracted too (D_{L-1} < D_{L-2}).
-  const auto contraction = [&](const Real* D) {
-    return L >= 3 && D[1] < D[2] ? ratio(D[0], D[1]) : Real(1);
-  };
   const std::size_t window = std::clamp<std::size_t>(
       (N + local_window_fraction - 1) / local_window_fraction, local_window_min, local_window_max);
   // scaled[back * count + q]: |v_k - v_{k-1}| / scale of quantity q, k = L - back, with the
   // rounding taken off; whole[back]: their largest over every quantity.
-  const std::size_t steps = std::min<std::size_t>(L, 3);  // differences L, L-1, L-2 (if any)
-  std::vector<Real> scaled(3 * count);
-  Real whole[3] = {0, 0, 0};
+  const std::size_t steps = std::min<std::size_t>(L, 2);  // differences L and L-1 (if any)
+  std::vector<Real> scaled(2 * count);
+  Real whole[2] = {0, 0};
   for (std::size_t back = 0; back < steps; ++back) {
     const std::vector<Real>&now = values[L - back], &before = values[L - back - 1];
     for (std::size_t q = 0; q < count; ++q) {
@@ -1013,31 +1028,28 @@ std::vector<Real> ladder_error(const std::vector<std::vector<Real>>& values,
       whole[back] = std::max(whole[back], scaled[back * count + q]);
     }
   }
+  // The contraction of the last step, D_L / D_{L-1} (1: not measured).
+  const auto contraction = [&](const Real* D) { return L >= 2 ? ratio(D[0], D[1]) : Real(1); };
   const Real whole_rho = contraction(whole);
+  contracting = L >= 2 && (whole_rho <= Real(max_contraction) || !(whole[0] > 0));
   for (std::size_t o = 0; o < 3; ++o) {  // beta<K_i>, Var K_i, <cos phi_i>
     for (std::size_t i = 0; i < N; ++i) {
       const std::size_t q = o * N + i;
       const std::size_t lo = o * N + (i > window ? i - window : 0);
       const std::size_t hi = o * N + std::min(N, i + window + 1);
-      Real local[3] = {0, 0, 0};  // the observable's largest near particle i
+      Real local[2] = {0, 0};  // the observable's largest near particle i
       for (std::size_t back = 0; back < steps; ++back) {
         for (std::size_t p = lo; p < hi; ++p) {
           local[back] = std::max(local[back], scaled[back * count + p]);
         }
       }
-      const Real d = abs(values[L][q] - values[L - 1][q]);
-      const Real dp = L >= 2 ? Real(abs(values[L - 1][q] - values[L - 2][q])) : Real(0);
+      const Real d = std::max(Real(0), Real(abs(values[L][q] - values[L - 1][q]) - noise[q]));
       const Real floor = Real(floor_fraction) * local[0] * scale[q];
-      if (L >= 2 && !(whole[0] > 0)) {
-        error[q] = d;  // every difference is rounding
-        continue;
-      }
       const Real rho = std::max(whole_rho, contraction(local));
-      if (rho <= Real(max_contraction)) {
-        error[q] = Real(ladder_safety) * rho / (1 - rho) * std::max({d, Real(rho * dp), floor});
-      } else {
-        error[q] = std::max({d, dp, floor});
-      }
+      const Real factor =
+          std::clamp(Real(1 / (1 - std::min(rho, Real(0.9)))), Real(smallest_factor),
+                     Real(largest_factor));
+      error[q] = factor * std::max(d, floor);
     }
   }
   return error;
@@ -1081,9 +1093,10 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   }
   const std::size_t N = chain.size();
   const Real tol = Real(options.tolerance);
-  // The pivot nodes of level k (see "refinement and error estimate" above), never fewer than
-  // the previous level's. A level whose m is held at max_pivot_nodes hides its pivot error from
-  // the differences: the result is then not converged.
+  // The pivot nodes of level k (see "refinement and error estimate" above), more than the
+  // previous level's (so that the verification level's difference also sees the pivot error).
+  // A level whose m is held at max_pivot_nodes may hide its pivot error from the differences:
+  // the result is then not converged.
   std::size_t m = 0;
   bool pivots_capped = false;
   const auto next_pivots = [&](std::size_t level, const Real& last_difference) {
@@ -1093,36 +1106,60 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
                                   : pivot_lookahead * static_cast<double>(last_difference));
     const std::size_t wanted = transfer_pivot_nodes(chain, expected);
     pivots_capped = wanted > options.max_pivot_nodes;
-    return std::max(m, std::min(options.max_pivot_nodes, wanted));
+    return std::min(options.max_pivot_nodes, std::max(m + 1, wanted));
   };
 
+  /// One finished level: its resolution and quantities (flatten).
+  struct Rung {
+    std::size_t angle_nodes = 0, pivot_nodes = 0;
+    bool pivots_capped = false;
+    std::vector<Real> value, scale, noise;
+  };
   TransferDiagnostics<Real> run;
-  std::vector<std::vector<Real>> ladder;
-  std::vector<Real> value, scale, noise, error;
+  std::vector<Rung> rungs;
+  std::vector<std::vector<Real>> ladder;  // the rungs' values, for verified_error
+  std::vector<Real> error;                // of the last rung but one, verified by the last
+  bool contracting = false, stopped = false;
   std::size_t n = options.angle_nodes ? options.angle_nodes : 16;
   Real last_difference = 1;  // the largest scaled difference of the last two levels
   for (;;) {
-    m = next_pivots(ladder.size(), last_difference);
-    const TransferLevel<Real> level = chain_transfer_level(chain, beta, n, m, options.threads);
+    m = next_pivots(rungs.size(), last_difference);
+    TransferLevel<Real> level;
+    try {
+      level = chain_transfer_level(chain, beta, n, m, options.threads, options.control);
+    } catch (const interrupted&) {
+      // Two finished levels carry a verified estimate: report the first of the last two.
+      if (rungs.size() < 2) throw;
+      stopped = true;
+      break;
+    }
     run.kernel_evaluations += level.kernel_evaluations;
     ++run.levels;
-    flatten(level, value, scale, noise);
-    ladder.push_back(value);
-    if (ladder.size() >= 2) {
+    Rung rung;
+    rung.angle_nodes = n;
+    rung.pivot_nodes = m;
+    rung.pivots_capped = pivots_capped;
+    flatten(level, rung.value, rung.scale, rung.noise);
+    ladder.push_back(rung.value);
+    rungs.push_back(std::move(rung));
+    if (rungs.size() >= 2) {
       using std::abs;
+      const Rung &last = rungs.back(), &reported = rungs[rungs.size() - 2];
       last_difference = 0;
-      const std::vector<Real>& previous = ladder[ladder.size() - 2];
-      for (std::size_t q = 0; q < value.size(); ++q) {
-        last_difference = std::max(last_difference, Real(abs(value[q] - previous[q]) / scale[q]));
+      for (std::size_t q = 0; q < last.value.size(); ++q) {
+        last_difference = std::max(last_difference,
+                                   Real(abs(last.value[q] - reported.value[q]) / last.scale[q]));
       }
+      error = verified_error(ladder, last.scale, last.noise, contracting);
+      if (contracting && within(error, reported.scale, reported.noise, tol)) break;
     }
-    error = ladder_error(ladder, scale, noise);
-    if (ladder.size() >= 2 && within(error, scale, noise, tol)) break;
-    if (next_angle_nodes(n) > options.max_angle_nodes) break;
+    // The cap stops refinement once a level is verified (the first verifies nothing).
+    if (rungs.size() >= 2 && next_angle_nodes(n) > options.max_angle_nodes) break;
     n = next_angle_nodes(n);
   }
-  run.angle_nodes = n;
-  run.pivot_nodes = m;
+  const Rung& reported = rungs[rungs.size() - 2];
+  run.angle_nodes = reported.angle_nodes;
+  run.pivot_nodes = reported.pivot_nodes;
 
   Averages<Real> out;
   out.method = Method::transfer;
@@ -1132,12 +1169,13 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   out.beta_kinetic.resize(N);
   out.beta2_kinetic_variance.resize(N);
   out.cos_angle.resize(N);
-  out.converged = !pivots_capped;
+  out.converged = !rungs.back().pivots_capped && contracting && !stopped;
+  out.interrupted = stopped;
   for (std::size_t i = 0; i < N; ++i) {
     const auto pack = [&](std::size_t q) {
-      const Real e = error[q] + noise[q];
-      if (!(e <= tol * scale[q])) out.converged = false;
-      return Estimate<Real>{value[q], e, ErrorKind::estimate};
+      const Real e = error[q] + reported.noise[q];
+      if (!(e <= tol * reported.scale[q])) out.converged = false;
+      return Estimate<Real>{reported.value[q], e, ErrorKind::estimate};
     };
     out.beta_kinetic[i] = pack(i);
     out.beta2_kinetic_variance[i] = pack(N + i);
@@ -1153,8 +1191,8 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
 }
 
 #define PENDAVG_INSTANTIATE_CHAIN_TRANSFER(Real)                                          \
-  template TransferLevel<Real> chain_transfer_level<Real>(const Chain<Real>&, const Real&, \
-                                                          std::size_t, std::size_t, int);  \
+  template TransferLevel<Real> chain_transfer_level<Real>(                                \
+      const Chain<Real>&, const Real&, std::size_t, std::size_t, int, const RunControl*);  \
   template Averages<Real> chain_transfer_average<Real>(const Chain<Real>&, const Real&,    \
                                                        const TransferOptions&);            \
   template std::size_t transfer_pivot_nodes<Real>(const Chain<Real>&, double);           \

@@ -51,18 +51,22 @@
 // peaks, so the same n resolves any beta up to the double range of alpha_j.
 //
 // Refinement and error estimate (ErrorKind::estimate, not a bound), per quantity:
-//   * levels (n_k, m_k), n_k = 16, 24, 32, 40, 56, 72, ... (~1.25x) until the estimate is within
-//     the tolerance; m_k from the predicted Chebyshev rate of the slowest pivot range, so that
-//     the pivot error stays far below the angle error and follows it down the ladder;
-//   * the error of the last level is 1.5 d rho / (1 - rho), d = |v_L - v_{L-1}| (at least
-//     rho |v_{L-1} - v_{L-2}| and 1% of the largest difference of the same observable nearby:
-//     a sign change of one quantity's error cannot hide it), rho = D_L / D_{L-1} the last
-//     contraction of the largest differences, over the whole chain and over the particles
-//     near the quantity's own (the larger); before the ladder contracts, the larger difference;
+//   * levels (n_k, m_k), n_k = 16, 24, 32, 40, 56, 72, ... (~1.25x); m_k from the predicted
+//     Chebyshev rate of the slowest pivot range, so that the pivot error stays far below the
+//     angle error and follows it down the ladder, and at least m_{k-1} + 1;
+//   * the reported value is the last level but one, v_{L-1}, verified by the last: its error is
+//     f d, d = |v_L - v_{L-1}| (at least 1% of the largest difference of the same observable
+//     nearby: a sign change of one quantity's error cannot hide it), f = 1 / (1 - rho) in [2, 10],
+//     rho = D_L / D_{L-1} the last contraction of the largest differences, over the whole chain
+//     and over the particles near the quantity's own (the larger); the run stops once the
+//     errors are within the tolerance and the ladder contracts (rho <= 1/2 measured over three
+//     levels at least);
 //   * plus a rounding budget from the sums of |terms| of each node pairing: the pairings cancel
 //     for light particles (tr X_i = 1 + u/(1+u) + 2 Q S with 2 Q S ~ -1), so there the rounding,
 //     not the discretization, limits the relative accuracy of beta<K_i> and Var K_i;
 //     converged = false when an error exceeds the tolerance (e.g. that budget does).
+// Progress and stop (TransferOptions::control) are polled between links: a run stopped after two
+// levels reports the first of them, verified by the second (interrupted, not converged).
 // Measured coverage and pessimism: README "Large N"; tests/test_transfer.cpp.
 //
 // When to prefer something else. N = 2: the 1-D integral (double_pendulum.hpp) is faster and
@@ -97,6 +101,10 @@ struct TransferOptions {
   std::size_t max_angle_nodes = 512;  ///< refinement stops (converged = false) beyond it
   std::size_t max_pivot_nodes = 96;   ///< m never exceeds it
   int threads = 1;                    ///< OpenMP threads (results independent of it)
+  /// Progress (the fraction of the current level's two sweeps) and stop, polled between links:
+  /// stopped after two finished levels, the run returns the last of them with its ladder error
+  /// (interrupted, not converged); before, it throws `interrupted`. Null: neither.
+  const RunControl* control = nullptr;
 };
 
 /// One resolution, no error estimate: the building block of chain_transfer_average and of the
@@ -111,10 +119,12 @@ struct TransferLevel {
   double kernel_evaluations = 0;  ///< (phi_j, u_j, phi_{j+1}) triples of both sweeps
 };
 
+/// `control` (optional): progress over the two sweeps, and a stop request polled between links
+/// (throws `interrupted`).
 template <class Real>
 TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
                                          std::size_t angle_nodes, std::size_t pivot_nodes,
-                                         int threads = 1);
+                                         int threads = 1, const RunControl* control = nullptr);
 
 /// The pivot nodes m the refinement takes for a level whose expected relative error is
 /// `expected_error`: the predicted pivot error rho^-m (Chebyshev rate of the slowest pivot range)

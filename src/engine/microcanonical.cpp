@@ -1,6 +1,9 @@
 // Microcanonical averages (pendavg/microcanonical.hpp): the three rules, the two entry points
 // (energy, excitation) and their explicit instantiations (double, long double, mpfr_real).
 #include "engine/microcanonical.hpp"
+#include "engine/text.hpp"
+
+#include <algorithm>
 
 #include <cmath>
 #include <optional>
@@ -35,6 +38,7 @@ typename NestedShellIntegral<Real>::Shared nested_shared(const Chain<Real>& chai
   // each level gets a quarter of the budget: the inner errors are carried outwards
   shared.tolerance = tolerance / 4;
   shared.max_level = options.max_level;
+  shared.control = &options.control;
   shared.targets.resize(n);
   shared.light.assign(n, false);
   const bool below_zero = setup.excitation < setup.gamma_sum;  // E < 0
@@ -345,16 +349,44 @@ Real matched_beta_excitation(const Chain<Real>& chain, const Real& excitation) {
   return sqrt(lo * hi);
 }
 
-/// The run of one entry point: validated, at the working precision, from the excitation D.
+/// The engine's domain in double (and long double, checked at double's range): the node sums
+/// carry (E - U)^2 and mass ratios up to M / m_min squared, so E, D = E - E_min and the well's
+/// depth sum_j g S_j l_j must stay below 1e150, M / m_min too, and D must be a normal number.
+/// Refused before any work, pointing to MPFR where a rule runs in it.
 template <class Real>
-MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const Real& energy,
-                                                 const Real& excitation,
-                                                 const MicrocanonicalOptions& options) {
+void check_double_range(const Chain<Real>& chain, const Real& energy, const Real& excitation,
+                        MicrocanonicalOptions::Rule rule) {
+  using std::abs;
+  const std::string advice = rule == MicrocanonicalOptions::Rule::qmc
+                                 ? "outside the double range of the microcanonical engine"
+                                 : "request 17 or more digits (MPFR)";
+  constexpr double largest = 1e150;
+  Real depth = 0;
+  for (std::size_t j = 0; j < chain.size(); ++j) depth += chain.potential_coefficient(j);
+  const auto text = [](const Real& x) { return short_decimal(static_cast<double>(x)); };
+  if (!(abs(energy) <= Real(largest)) || !(excitation <= Real(largest)) ||
+      !(depth <= Real(largest)))
+    throw invalid_input("microcanonical: the energy scale (E = " + text(energy) + ", E - E_min = " +
+                        text(excitation) + ", well depth " + text(depth) +
+                        ") is beyond 1e150, where the shell's squares leave double's range; " +
+                        advice);
+  if (excitation < Real(std::numeric_limits<double>::min()))
+    throw invalid_input("microcanonical: the excitation E - E_min = " + text(excitation) +
+                        " is subnormal in double; " + advice);
+  const Real lightest = *std::min_element(chain.masses().begin(), chain.masses().end());
+  if (!(chain.total_mass() / lightest <= Real(largest)))
+    throw invalid_input("microcanonical: the total mass is " +
+                        text(chain.total_mass() / lightest) +
+                        " times the lightest mass, beyond double's range (1e150); " + advice);
+}
+
+/// Everything the run checks before its work (the rule against N and the digits, the qmc
+/// options, the double range), for a chain and state at the working precision.
+template <class Real>
+void check_run(const Chain<Real>& chain, const Real& energy, const Real& excitation,
+               const MicrocanonicalOptions& options) {
   using Rule = MicrocanonicalOptions::Rule;
-  using std::isfinite;
-  using std::pow;
   const std::size_t n = chain.size();
-  constexpr bool multiprecision = is_mpfr_v<Real>;
   const Rule rule = resolve_microcanonical_rule(n, options.rule);
   if (rule == Rule::integral && n > 6) {
     throw invalid_input("microcanonical: the integral rule is for N <= 6; use qmc for N = " +
@@ -371,6 +403,41 @@ MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const 
     throw invalid_input("microcanonical: qmc (automatic for N >= 5) runs in double only; "
                         "digits > 16 need the integral or torus rule (N <= 4)");
   }
+  if (rule == Rule::qmc) {
+    using namespace detail::qmc;
+    const std::size_t points = options.points;
+    if (points < 1024 || points > (std::size_t(1) << lattice_table_max_log2) ||
+        (points & (points - 1)) != 0) {
+      throw invalid_input("microcanonical qmc: points must be a power of two in [2^10, 2^16]");
+    }
+    if (options.shifts < 4) throw invalid_input("microcanonical qmc: at least 4 random shifts");
+    if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
+      throw invalid_input("microcanonical qmc: sigmas must be positive (or 0: automatic)");
+    }
+    if (!(options.proposal_beta >= 0) || !std::isfinite(options.proposal_beta)) {
+      throw invalid_input("microcanonical qmc: proposal_beta must be >= 0 and finite");
+    }
+    if (n > lattice_max_dimension) {
+      throw invalid_input("microcanonical qmc: the built-in lattices cover N <= " +
+                          std::to_string(lattice_max_dimension));
+    }
+  }
+  if constexpr (!is_mpfr_v<Real>) check_double_range(chain, energy, excitation, rule);
+}
+
+/// The run of one entry point: validated (check_run), at the working precision, from the
+/// excitation D.
+template <class Real>
+MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const Real& energy,
+                                                 const Real& excitation,
+                                                 const MicrocanonicalOptions& options) {
+  using Rule = MicrocanonicalOptions::Rule;
+  using std::isfinite;
+  using std::pow;
+  const std::size_t n = chain.size();
+  constexpr bool multiprecision = is_mpfr_v<Real>;
+  const Rule rule = resolve_microcanonical_rule(n, options.rule);
+  check_run(chain, energy, excitation, options);
   Real tolerance = Real(options.tolerance.value_or(default_microcanonical_tolerance(n)));
   if (options.digits != 0) tolerance = pow(Real(10), -options.digits);
   MicrocanonicalOptions run = options;
@@ -392,21 +459,6 @@ MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const 
   if (rule == Rule::qmc) {
     using namespace detail::qmc;
     const std::size_t points = options.points;
-    if (points < 1024 || points > (std::size_t(1) << lattice_table_max_log2) ||
-        (points & (points - 1)) != 0) {
-      throw invalid_input("microcanonical qmc: points must be a power of two in [2^10, 2^16]");
-    }
-    if (options.shifts < 4) throw invalid_input("microcanonical qmc: at least 4 random shifts");
-    if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
-      throw invalid_input("microcanonical qmc: sigmas must be positive (or 0: automatic)");
-    }
-    if (!(options.proposal_beta >= 0) || !std::isfinite(options.proposal_beta)) {
-      throw invalid_input("microcanonical qmc: proposal_beta must be >= 0 and finite");
-    }
-    if (n > lattice_max_dimension) {
-      throw invalid_input("microcanonical qmc: the built-in lattices cover N <= " +
-                          std::to_string(lattice_max_dimension));
-    }
     unsigned log2_points = 0;
     while ((std::size_t(1) << log2_points) < points) ++log2_points;
     const auto& row = lattice_table[log2_points - lattice_table_min_log2];
@@ -426,13 +478,19 @@ MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const 
     std::vector<QmcShellShift<Real>> sums(shifts, QmcShellShift<Real>(n));
     const int team = std::max(run.threads, 1);
     ParallelErrors shift_errors;  // an exception may not leave the parallel region
+    std::size_t shifts_done = 0;
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
 #endif
     for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
       shift_errors.capture([&] {
         const std::size_t rr = static_cast<std::size_t>(r);
+        if (options.control.stop_requested()) throw interrupted("microcanonical: stopped");
         sums[rr] = qmc_shift_sums(chain, setup, beta_star, maps, shift[rr], points, generator);
+#if defined(_OPENMP)
+#pragma omp critical(pendavg_microcanonical_progress)
+#endif
+        options.control.report(static_cast<double>(++shifts_done) / static_cast<double>(shifts));
       });
     }
     shift_errors.rethrow();
@@ -618,42 +676,86 @@ Real matched_beta(const Chain<Real>& chain, const Real& energy) {
   return detail::microcanonical::matched_beta_excitation(chain, excitation);
 }
 
+namespace detail::microcanonical {
+
+/// The state of an entry point at the working precision: the chain, E and D = E - E_min, checked
+/// (finite, D > 0).
+template <class Real>
+struct State {
+  Chain<Real> chain;
+  Real energy, excitation;
+};
+
+template <class Real>
+State<Real> state_from_energy(const Chain<Real>& chain, const Real& energy) {
+  using std::isfinite;
+  State<Real> s{at_working_precision(chain), at_working_precision(energy), Real(0)};
+  if (!isfinite(s.energy)) throw invalid_input("microcanonical: the energy must be finite");
+  s.excitation = excitation_of(s.chain, s.energy);
+  if (!(s.excitation > 0)) {
+    throw invalid_input(below_minimum_message(s.chain, "the energy must exceed the minimum energy"));
+  }
+  return s;
+}
+
+template <class Real>
+State<Real> state_from_excitation(const Chain<Real>& chain, const Real& excitation) {
+  using std::isfinite;
+  State<Real> s{at_working_precision(chain), Real(0), at_working_precision(excitation)};
+  if (!isfinite(s.excitation)) throw invalid_input("microcanonical: the excitation must be finite");
+  if (!(s.excitation > 0)) {
+    throw invalid_input("microcanonical: no accessible states: the excitation D = E - E_min "
+                        "must be > 0");
+  }
+  const DoubleWord<Real> depth = well_depth(s.chain);
+  s.energy = s.excitation - depth.hi - depth.lo;
+  return s;
+}
+
+}  // namespace detail::microcanonical
+
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
                                                      const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  using std::isfinite;
   check_microcanonical_options<Real>(options);
   std::optional<precision_guard<Real>> guard;
   if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const Chain<Real> model = at_working_precision(chain);
-  const Real e = at_working_precision(energy);
-  if (!isfinite(e)) throw invalid_input("microcanonical: the energy must be finite");
-  const Real excitation = excitation_of(model, e);
-  if (!(excitation > 0)) {
-    throw invalid_input(below_minimum_message(model, "the energy must exceed the minimum energy"));
-  }
-  return microcanonical_run(model, e, excitation, options);
+  const State<Real> s = state_from_energy(chain, energy);
+  return microcanonical_run(s.chain, s.energy, s.excitation, options);
 }
 
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average_excitation(
     const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  using std::isfinite;
   check_microcanonical_options<Real>(options);
   std::optional<precision_guard<Real>> guard;
   if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const Chain<Real> model = at_working_precision(chain);
-  const Real d = at_working_precision(excitation);
-  if (!isfinite(d)) throw invalid_input("microcanonical: the excitation must be finite");
-  if (!(d > 0)) {
-    throw invalid_input("microcanonical: no accessible states: the excitation D = E - E_min "
-                        "must be > 0");
-  }
-  const DoubleWord<Real> depth = well_depth(model);
-  const Real energy = d - depth.hi - depth.lo;
-  return microcanonical_run(model, energy, d, options);
+  const State<Real> s = state_from_excitation(chain, excitation);
+  return microcanonical_run(s.chain, s.energy, s.excitation, options);
+}
+
+template <class Real>
+void check_microcanonical(const Chain<Real>& chain, const Real& energy,
+                          const MicrocanonicalOptions& options) {
+  using namespace detail::microcanonical;
+  check_microcanonical_options<Real>(options);
+  std::optional<precision_guard<Real>> guard;
+  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
+  const State<Real> s = state_from_energy(chain, energy);
+  check_run(s.chain, s.energy, s.excitation, options);
+}
+
+template <class Real>
+void check_microcanonical_excitation(const Chain<Real>& chain, const Real& excitation,
+                                     const MicrocanonicalOptions& options) {
+  using namespace detail::microcanonical;
+  check_microcanonical_options<Real>(options);
+  std::optional<precision_guard<Real>> guard;
+  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
+  const State<Real> s = state_from_excitation(chain, excitation);
+  check_run(s.chain, s.energy, s.excitation, options);
 }
 
 MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
@@ -763,6 +865,7 @@ MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std:
   }
   out.digits = options.digits == min_digits ? 0 : options.digits;
   out.threads = options.threads;
+  out.control = options.control;
   return out;
 }
 
@@ -771,6 +874,10 @@ MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std:
       const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
   template MicrocanonicalAverages<Real> microcanonical_average_excitation<Real>(              \
       const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
+  template void check_microcanonical<Real>(const Chain<Real>&, const Real&,                   \
+                                            const MicrocanonicalOptions&);                     \
+  template void check_microcanonical_excitation<Real>(const Chain<Real>&, const Real&,        \
+                                                       const MicrocanonicalOptions&);          \
   template Real minimum_energy<Real>(const Chain<Real>&);                                     \
   template Real excitation_energy<Real>(const Chain<Real>&, const Real&);                     \
   template Real matched_beta<Real>(const Chain<Real>&, const Real&);

@@ -455,6 +455,7 @@ class NestedShellIntegral {
     /// nothing. Empty: relative accuracy only (the rough first pass).
     std::vector<std::vector<Real>> floor;
     bool force_stop = false;  ///< stop at max_level without counting it as a failure
+    const RunControl* control = nullptr;  ///< progress (outermost pieces) and stop (nodes)
   };
 
   /// Quantity c is compared with its own size (kinetic and second moments) rather than with
@@ -487,7 +488,9 @@ class NestedShellIntegral {
  private:
   /// The integrand at the node whose angles theta_[0..n) are set.
   void evaluate_node(Real* out) {
-    ++evaluations;
+    // A stop request ends the run within 256 nodes (microseconds each): no partial result.
+    if ((++evaluations & 255) == 0 && s_.control != nullptr && s_.control->stop_requested())
+      throw interrupted("microcanonical: stopped");
     const ShellSetup<Real>& k = *s_.setup;
     for (std::size_t i = 0; i + 1 < n_; ++i) delta_[i] = theta_[i + 1] - theta_[i];
     const Real zx = vx_[n_ - 1], zy = vy_[n_ - 1];
@@ -642,7 +645,10 @@ class NestedShellIntegral {
       }
       integrate_piece(j, lo, hi, piece);
       for (std::size_t c = 0; c < 2 * q_; ++c) out[c] += multiplicity * piece[c];
+      if (j == 1 && s_.control != nullptr)
+        s_.control->report(static_cast<double>(a + 1) / static_cast<double>(ends.size() - 1));
     }
+    if (j == 1 && s_.control != nullptr) s_.control->report(1.0);  // skipped pieces included
   }
 
   /// tanh-sinh on [lo, hi] over theta_j; writes 2q entries (values, then error estimates).

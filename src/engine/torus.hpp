@@ -94,6 +94,7 @@
 #include <complex>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <random>
@@ -1298,12 +1299,20 @@ struct ShiftSums {
   }
 };
 
+/// The points between two calls of a shift's `poll` (lattice_sums_poll).
+inline constexpr std::size_t lattice_poll_points = 4096;
+
+/// The sums of one shifted lattice. `poll` (optional) is called after every lattice_poll_points
+/// points with their number and returns false to abandon the shift (a stop request): the sums
+/// are then incomplete and `*complete` is set to false.
 template <class Real>
 ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
                                      const detail::torus::WeightConstants<Real>& k,
                                      const PivotSampler<Real>& sampler,
                                      const std::vector<Real>& shift, std::size_t points,
-                                     const std::vector<std::uint32_t>& generator) {
+                                     const std::vector<std::uint32_t>& generator,
+                                     const std::function<bool(std::size_t)>* poll = nullptr,
+                                     bool* complete = nullptr) {
   const std::size_t n = chain.size();
   const std::size_t grid = sampler.grid;
   ShiftSums<Real> sums(n);
@@ -1316,7 +1325,12 @@ ShiftSums<Real> shifted_lattice_sums(const Chain<Real>& chain,
   const Real max_normal = std::numeric_limits<Real>::max();
   const Real infinity = std::numeric_limits<Real>::infinity();
   bool first = true;
+  if (complete != nullptr) *complete = true;
   for (std::uint64_t p = 0; p < points; ++p) {
+    if (poll != nullptr && p > 0 && p % lattice_poll_points == 0 && !(*poll)(lattice_poll_points)) {
+      if (complete != nullptr) *complete = false;
+      break;
+    }
     Real log_w = 0, product = 1;
     for (std::size_t j = 0; j < n; ++j) {
       const std::uint64_t kz = (p * generator[j]) & mask;  // k z_j mod 2^m, exact
@@ -1586,7 +1600,22 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   const ShiftRange mine = shift_range(options.partition, shifts);
   const RunControl* control = options.partition ? nullptr : options.control;
   std::vector<char> finished(shifts, 0);
-  std::size_t done = 0;
+  // Progress over every point of every shift, and a stop request, polled every
+  // lattice_poll_points points inside each shift (a big point stops within a fraction of a
+  // second; the unfinished shifts are dropped).
+  std::size_t points_done = 0;
+  const double all_points = static_cast<double>(points) * static_cast<double>(shifts);
+  const std::function<bool(std::size_t)> poll = [&](std::size_t count) {
+    if (control->stop_requested()) return false;
+#if defined(_OPENMP)
+#pragma omp critical(pendavg_qmc_progress)
+#endif
+    {
+      points_done += count;
+      control->report(static_cast<double>(points_done) / all_points);
+    }
+    return true;
+  };
   int team = 1;
   if constexpr (std::is_floating_point_v<Real>) team = std::max(options.threads, 1);
 #if defined(_OPENMP)
@@ -1597,14 +1626,13 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
     errors.capture([&] {
       const auto rr = static_cast<std::size_t>(r);
       if (control != nullptr && control->stop_requested()) return;
-      sums[rr] = shifted_lattice_sums(chain, constants, sampler, shift[rr], points, generator);
+      bool complete = true;
+      sums[rr] = shifted_lattice_sums(chain, constants, sampler, shift[rr], points, generator,
+                                      control != nullptr ? &poll : nullptr, &complete);
+      if (!complete) return;
       finished[rr] = 1;
-      if (control != nullptr) {
-#if defined(_OPENMP)
-#pragma omp critical(pendavg_qmc_progress)
-#endif
-        control->report(static_cast<double>(++done) / static_cast<double>(shifts));
-      }
+      if (control != nullptr) poll(points % lattice_poll_points ? points % lattice_poll_points
+                                                                : lattice_poll_points);
     });
   }
   errors.rethrow();

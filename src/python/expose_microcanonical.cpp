@@ -194,7 +194,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
                              std::to_string(lv.size()) + " lengths");
     const Chain<double> chain(std::move(mv), std::move(lv), gravity);
     const MicrocanonicalOptions options = rule_options(settings, chain.size());
-    const double x = cli::microcanonical_state(chain, state, state_text, what);
+    const double x = cli::microcanonical_state(chain, state, state_text, what, options);
     record.particles = chain.size();
     py::gil_scoped_release release;
     const Stopwatch watch;
@@ -221,7 +221,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
                              std::to_string(lv.size()) + " lengths");
     const Chain<mpfr_real> chain(std::move(mv), std::move(lv), std::move(gravity));
     const MicrocanonicalOptions options = rule_options(settings, chain.size());
-    const mpfr_real x = cli::microcanonical_state(chain, state, state_text, what);
+    const mpfr_real x = cli::microcanonical_state(chain, state, state_text, what, options);
     record.particles = chain.size();
     const Stopwatch watch;
     const MicrocanonicalAverages<mpfr_real> r = run_at(chain, by_excitation, x, options);

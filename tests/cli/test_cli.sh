@@ -747,6 +747,62 @@ assert d['interrupted'] and not d['converged'], d
 exact = 0.4991310458913583  # the converged double value (error ~3e-14)
 assert abs(float(d['beta_K'][0]) - exact) <= float(d['error'][0]), d
 " "$work/out"; then pass; else fail "average SIGINT"; fi
+# Issue 11: one big qmc point, a long transfer run and a long microcanonical run stop within
+# seconds of SIGINT (polled between lattice chunks, between links, every 256 nodes): exit 0 with
+# what they finished ("interrupted": true, not converged), or 130 and one line when nothing
+# finished. A liveness bound with a wide margin (the runs take minutes), not a timing.
+interrupt_within() { # NAME SECONDS_BEFORE_SIGNAL ARGS...
+  local name=$1 delay=$2 waited=0
+  shift 2
+  "$pendavg" "$@" >"$work/out" 2>"$work/err" &
+  local pid=$!
+  sleep "$delay"
+  kill -INT "$pid"
+  while kill -0 "$pid" 2>/dev/null && [ "$waited" -lt 150 ]; do
+    sleep 0.1
+    waited=$((waited + 1))
+  done
+  if kill -0 "$pid" 2>/dev/null; then
+    kill -KILL "$pid"
+    wait "$pid"
+    fail "$name: still running 15 s after SIGINT"
+    return
+  fi
+  wait "$pid"
+  rc=$?
+  if [ "$rc" -eq 130 ] && [ ! -s "$work/out" ] && [ "$(grep -vc '^\[' "$work/err")" -eq 1 ] &&
+     grep -q '^pendavg: interrupted: ' "$work/err"; then
+    pass
+  elif [ "$rc" -eq 0 ] && "$python" -c "
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d['interrupted'] and not d['converged'], d
+" "$work/out"; then
+    pass
+  else
+    fail "$name: exit $rc"
+  fi
+}
+ones() { printf '1%.0s,' $(seq 2 "$1"); printf '1'; }
+interrupt_within "qmc N = 64 at 2^20 points: SIGINT" 2 \
+  average --masses "$(ones 64)" --lengths "$(ones 64)" --beta 1 --method qmc --samples 1048576
+interrupt_within "transfer N = 4096: SIGINT" 2 \
+  average --masses "$(ones 4096)" --lengths "$(ones 4096)" --beta 1 --tol 1e-12
+interrupt_within "microcanonical N = 4 at 20 digits: SIGINT" 2 \
+  average --masses 1,1,1,1 --lengths 1,1,1,1 --energy 0 --digits 20
+interrupt_within "microcanonical qmc N = 64: SIGINT" 2 \
+  average --masses "$(ones 64)" --lengths "$(ones 64)" --energy 0 --samples 65536 --shifts 1024
+# The microcanonical engine's double range is checked before any work, with advice that works.
+bad "micro energy 1e308"       average --masses 1,1 --lengths 1,1 --energy 1e308
+bad "micro excitation 1e300"   average --masses 1 --lengths 1 --excitation 1e300
+bad "micro mass ratio 1e300"   average --masses 1,1,1e300 --lengths 1,1,1 --energy 0
+bad "micro subnormal excitation" average --masses 1,1 --lengths 1,1 --excitation 1e-310
+printf 'energy,m1,m2,l1,l2\n0,1,1,1,1\n1e308,1,1,1,1\n' >"$work/micro_far.csv"
+bad "micro cases energy 1e308" average --cases "$work/micro_far.csv"
+good "micro energy 1e300 in MPFR" 'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert abs(float(o[\"K\"][0]) / 1e300 - 0.3431834814709248549) < 1e-15" "$work/out"' \
+  average --masses 1,1 --lengths 1,1 --energy 1e300 --digits 20
+# The transfer operator's double range (total over lightest mass <= 1e150), before any work.
+bad "transfer mass ratio 1e200" average --masses 1e-100,1e100,1,1e-100,1e100 --lengths 1,1,1,1,1 --beta 1
 # Refused before any integration: an unstable time step, a flung chain, no accessible states.
 bad "simulate dt 10"           simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --dt 10 --time 100
 bad "simulate phidot 1e10"     simulate --masses 1,1 --lengths 1,1 --phi 0,0 --phidot 1e10,0 --time 1
