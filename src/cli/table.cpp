@@ -557,7 +557,8 @@ std::string table_command(const Options& options) {
   sweeps.push_back(parse_sweep("g", options.get("g", "1"), Domain::nonnegative));
   sweeps.push_back(parse_sweep(plan.state, options.required(plan.state),
                                plan.state == "energy" ? Domain::any : Domain::positive));
-  std::ranges::stable_partition(sweeps, [](const Sweep& s) { return !s.range; });
+  // std::stable_partition, not std::ranges::: clang 14 cannot compile the latter with libstdc++ 12.
+  std::stable_partition(sweeps.begin(), sweeps.end(), [](const Sweep& s) { return !s.range; });
   std::size_t combinations = 1;
   for (const Sweep& s : sweeps) {
     combinations *= s.values.size();
