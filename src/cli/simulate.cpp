@@ -6,6 +6,7 @@
 #include "simulate.hpp"
 
 #include "average_options.hpp"
+#include "commands.hpp"
 #include "distribute.hpp"
 #include "exact_values.hpp"
 #include "files.hpp"
@@ -427,13 +428,17 @@ std::string simulate_command(const Options& options) {
     throw usage_error("simulate: --trajectory and --every go together");
   if (replicas > 1 && options.has("trajectory"))
     throw usage_error("simulate: --trajectory records one run; it does not go with --replicas");
+  const auto every = options.has("every")
+                         ? static_cast<std::size_t>(
+                               parse_integer(options.required("every"), "--every", 1, 1000000000))
+                         : std::size_t{0};
   if (replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
+  input_checked("simulate");
   std::optional<AtomicFile> trajectory;
   DynamicsObserver<double> observer;
   std::string buffer;
   if (options.has("trajectory")) {
-    observer.trajectory_every = static_cast<std::size_t>(
-        parse_integer(options.required("every"), "--every", 1, 1000000000));
+    observer.trajectory_every = every;
     trajectory.emplace(std::string(options.required("trajectory")), "simulate");
     buffer = "t,E";
     for (std::size_t i = 1; i <= n; ++i) buffer += ",phi" + std::to_string(i);
@@ -620,6 +625,7 @@ std::string poincare_command(const Options& options) {
     output = std::string(options.required("output"));
     probe_output(*output, "poincare");
   }
+  input_checked("poincare");
   Progress progress("poincare");
   DynamicsObserver<double> observer;
   observer.progress = [&](double fraction) { progress(fraction, "of the orbits "); };

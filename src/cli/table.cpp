@@ -6,6 +6,7 @@
 #include "table.hpp"
 
 #include "average_options.hpp"
+#include "commands.hpp"
 #include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
@@ -800,6 +801,7 @@ std::string table_command(const Options& options) {
   }
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
+  input_checked("table");
 
   std::optional<SweepFile> file;
   if (is_root()) file.emplace(target, "table", out, resumed ? &*resumed : nullptr);
