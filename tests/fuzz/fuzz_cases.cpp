@@ -148,6 +148,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (args.size() > 16) return -1;
   check_reader(args[2], contents, input);
-  pendavg::fuzz::run_checks(args, input);
+  pendavg::fuzz::run_command(args, input);
   return 0;
 }

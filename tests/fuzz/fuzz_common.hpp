@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -31,25 +32,30 @@ inline void check_message(const char* message, std::string_view input) {
 /// Thrown by the input_checked() hook: the command accepted its input and would start work.
 struct InputAccepted {};
 
-/// Runs `args` (argv without the program name) through pendavg::cli::run up to the command's
-/// input_checked(). Bad input must be refused with pendavg::invalid_input (exit code 2); any other
+/// Runs `args` (argv without the program name) through pendavg::cli::run: up to the command's
+/// input_checked(), or to its end when `compute` (for requests whose work the caller knows to be
+/// short). Bad input must be refused with pendavg::invalid_input (exit code 2); any other
 /// exception is an internal error, which the CLI would report with exit code 1: a finding.
-/// Returns true when the input was accepted.
-inline bool run_checks(const std::vector<std::string>& args, std::string_view input) {
+/// Returns the command's output when it ran to its end, nullopt otherwise.
+inline std::optional<std::string> run_command(const std::vector<std::string>& args,
+                                              std::string_view input, bool compute = false) {
+  static bool computing = false;
   static const bool hooked = [] {
-    pendavg::cli::set_input_checked_hook([](std::string_view) { throw InputAccepted{}; });
+    pendavg::cli::set_input_checked_hook([](std::string_view) {
+      if (!computing) throw InputAccepted{};
+    });
     return true;
   }();
   (void)hooked;
+  computing = compute;
   const std::vector<std::string_view> views(args.begin(), args.end());
   try {
-    pendavg::cli::run(views);  // help, usage and --version return without work
-    return true;
+    return pendavg::cli::run(views);  // help, usage and --version return without work
   } catch (const InputAccepted&) {
-    return true;
+    return std::nullopt;
   } catch (const pendavg::invalid_input& refused) {
     check_message(refused.what(), input);
-    return false;
+    return std::nullopt;
   } catch (const std::exception& other) {
     fail(std::string("not a one-line refusal but an internal error: ") + other.what(), input);
   }
