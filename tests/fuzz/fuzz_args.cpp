@@ -4,8 +4,8 @@
 // sweep specs (table.cpp) and every check it makes before work, up to input_checked(); no file
 // is touched (options naming files are left out; the --cases reader has its own target,
 // fuzz_cases). Only requests whose work is short by construction run to the end: `average` and
-// `limit` of N <= 2 in double (closed form for N = 1, the double-pendulum engines, a 1-D torus;
-// not qmc, whose samples and shifts the input chooses).
+// `limit` of N <= 2 in double (closed form for N = 1, the double-pendulum engines, a 1-D torus,
+// the microcanonical integral rule; not qmc, whose samples and shifts the input chooses).
 //
 // Invariants: no crash, leak or undefined behaviour; bad input is refused with
 // pendavg::invalid_input (exit code 2) and a message, never with another exception (exit code 1);
@@ -66,14 +66,17 @@ std::optional<std::string_view> option(const std::vector<std::string>& args, std
   return std::nullopt;
 }
 
-/// `average` or `limit` of one or two particles in double, not qmc: work of milliseconds.
+/// `average` or `limit` of one or two particles in double, not qmc; microcanonical averages by
+/// the integral rule only (the torus rule converges algebraically): work of milliseconds.
 bool short_work(const std::vector<std::string>& args) {
   if (args.empty() || (args[0] != "average" && args[0] != "limit")) return false;
   const auto masses = option(args, "--masses");
   if (!masses || std::ranges::count(*masses, ',') > 1) return false;
   if (const auto digits = option(args, "--digits"); digits && *digits != "16") return false;
-  if (const auto method = option(args, "--method"); method && *method == "qmc") return false;
-  return !option(args, "--energy") && !option(args, "--excitation");
+  const auto method = option(args, "--method");
+  if (method && *method == "qmc") return false;
+  const bool microcanonical = option(args, "--energy") || option(args, "--excitation");
+  return !microcanonical || !method || *method == "auto" || *method == "integral";
 }
 
 /// A minimal JSON reader (RFC 8259 values) that also collects every string value, for the
