@@ -474,7 +474,7 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
     const auto [ptr, ec] = std::from_chars(exponent_text.data(),
                                            exponent_text.data() + exponent_text.size(), exponent);
     if (ec != std::errc() || ptr != exponent_text.data() + exponent_text.size() ||
-        std::labs(exponent) > max_decimal_scale)
+        exponent < -max_decimal_scale || exponent > max_decimal_scale)  // std::labs(LONG_MIN) is UB
       throw usage_error(name + ": '" + std::string(x) + "' has too many digits for 1 - " + name);
     text = text.substr(0, e);
   }
