@@ -5,7 +5,8 @@
 // is touched (options naming files are left out; the --cases reader has its own target,
 // fuzz_cases). Only requests whose work is short by construction run to the end: `average` and
 // `limit` of N <= 2 in double (closed form for N = 1, the double-pendulum engines, a 1-D torus,
-// the microcanonical integral rule; not qmc, whose samples and shifts the input chooses).
+// the microcanonical integral rule; not qmc, whose samples and shifts the input chooses), and
+// `simulate` of N <= 3 for at most 2000 steps.
 //
 // Invariants: no crash, leak or undefined behaviour; bad input is refused with
 // pendavg::invalid_input (exit code 2) and a message, never with another exception (exit code 1);
@@ -16,8 +17,9 @@
 #include <cctype>
 #include <charconv>
 #include <cstddef>
-#include <optional>
 #include <cstdint>
+#include <cstdlib>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -66,9 +68,30 @@ std::optional<std::string_view> option(const std::vector<std::string>& args, std
   return std::nullopt;
 }
 
+/// A number of the command line as strtod reads it (0 when it does not read).
+double number(std::string_view text) {
+  return std::strtod(std::string(text).c_str(), nullptr);
+}
+
+/// `simulate` of at most 2000 steps (and as many of burn-in) of a chain of N <= 3, one replica;
+/// the exact values only for N <= 2 (microseconds to milliseconds).
+bool short_simulation(const std::vector<std::string>& args) {
+  const auto masses = option(args, "--masses");
+  if (!masses || std::ranges::count(*masses, ',') > 2) return false;
+  if (const auto replicas = option(args, "--replicas"); replicas && *replicas != "1") return false;
+  const auto exact = option(args, "--exact");
+  if (std::ranges::count(*masses, ',') > 1 && (!exact || *exact != "no")) return false;
+  const auto time = option(args, "--time");
+  const double dt = number(option(args, "--dt").value_or("1e-3"));
+  const double burn_in = number(option(args, "--burn-in").value_or("0"));
+  return time && number(*time) / dt <= 2000 && burn_in / dt <= 2000;
+}
+
 /// `average` or `limit` of one or two particles in double, not qmc; microcanonical averages by
-/// the integral rule only (the torus rule converges algebraically): work of milliseconds.
+/// the integral rule only (the torus rule converges algebraically): work of milliseconds. And
+/// short simulations.
 bool short_work(const std::vector<std::string>& args) {
+  if (!args.empty() && args[0] == "simulate") return short_simulation(args);
   if (args.empty() || (args[0] != "average" && args[0] != "limit")) return false;
   const auto masses = option(args, "--masses");
   if (!masses || std::ranges::count(*masses, ',') > 1) return false;
