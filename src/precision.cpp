@@ -113,7 +113,19 @@ struct HeldPrecisions {
 };
 thread_local HeldPrecisions held;
 
+/// MPFR keeps caches per thread (constants such as pi and log 2, a pool of integers) that every
+/// thread must free before it ends (mpfr_free_cache2), or they leak: a worker of the caller's, a
+/// sweep's thread and its OpenMP team. A thread that computed under a working_precision frees
+/// them when it ends.
+struct MpfrThreadCaches {
+  MpfrThreadCaches() = default;
+  MpfrThreadCaches(const MpfrThreadCaches&) = delete;
+  MpfrThreadCaches& operator=(const MpfrThreadCaches&) = delete;
+  ~MpfrThreadCaches() { mpfr_free_cache2(MPFR_FREE_LOCAL_CACHE); }
+};
+
 void push_precision(int digits10, bool exclusive) {
+  thread_local const MpfrThreadCaches caches;  // constructed once per thread, freed at its end
   if (digits10 < 1) throw std::invalid_argument("working_precision: digits must be >= 1");
   if (held.depth == HeldPrecisions::capacity)
     throw std::length_error("working_precision: nested too deeply");

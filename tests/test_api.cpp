@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <random>
 #include <sstream>
 #include <string>
@@ -355,4 +356,58 @@ TEST_CASE("api: concurrent calls at 16, 30 and 60 digits give the bits of serial
       CHECK(concurrent[i] == serial[i]);
     }
   }
+}
+
+namespace {
+
+// GMP's (and so MPFR's) allocation functions, counting the bytes held by allocations of the
+// threads that set counted_thread.
+thread_local bool counted_thread = false;
+std::atomic<long long> counted_bytes{0};
+void* counting_allocate(std::size_t size) {
+  if (counted_thread) counted_bytes += static_cast<long long>(size);
+  return std::malloc(size);
+}
+void* counting_reallocate(void* block, std::size_t old_size, std::size_t new_size) {
+  if (counted_thread) counted_bytes += static_cast<long long>(new_size) - static_cast<long long>(old_size);
+  return std::realloc(block, new_size);
+}
+void counting_free(void* block, std::size_t size) {
+  if (counted_thread) counted_bytes -= static_cast<long long>(size);
+  std::free(block);
+}
+
+}  // namespace
+
+// Found by LeakSanitizer in the PENDAVG_SANITIZE build (this file's concurrent calls, and every
+// MPFR sweep of tests/cli/test_cli.sh): MPFR keeps constants (pi, log 2) and a pool of integers
+// per thread, which leak unless the thread frees them before it ends; a thread that computed under
+// a working_precision now does.
+TEST_CASE("api: a thread that computed in MPFR frees MPFR's thread caches when it ends",
+          "[api][mpfr][threads]") {
+  if (!mpfr_buildopt_tls_p()) {
+    WARN("this MPFR shares its caches between threads: nothing to free per thread");
+    return;
+  }
+  void* (*allocate)(std::size_t) = nullptr;
+  void* (*reallocate)(void*, std::size_t, std::size_t) = nullptr;
+  void (*release)(void*, std::size_t) = nullptr;
+  mp_get_memory_functions(&allocate, &reallocate, &release);
+  mp_set_memory_functions(counting_allocate, counting_reallocate, counting_free);
+  long long cached = 0;
+  std::thread worker([&] {
+    counted_thread = true;
+    {
+      const pendavg::working_precision precision(300);
+      mpfr_real x;
+      mpfr_const_pi(x.backend().data(), MPFR_RNDN);
+      mpfr_const_log2(x.backend().data(), MPFR_RNDN);
+      x = exp(x);
+    }
+    cached = counted_bytes.load();  // the values are gone, MPFR's caches are not
+  });
+  worker.join();
+  mp_set_memory_functions(allocate, reallocate, release);
+  CHECK(cached > 0);
+  CHECK(counted_bytes.load() == 0);
 }

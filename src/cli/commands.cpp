@@ -388,6 +388,7 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   resolve_average_method(chain.size(), run);  // every option checked before any work
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
   check_average(chain, beta, run);  // and the method's domain
+  input_checked("average");
   if (ranks() > 1) {
     // Under MPI one qmc point shares its shifts between the ranks (the same bits for any
     // number of ranks); another method runs on rank 0 alone.
@@ -439,12 +440,11 @@ std::string_view state_option(const Options& options) {
   return given.empty() ? std::string_view("beta") : given.front();
 }
 
-/// The microcanonical averages of `chain` at the state `value` of the column or option `state`.
+/// The microcanonical averages of `chain` at `x`, the value of the state `state` (energy or
+/// excitation) checked by microcanonical_state.
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_at(const Chain<Real>& chain, std::string_view state,
-                                               std::string_view value, std::string_view what,
-                                               const MicrocanonicalOptions& options) {
-  const Real x = microcanonical_state(chain, state, value, what, options);
+                                               const Real& x, const MicrocanonicalOptions& options) {
   return state == "excitation" ? microcanonical_average_excitation(chain, x, options)
                                : microcanonical_average(chain, x, options);
 }
@@ -568,7 +568,9 @@ std::string microcanonical_one(const Options& options, const AverageOptions& set
   } catch (const invalid_input& bad) {
     throw usage_error("average: " + std::string(bad.what()));
   }
-  const std::string what = "--" + std::string(state);
+  const Real x =
+      microcanonical_state(chain, state, state_text, "--" + std::string(state), micro);
+  input_checked("average");
   const Stopwatch stopwatch;
   // Progress on stderr, and SIGINT/SIGTERM stop the run (no partial result: exit 130).
   Progress progress("average");
@@ -581,8 +583,7 @@ std::string microcanonical_one(const Options& options, const AverageOptions& set
                                 : " rule's outer pieces ");
   micro.control.progress = [&](double fraction) { progress(fraction, unit); };
   micro.control.stop = &stop_flag();
-  const MicrocanonicalAverages<Real> result =
-      microcanonical_at(chain, state, state_text, what, micro);
+  const MicrocanonicalAverages<Real> result = microcanonical_at(chain, state, x, micro);
   const double seconds = stopwatch.seconds();
   const MicrocanonicalReport report{chain.size(), state, state_text, settings.digits,
                                     microcanonical_text(result, settings.digits), seconds};
@@ -647,8 +648,9 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
   case_fields(file, row, fields);
   std::vector<Real> masses, lengths;
   const Chain<Real> chain = case_chain<Real>(fields, columns, file.particles, masses, lengths);
-  const MicrocanonicalAverages<Real> r =
-      microcanonical_at(chain, file.state, fields[0], columns[0], micro);
+  const MicrocanonicalAverages<Real> r = microcanonical_at(
+      chain, file.state, microcanonical_state(chain, file.state, fields[0], columns[0], micro),
+      micro);
   const MicrocanonicalText v = microcanonical_text(r, digits);
   std::vector<std::string> out(fields.begin(), fields.end());
   const auto add = [&](const std::vector<std::string>& values) {
@@ -963,6 +965,7 @@ void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& c
   }
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
+  input_checked("average");
 }
 
 /// --timing-rows FILE: every computed row's time as CSV row,line,us (written atomically).
@@ -1212,6 +1215,7 @@ std::string limit_text(std::size_t particles, int digits, const std::vector<Limi
 template <class Real>
 std::string limit_report(const Options& options, int digits, Format format) {
   const Chain<Real> chain = chain_option<Real>(options, false);
+  input_checked("limit");
   AverageOptions settings;
   settings.digits = digits;
   settings.threads = hardware_threads();
@@ -1284,6 +1288,7 @@ std::string series_command(const Options& options) {
   const std::string_view beta_text = options.required("beta");
   const Chain<mpfr_real> chain = chain_option<mpfr_real>(options, true);
   const mpfr_real beta = parse_real<mpfr_real>(beta_text, "--beta", Domain::positive);
+  input_checked("series");
   Progress progress("series");
   StopOnSignal signals;
   RunControl control;
@@ -1363,7 +1368,20 @@ const Command& find_command(std::string_view name) {
   return *found;
 }
 
+std::function<void(std::string_view)>& input_checked_hook() {
+  static std::function<void(std::string_view)> hook;
+  return hook;
+}
+
 }  // namespace
+
+void input_checked(std::string_view command) {
+  if (input_checked_hook()) input_checked_hook()(command);
+}
+
+void set_input_checked_hook(std::function<void(std::string_view command)> hook) {
+  input_checked_hook() = std::move(hook);
+}
 
 std::string run(std::span<const std::string_view> args) {
   if (args.empty()) throw usage_error("no command given (try 'pendavg --help')");

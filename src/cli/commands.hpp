@@ -2,6 +2,7 @@
 // and validate the options, call the library, format the result as one string for stdout.
 #pragma once
 
+#include <functional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -12,5 +13,13 @@ namespace pendavg::cli {
 /// on stdout. Nothing is printed here. Bad input throws pendavg::invalid_input (usage_error
 /// included); any other exception is an internal error.
 std::string run(std::span<const std::string_view> args);
+
+/// Every command calls this once all of its input is checked, just before its first unit of work
+/// (a library computation, or creating an output file): bad input must be refused before this
+/// point (README "Reliability"). It runs the hook set by set_input_checked_hook, if any, and
+/// otherwise does nothing. The fuzz targets (tests/fuzz) set a hook that throws, so that they run
+/// every check of a command and none of its work.
+void input_checked(std::string_view command);
+void set_input_checked_hook(std::function<void(std::string_view command)> hook);
 
 }  // namespace pendavg::cli

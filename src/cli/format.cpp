@@ -9,6 +9,7 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <type_traits>
 
 namespace pendavg::cli {
@@ -63,7 +64,14 @@ Real printed_error(const Real& value, const Real& error, int digits) {
   // 10^(floor(log10 |v|) - digits + 1); rounding to it moves the value by at most half.
   const Real exponent = floor(log10(abs(value))) - Real(digits - 1);
   if constexpr (std::is_same_v<Real, double>) {
-    return error + power_of_ten(exponent) / 2;
+    // Below 1e-307 the half unit is subnormal in double (a few digits, or 0 below 1e-324): form
+    // the sum in long double and round it up, so that it still covers the rounding.
+    if (exponent >= -307) return error + power_of_ten(exponent) / 2;
+    const long double sum = static_cast<long double>(error) + std::pow(10.0L, exponent) / 2;
+    const double bound = static_cast<double>(sum);
+    return static_cast<long double>(bound) < sum
+               ? std::nextafter(bound, std::numeric_limits<double>::infinity())
+               : bound;
   } else {
     return error + pow(Real(10), exponent) / 2;
   }

@@ -6,6 +6,7 @@
 #include "simulate.hpp"
 
 #include "average_options.hpp"
+#include "commands.hpp"
 #include "distribute.hpp"
 #include "exact_values.hpp"
 #include "files.hpp"
@@ -428,6 +429,7 @@ struct SimulateRequest {
   double perturbation = 0;    ///< --perturb (NVE replicas)
   bool exact = true;          ///< --exact yes
   bool csv = false;           ///< --format csv
+  std::size_t every = 0;      ///< --every K (with --trajectory)
 };
 
 /// Step 1, parse: the initial condition (--theta or --phi [--phidot]), then the run.
@@ -501,6 +503,9 @@ SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
     throw usage_error("simulate: --trajectory and --every go together");
   if (request.replicas > 1 && options.has("trajectory"))
     throw usage_error("simulate: --trajectory records one run; it does not go with --replicas");
+  if (options.has("every"))
+    request.every = static_cast<std::size_t>(
+        parse_integer(options.required("every"), "--every", 1, 1000000000));
   return request;
 }
 
@@ -508,10 +513,9 @@ SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
 /// written atomically (commit() after the run).
 class TrajectoryFile {
  public:
-  TrajectoryFile(const Options& options, const Chain<double>& chain) : chain_(chain) {
+  TrajectoryFile(const Options& options, std::size_t every, const Chain<double>& chain)
+      : chain_(chain), every_(every) {
     if (!options.has("trajectory")) return;
-    every_ = static_cast<std::size_t>(
-        parse_integer(options.required("every"), "--every", 1, 1000000000));
     file_.emplace(std::string(options.required("trajectory")), "simulate");
     buffer_ = "t,E";
     for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phi" + std::to_string(i);
@@ -825,7 +829,8 @@ std::string simulate_command(const Options& options) {
   const Chain<double> chain = parse_chain(options);
   const SimulateRequest request = parse_simulate_request(options, chain.size());
   if (request.replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
-  TrajectoryFile trajectory(options, chain);
+  input_checked("simulate");
+  TrajectoryFile trajectory(options, request.every, chain);
   const std::optional<SimulateOutcome> outcome = run_simulation(chain, request, trajectory);
   if (!outcome) return {};  // another rank's share of the replicas
   return request.csv ? simulate_csv(request, *outcome) : simulate_json(request, *outcome);
@@ -847,6 +852,7 @@ std::string poincare_command(const Options& options) {
     output = std::string(options.required("output"));
     probe_output(*output, "poincare");
   }
+  input_checked("poincare");
   Progress progress("poincare");
   DynamicsObserver<double> observer;
   observer.progress = [&](double fraction) { progress(fraction, "of the orbits "); };

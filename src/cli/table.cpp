@@ -6,6 +6,7 @@
 #include "table.hpp"
 
 #include "average_options.hpp"
+#include "commands.hpp"
 #include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
@@ -482,7 +483,7 @@ std::string one_minus_decimal(std::string_view x, std::string_view what) {
     const auto [ptr, ec] = std::from_chars(exponent_text.data(),
                                            exponent_text.data() + exponent_text.size(), exponent);
     if (ec != std::errc() || ptr != exponent_text.data() + exponent_text.size() ||
-        std::labs(exponent) > max_decimal_scale)
+        exponent < -max_decimal_scale || exponent > max_decimal_scale)  // std::labs(LONG_MIN) is UB
       throw usage_error(name + ": '" + std::string(x) + "' has too many digits for 1 - " + name);
     text = text.substr(0, e);
   }
@@ -574,7 +575,8 @@ TableRequest parse_table_request(const Options& options) {
   sweeps.push_back(parse_sweep("g", options.get("g", "1"), Domain::nonnegative));
   sweeps.push_back(parse_sweep(plan.state, options.required(plan.state),
                                plan.state == "energy" ? Domain::any : Domain::positive));
-  std::ranges::stable_partition(sweeps, [](const Sweep& s) { return !s.range; });
+  // std::stable_partition, not std::ranges::: clang 14 cannot compile the latter with libstdc++ 12.
+  std::stable_partition(sweeps.begin(), sweeps.end(), [](const Sweep& s) { return !s.range; });
   for (const Sweep& s : sweeps) {
     request.combinations *= s.values.size();
     if (request.combinations > max_sweep_rows)
@@ -843,6 +845,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
   }
   verdict = broadcast_from_root(verdict);
   if (!verdict.empty()) throw usage_error(verdict);
+  input_checked("table");
 
   std::optional<SweepFile> file;
   if (is_root()) file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);

@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <random>
 #include <string>
@@ -60,7 +61,9 @@ void check_finite_vector(const std::vector<Real>& v, const char* what) {
 // kick changes u_0 alone. simulate() keeps the frame across steps; the public step functions
 // load it from the state and store it back.
 
-/// Pointers to the padded link frame: index -1 and n are the zero pads.
+/// Pointers to the padded link frame: index -1 and n are the zero pads. A loop that reads
+/// index i - 1 counts with a signed i: with std::size_t, p[i - 1] at i = 0 is p + SIZE_MAX, an
+/// overflowing (undefined) pointer, where p[-1] is the pad.
 template <class Real>
 struct LinkFrame {
   Real* rx;
@@ -238,7 +241,7 @@ template <int Extrapolate, class Real>
                 Real* __restrict jd, Real* __restrict ja, Real* __restrict jc) {
   Real worst = 0;
 #pragma omp simd reduction(max : worst)
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     const Real tx0 = rx[i] + tau * ux[i], ty0 = ry[i] + tau * uy[i];
     rtx[i] = tx0;
     rty[i] = ty0;
@@ -286,7 +289,7 @@ template <class Real>
                 Real* __restrict next_uy, Real* __restrict neg_f) {
   Real worst = 0;
 #pragma omp simd reduction(max : worst)
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     const Real sig = s[i] * w[i], alp = s[i + 1] * im[i], bet = s[i - 1] * im[i - 1];
     const Real dx = alp * rx[i + 1] + bet * rx[i - 1] - sig * rx[i];
     const Real dy = alp * ry[i + 1] + bet * ry[i - 1] - sig * ry[i];
@@ -309,7 +312,7 @@ void link_jacobian(std::size_t n, const Real* __restrict w, const Real* __restri
                    const Real* __restrict tx, const Real* __restrict ty, Real* __restrict jd,
                    Real* __restrict ja, Real* __restrict jc) {
 #pragma omp simd
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     jd[i] = -w[i] * (tx[i] * rx[i] + ty[i] * ry[i]);
     ja[i] = im[i - 1] * (tx[i] * rx[i - 1] + ty[i] * ry[i - 1]);
     jc[i] = im[i] * (tx[i] * rx[i + 1] + ty[i] * ry[i + 1]);
@@ -437,7 +440,7 @@ void velocity_stage(DynamicsWorkspace<Real>& ws, bool learn = true) {
   Real* __restrict ha = ws.sub.data();
   Real* __restrict hc = ws.super.data();
 #pragma omp simd
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     b[i] = rx[i] * ux[i] + ry[i] * uy[i];
     hd[i] = w[i] * (rx[i] * rx[i] + ry[i] * ry[i]);
     ha[i] = -im[i - 1] * (rx[i] * rx[i - 1] + ry[i] * ry[i - 1]);  // 0 at i = 0
@@ -446,7 +449,7 @@ void velocity_stage(DynamicsWorkspace<Real>& ws, bool learn = true) {
   }
   solve_tridiagonal_twisted(n, ha, hd, hc, b, t, ws.pivot.data(), ws.rhs.data());
 #pragma omp simd
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     const Real sig = t[i] * w[i], alp = t[i + 1] * im[i], bet = t[i - 1] * im[i - 1];
     ux[i] += alp * rx[i + 1] + bet * rx[i - 1] - sig * rx[i];
     uy[i] += alp * ry[i + 1] + bet * ry[i - 1] - sig * ry[i];
