@@ -14,6 +14,12 @@
 namespace pendavg::cli {
 
 namespace {
+bool digits_advice = true;  // set_digits_advice
+}  // namespace
+
+void set_digits_advice(bool command_takes_digits) { digits_advice = command_takes_digits; }
+
+namespace {
 
 std::string in_quotes(std::string_view text) {
   std::string quoted;  // appended piecewise: "'" + std::string(text) trips GCC 12's -Wrestrict
@@ -61,7 +67,7 @@ double to_double(std::string_view text, std::string_view what) {
   if (status == std::errc::result_out_of_range)  // MPFR helps physical inputs, not a tolerance
     throw usage_error(std::string(what) + ": " + in_quotes(text) +
                       " is out of the range of double" +
-                      (what == "--tol" ? "" : " (use --digits > 16)"));
+                      (what == "--tol" || !digits_advice ? "" : " (use --digits > 16)"));
   if (status != std::errc() || end != text.data() + text.size())
     throw usage_error(std::string(what) + ": malformed number " + in_quotes(text));
   return value;

@@ -55,6 +55,10 @@ enum class Domain { positive, nonnegative, any };
 /// inside `domain`. `what` names the quantity in the error message (e.g. "--beta").
 /// For mpfr_real the caller must already hold a working_precision guard: the text is rounded
 /// once, directly at working precision (0.1 never goes through double).
+/// Whether the running command takes --digits: a number out of double's range is then refused
+/// with the advice "use --digits > 16" (set by run() for each command; on by default).
+void set_digits_advice(bool command_takes_digits);
+
 template <class Real>
 Real parse_real(std::string_view text, std::string_view what, Domain domain);
 

@@ -418,7 +418,9 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
                              averages_text(result, digits, &beta), run_json(result), seconds};
   switch (format) {
     case Format::csv: return average_csv(report);
-    case Format::text: return average_text(report);
+    case Format::text:
+      return average_text(report) +
+             (result.interrupted ? "interrupted: the finished part of the run is reported\n" : "");
     case Format::json: break;
   }
   std::string json = average_json(report);
@@ -757,8 +759,19 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   if (averages.ratio) p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits), error_digits);
   *p++ = ',';
   for (const Estimate<Real>& c : averages.cos_angle) error(c);
-  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) number(v.value, digits);
-  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) error(v);
+  // Var K_i = beta^2 Var K_i / beta^2, divided as averages_text divides (in long double for a
+  // double run), so that these columns equal table's and `average`'s.
+  using Wide = std::conditional_t<std::is_same_v<Real, mpfr_real>, Real, long double>;
+  const Wide beta2 = Wide(beta) * Wide(beta);
+  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) {
+    p = write_decimal(p, Wide(Wide(v.value) / beta2), digits);
+    *p++ = ',';
+  }
+  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) {
+    const Wide value = Wide(v.value) / beta2;
+    p = write_decimal(p, printed_error(value, Wide(Wide(v.error) / beta2), digits), error_digits);
+    *p++ = ',';
+  }
   put(error_kind_name(averages.error_kind));
   *p++ = ',';
   put(averages.converged ? "true" : "false");
@@ -1238,7 +1251,11 @@ std::string limit_report(const Options& options, int digits, Format format) {
        run_json(high_values), high_seconds},
       {"low_temperature", "beta -> inf", averages_text(low_values, digits, no_beta),
        run_json(low_values), low_seconds}};
-  if (format == Format::text) return limit_text(chain.size(), digits, limits);
+  if (format == Format::text)
+    return limit_text(chain.size(), digits, limits) +
+           (high_values.interrupted
+                ? "interrupted: the beta -> 0 limit's last finished level is reported\n"
+                : "");
   if (format == Format::csv) return limit_csv(chain.size(), digits, limits);
   std::string json = JsonObject()
                          .integer("N", static_cast<long long>(chain.size()))
@@ -1393,6 +1410,7 @@ std::string run(std::span<const std::string_view> args) {
   if (name == "--version") return std::string(version()) + "\n";
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
+  set_digits_advice(std::ranges::find(command.options, "digits") != command.options.end());
   const Options options(name, rest, command.options, command.flags);
   if (!command.distributed && !is_root()) return {};
   return command.run(options);

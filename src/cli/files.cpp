@@ -91,18 +91,21 @@ std::string resolved_path(const std::string& path, std::string_view command) {
 
 AtomicFile::AtomicFile(std::string path, std::string_view command)
     : path_(std::move(path)), command_(command) {
-  target_ = resolved_path(path_, command_);
+  // The path as the kernel follows it first: /dev/stdout onto a pipe is a link to "pipe:[N]",
+  // which names no file that readlink could follow.
   struct stat status {};
-  if (stat(target_.c_str(), &status) == 0) {
+  if (stat(path_.c_str(), &status) == 0) {
     if (S_ISDIR(status.st_mode)) throw usage_error(cannot_write(command_, path_, "is a directory"));
     if (!S_ISREG(status.st_mode)) {
-      // A device or FIFO: written in place (never replaced by a regular file).
+      // A device, FIFO or socket: written in place (never replaced by a regular file).
       in_place_ = true;
-      fd_ = open(target_.c_str(), O_WRONLY | O_CLOEXEC);
+      target_ = path_;
+      fd_ = open(path_.c_str(), O_WRONLY | O_CLOEXEC);
       if (fd_ < 0) throw usage_error(cannot_write(command_, path_, std::strerror(errno)));
       return;
     }
   }
+  target_ = resolved_path(path_, command_);  // a regular file: replace it, not a link to it
   deferred_.emplace();
   remove_stale_temporaries(target_);
   temporary_ = target_ + ".tmp." + writer_tag(static_cast<long>(getpid())) + "XXXXXX";
@@ -177,11 +180,10 @@ void write_atomically(const std::string& path, const std::string& content,
 }
 
 void probe_output(const std::string& path, std::string_view command) {
-  const std::string target = resolved_path(path, command);
   struct stat status {};
-  if (stat(target.c_str(), &status) == 0 && !S_ISDIR(status.st_mode) && !S_ISREG(status.st_mode)) {
+  if (stat(path.c_str(), &status) == 0 && !S_ISDIR(status.st_mode) && !S_ISREG(status.st_mode)) {
     // A device or FIFO: opening a FIFO would wait for its reader; ask for write permission.
-    if (access(target.c_str(), W_OK) != 0)
+    if (access(path.c_str(), W_OK) != 0)
       throw usage_error(cannot_write(command, path, std::strerror(errno)));
     return;
   }

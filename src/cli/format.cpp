@@ -172,6 +172,7 @@ template void append_decimal<double>(std::string&, const double&, int);
 template void append_decimal<long double>(std::string&, const long double&, int);
 template char* write_decimal<double>(char*, const double&, int);
 template char* write_decimal<mpfr_real>(char*, const mpfr_real&, int);
+template char* write_decimal<long double>(char*, const long double&, int);
 template double printed_error<double>(const double&, const double&, int);
 template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int);
 template long double printed_error<long double>(const long double&, const long double&, int);

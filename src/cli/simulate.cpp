@@ -855,7 +855,7 @@ std::string poincare_command(const Options& options) {
   input_checked("poincare");
   Progress progress("poincare");
   DynamicsObserver<double> observer;
-  observer.progress = [&](double fraction) { progress(fraction, "of the orbits "); };
+  observer.progress = [&](double fraction) { progress(fraction, "of the section points "); };
   StopOnSignal signals;
   observer.stop = &stop_flag();
   const PoincareSection<double> section = poincare_section(chain, energy, run, observer);

@@ -859,6 +859,10 @@ void check_stable_time_step(const Chain<Real>& chain, double time_step, long dou
     omega2 = std::max(omega2, stiffness / static_cast<Wide>(chain.mass(i)));
   }
   const Wide omega = std::sqrt(omega2);
+  if (!std::isfinite(omega))
+    throw invalid_input(std::string(command) + ": the fastest motion's angular frequency "
+                        "overflows (masses, lengths, g and the energy far apart); choose units "
+                        "nearer 1");
   if (!(static_cast<Wide>(time_step) * omega <= 1))
     throw invalid_input(std::string(command) + ": a time step of " + short_decimal(time_step) +
                         " is beyond the integrator's stability limit (the fastest motion has "
@@ -1101,9 +1105,6 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
   const Real h(options.time_step);
   Real mass_sum = chain.mass(0) + chain.mass(1), length_sum = chain.length(0) + chain.length(1);
   const Real scale = mass_sum * chain.gravity() * length_sum;
-  check_stable_time_step(chain, options.time_step,
-                         static_cast<long double>(energy) + static_cast<long double>(scale),
-                         "poincare");
   using std::isfinite;
   if (!isfinite(scale) || !isfinite(energy * mass_sum * length_sum * length_sum))
     throw invalid_input("poincare: the energy and inertia scales (M g L = " +
@@ -1112,12 +1113,29 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
                         short_decimal(static_cast<long double>(energy) * static_cast<long double>(mass_sum) *
                                       static_cast<long double>(length_sum) * static_cast<long double>(length_sum)) +
                         ") overflow double; choose units nearer 1");
+  // Then the time step (its frequency estimate needs finite scales).
+  check_stable_time_step(chain, options.time_step,
+                         static_cast<long double>(energy) + static_cast<long double>(scale),
+                         "poincare");
 
   std::vector<std::vector<SectionPoint<Real>>> per_orbit(orbits);
   std::vector<Real> energy_error(orbits, Real(0));
   std::vector<std::size_t> steps_taken(orbits, 0);
   std::vector<char> interrupted(orbits, 0);
-  std::atomic<std::size_t> finished{0};
+  // Progress in section points: an orbit adds one unit per point and the rest of its
+  // options.points when it ends (at max_steps or stopped), so a long orbit shows progress too.
+  const double total_units = static_cast<double>(orbits) * static_cast<double>(options.points);
+  std::atomic<std::size_t> units{0};
+  std::atomic<std::size_t> reported{0};  // units at the last report (every 1/200th at most)
+  const auto report = [&](bool last) {
+    if (!observer.progress) return;
+    const std::size_t now = units.load(std::memory_order_relaxed);
+    std::size_t before = reported.load(std::memory_order_relaxed);
+    if (!last && static_cast<double>(now - std::min(now, before)) * 200 < total_units) return;
+    if (!reported.compare_exchange_strong(before, now)) return;
+#pragma omp critical(pendavg_poincare_progress)
+    observer.progress(static_cast<double>(now) / total_units);
+  };
   ParallelErrors errors;  // an exception may not leave the parallel region
 #pragma omp parallel for schedule(dynamic, 1) num_threads(options.threads) if (options.threads > 1)
   for (std::size_t k = 0; k < orbits; ++k) errors.capture([&] {
@@ -1148,6 +1166,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
           interrupted[k] = 1;
           break;
         }
+        report(false);
       }
       const SectionCoordinate<Real> a = section_coordinate(chain, previous);
       const SectionCoordinate<Real> b = section_coordinate(chain, st);
@@ -1173,16 +1192,15 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       point.p2 = o.p_phi[1];
       point.time = on.time;
       points.push_back(point);
+      units.fetch_add(1, std::memory_order_relaxed);
     }
     worst = std::max(worst, abs(total_energy_kernel(chain, st) - energy));
     energy_error[k] = worst / scale;
     steps_taken[k] = step;
-    const std::size_t now = ++finished;
-    if (observer.progress) {
-#pragma omp critical(pendavg_poincare_progress)
-      observer.progress(static_cast<double>(now) / static_cast<double>(orbits));
-    }
+    units.fetch_add(options.points - points.size(), std::memory_order_relaxed);
+    report(false);
   });
+  report(true);
   errors.rethrow();
   for (std::size_t k = 0; k < orbits; ++k) {
     out.points.insert(out.points.end(), per_orbit[k].begin(), per_orbit[k].end());

@@ -193,6 +193,29 @@ good "cases shuffled" \
 good "cases shuffled, digits 20" '[ "$(wc -l <"$work/out")" -eq 4 ]' \
   average --cases "$work/cases.csv" --digits 20
 
+# Every --cases column equals `average --format csv` of the same point: var_K is Var K_i (not
+# beta^2 Var K_i) and each error and kind as printed there; in double and in MPFR.
+check_cases_as_average() { # DIGITS
+  "$pendavg" average --cases "$work/cases.csv" --digits "$1" >"$work/cases_cmp.csv" 2>/dev/null || return 1
+  "$python" - "$pendavg" "$work/cases_cmp.csv" "$1" <<'PY'
+import csv, subprocess, sys
+pendavg, path, digits = sys.argv[1], sys.argv[2], sys.argv[3]
+rows = list(csv.DictReader(line for line in open(path) if not line.startswith("#")))
+assert len(rows) == 3
+for row in rows:
+    args = [pendavg, "average", "--masses", row["m1"] + "," + row["m2"], "--lengths",
+            row["l1"] + "," + row["l2"], "--g", row["g"], "--beta", row["beta"],
+            "--digits", digits, "--format", "csv"]
+    single = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True,
+                                                check=True).stdout.splitlines()))
+    for key in ("beta_K1", "beta_K2", "error_K1", "var_K1", "var_K2", "var_K_error1",
+                "var_K_error2", "cos_phi1", "cos_phi_error2", "ratio", "ratio_error", "method"):
+        assert row[key] == single[key], (key, row[key], single[key])
+PY
+}
+if check_cases_as_average 16; then pass; else fail "cases columns = average --format csv (double)"; fi
+if check_cases_as_average 25; then pass; else fail "cases columns = average --format csv (MPFR)"; fi
+
 # --cases --timing: stdout unchanged, one summary line on stderr (its presence and format, not
 # its numbers); --timing-rows FILE: one CSV line per row with its file line. Bad uses exit 2.
 run average --cases "$work/cases.csv"
@@ -784,6 +807,20 @@ assert d['interrupted'] and not d['converged'], d
   fi
 }
 ones() { printf '1%.0s,' $(seq 2 "$1"); printf '1'; }
+# The text format says so too: a qmc run of 64 short shifts stopped after 3 s reports the
+# shifts it finished, "converged = no" and an "interrupted:" line.
+"$pendavg" average --masses "$(ones 64)" --lengths "$(ones 64)" --beta 1 --method qmc \
+  --samples 65536 --shifts 64 --format text >"$work/out" 2>"$work/err" &
+text_pid=$!
+sleep 3
+kill -INT "$text_pid"
+wait "$text_pid"
+rc=$?
+if [ "$rc" -eq 0 ] && grep -q 'converged = no' "$work/out" && grep -q '^interrupted: ' "$work/out"; then
+  pass
+else
+  fail "average --format text, interrupted: marked (exit $rc)"
+fi
 interrupt_within "qmc N = 64 at 2^20 points: SIGINT" 2 \
   average --masses "$(ones 64)" --lengths "$(ones 64)" --beta 1 --method qmc --samples 1048576
 interrupt_within "transfer N = 4096: SIGINT" 2 \
@@ -848,6 +885,22 @@ done
 bad "poincare heavy mass"      poincare --masses 1,1e308 --lengths 1,1 --energy 1 --orbits 2 --points 5
 bad "poincare long link"       poincare --masses 1,1 --lengths 1,1e308 --energy 1 --orbits 2 --points 5
 bad "poincare dt 1e-320"       poincare --masses 1,1 --lengths 1,1 --energy -2.5 --dt 1e-320 --orbits 2 --points 5
+# The advice fits the command: scales that overflow say so (not "use --dt 0"), and a command
+# without --digits does not advise it.
+for extreme in "--energy 1e308" "--g 1e308 --energy 1"; do
+  run poincare --masses 1,1 --lengths 1,1 $extreme --orbits 2 --points 5
+  if [ "$rc" -eq 2 ] && grep -q 'overflow double; choose units nearer 1' "$work/err"; then pass
+  else fail "poincare $extreme: the overflow named"; fi
+done
+run poincare --masses 1,1 --lengths 1,1 --energy 1e400
+if [ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"; then pass
+else fail "poincare --energy 1e400: no --digits advice"; fi
+run simulate --masses 1,1 --lengths 1,1 --theta 0.1 --time 1e400
+if [ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"; then pass
+else fail "simulate --time 1e400: no --digits advice"; fi
+run average --masses 1,1 --lengths 1,1 --beta 1e400
+if [ "$rc" -eq 2 ] && grep -q "(use --digits > 16)$" "$work/err"; then pass
+else fail "average --beta 1e400: the --digits advice"; fi
 
 # ---------------------------------------------------------------- microcanonical (issue 15)
 micro_keys='N energy excitation digits ensemble method K K_error Kc Kc_error cos_phi cos_phi_error var_K var_K_error K_total K_total_error density_of_states density_of_states_error error_kind evaluations work_unit seconds converged run'

@@ -189,6 +189,11 @@ run table --beta 1,2 --output "$work/fifo"
 wait "$reader"
 check "--output onto a FIFO streams through it" \
   bash -c "[ $rc -eq 0 ] && [ -p '$work/fifo' ] && [ \"\$(grep -c '^2,16,' '$work/from_fifo.csv')\" -eq 2 ]"
+# /dev/stdout onto a pipe is a link to "pipe:[N]", a name no readlink can follow: written in place.
+"$pendavg" table --beta 1,2 --output /dev/stdout 2>/dev/null | cat >"$work/from_pipe.csv"
+pipe_rc=${PIPESTATUS[0]}
+check "--output /dev/stdout onto a pipe streams through it" \
+  bash -c "[ $pipe_rc -eq 0 ] && [ \"\$(grep -c '^2,16,' '$work/from_pipe.csv')\" -eq 2 ]"
 printf 'beta,g,m1,m2,l1,l2\n1,1,0.5,0.5,1,1\n2,1,0.2,0.8,1,2\n' >"$work/cases.csv"
 ln -s cases.csv "$work/cases_link.csv"
 bad "--timing-rows = the cases file"     average --cases "$work/cases.csv" --timing-rows "$work/cases.csv"
