@@ -435,7 +435,7 @@ class Progress {
 /// 1 ms (rank 0, which answers requests) or 4 ms (the others, unless their threads wait for
 /// work) while nothing happens, so that a coordinator costs little CPU beside the compute threads
 /// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a message is
-/// in flight.
+/// in flight; 0.25 ms while its own threads are idle (nothing to disturb).
 class PollInterval {
  public:
   /// `alone`: no other rank; `longest`: the longest interval (us).
@@ -496,7 +496,7 @@ class RootSweep {
       : rows_(rows), output_(output), size_(ranks()),
         scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
                    output),
-        writer_(output, rows.count), progress_(rows), poll_(size_ == 1, 4000),
+        writer_(output, rows.count), progress_(rows), poll_(size_ == 1, 1000),
         peers_(static_cast<std::size_t>(size_)), team_(rows, rows.threads) {
     outcome_.count = rows.count;
     outcome_.threads = rows.threads * size_;
@@ -516,7 +516,9 @@ class RootSweep {
       if (!closing_ && writer_.complete()) close(0);
       if (closing_ && closed()) break;
       sends_pending();
-      team_.wait(poll_.next(active));
+      // With nothing of its own to compute (the last rows are elsewhere, or closing) the core
+      // is free: notice the last results and the peers' goodbyes at once.
+      team_.wait(poll_.next(active || closing_ || team_.idle()));
     }
     release_peers();
     return conclude(finish);
@@ -783,8 +785,10 @@ SweepOutcome run_worker(const SweepRows& rows) {
       finished_sent = true;
     }
     sends_pending();
-    // Waiting for a grant with idle threads counts as active: the answer is noticed at once.
-    if (!done) team.wait(poll.next(active || (requested && team.idle())));
+    // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
+    // counts as active: the answer is noticed at once, and no computation is disturbed.
+    if (!done)
+      team.wait(poll.next(active || (team.idle() && (requested || exhausted || stopping))));
   }
   while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)
