@@ -1038,3 +1038,28 @@ TEST_CASE("microcanonical_options: one set of options for both ensembles, checke
     CHECK(k.error > 0);
   }
 }
+
+// A process that asks for many precisions (a notebook, a --digits sweep) keeps the tanh-sinh
+// tables of the last few only; a table in use stays valid when it leaves the cache.
+TEST_CASE("microcanonical MPFR tanh-sinh tables: a bounded cache, held tables stay valid",
+          "[microcanonical][mpfr]") {
+  using Table = detail::microcanonical::TanhSinhTable<mpfr_real>;
+  std::shared_ptr<const Table> first;
+  {
+    const working_precision precision(20);
+    first = Table::shared();
+    CHECK(Table::shared() == first);  // the same precision: the cached table
+  }
+  const std::size_t nodes = first->levels.back().size();
+  for (int k = 0; k <= static_cast<int>(Table::max_cached_precisions); ++k) {
+    const working_precision precision(21 + k);
+    CHECK(Table::shared() != first);
+  }
+  const working_precision precision(20);
+  const std::shared_ptr<const Table> again = Table::shared();
+  CHECK(again != first);              // evicted, rebuilt
+  CHECK(first.use_count() == 1);      // held here alone, and still whole
+  CHECK(first->levels.back().size() == nodes);
+  CHECK(again->levels.back().size() == nodes);
+  CHECK(again->levels.back().front().weight == first->levels.back().front().weight);
+}

@@ -27,14 +27,14 @@ struct ShellSums {
 template <class Real>
 typename NestedShellIntegral<Real>::Shared nested_shared(const Chain<Real>& chain,
                                                          const ShellSetup<Real>& setup,
-                                                         const TanhSinhTable<Real>& table,
+                                                         std::shared_ptr<const TanhSinhTable<Real>> table,
                                                          const MicrocanonicalOptions& options,
                                                          const Real& tolerance) {
   const std::size_t n = setup.n;
   typename NestedShellIntegral<Real>::Shared shared;
   shared.chain = &chain;
   shared.setup = &setup;
-  shared.table = &table;
+  shared.table = std::move(table);
   // each level gets a quarter of the budget: the inner errors are carried outwards
   shared.tolerance = tolerance / 4;
   shared.max_level = options.max_level;
@@ -88,8 +88,7 @@ typename NestedShellIntegral<Real>::Shared nested_shared(const Chain<Real>& chai
 template <class Real>
 ShellSums<Real> integral_sums(const Chain<Real>& chain, const ShellSetup<Real>& setup,
                               const MicrocanonicalOptions& options, const Real& tolerance) {
-  const TanhSinhTable<Real>& table = TanhSinhTable<Real>::shared();
-  auto shared = nested_shared(chain, setup, table, options, tolerance);
+  auto shared = nested_shared(chain, setup, TanhSinhTable<Real>::shared(), options, tolerance);
   const std::size_t q = 1 + 3 * setup.n;
   const auto run = [&](std::size_t& evaluations, std::size_t& unconverged) {
     NestedShellIntegral<Real> master(shared, options.threads);

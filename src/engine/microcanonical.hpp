@@ -377,21 +377,37 @@ struct TanhSinhTable {
   std::vector<std::vector<Node>> levels;  ///< level 0: k = all; level L > 0: k odd
 
   /// The table up to level 12, built once per number type (thread-safe static); for MPFR once
-  /// per working precision (the nodes carry that precision).
-  static const TanhSinhTable& shared() {
+  /// per working precision (the nodes carry that precision), the last max_cached_precisions
+  /// precisions kept (a caller holds its table while it computes).
+  static std::shared_ptr<const TanhSinhTable> shared() {
     if constexpr (is_mpfr_v<Real>) {
+      struct Slot {
+        std::shared_ptr<const TanhSinhTable> table;
+        unsigned long long used = 0;
+      };
       static std::mutex mutex;
-      static std::map<long, std::unique_ptr<const TanhSinhTable>> tables;
+      static std::map<long, Slot> tables;
+      static unsigned long long clock = 0;
       const long bits = static_cast<long>(mpfr_real::default_precision());
       const std::lock_guard lock(mutex);
-      auto& slot = tables[bits];
-      if (!slot) slot = std::make_unique<const TanhSinhTable>(12);
-      return *slot;
+      Slot& slot = tables[bits];
+      if (!slot.table) slot.table = std::make_shared<const TanhSinhTable>(12);
+      slot.used = ++clock;
+      std::shared_ptr<const TanhSinhTable> table = slot.table;
+      if (tables.size() > max_cached_precisions) {
+        auto oldest = tables.begin();
+        for (auto it = tables.begin(); it != tables.end(); ++it)
+          if (it->second.used < oldest->second.used) oldest = it;
+        tables.erase(oldest);  // never this call's: it was used last
+      }
+      return table;
     } else {
-      static const TanhSinhTable table(12);
+      static const std::shared_ptr<const TanhSinhTable> table =
+          std::make_shared<const TanhSinhTable>(12);
       return table;
     }
   }
+  static constexpr std::size_t max_cached_precisions = 8;
 
   explicit TanhSinhTable(int max_level) {
     using std::asinh;
@@ -444,7 +460,7 @@ class NestedShellIntegral {
   struct Shared {
     const Chain<Real>* chain;
     const ShellSetup<Real>* setup;
-    const TanhSinhTable<Real>* table;
+    std::shared_ptr<const TanhSinhTable<Real>> table;  ///< held while the integral runs
     Real tolerance;
     int max_level;
     std::vector<std::vector<CriticalRadius<Real>>> targets;  ///< per level j: critical |v_j|
