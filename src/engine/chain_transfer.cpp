@@ -298,8 +298,9 @@ Real trig_interpolation_weight(const AngleRule<Real>& rule, std::size_t b, const
 constexpr std::size_t lanes = 8;
 
 /// A link is split over threads only above this much work (kernel evaluations times pivot
-/// nodes, ~0.5 ms): below it the fork and barrier cost more than they save, and much more
-/// when the other cores are busy.
+/// nodes): below it the fork and barrier cost more than they save, and much more when the other
+/// cores are busy.
+/// Why: README, Design notes, 'Measurements behind the design choices' (transfer).
 constexpr double parallel_work_threshold = 1e6;
 
 /// Rounding budget of every quantity, in roundoffs times the sum of the absolute values of the

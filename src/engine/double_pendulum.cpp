@@ -897,8 +897,9 @@ IntegralPlan<Real> plan_reduced_integral(const DoublePendulumParameters<Real>& p
   const bool try_sums = evaluation == IntegralEvaluation::graf_sums ||
                         (evaluation == IntegralEvaluation::automatic && worthwhile);
   if (try_sums) {
-    // Double without a peak (little cancellation) is ~4x faster than long double, whose 3
-    // extra digits absorb the cancellation of the alternating q^{1/2} sums, ~(1 + harmonic).
+    // Double without a peak (little cancellation) is faster than long double, whose 3 extra
+    // digits absorb the cancellation of the alternating q^{1/2} sums, ~(1 + harmonic).
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     plan.sums = is_mpfr_v<Real>          ? Sums::working
                 : plan.harmonic <= 1.0 ? Sums::double_then_long_double
                                        : Sums::long_double;

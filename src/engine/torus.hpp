@@ -902,21 +902,10 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // products stay normal keep every bit), and a point whose weight is exactly zero never becomes
 // the reference.
 // When to use it: N >= 5 or so (a tensor grid needs n^(N-1) nodes); for N <= 4 torus_average is
-// exact to 1e-13 in milliseconds. Cost ~100 ns per particle and point (the 32-node table of
-// each conditional law, one tan and one exp per angle, the backward trace sweep).
-// Measured (tests/bench/bench_any_n.cpp, BM_qmc_to_target: points per shift doubled from 2^12,
-// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar (the multiplier then) over the
-// beta<K_i> is <= 1e-4; unit chains, g = 1; the machine's 2 cores were shared, load average
-// ~4, so wall times are ~3x the per-thread CPU times given here, which are what 2 free cores
-// would take):
-//     N = 8,  beta = 1:    2^12 points, bar 8.9e-5, fraction 0.97,  0.06 s
-//     N = 16, beta = 1:    2^14 points, bar 6.7e-5, fraction 0.94,  0.5 s  (ladder)
-//     N = 32, beta = 1:    2^15 points, bar 7.7e-5, fraction 0.89,  2.1 s
-//     N = 64, beta = 1:    2^16 points, bar 9.1e-5, fraction 0.81,  8.7 s  (ladder; the 2^16
-//                          run alone ~4.5 s)
-//     N = 16, beta = 0.1:  2^13 points, bar 6.8e-5, fraction 0.99,  0.2 s
-//     N = 16, beta = 10:   2^13 points, bar 6.3e-5, fraction 0.96,  0.2 s
-// The von Mises law at N = 16, 2^14 points: bar 2.8e-3, fraction 0.03 (2.7x cheaper per point).
+// exact to 1e-13 and much cheaper. Cost per point: linear in N (the 32-node table of each
+// conditional law, one tan and one exp per angle, the backward trace sweep).
+// Why: README, Design notes, 'Measurements behind the design choices' (qmc
+// cost to a 1e-4 bar, N = 8..64; tests/bench/bench_any_n.cpp BM_qmc_to_target).
 // Coverage (tests/test_torus.cpp): the bars cover the tensor-torus values for >= 95 of 100
 // seeds, per quantity and particle, at N = 3 (both laws) and N = 4 (unequal masses and lengths,
 // beta = 2, pivot law), 2^10 x 16 points; and for >= 99 of 100 at 2^16 x 16 on the hard case
@@ -925,7 +914,7 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // error); it is trustworthy while effective_sample_fraction stays above ~0.1. Mass ratios
 // m_{j+1}/m_j far from 1 make the pivot factors, and so the tables, steeper (not measured beyond
 // the tests' random chains). The lattices beyond 256 particles must be passed in generating_vector
-// (fast_cbc_generating_vector builds one in seconds for 2^16 points).
+// (fast_cbc_generating_vector builds one for 2^16 points).
 
 /// The law qmc_average maps the lattice points to (see the comment above QmcOptions).
 enum class QmcProposal {

@@ -556,9 +556,9 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
     // Miller: extra steps beyond K so that e^{-4 d (N-K)} < u e^{-5}
     const double miller_len = (lnu_target + 5) / (4 * d) + 10;
     // cost in recursion steps: per series term, fixed (logs, digamma, exp). MPFR: a series
-    // term (three divisions, ~20 multiplications and additions on temporaries, and the error
-    // weights in MPFR) costs 12.8-13.5 in-place recursion steps (measured at 50, 89 and 300
-    // digits), and the series runs with log10(kappa) extra digits.
+    // term is three divisions, ~20 multiplications and additions on temporaries and the error
+    // weights, and the series runs with log10(kappa) extra digits.
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     double c_term = is_double ? (wide_series ? 8.0 : 2.0) : is_ldouble ? 1.0 : 13.0;
     if constexpr (is_mpfr_v<Real>) {
       c_term *= 1.0 + std::log10(kappa) / static_cast<double>(current_digits10<Real>());
@@ -768,7 +768,8 @@ QPowerMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_
   namespace impl = fourier_moments_impl;
   if constexpr (std::is_same_v<Real, double>) {
     // Top values in double where the series is well conditioned (4Kd <~ 1.5), otherwise in
-    // long double (x87: ~5x slower per term, but usable up to Kd ~ 2 before Miller).
+    // long double (x87: slower per term, but usable up to Kd ~ 2 before Miller).
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     const double m = mu1 / (mu1 + mu2);
     const double Kd = static_cast<double>(count) * std::atanh(std::sqrt(m > 0 ? m : 0.0));
     if (impl::series_condition_estimate(Kd) <= 2)
