@@ -16,6 +16,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -437,4 +438,43 @@ TEST_CASE("run control: the series refuses unbounded work and stops on request",
   control.stop = &stop;
   CHECK_THROWS_AS(pendavg::series_convergence(chain, mpfr_real(1), 16, 0, control),
                   pendavg::interrupted);
+}
+
+TEST_CASE("run control: an exception inside a parallel region surfaces to the caller",
+          "[domain]") {
+  // An exception may not leave an OpenMP region (std::terminate): the engines keep the first
+  // one (engine/parallel.hpp) and rethrow it after the region. The series reports progress
+  // from inside its two-thread Bessel-table region (rows beyond 48 terms); a throwing progress
+  // callback must come back as that exception, and so must one thrown between transfer links.
+  struct callback_failed : std::runtime_error {
+    using std::runtime_error::runtime_error;
+  };
+  const Chain<mpfr_real> pair(std::vector<mpfr_real>{1, 50}, std::vector<mpfr_real>{1, 1});
+  pendavg::RunControl control;
+  int calls = 0;
+  control.progress = [&](double) {
+    if (++calls == 3) throw callback_failed("progress callback failed");
+  };
+  CHECK_THROWS_AS(pendavg::series_convergence(pair, mpfr_real(1), 16, 0, control),
+                  callback_failed);
+  // The stop request raised inside the same region: `interrupted`, after the region.
+  std::atomic<bool> stop{false};
+  pendavg::RunControl stopping;
+  stopping.stop = &stop;
+  calls = 0;
+  stopping.progress = [&](double) {
+    if (++calls == 3) stop = true;
+  };
+  CHECK_THROWS_AS(pendavg::series_convergence(pair, mpfr_real(1), 16, 0, stopping),
+                  pendavg::interrupted);
+  // Transfer on two threads, a level in progress.
+  const Chain<double> chain(std::vector<double>(12, 1.0), std::vector<double>(12, 1.0));
+  AverageOptions o;
+  o.method = AverageMethod::transfer;
+  o.threads = 2;
+  calls = 0;
+  o.control.progress = [&](double) {
+    if (++calls == 30) throw callback_failed("progress callback failed");
+  };
+  CHECK_THROWS_AS(pendavg::average(chain, 1.0, o), callback_failed);
 }

@@ -5,8 +5,9 @@
 //
 // Methods (AverageMethod; `automatic` picks for you):
 //   * integral         N = 2: the exact 1-D reduced integral (MATH.md Sec. 2), by finite Graf
-//                      sums or sinh-mapped Clenshaw-Curtis nodes; about 1 us in double, any
-//                      digits in MPFR. Error kind: estimate. automatic for N = 2.
+//                      sums or sinh-mapped Clenshaw-Curtis nodes; fast in double (README,
+//                      "Measurements behind the design choices"), any digits in MPFR. Error
+//                      kind: estimate. automatic for N = 2.
 //   * series           N = 2: the paper's series (eq. ave-K1-result) in MPFR with its rigorous
 //                      tail bound (kind bound for beta<K_i>; <cos phi_i>, Var K_i come from the
 //                      integral). Slow when mu1 = m1/M is small (geometric in mu2).

@@ -63,8 +63,8 @@
 // growth; the maxima come from the fast whips of the free end), 6e-11 to 2e-10 with yoshida6
 // (the default), 1.5e-11 with kahan_li6. Time averages of N = 2, 3 (NVE and Langevin) and of
 // the paper's N = 7, 16 runs agree with the exact values within ~2 combined error bars. Cost
-// at N = 16 per step: yoshida4 0.45 us, yoshida6 0.87 us, kahan_li6 1.1 us; linear in N
-// (25-35 ns per particle per yoshida4 step for N >= 16).
+// per step: linear in N.
+// Why: README, Design notes, 'Measurements behind the design choices' (dynamics).
 //
 // Generic over Real (double and long double are instantiated in src/engine/dynamics.cpp). The model
 // (Chain) is kept apart from the state (ChainState) and the workspace (DynamicsWorkspace). The

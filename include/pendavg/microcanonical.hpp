@@ -93,24 +93,15 @@
 //     standard error over the random shifts (a statistical bar, not a bound; sigmas is by
 //     default the 99.9% Student-t quantile, 4.07 for 16 shifts: see torus.hpp on why not 3).
 //
-// Measured (Release, g++ -O2, shared 2-core machine; unit masses and lengths, g = 1, E = 0;
-// repeated calls, the tanh-sinh table is built once per type, ~1 ms):
-//   N = 2  integral, tolerance 1e-12: 109 nodes, ~13 us; bars ~5e-15 relative. Agrees with a
-//          2-D brute-force quadrature of the definition (dense A, exact phi_1 limits) to 1e-11.
-//   N = 3  integral, tolerance 1e-10: 2e4 nodes, ~7 ms, bars ~1e-12 relative.
-//   N = 4  integral, tolerance 1e-8: 2.7e6 nodes, 0.25 s on 2 threads (1e-10: 0.63 s).
-//   With Var K_i in every stopping test: N = 3 at 1e-10 takes 2.4e4 nodes (bars ~1.6e-14
-//   relative), N = 4 at 1e-8 4.2e6 nodes (bars 1.5e-10); N = 2 is unchanged.
-//   N = 7  qmc, 2^16 points x 32 shifts, 2 threads: 4.2 s, bars (3 sigma) 1.4e-5..4e-5 relative
-//          (2^14 x 16: 0.4 s, ~1.5e-4); effective sample fraction 0.70, beta* = 0.248.
-//   N = 16 qmc, 2^16 x 32, 2 threads: 6.9 s, bars 1.1e-4..2.2e-4 relative (2^14 x 16: 0.9 s,
-//          ~6e-4); effective sample fraction 0.48, beta* = 0.115. The bars shrink about like
-//          n^-1/2 here (the kink at rho = |E| and the dimension), so 10x smaller costs 100x.
-//   Scanning beta* at 0.4..1.0 x the matched value changed the N = 7 bars by < 2x and did not
-//   help N = 16, so the matched value is kept.
-// Cross-checks (tests/test_microcanonical.cpp): integral vs QMC vs torus trapezoid vs a 3-angle
-// brute force for N = 3; Laplace transforms of Omega(E) <K_i>_E against the canonical engines
-// (N = 2: 1e-9; N = 3: 1e-7, slow test) and of Omega against Z(beta) of N = 1 (1e-9); the
+// Cost: the integral rule's nodes grow steeply with N (N = 4 is its practical limit); the qmc
+// bars shrink about like n^-1/2 (the kink at rho = |E| and the dimension). beta* is the matched
+// value (scanning it did not help).
+// Why: README, Design notes, 'Measurements behind the design choices'
+// (microcanonical: nodes, times and bars for N = 2, 3, 4, 7, 16; the beta* scan).
+// Cross-checks (tests/test_microcanonical.cpp): N = 2 against a 2-D brute-force quadrature of
+// the definition (dense A, exact phi_1 limits; 1e-11); integral vs QMC vs torus trapezoid vs a
+// 3-angle brute force for N = 3; Laplace transforms of Omega(E) <K_i>_E against the canonical
+// engines (N = 2: 1e-9; N = 3: 1e-7, slow test) and of Omega against Z(beta) of N = 1 (1e-9); the
 // near-minimum ladder (relative errors <= 1.1e-15 at D = 1e-4..1e-12 |E_min| for N = 2, 3, bars
 // 5e-15 (N = 2) and 5e-14 (N = 3) relative); double against long double at every separatrix
 // energy and above the top; MPFR (30 digits) against double.

@@ -7,7 +7,8 @@
 //  * scaled_bessel_i01(x)       -- e^{-x} I0(x) and e^{-x} I1(x), x >= 0. For double this is
 //                                  GSL (gsl_sf_bessel_I0_scaled / I1_scaled). For MPFR no
 //                                  library offers scaled I (MPFR has none; Boost's cyl_bessel_i
-//                                  on mpfr_float costs 0.1-3 ms a call), so the generic version
+//                                  on mpfr_float is slow: README, Design notes, "Measurements
+//                                  behind the design choices"), so the generic version
 //                                  sums the power series (all terms positive) below
 //                                  asymptotic_threshold(u) and the Hankel asymptotic series
 //                                  above it, where its smallest term is below u.

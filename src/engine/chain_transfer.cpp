@@ -2,6 +2,7 @@
 #include "engine/chain_transfer.hpp"
 
 #include "engine/estimates.hpp"
+#include "engine/parallel.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -298,8 +299,9 @@ Real trig_interpolation_weight(const AngleRule<Real>& rule, std::size_t b, const
 constexpr std::size_t lanes = 8;
 
 /// A link is split over threads only above this much work (kernel evaluations times pivot
-/// nodes, ~0.5 ms): below it the fork and barrier cost more than they save, and much more
-/// when the other cores are busy.
+/// nodes): below it the fork and barrier cost more than they save, and much more when the other
+/// cores are busy.
+/// Why: README, Design notes, 'Measurements behind the design choices' (transfer).
 constexpr double parallel_work_threshold = 1e6;
 
 /// Rounding budget of every quantity, in roundoffs times the sum of the absolute values of the
@@ -387,31 +389,35 @@ void relative_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
   std::vector<std::size_t> orbit;
   std::vector<Real> multiplicity;
   orbit_representatives(to, orbit, multiplicity);
+  ParallelErrors errors;  // an exception may not leave the parallel region
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(static) if (parallel)
 #endif
   for (std::ptrdiff_t ob = 0; ob < static_cast<std::ptrdiff_t>(orbit.size()); ++ob) {
-    const std::size_t b = orbit[static_cast<std::size_t>(ob)];
-    std::vector<Real> column(n), h(mj), row(mn, Real(0));
-    for (std::size_t k = 0; k < nd; ++k) {
-      for (std::size_t a = 0; a < n; ++a) {
-        column[a] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
+    errors.capture([&] {
+      const std::size_t b = orbit[static_cast<std::size_t>(ob)];
+      std::vector<Real> column(n), h(mj), row(mn, Real(0));
+      for (std::size_t k = 0; k < nd; ++k) {
+        for (std::size_t a = 0; a < n; ++a) {
+          column[a] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
+        }
+        for (std::size_t c = 0; c < mj; ++c) {
+          Real acc = 0;
+          for (std::size_t a = 0; a < n; ++a) acc += column[a] * source[a * mj + c];
+          h[c] = rel.weight[k] * acc;
+        }
+        for (std::size_t c = 0; c < mj; ++c) {
+          const Real* L = &basis[(k * mj + c) * mn];
+          for (std::size_t cp = 0; cp < mn; ++cp) row[cp] += h[c] * L[cp];
+        }
       }
-      for (std::size_t c = 0; c < mj; ++c) {
-        Real acc = 0;
-        for (std::size_t a = 0; a < n; ++a) acc += column[a] * source[a * mj + c];
-        h[c] = rel.weight[k] * acc;
+      for (std::size_t cp = 0; cp < mn; ++cp) {
+        next[b * mn + cp] = to.boltzmann[b] * row[cp];
+        next[to.mirror[b] * mn + cp] = to.boltzmann[b] * row[cp];
       }
-      for (std::size_t c = 0; c < mj; ++c) {
-        const Real* L = &basis[(k * mj + c) * mn];
-        for (std::size_t cp = 0; cp < mn; ++cp) row[cp] += h[c] * L[cp];
-      }
-    }
-    for (std::size_t cp = 0; cp < mn; ++cp) {
-      next[b * mn + cp] = to.boltzmann[b] * row[cp];
-      next[to.mirror[b] * mn + cp] = to.boltzmann[b] * row[cp];
-    }
+    });
   }
+  errors.rethrow();
 }
 
 /// Backward step of a light-to-heavy link over the relative angle (the messages of particle j
@@ -430,28 +436,32 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
   std::vector<Real> values(nd * mj * 4 * n);
   const bool parallel = team > 1 && double(n) * double(n) * double(nd) * double(mj) >=
                                         parallel_work_threshold;
+  ParallelErrors errors;  // an exception may not leave the parallel regions
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(team) schedule(static) if (parallel)
 #endif
   for (std::ptrdiff_t kk = 0; kk < static_cast<std::ptrdiff_t>(nd); ++kk) {
-    const std::size_t k = static_cast<std::size_t>(kk);
-    std::vector<Real> tk(mn);
-    for (std::size_t c = 0; c < mj; ++c) {
-      Real u_next;
-      chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
-                       tk.data());
-      Real e[4] = {1, 1, 1, 1};
-      if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
-      for (std::size_t q = 0; q < 4; ++q) {
-        Real* out = &values[((k * mj + c) * 4 + q) * n];
-        for (std::size_t b = 0; b < n; ++b) {
-          Real acc = 0;
-          for (std::size_t kp = 0; kp < mn; ++kp) acc += coef[(q * mn + kp) * np + b] * tk[kp];
-          out[b] = to.boltzmann[b] * e[q] * acc;
+    errors.capture([&] {
+      const std::size_t k = static_cast<std::size_t>(kk);
+      std::vector<Real> tk(mn);
+      for (std::size_t c = 0; c < mj; ++c) {
+        Real u_next;
+        chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
+                         tk.data());
+        Real e[4] = {1, 1, 1, 1};
+        if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+        for (std::size_t q = 0; q < 4; ++q) {
+          Real* out = &values[((k * mj + c) * 4 + q) * n];
+          for (std::size_t b = 0; b < n; ++b) {
+            Real acc = 0;
+            for (std::size_t kp = 0; kp < mn; ++kp) acc += coef[(q * mn + kp) * np + b] * tk[kp];
+            out[b] = to.boltzmann[b] * e[q] * acc;
+          }
         }
       }
-    }
+    });
   }
+  errors.rethrow();
   // Rows a and mirror(a) are equal (the rules are symmetric under phi -> -phi): one per orbit.
   std::vector<std::size_t> orbit;
   std::vector<Real> multiplicity;
@@ -461,52 +471,55 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
 #pragma omp parallel for num_threads(team) schedule(static) if (parallel)
 #endif
   for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
-    const std::size_t a = orbit[static_cast<std::size_t>(oa)];
-    std::vector<Real> interp(n), acc(8 * mj, Real(0));
-    for (std::size_t k = 0; k < nd; ++k) {
-      for (std::size_t b = 0; b < n; ++b) {
-        interp[b] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
-      }
-      const Real s2 = rel.sin2[k], c2 = rel.cos2[k], w = rel.weight[k];
-      for (std::size_t c = 0; c < mj; ++c) {
-        Real v[4];
-        for (std::size_t q = 0; q < 4; ++q) {
-          const Real* vals = &values[((k * mj + c) * 4 + q) * n];
-          Real x = 0;
-          for (std::size_t b = 0; b < n; ++b) x += interp[b] * vals[b];
-          v[q] = w * x;
+    errors.capture([&] {
+      const std::size_t a = orbit[static_cast<std::size_t>(oa)];
+      std::vector<Real> interp(n), acc(8 * mj, Real(0));
+      for (std::size_t k = 0; k < nd; ++k) {
+        for (std::size_t b = 0; b < n; ++b) {
+          interp[b] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
         }
-        const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip, ip3 = ip2 * ip;
-        const Real J = ratio * c2 * ip2;
-        const Real Q = -ratio * (u * u + s2 * (1 + 2 * u)) * ip2;
-        const Real dQ = -Q - 2 * ratio * u * u * c2 * ip3;
-        Real* A = &acc[8 * c];
-        A[0] += v[0];
-        A[1] += J * v[1];
-        A[2] += J * J * v[2];
-        A[3] += J * J * v[3];
-        A[4] += Q * v[1];
-        A[5] += Q * Q * v[2];
-        A[6] += dQ * v[1];
-        A[7] += Q * Q * v[3];
+        const Real s2 = rel.sin2[k], c2 = rel.cos2[k], w = rel.weight[k];
+        for (std::size_t c = 0; c < mj; ++c) {
+          Real v[4];
+          for (std::size_t q = 0; q < 4; ++q) {
+            const Real* vals = &values[((k * mj + c) * 4 + q) * n];
+            Real x = 0;
+            for (std::size_t b = 0; b < n; ++b) x += interp[b] * vals[b];
+            v[q] = w * x;
+          }
+          const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip, ip3 = ip2 * ip;
+          const Real J = ratio * c2 * ip2;
+          const Real Q = -ratio * (u * u + s2 * (1 + 2 * u)) * ip2;
+          const Real dQ = -Q - 2 * ratio * u * u * c2 * ip3;
+          Real* A = &acc[8 * c];
+          A[0] += v[0];
+          A[1] += J * v[1];
+          A[2] += J * J * v[2];
+          A[3] += J * J * v[3];
+          A[4] += Q * v[1];
+          A[5] += Q * Q * v[2];
+          A[6] += dQ * v[1];
+          A[7] += Q * Q * v[3];
+        }
       }
-    }
-    NodeSums<Real> row;
-    for (std::size_t c = 0; c < mj; ++c) {
-      const Real* A = &acc[8 * c];
-      const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip;
-      const Real f = pj.root_factor[c], g = ip / 2;
-      for (const std::size_t r : {a, from.mirror[a]}) {
-        current[(0 * n + r) * mj + c] = f * A[0];
-        current[(1 * n + r) * mj + c] = f * (g * A[0] + A[1]);
-        current[(2 * n + r) * mj + c] = f * (g * g * A[0] + 2 * g * A[1] + A[2]);
-        current[(3 * n + r) * mj + c] = f * (-ip2 / 2 * A[0] - 2 * ip * A[1] + A[3]);
+      NodeSums<Real> row;
+      for (std::size_t c = 0; c < mj; ++c) {
+        const Real* A = &acc[8 * c];
+        const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip;
+        const Real f = pj.root_factor[c], g = ip / 2;
+        for (const std::size_t r : {a, from.mirror[a]}) {
+          current[(0 * n + r) * mj + c] = f * A[0];
+          current[(1 * n + r) * mj + c] = f * (g * A[0] + A[1]);
+          current[(2 * n + r) * mj + c] = f * (g * g * A[0] + 2 * g * A[1] + A[2]);
+          current[(3 * n + r) * mj + c] = f * (-ip2 / 2 * A[0] - 2 * ip * A[1] + A[3]);
+        }
+        row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A[0], A[4], A[5], A[6], A[7]);
       }
-      row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A[0], A[4], A[5], A[6], A[7]);
-    }
-    const std::size_t o = static_cast<std::size_t>(oa);
-    row.store(&row_sums[node_sum_count * o], multiplicity[o]);
+      const std::size_t o = static_cast<std::size_t>(oa);
+      row.store(&row_sums[node_sum_count * o], multiplicity[o]);
+    });
   }
+  errors.rethrow();
   for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] = 0;
   for (std::size_t o = 0; o < orbit.size(); ++o) {
     for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] += row_sums[node_sum_count * o + q];
@@ -537,104 +550,102 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
   }
 }
 
-template <class Real>
-TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
-                                              std::size_t angle_nodes, std::size_t pivot_nodes,
-                                              int threads, const RunControl* control) {
-  using std::cos;
-  using std::log;
-  using std::sin;
-  using std::sqrt;
-  check_transfer_domain(chain, beta);
-  if (angle_nodes < 4 || angle_nodes % 2 != 0) {
-    throw invalid_input("chain_transfer: angle_nodes must be even and >= 4");
-  }
-  if (pivot_nodes < 3) throw invalid_input("chain_transfer: pivot_nodes must be >= 3");
-  const std::size_t N = chain.size();
-  const std::size_t n = angle_nodes;
-  const std::size_t np = (n + lanes - 1) / lanes * lanes;  // n padded to whole vector blocks
-  const std::vector<Real>& mass = chain.masses();
-  const int team = std::max(threads, 1);
+namespace {
 
+/// The rules of one level: per particle the angle rule and the pivot rule, and per light-to-heavy
+/// link the relative-angle rule (is_relative[j] for the link j -> j + 1).
+template <class Real>
+struct LevelRules {
+  std::vector<AngleRule<Real>> angle;
+  std::vector<PivotRule<Real>> pivot;
+  std::vector<RelativeRule<Real>> relative;
+  std::vector<char> is_relative;
+};
+
+template <class Real>
+LevelRules<Real> level_rules(const Chain<Real>& chain, const Real& beta, std::size_t n,
+                             std::size_t pivot_nodes) {
+  using std::log;
+  using std::sqrt;
+  const std::size_t N = chain.size();
+  const std::vector<Real>& mass = chain.masses();
+  LevelRules<Real> rules;
   // ---- per particle: the angle rule and the pivot rule.
   const Real roundoff = std::numeric_limits<Real>::epsilon();
-  std::vector<AngleRule<Real>> angle(N);
-  std::vector<PivotRule<Real>> pivot(N);
+  rules.angle.resize(N);
+  rules.pivot.resize(N);
   for (std::size_t j = 0; j < N; ++j) {
-    const Real alpha = beta * chain.potential_coefficient(j);  // finite: checked above
+    const Real alpha = beta * chain.potential_coefficient(j);  // finite: checked by the caller
     const Real u_max = j > 0 ? mass[j] / mass[j - 1] : Real(0);
     // The marginal of phi_j is below exp(alpha (cos phi - 1)) times the spread of its conditional
     // factor sqrt(D_j) <= sqrt((1 + u_max) S_j / m_j): cut where the product is below roundoff.
     const Real truncation =
         -log(roundoff) + 3 + log((1 + u_max) * chain.tail_mass(j) / mass[j]) / 2;
-    angle[j] = angle_rule(alpha, truncation, n);
-    pivot[j] = pivot_rule(mass[j], mass[j] / chain.tail_mass(j), u_max, j > 0 ? pivot_nodes : 1);
+    rules.angle[j] = angle_rule(alpha, truncation, n);
+    rules.pivot[j] =
+        pivot_rule(mass[j], mass[j] / chain.tail_mass(j), u_max, j > 0 ? pivot_nodes : 1);
   }
-
   // Light-to-heavy links: the relative-angle rule (see RelativeRule).
-  std::vector<RelativeRule<Real>> relative(N);
-  std::vector<char> is_relative(N, 0);
+  rules.relative.resize(N);
+  rules.is_relative.assign(N, 0);
   for (std::size_t j = 0; j + 1 < N; ++j) {
     const Real reach = mass[j + 1] + (j + 2 < N ? 2 * mass[j + 2] : Real(0));
     if (reach > Real(relative_link_ratio) * mass[j]) {
-      is_relative[j] = 1;
-      relative[j] = relative_rule(angle[j], angle[j + 1], Real(sqrt(mass[j] / chain.tail_mass(j + 1))), n);
+      rules.is_relative[j] = 1;
+      rules.relative[j] = relative_rule(rules.angle[j], rules.angle[j + 1],
+                                        Real(sqrt(mass[j] / chain.tail_mass(j + 1))), n);
     }
   }
+  return rules;
+}
 
-  // ---- forward sweep: F_j[a * m_j + c], the measure of (phi_j, u_j), scaled per link.
-  std::vector<std::vector<Real>> forward(N);
-  forward[0] = angle[0].weight_boltzmann;  // u_1 = 0: one pivot node
-  normalize(forward[0]);
-  double kernel_evaluations = 0;
+/// Forward step of a link on the product (phi_j, phi_{j+1}) grid: F_{j+1}(b, c') = E_b w_b
+/// sum_{a,c} F_j(a, c) sqrt(m_j (1 + u_c)) L_{c'}(u'(u_c, phi_b - phi_a)), L_{c'} the Lagrange
+/// basis of the next pivot rule (through its Chebyshev moments). Returns the kernel evaluations.
+template <class Real>
+double product_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
+                       const PivotRule<Real>& pj, const PivotRule<Real>& pn, const Real& ratio,
+                       const std::vector<Real>& forward, std::vector<Real>& next, int team) {
+  using std::sin;
+  using std::sqrt;
+  const std::size_t n = from.angle.size(), mj = pj.m, mn = pn.m;
+  const std::size_t count = n * mj, padded = (count + lanes - 1) / lanes * lanes;
+  // Sources: F_j sqrt(m_j (1 + u)), padded with zero weights.
+  std::vector<Real> source(padded, Real(0)), source_u(padded, Real(0)),
+      source_ip(padded, Real(1));
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t c = 0; c < mj; ++c) {
+      source[a * mj + c] = forward[a * mj + c] * pj.root_factor[c];
+      source_u[a * mj + c] = pj.u[c];
+      source_ip[a * mj + c] = pj.inv_one_plus_u[c];
+    }
+  }
   std::vector<std::size_t> orbit;
   std::vector<Real> multiplicity;
-  // Between links (outside every parallel region): progress over both sweeps, and a stop.
-  const auto poll = [&](std::size_t links_done) {
-    if (control == nullptr) return;
-    if (control->stop_requested()) throw interrupted("transfer: stopped during a level");
-    control->report(static_cast<double>(links_done) / static_cast<double>(2 * N));
-  };
-  for (std::size_t j = 0; j + 1 < N; ++j) {
-    poll(j);
-    const PivotRule<Real>& pj = pivot[j];
-    const PivotRule<Real>& pn = pivot[j + 1];
-    const AngleRule<Real>& from = angle[j];
-    const AngleRule<Real>& to = angle[j + 1];
-    const std::size_t mj = pj.m, mn = pn.m;
-    const Real ratio = mass[j + 1] / mass[j];
-    const std::size_t count = n * mj, padded = (count + lanes - 1) / lanes * lanes;
-    // Sources: F_j sqrt(m_j (1 + u)), padded with zero weights.
-    std::vector<Real> source(padded, Real(0)), source_u(padded, Real(0)),
-        source_ip(padded, Real(1));
-    for (std::size_t a = 0; a < n; ++a) {
-      for (std::size_t c = 0; c < mj; ++c) {
-        source[a * mj + c] = forward[j][a * mj + c] * pj.root_factor[c];
-        source_u[a * mj + c] = pj.u[c];
-        source_ip[a * mj + c] = pj.inv_one_plus_u[c];
-      }
-    }
-    std::vector<Real> next(n * mn, Real(0));
-    if (is_relative[j]) {
-      relative_forward(from, to, pj, pn, relative[j], ratio, forward[j], next, team);
-      normalize(next);
-      forward[j + 1] = std::move(next);
-      kernel_evaluations += double(n) * double(mj) * double(n);
-      continue;
-    }
-    orbit_representatives(to, orbit, multiplicity);
-    const bool parallel = team > 1 && double(orbit.size()) * double(count) * double(mn) >=
-                                          parallel_work_threshold;
+  orbit_representatives(to, orbit, multiplicity);
+  const bool parallel = team > 1 && double(orbit.size()) * double(count) * double(mn) >=
+                                        parallel_work_threshold;
+  ParallelErrors errors;  // an exception may not leave the parallel region
 #if defined(_OPENMP)
 #pragma omp parallel num_threads(team) if (parallel)
 #endif
-    {
-      std::vector<Real> s2(n), t(padded, Real(0)), weighted(padded, Real(0)), moment(mn),
-          partial(mn * lanes);
+  {
+    std::vector<Real> s2, t, weighted, moment, partial;
+    bool ready = false;
+    errors.capture([&] {
+      s2.assign(n, Real(0));
+      t.assign(padded, Real(0));
+      weighted.assign(padded, Real(0));
+      moment.assign(mn, Real(0));
+      partial.assign(mn * lanes, Real(0));
+      ready = true;
+    });
 #if defined(_OPENMP)
 #pragma omp for schedule(static)
 #endif
-      for (std::ptrdiff_t ob = 0; ob < static_cast<std::ptrdiff_t>(orbit.size()); ++ob) {
+    for (std::ptrdiff_t ob = 0; ob < static_cast<std::ptrdiff_t>(orbit.size()); ++ob) {
+      errors.capture([&] {
+        if (!ready) return;
         const std::size_t b = orbit[static_cast<std::size_t>(ob)];
         for (std::size_t a = 0; a < n; ++a) {
           const Real s = sin(to.angle[b] - from.angle[a]);
@@ -693,110 +704,201 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
           next[b * mn + c] = wb * acc;
           next[to.mirror[b] * mn + c] = wb * acc;
         }
-      }
+      });
+    }
+  }
+  errors.rethrow();
+  return double(orbit.size()) * double(count);
+}
+
+/// Forward sweep: F_j[a * m_j + c], the measure of (phi_j, u_j), scaled per link (normalize).
+/// poll(links_done) runs before each link, outside every parallel region.
+template <class Real, class Poll>
+std::vector<std::vector<Real>> forward_sweep(const Chain<Real>& chain,
+                                             const LevelRules<Real>& rules, int team,
+                                             const Poll& poll, double& kernel_evaluations) {
+  const std::size_t N = chain.size();
+  const std::vector<Real>& mass = chain.masses();
+  std::vector<std::vector<Real>> forward(N);
+  forward[0] = rules.angle[0].weight_boltzmann;  // u_1 = 0: one pivot node
+  normalize(forward[0]);
+  for (std::size_t j = 0; j + 1 < N; ++j) {
+    poll(j);
+    const PivotRule<Real>& pj = rules.pivot[j];
+    const PivotRule<Real>& pn = rules.pivot[j + 1];
+    const AngleRule<Real>& from = rules.angle[j];
+    const AngleRule<Real>& to = rules.angle[j + 1];
+    const std::size_t n = from.angle.size();
+    const Real ratio = mass[j + 1] / mass[j];
+    std::vector<Real> next(n * pn.m, Real(0));
+    if (rules.is_relative[j]) {
+      relative_forward(from, to, pj, pn, rules.relative[j], ratio, forward[j], next, team);
+      kernel_evaluations += double(n) * double(pj.m) * double(n);
+    } else {
+      kernel_evaluations += product_forward(from, to, pj, pn, ratio, forward[j], next, team);
     }
     normalize(next);
     forward[j + 1] = std::move(next);
-    kernel_evaluations += double(orbit.size()) * double(count);
   }
+  return forward;
+}
 
-  // ---- backward sweep: the messages M0..M3 and, at each particle, the node quantities.
-  TransferLevel<Real> out;
-  out.beta_kinetic.assign(N, Real(0));
-  out.cos_angle.assign(N, Real(0));
-  out.beta2_kinetic_variance.assign(N, Real(0));
-  out.beta2_kinetic_second_moment.assign(N, Real(0));
-  out.beta_kinetic_rounding_scale.assign(N, Real(0));
-  out.beta2_kinetic_variance_rounding_scale.assign(N, Real(0));
-  out.cos_angle_rounding_scale.assign(N, Real(0));
-  const auto store = [&](std::size_t j, const Real* sums) {
-    // sums: Z, Z <cos>, Z <tr X>, Z <(tr X)^2>, Z <d^2 log det A>, and the same over |terms|.
-    using std::abs;
-    const Real z = sums[0];
-    const Real k = sums[2] / (2 * z);
-    const Real trace_squared = sums[2] - sums[4];  // Z <tr X^2> = Z <tr X - d^2 log det A>
-    out.beta_kinetic[j] = k;
-    out.cos_angle[j] = sums[1] / z;
-    out.beta2_kinetic_second_moment[j] = (sums[3] + 2 * trace_squared) / (4 * z);
-    out.beta2_kinetic_variance[j] = out.beta2_kinetic_second_moment[j] - k * k;
-    out.beta_kinetic_rounding_scale[j] = sums[6] / (2 * z);
-    out.cos_angle_rounding_scale[j] = sums[5] / z;
-    out.beta2_kinetic_variance_rounding_scale[j] =
-        (sums[7] + 2 * (sums[6] + sums[8])) / (4 * z) + 2 * abs(k) * sums[6] / (2 * z);
-  };
+/// The node quantities of particle j from its NodeSums: Z, Z <cos>, Z <tr X>, Z <(tr X)^2>,
+/// Z <d^2 log det A>, and the same over |terms| (the rounding scales).
+template <class Real>
+void store_node_quantities(TransferLevel<Real>& out, std::size_t j, const Real* sums) {
+  using std::abs;
+  const Real z = sums[0];
+  const Real k = sums[2] / (2 * z);
+  const Real trace_squared = sums[2] - sums[4];  // Z <tr X^2> = Z <tr X - d^2 log det A>
+  out.beta_kinetic[j] = k;
+  out.cos_angle[j] = sums[1] / z;
+  out.beta2_kinetic_second_moment[j] = (sums[3] + 2 * trace_squared) / (4 * z);
+  out.beta2_kinetic_variance[j] = out.beta2_kinetic_second_moment[j] - k * k;
+  out.beta_kinetic_rounding_scale[j] = sums[6] / (2 * z);
+  out.cos_angle_rounding_scale[j] = sums[5] / z;
+  out.beta2_kinetic_variance_rounding_scale[j] =
+      (sums[7] + 2 * (sums[6] + sums[8])) / (4 * z) + 2 * abs(k) * sums[6] / (2 * z);
+}
 
-  // Messages of particle j as node values: message[(q * n + a) * m_j + c], q = 0..3.
-  std::vector<Real> message;
-  {
-    const std::size_t j = N - 1;
-    const PivotRule<Real>& pj = pivot[j];
-    const std::size_t mj = pj.m;
-    message.resize(4 * n * mj);
-    NodeSums<Real> last;
-    for (std::size_t a = 0; a < n; ++a) {
-      for (std::size_t c = 0; c < mj; ++c) {
-        const Real ip = pj.inv_one_plus_u[c], f = pj.root_factor[c];
-        message[(0 * n + a) * mj + c] = f;                 // W
-        message[(1 * n + a) * mj + c] = f * ip / 2;        // W d_u log W
-        message[(2 * n + a) * mj + c] = f * ip * ip / 4;   // W (d_u log W)^2
-        message[(3 * n + a) * mj + c] = -f * ip * ip / 2;  // W d_u^2 log W
-        // No next link: tr X_N = 1 + u/(1 + u), d^2 log det A = u/(1 + u)^2 (Q = 0).
-        last.add(forward[j][a * mj + c] * f, pj.u[c], ip, angle[j].cos_angle[a], Real(1),
-                 Real(0), Real(0), Real(0), Real(0));
-      }
+/// The messages of the last particle as node values, message[(q * n + a) * m + c], q = 0..3,
+/// and its NodeSums (no next link).
+template <class Real>
+std::vector<Real> last_particle_messages(const AngleRule<Real>& angle, const PivotRule<Real>& pj,
+                                         const std::vector<Real>& forward, Real* sums) {
+  const std::size_t n = angle.angle.size(), mj = pj.m;
+  std::vector<Real> message(4 * n * mj);
+  NodeSums<Real> last;
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t c = 0; c < mj; ++c) {
+      const Real ip = pj.inv_one_plus_u[c], f = pj.root_factor[c];
+      message[(0 * n + a) * mj + c] = f;                 // W
+      message[(1 * n + a) * mj + c] = f * ip / 2;        // W d_u log W
+      message[(2 * n + a) * mj + c] = f * ip * ip / 4;   // W (d_u log W)^2
+      message[(3 * n + a) * mj + c] = -f * ip * ip / 2;  // W d_u^2 log W
+      // No next link: tr X_N = 1 + u/(1 + u), d^2 log det A = u/(1 + u)^2 (Q = 0).
+      last.add(forward[a * mj + c] * f, pj.u[c], ip, angle.cos_angle[a], Real(1), Real(0),
+               Real(0), Real(0), Real(0));
     }
-    Real sums[node_sum_count];
-    last.store(sums, Real(1));
-    store(j, sums);
   }
-  for (std::size_t j = N - 1; j-- > 0;) {
-    poll(2 * N - 1 - j);
-    const PivotRule<Real>& pj = pivot[j];
-    const PivotRule<Real>& pn = pivot[j + 1];
-    const AngleRule<Real>& from = angle[j];
-    const AngleRule<Real>& to = angle[j + 1];
-    const std::size_t mj = pj.m, mn = pn.m;
-    const Real ratio = mass[j + 1] / mass[j];
-    // Chebyshev coefficients of the messages of particle j + 1: coef[(q * mn + k) * np + b].
-    std::vector<Real> coef(4 * mn * np, Real(0));
-    for (std::size_t q = 0; q < 4; ++q) {
-      for (std::size_t b = 0; b < n; ++b) {
-        const Real* values = &message[(q * n + b) * mn];
-        for (std::size_t k = 0; k < mn; ++k) {
-          Real acc = 0;
-          for (std::size_t c = 0; c < mn; ++c) {
-            acc += pn.to_coefficients[k * mn + c] * values[c] / pn.node_envelope[q * mn + c];
-          }
-          coef[(q * mn + k) * np + b] = acc;
+  last.store(sums, Real(1));
+  return message;
+}
+
+/// Chebyshev coefficients of the messages of particle j + 1 divided by their envelopes:
+/// coef[(q * mn + k) * np + b], np the angle nodes padded to whole vector blocks.
+template <class Real>
+std::vector<Real> message_coefficients(const PivotRule<Real>& pn, const std::vector<Real>& message,
+                                       std::size_t n, std::size_t np) {
+  const std::size_t mn = pn.m;
+  std::vector<Real> coef(4 * mn * np, Real(0));
+  for (std::size_t q = 0; q < 4; ++q) {
+    for (std::size_t b = 0; b < n; ++b) {
+      const Real* values = &message[(q * n + b) * mn];
+      for (std::size_t k = 0; k < mn; ++k) {
+        Real acc = 0;
+        for (std::size_t c = 0; c < mn; ++c) {
+          acc += pn.to_coefficients[k * mn + c] * values[c] / pn.node_envelope[q * mn + c];
         }
+        coef[(q * mn + k) * np + b] = acc;
       }
     }
-    if (is_relative[j]) {
-      std::vector<Real> current(4 * n * mj);
-      Real sums[node_sum_count];
-      relative_backward(from, to, pj, pn, relative[j], ratio, coef, np, forward[j], current,
-                        sums, team);
-      store(j, sums);
-      normalize(current);
-      message = std::move(current);
-      kernel_evaluations += double(n) * double(mj) * double(n);
-      continue;
+  }
+  return coef;
+}
+
+/// The four messages of particle j + 1 at the interpolation coordinates t_b of one pivot node:
+/// v[q * np + b] = sum_k coef_q[k][b] T_k(t_b), times the envelopes at u' + 1 (u_next) when the
+/// pivot rule is enveloped; `lanes` targets at a time.
+template <class Real>
+inline void message_values(const std::vector<Real>& coef, std::size_t mn, std::size_t np,
+                           const Real* t, const Real* u_next, bool enveloped, Real* v) {
+  using std::sqrt;
+  for (std::size_t b0 = 0; b0 < np; b0 += lanes) {
+    Real x[lanes], tk0[lanes], tk1[lanes], v0[lanes], v1[lanes], v2[lanes], v3[lanes];
+    for (std::size_t l = 0; l < lanes; ++l) {
+      x[l] = t[b0 + l];
+      tk0[l] = 1;
+      tk1[l] = x[l];
+      v0[l] = coef[(0 * mn) * np + b0 + l] + coef[(0 * mn + 1) * np + b0 + l] * x[l];
+      v1[l] = coef[(1 * mn) * np + b0 + l] + coef[(1 * mn + 1) * np + b0 + l] * x[l];
+      v2[l] = coef[(2 * mn) * np + b0 + l] + coef[(2 * mn + 1) * np + b0 + l] * x[l];
+      v3[l] = coef[(3 * mn) * np + b0 + l] + coef[(3 * mn + 1) * np + b0 + l] * x[l];
     }
-    orbit_representatives(from, orbit, multiplicity);
-    std::vector<Real> current(4 * n * mj);
-    std::vector<Real> row_sums(node_sum_count * orbit.size(), Real(0));
-    const bool parallel = team > 1 && double(orbit.size()) * double(mj * n) * double(mn) >=
-                                          parallel_work_threshold;
+    for (std::size_t k = 2; k < mn; ++k) {
+      const Real* k0 = &coef[(0 * mn + k) * np + b0];
+      const Real* k1 = &coef[(1 * mn + k) * np + b0];
+      const Real* k2 = &coef[(2 * mn + k) * np + b0];
+      const Real* k3 = &coef[(3 * mn + k) * np + b0];
+      for (std::size_t l = 0; l < lanes; ++l) {
+        const Real tn = 2 * x[l] * tk1[l] - tk0[l];
+        tk0[l] = tk1[l];
+        tk1[l] = tn;
+        v0[l] += k0[l] * tn;
+        v1[l] += k1[l] * tn;
+        v2[l] += k2[l] * tn;
+        v3[l] += k3[l] * tn;
+      }
+    }
+    if (enveloped) {  // times the envelopes (message_envelopes) at u' + 1
+      for (std::size_t l = 0; l < lanes; ++l) {
+        const Real r = sqrt(u_next[b0 + l] + 1), ir = 1 / r, ir3 = ir * ir * ir;
+        v0[l] *= r;
+        v1[l] *= ir;
+        v2[l] *= ir3;
+        v3[l] *= ir3;
+      }
+    }
+    for (std::size_t l = 0; l < lanes; ++l) {
+      v[b0 + l] = v0[l];
+      v[np + b0 + l] = v1[l];
+      v[2 * np + b0 + l] = v2[l];
+      v[3 * np + b0 + l] = v3[l];
+    }
+  }
+}
+
+/// Backward step of a link on the product (phi_j, phi_{j+1}) grid: the messages M0..M3 of
+/// particle j (`current`) and its NodeSums summed over the nodes (`sums`), from the Chebyshev
+/// coefficients of particle j + 1's messages evaluated at u'(u_c, phi_b - phi_a). Returns the
+/// kernel evaluations.
+template <class Real>
+double product_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
+                        const PivotRule<Real>& pj, const PivotRule<Real>& pn, const Real& ratio,
+                        const std::vector<Real>& coef, std::size_t np,
+                        const std::vector<Real>& forward, std::vector<Real>& current, Real* sums,
+                        int team) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const std::size_t n = from.angle.size(), mj = pj.m, mn = pn.m;
+  std::vector<std::size_t> orbit;
+  std::vector<Real> multiplicity;
+  orbit_representatives(from, orbit, multiplicity);
+  std::vector<Real> row_sums(node_sum_count * orbit.size(), Real(0));
+  const bool parallel = team > 1 && double(orbit.size()) * double(mj * n) * double(mn) >=
+                                        parallel_work_threshold;
+  ParallelErrors errors;  // an exception may not leave the parallel region
 #if defined(_OPENMP)
 #pragma omp parallel num_threads(team) if (parallel)
 #endif
-    {
-      std::vector<Real> s2(np, Real(0)), c2(np, Real(0)), t(np, Real(0)), v(4 * np),
-          u_next(np, Real(0));
+  {
+    std::vector<Real> s2, c2, t, v, u_next;
+    bool ready = false;
+    errors.capture([&] {
+      s2.assign(np, Real(0));
+      c2.assign(np, Real(0));
+      t.assign(np, Real(0));
+      v.assign(4 * np, Real(0));
+      u_next.assign(np, Real(0));
+      ready = true;
+    });
 #if defined(_OPENMP)
 #pragma omp for schedule(static)
 #endif
-      for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
+    for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
+      errors.capture([&] {
+        if (!ready) return;
         const std::size_t a = orbit[static_cast<std::size_t>(oa)];
         for (std::size_t b = 0; b < n; ++b) {
           const Real d = to.angle[b] - from.angle[a];
@@ -815,49 +917,7 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
           if (pn.enveloped) {
             for (std::size_t b = 0; b < n; ++b) u_next[b] = ratio * (u + s2[b]) * ip;
           }
-          // v_q(b) = sum_k coef_q[k][b] T_k(t_b), `lanes` targets at a time.
-          for (std::size_t b0 = 0; b0 < np; b0 += lanes) {
-            Real x[lanes], tk0[lanes], tk1[lanes], v0[lanes], v1[lanes], v2[lanes], v3[lanes];
-            for (std::size_t l = 0; l < lanes; ++l) {
-              x[l] = t[b0 + l];
-              tk0[l] = 1;
-              tk1[l] = x[l];
-              v0[l] = coef[(0 * mn) * np + b0 + l] + coef[(0 * mn + 1) * np + b0 + l] * x[l];
-              v1[l] = coef[(1 * mn) * np + b0 + l] + coef[(1 * mn + 1) * np + b0 + l] * x[l];
-              v2[l] = coef[(2 * mn) * np + b0 + l] + coef[(2 * mn + 1) * np + b0 + l] * x[l];
-              v3[l] = coef[(3 * mn) * np + b0 + l] + coef[(3 * mn + 1) * np + b0 + l] * x[l];
-            }
-            for (std::size_t k = 2; k < mn; ++k) {
-              const Real* k0 = &coef[(0 * mn + k) * np + b0];
-              const Real* k1 = &coef[(1 * mn + k) * np + b0];
-              const Real* k2 = &coef[(2 * mn + k) * np + b0];
-              const Real* k3 = &coef[(3 * mn + k) * np + b0];
-              for (std::size_t l = 0; l < lanes; ++l) {
-                const Real tn = 2 * x[l] * tk1[l] - tk0[l];
-                tk0[l] = tk1[l];
-                tk1[l] = tn;
-                v0[l] += k0[l] * tn;
-                v1[l] += k1[l] * tn;
-                v2[l] += k2[l] * tn;
-                v3[l] += k3[l] * tn;
-              }
-            }
-            if (pn.enveloped) {  // times the envelopes (message_envelopes) at u' + 1
-              for (std::size_t l = 0; l < lanes; ++l) {
-                const Real r = sqrt(u_next[b0 + l] + 1), ir = 1 / r, ir3 = ir * ir * ir;
-                v0[l] *= r;
-                v1[l] *= ir;
-                v2[l] *= ir3;
-                v3[l] *= ir3;
-              }
-            }
-            for (std::size_t l = 0; l < lanes; ++l) {
-              v[b0 + l] = v0[l];
-              v[np + b0 + l] = v1[l];
-              v[2 * np + b0 + l] = v2[l];
-              v[3 * np + b0 + l] = v3[l];
-            }
-          }
+          message_values(coef, mn, np, t.data(), u_next.data(), pn.enveloped, v.data());
           // The step's derivatives: J = d u'/d u, Q = d u'/d log m_j (at fixed r_j), dQ its
           // log m_j derivative (see the header comment).
           Real A0 = 0, A1 = 0, A2 = 0, A3 = 0, B1 = 0, B2 = 0, B3 = 0, B4 = 0;
@@ -884,29 +944,105 @@ TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& b
           const Real m1 = f * (g * A0 + A1);
           const Real m2 = f * (g * g * A0 + 2 * g * A1 + A2);
           const Real m3 = f * (-ip2 / 2 * A0 - 2 * ip * A1 + A3);  // d_u J = -2 J / (1 + u)
-          for (const std::size_t row : {a, from.mirror[a]}) {
-            current[(0 * n + row) * mj + c] = m0;
-            current[(1 * n + row) * mj + c] = m1;
-            current[(2 * n + row) * mj + c] = m2;
-            current[(3 * n + row) * mj + c] = m3;
+          for (const std::size_t row_index : {a, from.mirror[a]}) {
+            current[(0 * n + row_index) * mj + c] = m0;
+            current[(1 * n + row_index) * mj + c] = m1;
+            current[(2 * n + row_index) * mj + c] = m2;
+            current[(3 * n + row_index) * mj + c] = m3;
           }
           // Node quantities of particle j: tr X = a0 + 2 Q S, S = d_{u'} log W_{j+1};
           // d^2 log det A / d(log m)^2 = u/(1+u)^2 + 2 dQ S + 2 Q^2 d_{u'} S.
-          row.add(forward[j][a * mj + c] * f, u, ip, from.cos_angle[a], A0, B1, B2, B3, B4);
+          row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A0, B1, B2, B3, B4);
         }
         const std::size_t o = static_cast<std::size_t>(oa);
         row.store(&row_sums[node_sum_count * o], multiplicity[o]);
-      }
+      });
     }
-    Real sums[node_sum_count] = {};
-    for (std::size_t o = 0; o < orbit.size(); ++o) {
-      for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] += row_sums[node_sum_count * o + q];
+  }
+  errors.rethrow();
+  for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] = 0;
+  for (std::size_t o = 0; o < orbit.size(); ++o) {
+    for (std::size_t q = 0; q < node_sum_count; ++q) sums[q] += row_sums[node_sum_count * o + q];
+  }
+  return double(orbit.size()) * double(mj) * double(n);
+}
+
+/// Backward sweep: the messages M0..M3 from the free end to the root and, at each particle, its
+/// node quantities. poll(links_done) runs before each link, outside every parallel region.
+template <class Real, class Poll>
+TransferLevel<Real> backward_sweep(const Chain<Real>& chain, const LevelRules<Real>& rules,
+                                   const std::vector<std::vector<Real>>& forward, std::size_t np,
+                                   int team, const Poll& poll, double& kernel_evaluations) {
+  const std::size_t N = chain.size();
+  const std::vector<Real>& mass = chain.masses();
+  TransferLevel<Real> out;
+  out.beta_kinetic.assign(N, Real(0));
+  out.cos_angle.assign(N, Real(0));
+  out.beta2_kinetic_variance.assign(N, Real(0));
+  out.beta2_kinetic_second_moment.assign(N, Real(0));
+  out.beta_kinetic_rounding_scale.assign(N, Real(0));
+  out.beta2_kinetic_variance_rounding_scale.assign(N, Real(0));
+  out.cos_angle_rounding_scale.assign(N, Real(0));
+  // Messages of particle j as node values: message[(q * n + a) * m_j + c], q = 0..3.
+  std::vector<Real> message;
+  {
+    Real sums[node_sum_count];
+    message = last_particle_messages(rules.angle[N - 1], rules.pivot[N - 1], forward[N - 1], sums);
+    store_node_quantities(out, N - 1, sums);
+  }
+  for (std::size_t j = N - 1; j-- > 0;) {
+    poll(2 * N - 1 - j);
+    const PivotRule<Real>& pj = rules.pivot[j];
+    const PivotRule<Real>& pn = rules.pivot[j + 1];
+    const AngleRule<Real>& from = rules.angle[j];
+    const AngleRule<Real>& to = rules.angle[j + 1];
+    const std::size_t n = from.angle.size(), mj = pj.m;
+    const Real ratio = mass[j + 1] / mass[j];
+    const std::vector<Real> coef = message_coefficients(pn, message, n, np);
+    std::vector<Real> current(4 * n * mj);
+    Real sums[node_sum_count];
+    if (rules.is_relative[j]) {
+      relative_backward(from, to, pj, pn, rules.relative[j], ratio, coef, np, forward[j], current,
+                        sums, team);
+      kernel_evaluations += double(n) * double(mj) * double(n);
+    } else {
+      kernel_evaluations +=
+          product_backward(from, to, pj, pn, ratio, coef, np, forward[j], current, sums, team);
     }
-    store(j, sums);
+    store_node_quantities(out, j, sums);
     normalize(current);  // all four messages by one power of two: they are linear in W
     message = std::move(current);
-    kernel_evaluations += double(orbit.size()) * double(mj) * double(n);
   }
+  return out;
+}
+
+}  // namespace
+
+template <class Real>
+TransferLevel<Real> chain_transfer_level(const Chain<Real>& chain, const Real& beta,
+                                              std::size_t angle_nodes, std::size_t pivot_nodes,
+                                              int threads, const RunControl* control) {
+  check_transfer_domain(chain, beta);
+  if (angle_nodes < 4 || angle_nodes % 2 != 0) {
+    throw invalid_input("chain_transfer: angle_nodes must be even and >= 4");
+  }
+  if (pivot_nodes < 3) throw invalid_input("chain_transfer: pivot_nodes must be >= 3");
+  const std::size_t N = chain.size();
+  const std::size_t n = angle_nodes;
+  const std::size_t np = (n + lanes - 1) / lanes * lanes;  // n padded to whole vector blocks
+  const int team = std::max(threads, 1);
+  const LevelRules<Real> rules = level_rules(chain, beta, n, pivot_nodes);
+  // Between links (outside every parallel region): progress over both sweeps, and a stop.
+  const auto poll = [&](std::size_t links_done) {
+    if (control == nullptr) return;
+    if (control->stop_requested()) throw interrupted("transfer: stopped during a level");
+    control->report(static_cast<double>(links_done) / static_cast<double>(2 * N));
+  };
+  double kernel_evaluations = 0;
+  const std::vector<std::vector<Real>> forward =
+      forward_sweep(chain, rules, team, poll, kernel_evaluations);
+  TransferLevel<Real> out =
+      backward_sweep(chain, rules, forward, np, team, poll, kernel_evaluations);
   out.kernel_evaluations = kernel_evaluations;
   return out;
 }

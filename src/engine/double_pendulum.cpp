@@ -312,6 +312,243 @@ struct LevelResult {
   bool converged = false;
 };
 
+/// One node's integrands in MPFR with J_{-3/2} by parts: the operations of the generic node in
+/// integrate_levels, in place (no allocation per operation).
+template <class Real, class Weights>
+void by_parts_node_in_place(const Real& mu1, const Real& mu2, const Real& inv_mu1,
+                            const Weights& weights, const Real& sh, const Real& dtdx,
+                            std::array<Real, 9>& node_scratch, std::array<Real, 4>& F,
+                            Integrands<Real>& v) {
+  node_scratch[0] = sh;
+  node_scratch[0] *= sh;  // sin^2(t/2)
+  node_scratch[1] = 1;
+  node_scratch[1] -= node_scratch[0];  // cos^2(t/2)
+  node_scratch[2] = node_scratch[0];
+  node_scratch[2] *= node_scratch[1];
+  node_scratch[2] *= 4;  // sin^2 t
+  node_scratch[3] = node_scratch[2];
+  node_scratch[3] *= mu2;
+  node_scratch[3] += mu1;  // q
+  mpfr_rec_sqrt(node_scratch[5].backend().data(), node_scratch[3].backend().data(),
+                MPFR_RNDN);  // q^{-1/2}
+  node_scratch[4] = node_scratch[3];
+  node_scratch[4] *= node_scratch[5];  // sqrt(q) = q q^{-1/2}
+  weights(node_scratch[2], sh, F);
+  node_scratch[6] = dtdx;
+  node_scratch[6] *= node_scratch[4];  // dt/dx q^{1/2}
+  v[integral::J_half] = node_scratch[6];
+  v[integral::J_half] *= F[0];
+  v[integral::J_minus_half] = dtdx;
+  v[integral::J_minus_half] *= node_scratch[5];
+  v[integral::J_minus_half] *= F[0];
+  // by parts (below): cos t = 1 - 2 sin^2(t/2)
+  node_scratch[7] = 1;
+  node_scratch[7] -= node_scratch[0];
+  node_scratch[7] -= node_scratch[0];
+  node_scratch[7] *= node_scratch[2];
+  node_scratch[7] *= mu2;
+  node_scratch[7] *= node_scratch[5];
+  node_scratch[7] *= F[3];
+  node_scratch[8] = node_scratch[4];
+  node_scratch[8] *= F[0];
+  node_scratch[7] += node_scratch[8];
+  node_scratch[7] *= dtdx;
+  v[integral::J_minus_three_halves] = node_scratch[7];
+  v[integral::J_minus_three_halves] *= inv_mu1;
+  v[integral::C_1] = node_scratch[6];
+  v[integral::C_1] *= F[1];
+  v[integral::C_2] = node_scratch[6];
+  v[integral::C_2] *= F[2];
+}
+
+/// The integrands at the nodes x of one level (the even nodes' values moved from the coarser
+/// level); returns the number of new nodes evaluated.
+template <class Real, class Weights>
+std::size_t level_node_values(const NodeMap<Real>& map, const Real& mu1, const Real& mu2,
+                              const Weights& weights, const std::vector<Real>& x,
+                              std::size_t level, std::vector<Integrands<Real>>& vals,
+                              std::vector<Integrands<Real>>& coarse) {
+  std::array<Real, 4> F{};
+  std::array<Real, 9> node_scratch;
+  Real sh, dtdx;
+  const Real inv_mu1 = 1 / mu1;
+  std::size_t nodes = 0;
+  vals.resize(x.size());
+  for (std::size_t j = 0; j < x.size(); ++j) {
+    if (level > 0 && j % 2 == 0) {
+      std::swap(vals[j], coarse[j / 2]);
+      continue;
+    }
+    map(x[j], sh, dtdx);
+    if constexpr (is_mpfr_v<Real>) {
+      if (weights.by_parts) {
+        by_parts_node_in_place(mu1, mu2, inv_mu1, weights, sh, dtdx, node_scratch, F, vals[j]);
+        ++nodes;
+        continue;
+      }
+    }
+    const Real ch2 = 1 - sh * sh;
+    const Real sin2_t = 4 * sh * sh * ch2;  // sin^2 t = 4 sin^2(t/2) cos^2(t/2)
+    const Real q = mu1 + mu2 * sin2_t;
+    const Real sq = sqrt(q);
+    const Real iq = 1 / sq;
+    weights(sin2_t, sh, F);
+    auto& v = vals[j];
+    v[integral::J_half] = dtdx * sq * F[0];
+    v[integral::J_minus_half] = dtdx * iq * F[0];
+    if (weights.by_parts) {
+      // q^{-3/2} W integrated by parts (see by_parts_boundary): the integrand
+      // [q^{1/2} W - mu2 sin t cos t q^{-1/2} W'] / mu1, both terms >= 0 for t <= pi/2,
+      // keeps only q^{-1/2}'s branch point at q = 0 instead of q^{-3/2}'s stronger one.
+      const Real cos_t = 1 - 2 * sh * sh;
+      v[integral::J_minus_three_halves] = dtdx * (sq * F[0] + mu2 * sin2_t * cos_t * iq * F[3]) / mu1;
+    } else {
+      v[integral::J_minus_three_halves] = v[integral::J_minus_half] / q;
+    }
+    v[integral::C_1] = dtdx * sq * F[1];
+    v[integral::C_2] = dtdx * sq * F[2];
+    ++nodes;
+  }
+  return nodes;
+}
+
+/// The sums of one level, their L1 norms, and the two highest Chebyshev coefficients of the
+/// interpolant in xi = 1 - 2x: a_n = (1/n) sum'' (-1)^j f_j (top), a_{n-1} = (2/n) sum''
+/// (-1)^j xi_j f_j (next_top), with sum'' |f_j| (sample_l1) for their rounding.
+template <class Real>
+struct LevelSums {
+  Integrands<Real> sum{}, l1{}, top{}, next_top{}, sample_l1{};
+};
+
+template <class Real>
+void chebyshev_guard_sums(const std::vector<Real>& x, const std::vector<Real>& w,
+                          const std::vector<Integrands<Real>>& vals, LevelSums<Real>& s) {
+  const std::size_t n = x.size() - 1;
+  // In-place updates (no multiprecision temporaries): the signs and the endpoint halves of
+  // the Chebyshev sums are applied as additions, subtractions and one halving.
+  Real xi, wf, scratch;
+  if constexpr (!is_mpfr_v<Real>) {
+    // Hardware floats: branch-free (sign and half as multipliers).
+    for (std::size_t j = 0; j <= n; ++j) {
+      const Real h = (j == 0 || j == n) ? Real(0.5) : Real(1);
+      const Real hs = (j % 2 == 0) ? h : -h;
+      const Real hsx = hs * (1 - 2 * x[j]);
+      for (std::size_t k = 0; k < integral_count; ++k) {
+        const Real f = vals[j][k];
+        const Real wfk = w[j] * f;
+        s.sum[k] += wfk;
+        s.l1[k] += abs(wfk);
+        s.top[k] += hs * f;
+        s.next_top[k] += hsx * f;
+        s.sample_l1[k] += h * abs(f);
+      }
+    }
+  }
+  for (std::size_t j = 0; is_mpfr_v<Real> && j <= n; ++j) {
+    const bool endpoint = (j == 0 || j == n);
+    const bool odd = (j % 2 == 1);
+    xi = x[j];
+    xi *= -2;
+    xi += 1;
+    for (std::size_t k = 0; k < integral_count; ++k) {
+      const Real* f = &vals[j][k];
+      wf = w[j];
+      wf *= *f;
+      s.sum[k] += wf;
+      if (wf < 0) s.l1[k] -= wf; else s.l1[k] += wf;
+      if (endpoint) {
+        scratch = *f;
+        scratch /= 2;
+        f = &scratch;
+      }
+      if (odd) s.top[k] -= *f; else s.top[k] += *f;
+      if (*f < 0) s.sample_l1[k] -= *f; else s.sample_l1[k] += *f;
+      wf = *f;
+      wf *= xi;
+      if (odd) s.next_top[k] -= wf; else s.next_top[k] += wf;
+    }
+  }
+}
+
+/// MPFR pre-check of one level: its sums and the level-difference estimate alone (never larger
+/// than the final one, which adds the Chebyshev guard, in diff_estimate). True when the level
+/// may be accepted; then `sum` is zeroed for chebyshev_guard_sums.
+template <class Real>
+bool mpfr_level_candidate(const std::vector<Real>& w, const std::vector<Integrands<Real>>& vals,
+                          std::size_t level, const Real& tol, const Integrands<Real>& previous,
+                          Integrands<Real>& previous_diff, Integrands<Real>& sum,
+                          Integrands<Real>& diff_estimate) {
+  Real wf;
+  for (std::size_t j = 0; j < vals.size(); ++j) {
+    for (std::size_t k = 0; k < integral_count; ++k) {
+      wf = w[j];
+      wf *= vals[j][k];
+      sum[k] += wf;
+    }
+  }
+  bool candidate = level >= 2;
+  for (std::size_t k = 0; k < integral_count; ++k) {
+    Real& est = diff_estimate[k];
+    est = abs(sum[k] - previous[k]);
+    if (level >= 2 && previous_diff[k] > 0 && est < previous_diff[k]) {
+      const Real r = est / previous_diff[k];
+      previous_diff[k] = est;
+      est *= r;
+      est *= r;
+    } else {
+      previous_diff[k] = est;
+    }
+    const Real tol_k =
+        (k == integral::J_half || k == integral::J_minus_half ? tol : 16 * tol) * abs(sum[k]);
+    if (!(est <= tol_k)) candidate = false;
+  }
+  return candidate;
+}
+
+/// The error estimate of every integral at one level (into `error`), and whether all of them
+/// pass the stopping test.
+template <class Real>
+bool level_errors(const LevelSums<Real>& s, std::size_t level, std::size_t n, const Real& tol,
+                  const Integrands<Real>& previous, Integrands<Real>& previous_diff,
+                  const Integrands<Real>& diff_estimate, Integrands<Real>& error) {
+  const Real u = unit_roundoff<Real>();
+  bool all_ok = level >= 2;
+  for (std::size_t k = 0; k < integral_count; ++k) {
+    // Rounding: a few ulps per node in the sum and in the Chebyshev coefficients.
+    const Real rounding = 8 * u * (s.l1[k] + 2 * s.sample_l1[k] / Real(n));
+    Real est;
+    if (is_mpfr_v<Real>) {
+      est = diff_estimate[k];  // formed by mpfr_level_candidate, as below
+    } else if (level == 0) {
+      est = abs(s.sum[k]);
+    } else {
+      const Real diff = abs(s.sum[k] - previous[k]);
+      est = diff;
+      // Geometric extrapolation e_L r^2, r = e_L / e_{L-1}: the doubling squares the error.
+      if (level >= 2 && previous_diff[k] > 0 && diff < previous_diff[k]) {
+        const Real r = diff / previous_diff[k];
+        est = diff * r * r;
+      }
+      previous_diff[k] = diff;
+    }
+    const Real a_n = abs(s.top[k]) / Real(n), a_n1 = 2 * abs(s.next_top[k]) / Real(n);
+    // max(64 max(|a_n|, |a_{n-1}|) / n^2, e_L r^2): calibrated on 254 (case, integral,
+    // level >= 2) triples against 8192-node references at 40 digits, it never fell below
+    // the true error (smallest ratio 14; median over-estimate 1.7e3), while the level
+    // difference e_L min(1, r) alone under-estimated 5% of them (pre-asymptotic stalls).
+    const Real chebyshev = 64 * (a_n > a_n1 ? a_n : a_n1) / Real(n) / Real(n);
+    if (chebyshev > est) est = chebyshev;
+    error[k] = est > rounding ? est : rounding;
+    // beta<K_i> needs J_{1/2}, J_{-1/2} to the full tolerance; J_{-3/2} (variances) and
+    // C_1, C_2 (<cos phi>) may stop at a few roundings (their error is still reported).
+    const bool kinetic = k == integral::J_half || k == integral::J_minus_half;
+    const Real tol_k = (kinetic ? tol : 16 * tol) * abs(s.sum[k]);
+    const Real noise = kinetic ? rounding : 2 * rounding;
+    if (!(est <= (tol_k > noise ? tol_k : noise) || s.l1[k] == 0)) all_ok = false;
+  }
+  return all_ok;
+}
+
 /// Nested Clenshaw-Curtis on x in [0, 1] (levels n = 8 .. 8 2^max_level); stops when the
 /// estimated error of J_{1/2}, J_{-1/2} is below tol |J| (16 tol for the others) or at the
 /// rounding floor. The estimate of level L is the larger of 64 max(|a_n|, |a_{n-1}|)/n^2
@@ -323,13 +560,8 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
                                    IntegralWorkspace<Real>& ws) {
   const auto shared_rule = shared_clenshaw_curtis_rule<Real>(base12 ? 12 : 8);
   const ClenshawCurtisRule<Real>& rule = *shared_rule;
-  const Real u = unit_roundoff<Real>();
   LevelResult<Real> out;
   Integrands<Real> previous{}, previous_diff{};
-  std::array<Real, 4> F{};
-  std::array<Real, 9> node_scratch;
-  Real sh, dtdx, wf, scratch;
-  const Real inv_mu1 = 1 / mu1;
   if (ws.values.size() < 2) ws.values.resize(2);
   for (std::size_t level = 0; level <= max_level; ++level) {
     const auto& x = rule.nodes(level);
@@ -337,207 +569,31 @@ LevelResult<Real> integrate_levels(const NodeMap<Real>& map, const Real& mu1, co
     // The nodes of the previous level are the even nodes of this one: move their values.
     std::swap(ws.values[0], ws.values[1]);
     auto& vals = ws.values[0];
-    auto& coarse = ws.values[1];
-    vals.resize(x.size());
-    for (std::size_t j = 0; j < x.size(); ++j) {
-      if (level > 0 && j % 2 == 0) {
-        std::swap(vals[j], coarse[j / 2]);
-        continue;
-      }
-      map(x[j], sh, dtdx);
-      if constexpr (is_mpfr_v<Real>) {
-        if (weights.by_parts) {
-          // The same operations as below, in place (no allocation per operation).
-          node_scratch[0] = sh;
-          node_scratch[0] *= sh;  // sin^2(t/2)
-          node_scratch[1] = 1;
-          node_scratch[1] -= node_scratch[0];  // cos^2(t/2)
-          node_scratch[2] = node_scratch[0];
-          node_scratch[2] *= node_scratch[1];
-          node_scratch[2] *= 4;  // sin^2 t
-          node_scratch[3] = node_scratch[2];
-          node_scratch[3] *= mu2;
-          node_scratch[3] += mu1;  // q
-          mpfr_rec_sqrt(node_scratch[5].backend().data(), node_scratch[3].backend().data(),
-                        MPFR_RNDN);  // q^{-1/2}
-          node_scratch[4] = node_scratch[3];
-          node_scratch[4] *= node_scratch[5];  // sqrt(q) = q q^{-1/2}
-          weights(node_scratch[2], sh, F);
-          auto& v = vals[j];
-          node_scratch[6] = dtdx;
-          node_scratch[6] *= node_scratch[4];  // dt/dx q^{1/2}
-          v[integral::J_half] = node_scratch[6];
-          v[integral::J_half] *= F[0];
-          v[integral::J_minus_half] = dtdx;
-          v[integral::J_minus_half] *= node_scratch[5];
-          v[integral::J_minus_half] *= F[0];
-          // by parts (below): cos t = 1 - 2 sin^2(t/2)
-          node_scratch[7] = 1;
-          node_scratch[7] -= node_scratch[0];
-          node_scratch[7] -= node_scratch[0];
-          node_scratch[7] *= node_scratch[2];
-          node_scratch[7] *= mu2;
-          node_scratch[7] *= node_scratch[5];
-          node_scratch[7] *= F[3];
-          node_scratch[8] = node_scratch[4];
-          node_scratch[8] *= F[0];
-          node_scratch[7] += node_scratch[8];
-          node_scratch[7] *= dtdx;
-          v[integral::J_minus_three_halves] = node_scratch[7];
-          v[integral::J_minus_three_halves] *= inv_mu1;
-          v[integral::C_1] = node_scratch[6];
-          v[integral::C_1] *= F[1];
-          v[integral::C_2] = node_scratch[6];
-          v[integral::C_2] *= F[2];
-          ++out.nodes;
-          continue;
-        }
-      }
-      const Real ch2 = 1 - sh * sh;
-      const Real sin2_t = 4 * sh * sh * ch2;  // sin^2 t = 4 sin^2(t/2) cos^2(t/2)
-      const Real q = mu1 + mu2 * sin2_t;
-      const Real sq = sqrt(q);
-      const Real iq = 1 / sq;
-      weights(sin2_t, sh, F);
-      auto& v = vals[j];
-      v[integral::J_half] = dtdx * sq * F[0];
-      v[integral::J_minus_half] = dtdx * iq * F[0];
-      if (weights.by_parts) {
-        // q^{-3/2} W integrated by parts (see by_parts_boundary): the integrand
-        // [q^{1/2} W - mu2 sin t cos t q^{-1/2} W'] / mu1, both terms >= 0 for t <= pi/2,
-        // keeps only q^{-1/2}'s branch point at q = 0 instead of q^{-3/2}'s stronger one.
-        const Real cos_t = 1 - 2 * sh * sh;
-        v[integral::J_minus_three_halves] = dtdx * (sq * F[0] + mu2 * sin2_t * cos_t * iq * F[3]) / mu1;
-      } else {
-        v[integral::J_minus_three_halves] = v[integral::J_minus_half] / q;
-      }
-      v[integral::C_1] = dtdx * sq * F[1];
-      v[integral::C_2] = dtdx * sq * F[2];
-      ++out.nodes;
-    }
-    // Sums, L1 norms, and the two highest Chebyshev coefficients of the interpolant in
-    // xi = 1 - 2x: a_n = (1/n) sum'' (-1)^j f_j, a_{n-1} = (2/n) sum'' (-1)^j xi_j f_j.
-    // They expose features the level differences have not yet seen (pre-asymptotic stalls).
-    Integrands<Real> sum{}, l1{}, top{}, next_top{}, sample_l1{};
-    const std::size_t n = x.size() - 1;
-    // MPFR: the level-difference estimate alone (never larger than the final one, which adds
-    // the Chebyshev guard) decides first whether this level can be accepted at all; only
-    // then (or at the last level) are the guard's sums and the L1 norms formed. A level the
-    // pre-check rejects is rejected by the full test too, unless the rounding floor exceeded
-    // the tolerance (never at the MPFR tolerances, 10 digits above the roundoff); its error
-    // is not reported, since a later level's replaces it.
+    out.nodes += level_node_values(map, mu1, mu2, weights, x, level, vals, ws.values[1]);
+    // The sums and the Chebyshev guard expose features the level differences have not yet
+    // seen (pre-asymptotic stalls).
+    LevelSums<Real> s;
+    // MPFR: the level-difference estimate alone decides first whether this level can be
+    // accepted at all; only then (or at the last level) are the guard's sums and the L1 norms
+    // formed. A level the pre-check rejects is rejected by the full test too, unless the
+    // rounding floor exceeded the tolerance (never at the MPFR tolerances, 10 digits above the
+    // roundoff); its error is not reported, since a later level's replaces it.
     Integrands<Real> diff_estimate{};
     if constexpr (is_mpfr_v<Real>) {
-      for (std::size_t j = 0; j <= n; ++j) {
-        for (std::size_t k = 0; k < integral_count; ++k) {
-          wf = w[j];
-          wf *= vals[j][k];
-          sum[k] += wf;
-        }
-      }
-      bool candidate = level >= 2;
-      for (std::size_t k = 0; k < integral_count; ++k) {
-        Real& est = diff_estimate[k];
-        est = abs(sum[k] - previous[k]);
-        if (level >= 2 && previous_diff[k] > 0 && est < previous_diff[k]) {
-          const Real r = est / previous_diff[k];
-          previous_diff[k] = est;
-          est *= r;
-          est *= r;
-        } else {
-          previous_diff[k] = est;
-        }
-        const Real tol_k =
-            (k == integral::J_half || k == integral::J_minus_half ? tol : 16 * tol) * abs(sum[k]);
-        if (!(est <= tol_k)) candidate = false;
-      }
+      const bool candidate =
+          mpfr_level_candidate(w, vals, level, tol, previous, previous_diff, s.sum, diff_estimate);
       if (!candidate && level < max_level) {
-        out.value = sum;
-        previous = sum;
+        out.value = s.sum;
+        previous = s.sum;
         continue;
       }
-      for (auto& v : sum) v = 0;
+      for (auto& v : s.sum) v = 0;
     }
-    // In-place updates (no multiprecision temporaries): the signs and the endpoint halves of
-    // the Chebyshev sums are applied as additions, subtractions and one halving.
-    Real xi;
-    if constexpr (!is_mpfr_v<Real>) {
-      // Hardware floats: branch-free (sign and half as multipliers).
-      for (std::size_t j = 0; j <= n; ++j) {
-        const Real h = (j == 0 || j == n) ? Real(0.5) : Real(1);
-        const Real hs = (j % 2 == 0) ? h : -h;
-        const Real hsx = hs * (1 - 2 * x[j]);
-        for (std::size_t k = 0; k < integral_count; ++k) {
-          const Real f = vals[j][k];
-          const Real wfk = w[j] * f;
-          sum[k] += wfk;
-          l1[k] += abs(wfk);
-          top[k] += hs * f;
-          next_top[k] += hsx * f;
-          sample_l1[k] += h * abs(f);
-        }
-      }
-    }
-    for (std::size_t j = 0; is_mpfr_v<Real> && j <= n; ++j) {
-      const bool endpoint = (j == 0 || j == n);
-      const bool odd = (j % 2 == 1);
-      xi = x[j];
-      xi *= -2;
-      xi += 1;
-      for (std::size_t k = 0; k < integral_count; ++k) {
-        const Real* f = &vals[j][k];
-        wf = w[j];
-        wf *= *f;
-        sum[k] += wf;
-        if (wf < 0) l1[k] -= wf; else l1[k] += wf;
-        if (endpoint) {
-          scratch = *f;
-          scratch /= 2;
-          f = &scratch;
-        }
-        if (odd) top[k] -= *f; else top[k] += *f;
-        if (*f < 0) sample_l1[k] -= *f; else sample_l1[k] += *f;
-        wf = *f;
-        wf *= xi;
-        if (odd) next_top[k] -= wf; else next_top[k] += wf;
-      }
-    }
-    bool all_ok = level >= 2;
-    for (std::size_t k = 0; k < integral_count; ++k) {
-      // Rounding: a few ulps per node in the sum and in the Chebyshev coefficients.
-      const Real rounding = 8 * u * (l1[k] + 2 * sample_l1[k] / Real(x.size() - 1));
-      Real est;
-      if (is_mpfr_v<Real>) {
-        est = diff_estimate[k];  // formed above, as below
-      } else if (level == 0) {
-        est = abs(sum[k]);
-      } else {
-        const Real diff = abs(sum[k] - previous[k]);
-        est = diff;
-        // Geometric extrapolation e_L r^2, r = e_L / e_{L-1}: the doubling squares the error.
-        if (level >= 2 && previous_diff[k] > 0 && diff < previous_diff[k]) {
-          const Real r = diff / previous_diff[k];
-          est = diff * r * r;
-        }
-        previous_diff[k] = diff;
-      }
-      const Real a_n = abs(top[k]) / Real(n), a_n1 = 2 * abs(next_top[k]) / Real(n);
-      // max(64 max(|a_n|, |a_{n-1}|) / n^2, e_L r^2): calibrated on 254 (case, integral,
-      // level >= 2) triples against 8192-node references at 40 digits, it never fell below
-      // the true error (smallest ratio 14; median over-estimate 1.7e3), while the level
-      // difference e_L min(1, r) alone under-estimated 5% of them (pre-asymptotic stalls).
-      const Real chebyshev = 64 * (a_n > a_n1 ? a_n : a_n1) / Real(n) / Real(n);
-      if (chebyshev > est) est = chebyshev;
-      out.error[k] = est > rounding ? est : rounding;
-      // beta<K_i> needs J_{1/2}, J_{-1/2} to the full tolerance; J_{-3/2} (variances) and
-      // C_1, C_2 (<cos phi>) may stop at a few roundings (their error is still reported).
-      const bool kinetic = k == integral::J_half || k == integral::J_minus_half;
-      const Real tol_k = (kinetic ? tol : 16 * tol) * abs(sum[k]);
-      const Real noise = kinetic ? rounding : 2 * rounding;
-      if (!(est <= (tol_k > noise ? tol_k : noise) || l1[k] == 0)) all_ok = false;
-    }
-    out.value = sum;
-    previous = sum;
+    chebyshev_guard_sums(x, w, vals, s);
+    const bool all_ok = level_errors(s, level, x.size() - 1, tol, previous, previous_diff,
+                                     diff_estimate, out.error);
+    out.value = s.sum;
+    previous = s.sum;
     if (all_ok) {
       out.converged = true;
       break;
@@ -897,8 +953,9 @@ IntegralPlan<Real> plan_reduced_integral(const DoublePendulumParameters<Real>& p
   const bool try_sums = evaluation == IntegralEvaluation::graf_sums ||
                         (evaluation == IntegralEvaluation::automatic && worthwhile);
   if (try_sums) {
-    // Double without a peak (little cancellation) is ~4x faster than long double, whose 3
-    // extra digits absorb the cancellation of the alternating q^{1/2} sums, ~(1 + harmonic).
+    // Double without a peak (little cancellation) is faster than long double, whose 3 extra
+    // digits absorb the cancellation of the alternating q^{1/2} sums, ~(1 + harmonic).
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     plan.sums = is_mpfr_v<Real>          ? Sums::working
                 : plan.harmonic <= 1.0 ? Sums::double_then_long_double
                                        : Sums::long_double;

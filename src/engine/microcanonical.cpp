@@ -424,6 +424,217 @@ void check_run(const Chain<Real>& chain, const Real& energy, const Real& excitat
   if constexpr (!is_mpfr_v<Real>) check_double_range(chain, energy, excitation, rule);
 }
 
+/// The constants every rule's averages share: the rounding budget per quantity, N, the norm of
+/// <K_i^2 | phi, E>, and log of the factor from the shell sums to Omega(E).
+template <class Real>
+struct ShellUnits {
+  Real rounding, nn, second_moment_norm, log_factor;
+};
+
+/// Per-shift totals of the qmc rule at one reference scale: per[r] = (W, W K_i (n), W cos_i (n),
+/// W K_i^2 (n)), the totals of W and W^2, and the common log scale.
+template <class Real>
+struct ShellShiftTotals {
+  std::vector<std::vector<Real>> per;
+  Real total_w{0}, total_w2{0}, log_scale{0};
+};
+
+template <class Real>
+ShellShiftTotals<Real> shell_shift_totals(const std::vector<QmcShellShift<Real>>& sums,
+                                          std::size_t n) {
+  const std::size_t shifts = sums.size();
+  ShellShiftTotals<Real> t;
+  // Every shift's sums at the largest reference scale.
+  bool any = false;
+  Real log_scale = 0;
+  for (const QmcShellShift<Real>& s : sums) {
+    if (!s.scaled) continue;
+    if (!any || s.log_scale > log_scale) log_scale = s.log_scale;
+    any = true;
+  }
+  if (!any) throw invalid_input("microcanonical qmc: no point reached the shell");
+  // Per-shift totals; every reported quantity is a ratio of them: jackknife over shifts.
+  const std::size_t q = 1 + 3 * n;
+  std::vector<std::vector<Real>> per(shifts, std::vector<Real>(q, Real(0)));
+  Real total_w = 0, total_w2 = 0;
+  for (std::size_t r = 0; r < shifts; ++r) {
+    if (!sums[r].scaled) continue;
+    const Real f = exp(sums[r].log_scale - log_scale);
+    per[r][0] = f * sums[r].weight.value();
+    for (std::size_t i = 0; i < n; ++i) {
+      per[r][1 + i] = f * sums[r].kinetic[i].value();
+      per[r][1 + n + i] = f * sums[r].cosine[i].value();
+      per[r][1 + 2 * n + i] = f * sums[r].kinetic_squared[i].value();
+    }
+    total_w += per[r][0];
+    total_w2 += f * f * sums[r].weight_squared.value();
+  }
+  if (!(total_w > 0)) throw invalid_input("microcanonical qmc: no point reached the shell");
+  t.per = std::move(per);
+  t.total_w = total_w;
+  t.total_w2 = total_w2;
+  t.log_scale = log_scale;
+  return t;
+}
+
+/// The qmc rule: <K_i>_E, <cos phi_i>_E, Var K_i, <K>_E and Omega(E) with jackknife bars over
+/// the random shifts of the lattice, from the Best-Fisher proposal at beta*.
+template <class Real>
+void qmc_shell_averages(const Chain<Real>& chain, const ShellSetup<Real>& setup,
+                        const MicrocanonicalOptions& options, int threads,
+                        const ShellUnits<Real>& units, MicrocanonicalAverages<Real>& out) {
+  using namespace detail::qmc;
+  const std::size_t n = chain.size();
+  const Real& rounding = units.rounding;
+  const Real& nn = units.nn;
+  const std::size_t points = options.points;
+  unsigned log2_points = 0;
+  while ((std::size_t(1) << log2_points) < points) ++log2_points;
+  const auto& row = lattice_table[log2_points - lattice_table_min_log2];
+  const std::vector<std::uint32_t> generator(row, row + n);
+  const Real beta_star = options.proposal_beta > 0 ? Real(options.proposal_beta)
+                                                   : matched_beta_excitation(chain, setup.excitation);
+  std::vector<BestFisherMap<Real>> maps;
+  Real log_envelope = 0;  // log prod_j (1 + rho_j) / (2 pi (1 - rho_j))
+  for (std::size_t j = 0; j < n; ++j) {
+    maps.emplace_back(Real(beta_star * setup.gamma[j]));
+    log_envelope += log((1 + maps[j].rho) / (2 * pi<Real>() * (1 - maps[j].rho)));
+  }
+  const std::size_t shifts = options.shifts;
+  const std::vector<std::vector<Real>> shift =
+      detail::qmc::random_shifts<Real>(shifts, n, options.seed);
+  std::vector<QmcShellShift<Real>> sums(shifts, QmcShellShift<Real>(n));
+  const int team = std::max(threads, 1);
+  ParallelErrors shift_errors;  // an exception may not leave the parallel region
+  std::size_t shifts_done = 0;
+#if defined(_OPENMP)
+#pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
+#endif
+  for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
+    shift_errors.capture([&] {
+      const std::size_t rr = static_cast<std::size_t>(r);
+      if (options.control.stop_requested()) throw interrupted("microcanonical: stopped");
+      sums[rr] = qmc_shift_sums(chain, setup, beta_star, maps, shift[rr], points, generator);
+#if defined(_OPENMP)
+#pragma omp critical(pendavg_microcanonical_progress)
+#endif
+      options.control.report(static_cast<double>(++shifts_done) / static_cast<double>(shifts));
+    });
+  }
+  shift_errors.rethrow();
+  (void)team;
+  const ShellShiftTotals<Real> totals = shell_shift_totals(sums, n);
+  const std::vector<std::vector<Real>>& per = totals.per;
+  const std::size_t q = 1 + 3 * n;
+  // quantities: <K_i> (n), <cos_i> (n), <K> (1), Z~ (1), Var K_i (n)
+  const std::size_t count = 3 * n + 2;
+  const Real z_norm = exp(log(2 * pi<Real>()) + log_envelope) *
+                      Real(static_cast<double>(points));
+  const auto quantities = [&](std::size_t skip) {
+    std::vector<Real> t(q, Real(0)), res(count);
+    Real used = 0;
+    for (std::size_t r = 0; r < shifts; ++r) {
+      if (r == skip) continue;
+      used += 1;
+      for (std::size_t c = 0; c < q; ++c) t[c] += per[r][c];
+    }
+    Real total = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      res[i] = setup.scale * t[1 + i] / (nn * t[0]);
+      res[n + i] = t[1 + n + i] / t[0];
+      total += res[i];
+      res[2 * n + 2 + i] = setup.scale * setup.scale * t[1 + 2 * n + i] /
+                               (units.second_moment_norm * t[0]) -
+                           res[i] * res[i];
+    }
+    res[2 * n] = total;
+    res[2 * n + 1] = t[0] / (used * z_norm);
+    return res;
+  };
+  const std::vector<Real> est = quantities(shifts);
+  std::vector<std::vector<Real>> leave(shifts);
+  for (std::size_t r = 0; r < shifts; ++r) leave[r] = quantities(r);
+  const std::vector<Real> se = detail::qmc::jackknife_standard_errors(leave, count);
+  const Real sig = Real(options.sigmas > 0 ? options.sigmas : qmc_default_sigmas(shifts));
+  out.quadrature = Method::qmc;
+  out.work_unit = WorkUnit::samples;
+  out.evaluations = points * shifts;
+  out.proposal_beta = beta_star;
+  out.effective_sample_fraction = totals.total_w * totals.total_w /
+                                  (totals.total_w2 * Real(static_cast<double>(points * shifts)));
+  constexpr ErrorKind kind = ErrorKind::statistical;
+  out.error_kind = kind;
+  for (std::size_t i = 0; i < n; ++i) {
+    out.kinetic[i] = {est[i], sig * se[i] + rounding * abs(est[i]), kind};
+    out.cos_angle[i] = {est[n + i], sig * se[n + i] + rounding, kind};
+    const Real second = est[2 * n + 2 + i] + est[i] * est[i];
+    out.kinetic_variance[i] = {est[2 * n + 2 + i],
+                               sig * se[2 * n + 2 + i] + rounding * abs(second), kind};
+  }
+  out.kinetic_total = {est[2 * n], sig * se[2 * n] + rounding * abs(est[2 * n]), kind};
+  const Real z = est[2 * n + 1], z_error = sig * se[2 * n + 1] + rounding * z;
+  const Real density_factor = exp(units.log_factor + totals.log_scale);
+  out.density_of_states = {density_factor * z, density_factor * z_error, kind};
+}
+
+/// The integral and torus rules: the averages as ratios of the shell integrals, their errors
+/// propagated from the integrals' (kind estimate).
+template <class Real>
+void quadrature_shell_averages(const Chain<Real>& chain, const ShellSetup<Real>& setup,
+                               const MicrocanonicalOptions& run, const Real& tolerance,
+                               MicrocanonicalOptions::Rule rule, const ShellUnits<Real>& units,
+                               MicrocanonicalAverages<Real>& out) {
+  using Rule = MicrocanonicalOptions::Rule;
+  const std::size_t n = chain.size();
+  const Real& rounding = units.rounding;
+  const Real& nn = units.nn;
+  const ShellSums<Real> sums = rule == Rule::integral
+                                   ? integral_sums(chain, setup, run, tolerance)
+                                   : torus_sums(chain, setup, run, tolerance);
+  out.quadrature = rule == Rule::integral ? Method::reduced_integral : Method::torus_trapezoid;
+  out.work_unit = WorkUnit::nodes;
+  out.evaluations = sums.evaluations;
+  out.converged = sums.converged;
+  const Real z = sums.value[0], z_error = sums.error[0];
+  if (!(z > 0)) throw invalid_input("microcanonical: the accessible region was not resolved");
+  const Real z_rel = z_error / z;
+  constexpr ErrorKind kind = ErrorKind::estimate;
+  out.error_kind = kind;
+  Real numerator = 0, numerator_error = 0;
+  const Real kinetic_unit = setup.scale / (nn * z);
+  const Real second_unit = setup.scale * setup.scale / (units.second_moment_norm * z);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real kn = sums.value[1 + i], ke = sums.error[1 + i];
+    numerator += kn;
+    numerator_error += ke;
+    const Real kinetic = kinetic_unit * kn;
+    const Real kinetic_error = abs(kinetic) * (z_rel + rounding) + kinetic_unit * ke;
+    out.kinetic[i] = {kinetic, kinetic_error, kind};
+    out.cos_angle[i] = {sums.value[1 + n + i] / z,
+                        (sums.error[1 + n + i] + abs(sums.value[1 + n + i]) * z_rel) / z +
+                            rounding,
+                        kind};
+    // Var K_i = <K_i^2>_E - <K_i>_E^2
+    const Real second = second_unit * sums.value[1 + 2 * n + i];
+    const Real second_error =
+        abs(second) * (z_rel + rounding) + second_unit * sums.error[1 + 2 * n + i];
+    out.kinetic_variance[i] = {second - kinetic * kinetic,
+                               second_error + 2 * abs(kinetic) * kinetic_error +
+                                   rounding * abs(second),
+                               kind};
+  }
+  const Real kinetic_total = kinetic_unit * numerator;
+  out.kinetic_total = {kinetic_total,
+                       kinetic_total * (z_rel + rounding) + kinetic_unit * numerator_error,
+                       kind};
+  if (sums.converged) {
+    // the budget was tolerance; report converged only if the propagated errors stay within it
+    out.converged = z_rel <= 2 * tolerance;
+  }
+  const Real density_factor = exp(units.log_factor);
+  out.density_of_states = {density_factor * z, density_factor * (z_error + rounding * z), kind};
+}
+
 /// The run of one entry point: validated (check_run), at the working precision, from the
 /// excitation D.
 template <class Real>
@@ -452,169 +663,14 @@ MicrocanonicalAverages<Real> microcanonical_run(const Chain<Real>& chain, const 
   const Real second_moment_norm = nn * (nn + 2);  // <K_i^2 | phi, E> = (E-U)^2 (...) / (N (N+2))
   const Real p = setup.shell.p();
   const Real log_factor = setup.log_momentum_sphere + setup.log_hadamard + p * log(setup.scale);
+  const ShellUnits<Real> units{rounding, nn, second_moment_norm, log_factor};
   out.kinetic.resize(n);
   out.cos_angle.resize(n);
   out.kinetic_variance.resize(n);
   if (rule == Rule::qmc) {
-    using namespace detail::qmc;
-    const std::size_t points = options.points;
-    unsigned log2_points = 0;
-    while ((std::size_t(1) << log2_points) < points) ++log2_points;
-    const auto& row = lattice_table[log2_points - lattice_table_min_log2];
-    const std::vector<std::uint32_t> generator(row, row + n);
-    const Real beta_star = options.proposal_beta > 0
-                               ? Real(options.proposal_beta)
-                               : matched_beta_excitation(chain, excitation);
-    std::vector<BestFisherMap<Real>> maps;
-    Real log_envelope = 0;  // log prod_j (1 + rho_j) / (2 pi (1 - rho_j))
-    for (std::size_t j = 0; j < n; ++j) {
-      maps.emplace_back(Real(beta_star * setup.gamma[j]));
-      log_envelope += log((1 + maps[j].rho) / (2 * pi<Real>() * (1 - maps[j].rho)));
-    }
-    const std::size_t shifts = options.shifts;
-    const std::vector<std::vector<Real>> shift =
-        detail::qmc::random_shifts<Real>(shifts, n, options.seed);
-    std::vector<QmcShellShift<Real>> sums(shifts, QmcShellShift<Real>(n));
-    const int team = std::max(run.threads, 1);
-    ParallelErrors shift_errors;  // an exception may not leave the parallel region
-    std::size_t shifts_done = 0;
-#if defined(_OPENMP)
-#pragma omp parallel for num_threads(team) schedule(dynamic, 1) if (team > 1)
-#endif
-    for (std::ptrdiff_t r = 0; r < static_cast<std::ptrdiff_t>(shifts); ++r) {
-      shift_errors.capture([&] {
-        const std::size_t rr = static_cast<std::size_t>(r);
-        if (options.control.stop_requested()) throw interrupted("microcanonical: stopped");
-        sums[rr] = qmc_shift_sums(chain, setup, beta_star, maps, shift[rr], points, generator);
-#if defined(_OPENMP)
-#pragma omp critical(pendavg_microcanonical_progress)
-#endif
-        options.control.report(static_cast<double>(++shifts_done) / static_cast<double>(shifts));
-      });
-    }
-    shift_errors.rethrow();
-    (void)team;
-    // Every shift's sums at the largest reference scale.
-    bool any = false;
-    Real log_scale = 0;
-    for (const QmcShellShift<Real>& s : sums) {
-      if (!s.scaled) continue;
-      if (!any || s.log_scale > log_scale) log_scale = s.log_scale;
-      any = true;
-    }
-    if (!any) throw invalid_input("microcanonical qmc: no point reached the shell");
-    // Per-shift totals; every reported quantity is a ratio of them: jackknife over shifts.
-    const std::size_t q = 1 + 3 * n;
-    std::vector<std::vector<Real>> per(shifts, std::vector<Real>(q, Real(0)));
-    Real total_w = 0, total_w2 = 0;
-    for (std::size_t r = 0; r < shifts; ++r) {
-      if (!sums[r].scaled) continue;
-      const Real f = exp(sums[r].log_scale - log_scale);
-      per[r][0] = f * sums[r].weight.value();
-      for (std::size_t i = 0; i < n; ++i) {
-        per[r][1 + i] = f * sums[r].kinetic[i].value();
-        per[r][1 + n + i] = f * sums[r].cosine[i].value();
-        per[r][1 + 2 * n + i] = f * sums[r].kinetic_squared[i].value();
-      }
-      total_w += per[r][0];
-      total_w2 += f * f * sums[r].weight_squared.value();
-    }
-    if (!(total_w > 0)) throw invalid_input("microcanonical qmc: no point reached the shell");
-    // quantities: <K_i> (n), <cos_i> (n), <K> (1), Z~ (1), Var K_i (n)
-    const std::size_t count = 3 * n + 2;
-    const Real z_norm = exp(log(2 * pi<Real>()) + log_envelope) *
-                        Real(static_cast<double>(points));
-    const auto quantities = [&](std::size_t skip) {
-      std::vector<Real> t(q, Real(0)), res(count);
-      Real used = 0;
-      for (std::size_t r = 0; r < shifts; ++r) {
-        if (r == skip) continue;
-        used += 1;
-        for (std::size_t c = 0; c < q; ++c) t[c] += per[r][c];
-      }
-      Real total = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        res[i] = setup.scale * t[1 + i] / (nn * t[0]);
-        res[n + i] = t[1 + n + i] / t[0];
-        total += res[i];
-        res[2 * n + 2 + i] = setup.scale * setup.scale * t[1 + 2 * n + i] /
-                                 (second_moment_norm * t[0]) -
-                             res[i] * res[i];
-      }
-      res[2 * n] = total;
-      res[2 * n + 1] = t[0] / (used * z_norm);
-      return res;
-    };
-    const std::vector<Real> est = quantities(shifts);
-    std::vector<std::vector<Real>> leave(shifts);
-    for (std::size_t r = 0; r < shifts; ++r) leave[r] = quantities(r);
-    const std::vector<Real> se = detail::qmc::jackknife_standard_errors(leave, count);
-    const Real sig = Real(options.sigmas > 0 ? options.sigmas : qmc_default_sigmas(shifts));
-    out.quadrature = Method::qmc;
-    out.work_unit = WorkUnit::samples;
-    out.evaluations = points * shifts;
-    out.proposal_beta = beta_star;
-    out.effective_sample_fraction =
-        total_w * total_w / (total_w2 * Real(static_cast<double>(points * shifts)));
-    constexpr ErrorKind kind = ErrorKind::statistical;
-    out.error_kind = kind;
-    for (std::size_t i = 0; i < n; ++i) {
-      out.kinetic[i] = {est[i], sig * se[i] + rounding * abs(est[i]), kind};
-      out.cos_angle[i] = {est[n + i], sig * se[n + i] + rounding, kind};
-      const Real second = est[2 * n + 2 + i] + est[i] * est[i];
-      out.kinetic_variance[i] = {est[2 * n + 2 + i],
-                                 sig * se[2 * n + 2 + i] + rounding * abs(second), kind};
-    }
-    out.kinetic_total = {est[2 * n], sig * se[2 * n] + rounding * abs(est[2 * n]), kind};
-    const Real z = est[2 * n + 1], z_error = sig * se[2 * n + 1] + rounding * z;
-    const Real density_factor = exp(log_factor + log_scale);
-    out.density_of_states = {density_factor * z, density_factor * z_error, kind};
+    qmc_shell_averages(chain, setup, options, run.threads, units, out);
   } else {
-    const ShellSums<Real> sums = rule == Rule::integral
-                                     ? integral_sums(chain, setup, run, tolerance)
-                                     : torus_sums(chain, setup, run, tolerance);
-    out.quadrature = rule == Rule::integral ? Method::reduced_integral : Method::torus_trapezoid;
-    out.work_unit = WorkUnit::nodes;
-    out.evaluations = sums.evaluations;
-    out.converged = sums.converged;
-    const Real z = sums.value[0], z_error = sums.error[0];
-    if (!(z > 0)) throw invalid_input("microcanonical: the accessible region was not resolved");
-    const Real z_rel = z_error / z;
-    constexpr ErrorKind kind = ErrorKind::estimate;
-    out.error_kind = kind;
-    Real numerator = 0, numerator_error = 0;
-    const Real kinetic_unit = setup.scale / (nn * z);
-    const Real second_unit = setup.scale * setup.scale / (second_moment_norm * z);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Real kn = sums.value[1 + i], ke = sums.error[1 + i];
-      numerator += kn;
-      numerator_error += ke;
-      const Real kinetic = kinetic_unit * kn;
-      const Real kinetic_error = abs(kinetic) * (z_rel + rounding) + kinetic_unit * ke;
-      out.kinetic[i] = {kinetic, kinetic_error, kind};
-      out.cos_angle[i] = {sums.value[1 + n + i] / z,
-                          (sums.error[1 + n + i] + abs(sums.value[1 + n + i]) * z_rel) / z +
-                              rounding,
-                          kind};
-      // Var K_i = <K_i^2>_E - <K_i>_E^2
-      const Real second = second_unit * sums.value[1 + 2 * n + i];
-      const Real second_error =
-          abs(second) * (z_rel + rounding) + second_unit * sums.error[1 + 2 * n + i];
-      out.kinetic_variance[i] = {second - kinetic * kinetic,
-                                 second_error + 2 * abs(kinetic) * kinetic_error +
-                                     rounding * abs(second),
-                                 kind};
-    }
-    const Real kinetic_total = kinetic_unit * numerator;
-    out.kinetic_total = {kinetic_total,
-                         kinetic_total * (z_rel + rounding) + kinetic_unit * numerator_error,
-                         kind};
-    if (sums.converged) {
-      // the budget was tolerance; report converged only if the propagated errors stay within it
-      out.converged = z_rel <= 2 * tolerance;
-    }
-    const Real density_factor = exp(log_factor);
-    out.density_of_states = {density_factor * z, density_factor * (z_error + rounding * z), kind};
+    quadrature_shell_averages(chain, setup, run, tolerance, rule, units, out);
   }
   out.kinetic_canonical = {out.kinetic_total.value / nn, out.kinetic_total.error / nn,
                            out.kinetic_total.kind};

@@ -17,6 +17,7 @@
 // are at most T_M = c_{M+1} R_{M+1} mu2^{M+1} / (1 - mu2). Hence
 //   (mu1/2) N_M/D_M <= beta<K1> <= (mu1/2) (N_M + T_M)/(D_M - T_M).
 #include "engine/double_pendulum.hpp"
+#include "engine/parallel.hpp"
 #include "engine/text.hpp"
 
 #include "engine/bessel.hpp"
@@ -102,24 +103,29 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
   // The two arguments' tables are independent: one thread each; the accumulation (~15% of
   // the work) runs on one thread in a fixed order, so results do not depend on threads.
   bool stopped = false;  // written in `omp single` only; read after its barrier
+  // An exception may not leave the parallel region: the first one is kept and rethrown after
+  // it; failed() is set before a barrier, so every thread sees it at the same d, as `stopped`.
+  ParallelErrors errors;
 #pragma omp parallel num_threads(2) if (Mx > 48)
   {
     Real tmp = 0, coef = 0;
     for (std::size_t d = 0; d <= 2 * Mx; ++d) {
-      if (stopped) break;  // every thread sees the same value at the same d
+      if (stopped || errors.failed()) break;  // every thread sees the same value at the same d
       const std::size_t kmax = 2 * Mx - d;
 #pragma omp for schedule(static, 1)
       for (int arg = 0; arg < 2; ++arg) {
-        auto& cur = rows[arg][d % 3];
-        if (d == 0) {
-          for (std::size_t k = 0; k <= kmax; ++k) cur[k] = f[arg][k];
-        } else {
-          // E(d,k) = a E(d-1,k+1) + (d-1) E(d-2,k+1); E(-1, .) = 0.
-          const auto& p1 = rows[arg][(d + 2) % 3];
-          const auto& p2 = rows[arg][(d + 1) % 3];
-          const unsigned long m = (d >= 2) ? static_cast<unsigned long>(d - 1) : 0ul;
-          for (std::size_t k = 0; k <= kmax; ++k) K::leibniz(cur[k], *a[arg], p1[k + 1], m, p2[k + 1], tmp);
-        }
+        errors.capture([&] {
+          auto& cur = rows[arg][d % 3];
+          if (d == 0) {
+            for (std::size_t k = 0; k <= kmax; ++k) cur[k] = f[arg][k];
+          } else {
+            // E(d,k) = a E(d-1,k+1) + (d-1) E(d-2,k+1); E(-1, .) = 0.
+            const auto& p1 = rows[arg][(d + 2) % 3];
+            const auto& p2 = rows[arg][(d + 1) % 3];
+            const unsigned long m = (d >= 2) ? static_cast<unsigned long>(d - 1) : 0ul;
+            for (std::size_t k = 0; k <= kmax; ++k) K::leibniz(cur[k], *a[arg], p1[k + 1], m, p2[k + 1], tmp);
+          }
+        });
       }
       if (d % 2 == 0) {
         const std::size_t j = d / 2;
@@ -128,7 +134,7 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
         // R_{j+k} += [(2(j+k))!/(2j)!] c_k E1(2j,k) E2(2j,k), with the coefficient as a
         // running product: one thread (the implicit barrier ends the row).
 #pragma omp single
-        {
+        errors.capture([&] {
           coef = 1;  // (2j)!/(2j)! c_0
           for (std::size_t k = 0; j + k <= Mx; ++k) {
             if (k > 0) {
@@ -142,10 +148,11 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
           const double left = Mx > 0 ? double(2 * Mx - d) / double(2 * Mx) : 0.0;
           control.report(1 - left * left);
           if (control.stop_requested()) stopped = true;
-        }
+        });
       }
     }
   }
+  errors.rethrow();
   if (stopped) throw interrupted("series: stopped while building the Bessel table (no term is complete)");
   return R;
 }

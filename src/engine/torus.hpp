@@ -902,21 +902,10 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // products stay normal keep every bit), and a point whose weight is exactly zero never becomes
 // the reference.
 // When to use it: N >= 5 or so (a tensor grid needs n^(N-1) nodes); for N <= 4 torus_average is
-// exact to 1e-13 in milliseconds. Cost ~100 ns per particle and point (the 32-node table of
-// each conditional law, one tan and one exp per angle, the backward trace sweep).
-// Measured (tests/bench/bench_any_n.cpp, BM_qmc_to_target: points per shift doubled from 2^12,
-// 16 shifts, seed 1, 2 threads, until the largest 3-sigma bar (the multiplier then) over the
-// beta<K_i> is <= 1e-4; unit chains, g = 1; the machine's 2 cores were shared, load average
-// ~4, so wall times are ~3x the per-thread CPU times given here, which are what 2 free cores
-// would take):
-//     N = 8,  beta = 1:    2^12 points, bar 8.9e-5, fraction 0.97,  0.06 s
-//     N = 16, beta = 1:    2^14 points, bar 6.7e-5, fraction 0.94,  0.5 s  (ladder)
-//     N = 32, beta = 1:    2^15 points, bar 7.7e-5, fraction 0.89,  2.1 s
-//     N = 64, beta = 1:    2^16 points, bar 9.1e-5, fraction 0.81,  8.7 s  (ladder; the 2^16
-//                          run alone ~4.5 s)
-//     N = 16, beta = 0.1:  2^13 points, bar 6.8e-5, fraction 0.99,  0.2 s
-//     N = 16, beta = 10:   2^13 points, bar 6.3e-5, fraction 0.96,  0.2 s
-// The von Mises law at N = 16, 2^14 points: bar 2.8e-3, fraction 0.03 (2.7x cheaper per point).
+// exact to 1e-13 and much cheaper. Cost per point: linear in N (the 32-node table of each
+// conditional law, one tan and one exp per angle, the backward trace sweep).
+// Why: README, Design notes, 'Measurements behind the design choices' (qmc
+// cost to a 1e-4 bar, N = 8..64; tests/bench/bench_any_n.cpp BM_qmc_to_target).
 // Coverage (tests/test_torus.cpp): the bars cover the tensor-torus values for >= 95 of 100
 // seeds, per quantity and particle, at N = 3 (both laws) and N = 4 (unequal masses and lengths,
 // beta = 2, pivot law), 2^10 x 16 points; and for >= 99 of 100 at 2^16 x 16 on the hard case
@@ -925,7 +914,7 @@ Averages<Real> torus_average(const Chain<Real>& chain, const Real& beta,
 // error); it is trustworthy while effective_sample_fraction stays above ~0.1. Mass ratios
 // m_{j+1}/m_j far from 1 make the pivot factors, and so the tables, steeper (not measured beyond
 // the tests' random chains). The lattices beyond 256 particles must be passed in generating_vector
-// (fast_cbc_generating_vector builds one in seconds for 2^16 points).
+// (fast_cbc_generating_vector builds one for 2^16 points).
 
 /// The law qmc_average maps the lattice points to (see the comment above QmcOptions).
 enum class QmcProposal {
@@ -1547,24 +1536,10 @@ void gather_shift_sums(const ShiftPartition& partition, std::vector<ShiftSums<Re
   }
 }
 
-}  // namespace detail::qmc
-
-/// Randomized lattice QMC estimate of the averages (see the comment above QmcOptions).
-/// Throws invalid_input for a bad beta or options, or N > 256 without options.generating_vector.
-template <class Real>
-Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
-                           const QmcOptions& options = {}) {
-  using namespace detail::qmc;
-  check_beta(beta);
-  const std::size_t n = chain.size();
+/// The generating vector of a qmc run: options.generating_vector, checked, or the built-in
+/// lattice row for n particles and `points` points. Throws invalid_input.
+inline std::vector<std::uint32_t> qmc_generating_vector(const QmcOptions& options, std::size_t n) {
   const std::size_t points = options.points;
-  if (points < 1024 || points > (std::size_t(1) << 20) || (points & (points - 1)) != 0) {
-    throw invalid_input("qmc_average: points must be a power of two in [2^10, 2^20]");
-  }
-  if (options.shifts < 4) throw invalid_input("qmc_average: at least 4 random shifts");
-  if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
-    throw invalid_input("qmc_average: sigmas must be positive (or 0: automatic)");
-  }
   std::vector<std::uint32_t> generator = options.generating_vector;
   if (generator.empty()) {
     unsigned log2_points = 0;
@@ -1584,22 +1559,27 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
       if (zj % 2 == 0) throw invalid_input("qmc_average: generating vector entries must be odd");
     }
   }
-  if (options.proposal_grid < 4 || options.proposal_grid % 4 != 0) {
-    throw invalid_input("qmc_average: proposal_grid must be a multiple of 4, >= 4");
-  }
-  const bool sequential =
-      options.proposal == QmcProposal::pivot_sequential ||
-      (options.proposal == QmcProposal::automatic && n > automatic_von_mises_max_particles);
-  const detail::torus::WeightConstants<Real> constants(chain, beta);
-  const PivotSampler<Real> sampler(chain, constants.alpha, options.proposal_grid, sequential);
+  return generator;
+}
 
-  std::size_t shifts = options.shifts;
+/// The sums of every random shift this process runs (options.partition: its share), in
+/// parallel over the shifts; finished[r] marks the shifts that ran to the end (a stop request
+/// through options.control leaves the others unfinished).
+template <class Real>
+std::vector<ShiftSums<Real>> run_shifts(const Chain<Real>& chain,
+                                        const detail::torus::WeightConstants<Real>& constants,
+                                        const PivotSampler<Real>& sampler,
+                                        const std::vector<std::uint32_t>& generator,
+                                        const QmcOptions& options, std::vector<char>& finished) {
+  const std::size_t n = chain.size();
+  const std::size_t points = options.points;
+  const std::size_t shifts = options.shifts;
   const std::vector<std::vector<Real>> shift = random_shifts<Real>(shifts, n, options.seed);
   std::vector<ShiftSums<Real>> sums(shifts, ShiftSums<Real>(n));
   ParallelErrors errors;  // an exception may not leave the parallel region
   const ShiftRange mine = shift_range(options.partition, shifts);
   const RunControl* control = options.partition ? nullptr : options.control;
-  std::vector<char> finished(shifts, 0);
+  finished.assign(shifts, 0);
   // Progress over every point of every shift, and a stop request, polled every
   // lattice_poll_points points inside each shift (a big point stops within a fraction of a
   // second; the unfinished shifts are dropped).
@@ -1638,7 +1618,114 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   errors.rethrow();
   (void)team;
   if (options.partition) gather_shift_sums(*options.partition, sums);
+  return sums;
+}
+
+/// Every shift's sums at one common scale (the weights are exp(log W - log_scale); a shift
+/// without a finite weight has all sums zero), and the totals of W and W^2.
+template <class Real>
+struct ScaledShiftSums {
+  std::vector<Real> weight;
+  std::vector<std::vector<Real>> trace, second_moment, cosine;
+  Real total_weight{0}, total_weight_squared{0};
+};
+
+template <class Real>
+ScaledShiftSums<Real> common_scale(const std::vector<ShiftSums<Real>>& sums, std::size_t n) {
+  using std::exp;
+  const std::size_t shifts = sums.size();
+  ScaledShiftSums<Real> s;
+  s.weight.resize(shifts);
+  s.trace.assign(shifts, std::vector<Real>(n));
+  s.second_moment.assign(shifts, std::vector<Real>(n));
+  s.cosine.assign(shifts, std::vector<Real>(n));
+  bool any_scaled = false;
+  Real log_scale = 0;
+  for (std::size_t r = 0; r < shifts; ++r) {
+    if (!sums[r].scaled) continue;
+    log_scale = any_scaled ? std::max(log_scale, sums[r].log_scale) : sums[r].log_scale;
+    any_scaled = true;
+  }
+  if (!any_scaled) {
+    throw invalid_input("qmc_average: every importance weight vanished (use torus_average)");
+  }
+  Real total_w = 0, total_w2 = 0;
+  for (std::size_t r = 0; r < shifts; ++r) {
+    const Real f = sums[r].scaled ? Real(exp(sums[r].log_scale - log_scale)) : Real(0);
+    s.weight[r] = f * sums[r].weight.value();
+    total_w += s.weight[r];
+    total_w2 += f * f * sums[r].weight_squared.value();
+    for (std::size_t i = 0; i < n; ++i) {
+      s.trace[r][i] = f * sums[r].trace[i].value();
+      s.second_moment[r][i] = f * sums[r].second_moment[i].value();
+      s.cosine[r][i] = f * sums[r].cosine[i].value();
+    }
+  }
+  s.total_weight = total_w;
+  s.total_weight_squared = total_w2;
+  return s;
+}
+
+/// beta<K_i>, beta^2 Var K_i, <cos phi_i> (3n values) from the totals over the shifts except
+/// `skip` (skip >= shifts: all of them), the ratio of the totals.
+template <class Real>
+std::vector<Real> shift_ratio_quantities(const ScaledShiftSums<Real>& s, std::size_t n,
+                                         std::size_t skip) {
+  const std::size_t shifts = s.weight.size();
+  Real w = 0;
+  std::vector<Real> tr(n, Real(0)), m2(n, Real(0)), c(n, Real(0)), out(3 * n);
+  for (std::size_t r = 0; r < shifts; ++r) {
+    if (r == skip) continue;
+    w += s.weight[r];
+    for (std::size_t i = 0; i < n; ++i) {
+      tr[i] += s.trace[r][i];
+      m2[i] += s.second_moment[r][i];
+      c[i] += s.cosine[r][i];
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const Real k = tr[i] / (2 * w);
+    out[i] = k;
+    out[n + i] = m2[i] / (4 * w) - k * k;
+    out[2 * n + i] = c[i] / w;
+  }
+  return out;
+}
+
+}  // namespace detail::qmc
+
+/// Randomized lattice QMC estimate of the averages (see the comment above QmcOptions).
+/// Throws invalid_input for a bad beta or options, or N > 256 without options.generating_vector.
+template <class Real>
+Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
+                           const QmcOptions& options = {}) {
+  using namespace detail::qmc;
+  check_beta(beta);
+  const std::size_t n = chain.size();
+  const std::size_t points = options.points;
+  if (points < 1024 || points > (std::size_t(1) << 20) || (points & (points - 1)) != 0) {
+    throw invalid_input("qmc_average: points must be a power of two in [2^10, 2^20]");
+  }
+  if (options.shifts < 4) throw invalid_input("qmc_average: at least 4 random shifts");
+  if (!(options.sigmas >= 0) || !std::isfinite(options.sigmas)) {
+    throw invalid_input("qmc_average: sigmas must be positive (or 0: automatic)");
+  }
+  const std::vector<std::uint32_t> generator = qmc_generating_vector(options, n);
+  if (options.proposal_grid < 4 || options.proposal_grid % 4 != 0) {
+    throw invalid_input("qmc_average: proposal_grid must be a multiple of 4, >= 4");
+  }
+  const bool sequential =
+      options.proposal == QmcProposal::pivot_sequential ||
+      (options.proposal == QmcProposal::automatic && n > automatic_von_mises_max_particles);
+  const detail::torus::WeightConstants<Real> constants(chain, beta);
+  const PivotSampler<Real> sampler(chain, constants.alpha, options.proposal_grid, sequential);
+
+  std::vector<char> finished;
+  std::vector<ShiftSums<Real>> sums =
+      run_shifts(chain, constants, sampler, generator, options, finished);
+  std::size_t shifts = options.shifts;
   // Stopped (RunControl): the shifts that finished are an estimate of their own (fewer shifts).
+  const RunControl* control = options.partition ? nullptr : options.control;
   const bool stopped =
       control != nullptr && std::count(finished.begin(), finished.end(), char(1)) <
                                 static_cast<std::ptrdiff_t>(shifts);
@@ -1655,62 +1742,12 @@ Averages<Real> qmc_average(const Chain<Real>& chain, const Real& beta,
   // Totals and delete-one-shift totals; every quantity is a function of sums, so the jackknife
   // applies to each: Var_jack = (R - 1)/R sum_r (theta_(r) - mean)^2.
   const std::size_t count = 3 * n;  // beta<K_i>, beta^2 Var K_i, <cos phi_i>
-  const auto quantities = [&](const std::vector<Real>& s_weight,
-                              const std::vector<std::vector<Real>>& s_trace,
-                              const std::vector<std::vector<Real>>& s_second,
-                              const std::vector<std::vector<Real>>& s_cos, std::size_t skip) {
-    Real w = 0;
-    std::vector<Real> tr(n, Real(0)), m2(n, Real(0)), c(n, Real(0)), out(count);
-    for (std::size_t r = 0; r < shifts; ++r) {
-      if (r == skip) continue;
-      w += s_weight[r];
-      for (std::size_t i = 0; i < n; ++i) {
-        tr[i] += s_trace[r][i];
-        m2[i] += s_second[r][i];
-        c[i] += s_cos[r][i];
-      }
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      const Real k = tr[i] / (2 * w);
-      out[i] = k;
-      out[n + i] = m2[i] / (4 * w) - k * k;
-      out[2 * n + i] = c[i] / w;
-    }
-    return out;
-  };
-  std::vector<Real> s_weight(shifts);
-  std::vector<std::vector<Real>> s_trace(shifts, std::vector<Real>(n)),
-      s_second(shifts, std::vector<Real>(n)), s_cos(shifts, std::vector<Real>(n));
-  // Bring every shift's sums to the largest scale (the weights are exp(log W - log_scale)); a
-  // shift without a finite weight has all sums zero.
-  bool any_scaled = false;
-  Real log_scale = 0;
-  for (std::size_t r = 0; r < shifts; ++r) {
-    if (!sums[r].scaled) continue;
-    log_scale = any_scaled ? std::max(log_scale, sums[r].log_scale) : sums[r].log_scale;
-    any_scaled = true;
-  }
-  if (!any_scaled) {
-    throw invalid_input("qmc_average: every importance weight vanished (use torus_average)");
-  }
-  Real total_w = 0, total_w2 = 0;
-  for (std::size_t r = 0; r < shifts; ++r) {
-    const Real f = sums[r].scaled ? Real(exp(sums[r].log_scale - log_scale)) : Real(0);
-    s_weight[r] = f * sums[r].weight.value();
-    total_w += s_weight[r];
-    total_w2 += f * f * sums[r].weight_squared.value();
-    for (std::size_t i = 0; i < n; ++i) {
-      s_trace[r][i] = f * sums[r].trace[i].value();
-      s_second[r][i] = f * sums[r].second_moment[i].value();
-      s_cos[r][i] = f * sums[r].cosine[i].value();
-    }
-  }
-  const std::vector<Real> value = quantities(s_weight, s_trace, s_second, s_cos, shifts);
+  const ScaledShiftSums<Real> scaled = common_scale(sums, n);
+  const std::vector<Real> value = shift_ratio_quantities(scaled, n, shifts);
   std::vector<std::vector<Real>> leave_out(shifts);
-  for (std::size_t r = 0; r < shifts; ++r) {
-    leave_out[r] = quantities(s_weight, s_trace, s_second, s_cos, r);
-  }
+  for (std::size_t r = 0; r < shifts; ++r) leave_out[r] = shift_ratio_quantities(scaled, n, r);
   const std::vector<Real> standard_error = jackknife_standard_errors(leave_out, count);
+  const Real total_w = scaled.total_weight, total_w2 = scaled.total_weight_squared;
 
   const Real u = unit_roundoff<Real>();
   const Real rounding =

@@ -491,59 +491,55 @@ inline double series_condition_estimate(double Kd) {
 
 namespace fourier_moments_impl {
 
-// Implementation with explicit evaluation types: Ws for the top values and K, E (also the
-// series conditioning limit), Compensate for TwoSum-compensated recursion sums. The
-// recursion runs in Real (MPFR: in Real with extra digits).
-template <class Real, class Ws, bool Compensate>
-QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::size_t count) {
-  namespace impl = fourier_moments_impl;
-  using std::abs;
-  QPowerMoments<Real> out;
-  out.relative_error = 0;
-  if (!(mu1 > 0) || !(mu2 > 0)) throw std::domain_error("q_power_moments: need 0 < mu1 < 1");
-  if (count == 0) return out;
-  const std::size_t K = count;
-  const Real u_R = impl::unit_roundoff_of<Real>();
-  if constexpr (!is_mpfr_v<Real>) {
-    // Few terms: plain forward recurrence (2) from the exact Q_0, Q_1. It amplifies rounding by
-    // at most (1 + K^2) e^{4Kd} (algebraic, then geometric separation), which for short rows
-    // stays small -- and it is several times cheaper than either method below.
-    const double dd = std::atanh(std::sqrt(static_cast<double>(mu1 / (mu1 + mu2))));
-    const double Kl = static_cast<double>(K - 1);  // the last index computed
-    const double amplification = (1 + Kl * Kl) * std::exp(4 * Kl * dd);
-    const double limit = std::is_same_v<Real, long double> ? 64.0 : 16.0;
-    if (amplification <= limit) {
-      const auto ell = complete_elliptic_from_complement(mu1);
-      // Q_0(s) for s = 3/2, 1/2, -1/2, -3/2; rows s = 1/2, -1/2, -3/2 as sigma = 2s.
-      const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * ell.E - mu1 * ell.K) / 3, ell.E, ell.K,
-                                      ell.E / mu1};
-      constexpr std::array<long, 3> sigma = {1, -1, -3};
-      const Real two_c = 4 + 8 * mu1 / mu2;
-      for (std::size_t r = 0; r < 3; ++r) {
-        auto& Q = out.Q[r];
-        Q.assign(K, Real(0));
-        Q[0] = Q0[r + 1];
-        // Q_1(s) = ((1 + mu1)/mu2) Q_0(s) - (2/mu2) Q_0(s + 1)
-        if (K > 1) Q[1] = ((1 + mu1) * Q0[r + 1] - 2 * Q0[r]) / mu2;
-        // Q_{k+1} = (2c k Q_k - (2k - 2 - sigma) Q_{k-1}) / (2k + 2 + sigma), c = 2 + 4 mu1/mu2
-        for (std::size_t k = 1; k + 1 < K; ++k) {
-          const long kk = static_cast<long>(k);
-          Q[k + 1] = (two_c * Real(kk) * Q[k] - Real(2 * kk - 2 - sigma[r]) * Q[k - 1]) /
-                     Real(2 * kk + 2 + sigma[r]);
-        }
+// Few terms: plain forward recurrence (2) from the exact Q_0, Q_1 (hardware floats). Fills
+// `out` and returns true when its amplification of rounding stays small, false otherwise.
+template <class Real>
+bool short_row_moments(const Real& mu1, const Real& mu2, std::size_t K, QPowerMoments<Real>& out) {
+  // It amplifies rounding by at most (1 + K^2) e^{4Kd} (algebraic, then geometric separation),
+  // which for short rows stays small -- and it is several times cheaper than the series or
+  // Miller's method (q_power_moments_with).
+  const Real u_R = unit_roundoff_of<Real>();
+  const double dd = std::atanh(std::sqrt(static_cast<double>(mu1 / (mu1 + mu2))));
+  const double Kl = static_cast<double>(K - 1);  // the last index computed
+  const double amplification = (1 + Kl * Kl) * std::exp(4 * Kl * dd);
+  const double limit = std::is_same_v<Real, long double> ? 64.0 : 16.0;
+  if (amplification <= limit) {
+    const auto ell = complete_elliptic_from_complement(mu1);
+    // Q_0(s) for s = 3/2, 1/2, -1/2, -3/2; rows s = 1/2, -1/2, -3/2 as sigma = 2s.
+    const std::array<Real, 4> Q0 = {(2 * (1 + mu1) * ell.E - mu1 * ell.K) / 3, ell.E, ell.K,
+                                    ell.E / mu1};
+    constexpr std::array<long, 3> sigma = {1, -1, -3};
+    const Real two_c = 4 + 8 * mu1 / mu2;
+    for (std::size_t r = 0; r < 3; ++r) {
+      auto& Q = out.Q[r];
+      Q.assign(K, Real(0));
+      Q[0] = Q0[r + 1];
+      // Q_1(s) = ((1 + mu1)/mu2) Q_0(s) - (2/mu2) Q_0(s + 1)
+      if (K > 1) Q[1] = ((1 + mu1) * Q0[r + 1] - 2 * Q0[r]) / mu2;
+      // Q_{k+1} = (2c k Q_k - (2k - 2 - sigma) Q_{k-1}) / (2k + 2 + sigma), c = 2 + 4 mu1/mu2
+      for (std::size_t k = 1; k + 1 < K; ++k) {
+        const long kk = static_cast<long>(k);
+        Q[k + 1] = (two_c * Real(kk) * Q[k] - Real(2 * kk - 2 - sigma[r]) * Q[k - 1]) /
+                   Real(2 * kk + 2 + sigma[r]);
       }
-      // Carlson K, E to a few ulps (long double: ~3 eps = 6 u), then the amplified recurrence.
-      out.relative_error = Real(8 + 4 * amplification) * u_R;
-      return out;
     }
+    // Carlson K, E to a few ulps (long double: ~3 eps = 6 u), then the amplified recurrence.
+    out.relative_error = Real(8 + 4 * amplification) * u_R;
+    return true;
   }
+  return false;
+}
+
+// The evaluation plan of q_power_moments_with, in double (ln u and d are fine in double for any
+// precision): the top values by the series (in Ws; long double: possibly in MPFR) and the
+// recursion down from them, or a Miller run from miller_top; and the extra MPFR digits.
+template <class Real, class Ws>
+Plan moments_plan(const Real& mu1, const Real& mu2, std::size_t K) {
+  namespace impl = fourier_moments_impl;
   constexpr bool is_double = std::is_same_v<Real, double>;
   constexpr bool is_ldouble = std::is_same_v<Real, long double>;
   constexpr bool wide_series = !std::is_same_v<Real, Ws>;  // double result, long double series
-  using Wr = Real;
-  constexpr bool compensate = Compensate && !is_mpfr_v<Real>;
-
-  // ---- plan (in double; ln u and d are fine in double for any precision)
+  const Real u_R = impl::unit_roundoff_of<Real>();
   const double mu1d = std::max(static_cast<double>(mu1), 1e-300);
   const double mu2d = static_cast<double>(mu2);
   const double d = std::atanh(std::sqrt(mu1d / (mu1d + mu2d)));  // atanh(sqrt mu1)
@@ -556,9 +552,9 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
     // Miller: extra steps beyond K so that e^{-4 d (N-K)} < u e^{-5}
     const double miller_len = (lnu_target + 5) / (4 * d) + 10;
     // cost in recursion steps: per series term, fixed (logs, digamma, exp). MPFR: a series
-    // term (three divisions, ~20 multiplications and additions on temporaries, and the error
-    // weights in MPFR) costs 12.8-13.5 in-place recursion steps (measured at 50, 89 and 300
-    // digits), and the series runs with log10(kappa) extra digits.
+    // term is three divisions, ~20 multiplications and additions on temporaries and the error
+    // weights, and the series runs with log10(kappa) extra digits.
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     double c_term = is_double ? (wide_series ? 8.0 : 2.0) : is_ldouble ? 1.0 : 13.0;
     if constexpr (is_mpfr_v<Real>) {
       c_term *= 1.0 + std::log10(kappa) / static_cast<double>(current_digits10<Real>());
@@ -604,6 +600,30 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
           4;
     }
   }
+  return plan;
+}
+
+// Implementation with explicit evaluation types: Ws for the top values and K, E (also the
+// series conditioning limit), Compensate for TwoSum-compensated recursion sums. The
+// recursion runs in Real (MPFR: in Real with extra digits).
+template <class Real, class Ws, bool Compensate>
+QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::size_t count) {
+  namespace impl = fourier_moments_impl;
+  using std::abs;
+  QPowerMoments<Real> out;
+  out.relative_error = 0;
+  if (!(mu1 > 0) || !(mu2 > 0)) throw std::domain_error("q_power_moments: need 0 < mu1 < 1");
+  if (count == 0) return out;
+  const std::size_t K = count;
+  const Real u_R = impl::unit_roundoff_of<Real>();
+  if constexpr (!is_mpfr_v<Real>) {
+    if (short_row_moments(mu1, mu2, K, out)) return out;
+  }
+  constexpr bool is_ldouble = std::is_same_v<Real, long double>;
+  using Wr = Real;
+  constexpr bool compensate = Compensate && !is_mpfr_v<Real>;
+
+  const impl::Plan plan = moments_plan<Real, Ws>(mu1, mu2, K);
 
   // ---- evaluation
   const int p_real = current_digits10<Real>();
@@ -768,7 +788,8 @@ QPowerMoments<Real> q_power_moments(const Real& mu1, const Real& mu2, std::size_
   namespace impl = fourier_moments_impl;
   if constexpr (std::is_same_v<Real, double>) {
     // Top values in double where the series is well conditioned (4Kd <~ 1.5), otherwise in
-    // long double (x87: ~5x slower per term, but usable up to Kd ~ 2 before Miller).
+    // long double (x87: slower per term, but usable up to Kd ~ 2 before Miller).
+    // Why: README, Design notes, 'Measurements behind the design choices' (N = 2).
     const double m = mu1 / (mu1 + mu2);
     const double Kd = static_cast<double>(count) * std::atanh(std::sqrt(m > 0 ? m : 0.0));
     if (impl::series_condition_estimate(Kd) <= 2)
