@@ -697,6 +697,7 @@ struct CaseScratch {
   std::vector<std::string_view> fields;  ///< the row's fields in canonical order
   std::vector<Real> masses, lengths;
   AverageWorkspace<Real> workspace;
+  std::string variance_errors;  ///< a row's Var K_i errors, written after its values
 };
 
 /// Longest output line of a cases row: the row's text and a comma per field (at most one per
@@ -759,19 +760,21 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   if (averages.ratio) p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits), error_digits);
   *p++ = ',';
   for (const Estimate<Real>& c : averages.cos_angle) error(c);
-  // Var K_i = beta^2 Var K_i / beta^2, divided as averages_text divides (in long double for a
-  // double run), so that these columns equal table's and `average`'s.
-  using Wide = std::conditional_t<std::is_same_v<Real, mpfr_real>, Real, long double>;
-  const Wide beta2 = Wide(beta) * Wide(beta);
+  // Var K_i = beta^2 Var K_i / beta^2, printed as averages_text prints it (write_quotient), so
+  // that these columns equal table's and `average`'s: the values here, their errors after them.
+  const quotient_t<Real> beta2 = quotient_t<Real>(beta) * quotient_t<Real>(beta);
+  std::string& errors = scratch.variance_errors;
+  errors.resize(n * (decimal_max_length(error_digits) + 1));
+  char* e = errors.data();
   for (const Estimate<Real>& v : averages.beta2_kinetic_variance) {
-    p = write_decimal(p, Wide(Wide(v.value) / beta2), digits);
-    *p++ = ',';
+    char* const start = p;
+    p = write_quotient(p, v.value, v.error, beta2, digits, ',');
+    const char* comma = std::find(start, p, ',');
+    e = std::copy(comma + 1, static_cast<const char*>(p), e);
+    *e++ = ',';
+    p = const_cast<char*>(comma) + 1;
   }
-  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) {
-    const Wide value = Wide(v.value) / beta2;
-    p = write_decimal(p, printed_error(value, Wide(Wide(v.error) / beta2), digits), error_digits);
-    *p++ = ',';
-  }
+  put(std::string_view(errors.data(), static_cast<std::size_t>(e - errors.data())));
   put(error_kind_name(averages.error_kind));
   *p++ = ',';
   put(averages.converged ? "true" : "false");

@@ -30,6 +30,25 @@ char* write_decimal(char* out, const Real& x, int digits) {
 }
 
 template <class Real>
+char* write_quotient(char* out, const Real& value, const Real& error,
+                     const quotient_t<Real>& divisor, int digits, char separator) {
+  using Wide = quotient_t<Real>;
+  const Wide q = Wide(value) / divisor, e = Wide(error) / divisor;
+  if constexpr (std::is_same_v<Real, double>) {
+    const double qd = static_cast<double>(q), ed = static_cast<double>(e);
+    const auto plain = [](double x) { return x == 0 || std::isnormal(x); };
+    if (plain(qd) && plain(ed)) {
+      out = write_decimal(out, qd, digits);
+      *out++ = separator;
+      return write_decimal(out, printed_error(qd, ed, digits), error_digits);
+    }
+  }
+  out = write_decimal(out, q, digits);
+  *out++ = separator;
+  return write_decimal(out, printed_error(q, e, digits), error_digits);
+}
+
+template <class Real>
 void append_decimal(std::string& out, const Real& x, int digits) {
   const std::size_t start = out.size();
   out.resize(start + decimal_max_length(digits));
@@ -101,11 +120,21 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   put(averages.beta2_kinetic_variance, same, text.beta2_variance, text.beta2_variance_error);
   if (beta) {
     const Wide b = Wide(*beta);
-    put(averages.beta_kinetic, [b](const Real& value) -> Wide { return Wide(value) / b; },
-        text.kinetic, text.kinetic_error);
-    put(averages.beta2_kinetic_variance,
-        [b](const Real& value) -> Wide { return Wide(value) / (b * b); }, text.variance,
-        text.variance_error);
+    std::string buffer(2 * decimal_max_length(std::max(digits, error_digits)) + 1, '\0');
+    const auto put_quotients = [&](const std::vector<Estimate<Real>>& estimates, const Wide& divisor,
+                                   std::vector<std::string>& values,
+                                   std::vector<std::string>& errors) {
+      for (const Estimate<Real>& e : estimates) {
+        const char* end =
+            write_quotient(buffer.data(), e.value, e.error, divisor, digits, ' ');
+        const std::string_view both(buffer.data(), static_cast<std::size_t>(end - buffer.data()));
+        const std::size_t space = both.find(' ');
+        values.emplace_back(both.substr(0, space));
+        errors.emplace_back(both.substr(space + 1));
+      }
+    };
+    put_quotients(averages.beta_kinetic, b, text.kinetic, text.kinetic_error);
+    put_quotients(averages.beta2_kinetic_variance, b * b, text.variance, text.variance_error);
   }
   put(averages.beta_kinetic_canonical, same, text.beta_kinetic_canonical,
       text.beta_kinetic_canonical_error);
@@ -173,6 +202,10 @@ template void append_decimal<long double>(std::string&, const long double&, int)
 template char* write_decimal<double>(char*, const double&, int);
 template char* write_decimal<mpfr_real>(char*, const mpfr_real&, int);
 template char* write_decimal<long double>(char*, const long double&, int);
+template char* write_quotient<double>(char*, const double&, const double&, const long double&, int,
+                                      char);
+template char* write_quotient<mpfr_real>(char*, const mpfr_real&, const mpfr_real&,
+                                         const mpfr_real&, int, char);
 template double printed_error<double>(const double&, const double&, int);
 template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int);
 template long double printed_error<long double>(const long double&, const long double&, int);

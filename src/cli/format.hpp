@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace pendavg::cli {
@@ -37,6 +38,19 @@ char* write_decimal(char* out, const Real& x, int digits);
 template <class Real>
 Real printed_error(const Real& value, const Real& error, int digits);
 
+
+/// Where a quotient value / divisor (<K_i> = beta<K_i>/beta, Var K_i = beta^2 Var K_i/beta^2) is
+/// formed: long double for a double run (beta < 1e-154 leaves double's range), MPFR for MPFR.
+template <class Real>
+using quotient_t = std::conditional_t<std::is_same_v<Real, double>, long double, Real>;
+
+/// Writes value / divisor (`digits` digits) and, after `separator`, its printed error (error /
+/// divisor plus the printing's rounding, error_digits digits); returns the end. For a double run
+/// both quotients are rounded to double when they are normal doubles (or 0), so that nearly
+/// every row takes the fast double printer; every front end prints quotients through here.
+template <class Real>
+char* write_quotient(char* out, const Real& value, const Real& error,
+                     const quotient_t<Real>& divisor, int digits, char separator);
 
 template <class Real>
 std::string decimal(const Real& x, int digits) {
