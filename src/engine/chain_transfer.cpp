@@ -355,6 +355,18 @@ Real next_pivot_coordinate(const PivotRule<Real>& to, const Real& ratio, const R
   return std::min(Real(1), std::max(Real(-1), x));
 }
 
+/// At a pivot value u and a relative angle with sin^2 = sin2: the Chebyshev values `tk` (pn.m)
+/// of the next pivot coordinate, and the message envelopes `e` there (all 1 unless pn is
+/// enveloped). Shared by relative_forward and relative_backward.
+template <class Real>
+void next_pivot_basis(const PivotRule<Real>& pn, const Real& ratio, const Real& u,
+                      const Real& sin2, Real* tk, Real (&e)[4]) {
+  Real u_next;
+  chebyshev_values(next_pivot_coordinate(pn, ratio, u, sin2, u_next), pn.m, tk);
+  e[0] = e[1] = e[2] = e[3] = 1;
+  if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+}
+
 /// Forward step of a light-to-heavy link over the relative angle: F_{j+1}(b, c') = E_b sum_{a,c,k}
 /// F_j(a, c) f_c w_k D_b(phi_a + delta_k) L_{c'}(t(u_c, delta_k)), D_b the trigonometric
 /// interpolation weight of node b (the transpose of relative_backward's interpolation).
@@ -368,11 +380,8 @@ void relative_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
   std::vector<Real> basis(nd * mj * mn), tk(mn);
   for (std::size_t k = 0; k < nd; ++k) {
     for (std::size_t c = 0; c < mj; ++c) {
-      Real u_next;
-      chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
-                       tk.data());
-      Real e[4] = {1, 1, 1, 1};
-      if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+      Real e[4];
+      next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e);
       for (std::size_t cp = 0; cp < mn; ++cp) {
         Real acc = 0;
         for (std::size_t q = 0; q < mn; ++q) acc += tk[q] * pn.to_coefficients[q * mn + cp];
@@ -445,11 +454,8 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
       const std::size_t k = static_cast<std::size_t>(kk);
       std::vector<Real> tk(mn);
       for (std::size_t c = 0; c < mj; ++c) {
-        Real u_next;
-        chebyshev_values(next_pivot_coordinate(pn, ratio, pj.u[c], rel.sin2[k], u_next), mn,
-                         tk.data());
-        Real e[4] = {1, 1, 1, 1};
-        if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
+        Real e[4];
+        next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e);
         for (std::size_t q = 0; q < 4; ++q) {
           Real* out = &values[((k * mj + c) * 4 + q) * n];
           for (std::size_t b = 0; b < n; ++b) {

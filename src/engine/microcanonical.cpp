@@ -767,50 +767,56 @@ State<Real> state_from_excitation(const Chain<Real>& chain, const Real& excitati
   return s;
 }
 
+/// The entry points' common start: the options checked, the working precision held (MPFR,
+/// options.digits), the state (energy or excitation: `from_excitation`) formed at it; then
+/// `then(state)` runs under that precision.
+template <class Real, class Then>
+decltype(auto) at_state(const Chain<Real>& chain, const Real& x, bool from_excitation,
+                        const MicrocanonicalOptions& options, Then&& then) {
+  check_microcanonical_options<Real>(options);
+  std::optional<precision_guard<Real>> guard;
+  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
+  const State<Real> s =
+      from_excitation ? state_from_excitation(chain, x) : state_from_energy(chain, x);
+  return then(s);
+}
+
 }  // namespace detail::microcanonical
 
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
                                                      const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  check_microcanonical_options<Real>(options);
-  std::optional<precision_guard<Real>> guard;
-  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const State<Real> s = state_from_energy(chain, energy);
-  return microcanonical_run(s.chain, s.energy, s.excitation, options);
+  return at_state(chain, energy, false, options, [&](const State<Real>& s) {
+    return microcanonical_run(s.chain, s.energy, s.excitation, options);
+  });
 }
 
 template <class Real>
 MicrocanonicalAverages<Real> microcanonical_average_excitation(
     const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  check_microcanonical_options<Real>(options);
-  std::optional<precision_guard<Real>> guard;
-  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const State<Real> s = state_from_excitation(chain, excitation);
-  return microcanonical_run(s.chain, s.energy, s.excitation, options);
+  return at_state(chain, excitation, true, options, [&](const State<Real>& s) {
+    return microcanonical_run(s.chain, s.energy, s.excitation, options);
+  });
 }
 
 template <class Real>
 void check_microcanonical(const Chain<Real>& chain, const Real& energy,
                           const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  check_microcanonical_options<Real>(options);
-  std::optional<precision_guard<Real>> guard;
-  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const State<Real> s = state_from_energy(chain, energy);
-  check_run(s.chain, s.energy, s.excitation, options);
+  at_state(chain, energy, false, options, [&](const State<Real>& s) {
+    check_run(s.chain, s.energy, s.excitation, options);
+  });
 }
 
 template <class Real>
 void check_microcanonical_excitation(const Chain<Real>& chain, const Real& excitation,
                                      const MicrocanonicalOptions& options) {
   using namespace detail::microcanonical;
-  check_microcanonical_options<Real>(options);
-  std::optional<precision_guard<Real>> guard;
-  if (options.digits != 0) guard.emplace(options.digits + guard_digits);
-  const State<Real> s = state_from_excitation(chain, excitation);
-  check_run(s.chain, s.energy, s.excitation, options);
+  at_state(chain, excitation, true, options, [&](const State<Real>& s) {
+    check_run(s.chain, s.energy, s.excitation, options);
+  });
 }
 
 MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
