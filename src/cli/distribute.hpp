@@ -59,8 +59,9 @@ struct Message {
 void post(int destination, int tag, std::string payload);
 /// The next message that has arrived, if any (never waits).
 std::optional<Message> receive();
-/// True while some posted message has not been sent yet (also advances them).
-bool sends_pending();
+/// True while some posted message has not been sent yet (also advances them). The payloads of
+/// the sends that completed are moved into `*sent` when it is given (for reuse).
+bool sends_pending(std::vector<std::string>* sent = nullptr);
 /// True while a message is being sent or received (a long one needs both sides to call MPI
 /// often until it is through).
 bool transfers_pending();

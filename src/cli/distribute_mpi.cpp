@@ -39,6 +39,9 @@ struct PendingSend {
   MPI_Request request = MPI_REQUEST_NULL;
 };
 std::list<PendingSend> pending_sends;
+/// Payloads of completed sends, until sends_pending(&sent) takes them.
+std::vector<std::string> sent_payloads;
+constexpr std::size_t max_sent_payloads = 16;
 
 /// Messages being received, in arrival order: a long one (a chunk's rows) goes by rendezvous
 /// and needs both sides to make progress, so it is received without waiting (MPI_Imrecv) and
@@ -200,11 +203,21 @@ std::optional<Message> receive() {
   return message;
 }
 
-bool sends_pending() {
+bool sends_pending(std::vector<std::string>* sent) {
   for (auto it = pending_sends.begin(); it != pending_sends.end();) {
     int done = 0;
     check(MPI_Test(&it->request, &done, MPI_STATUS_IGNORE), "MPI_Test");
-    it = done ? pending_sends.erase(it) : std::next(it);
+    if (!done) {
+      ++it;
+      continue;
+    }
+    // Kept until a caller takes them (a few: the sweep's chunks of rows).
+    if (sent_payloads.size() < max_sent_payloads) sent_payloads.push_back(std::move(it->payload));
+    it = pending_sends.erase(it);
+  }
+  if (sent) {
+    for (std::string& payload : sent_payloads) sent->push_back(std::move(payload));
+    sent_payloads.clear();
   }
   return !pending_sends.empty();
 }

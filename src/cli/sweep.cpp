@@ -45,6 +45,7 @@ constexpr std::size_t reorder_budget_bytes = 32u << 20;
 constexpr std::size_t reorder_budget_per_thread = 128u << 10;
 constexpr std::size_t max_chunk_rows = 1u << 14;
 constexpr int chunks_per_thread = 2;                     ///< queued per compute thread
+constexpr std::size_t spare_text_bytes = 8u << 20;       ///< written texts kept for reuse
 
 // Message tags of the sweep protocol (distribute.hpp's post/receive).
 enum Tag : int {
@@ -80,7 +81,7 @@ class Packer {
 
 class Unpacker {
  public:
-  explicit Unpacker(const std::string& bytes) : bytes_(bytes) {}
+  explicit Unpacker(std::string_view bytes) : bytes_(bytes) {}
   template <class T>
   T get() {
     T value;
@@ -101,7 +102,7 @@ class Unpacker {
   void need(std::size_t size) const {
     if (bytes_.size() - position_ < size) throw std::runtime_error("sweep: truncated message");
   }
-  const std::string& bytes_;
+  std::string_view bytes_;
   std::size_t position_ = 0;
 };
 
@@ -125,7 +126,9 @@ struct Finished {
   std::optional<RowFailure> failure;  ///< row first + count failed
 };
 
-std::string pack_finished(const Finished& f) {
+/// A result message is the rows' text as it is (moved, not copied: a double sweep sends ~600
+/// bytes a row), then the rest of `f`, then that rest's length (u64).
+std::string pack_finished(Finished&& f) {
   Packer p;
   p.put<std::uint64_t>(f.first).put<std::uint64_t>(f.count).put<double>(f.seconds);
   p.put<std::uint8_t>(f.failure.has_value());
@@ -133,12 +136,22 @@ std::string pack_finished(const Finished& f) {
     p.put<std::uint64_t>(f.failure->row).put<std::uint8_t>(f.failure->bad_input).put_text(f.failure->message);
   p.put<std::uint64_t>(f.row_us.size());
   for (const double us : f.row_us) p.put<double>(us);
-  p.put_text(f.text);
-  return p.take();
+  const std::string rest = p.take();
+  std::string bytes = std::move(f.text);
+  bytes.append(rest);
+  const std::uint64_t rest_size = rest.size();
+  bytes.append(reinterpret_cast<const char*>(&rest_size), sizeof rest_size);
+  return bytes;
 }
 
-Finished unpack_finished(const std::string& bytes) {
-  Unpacker u(bytes);
+Finished unpack_finished(std::string&& bytes) {
+  std::uint64_t rest_size = 0;
+  if (bytes.size() < sizeof rest_size) throw std::runtime_error("sweep: truncated message");
+  std::memcpy(&rest_size, bytes.data() + bytes.size() - sizeof rest_size, sizeof rest_size);
+  if (rest_size > bytes.size() - sizeof rest_size)
+    throw std::runtime_error("sweep: truncated message");
+  const std::size_t text_size = bytes.size() - sizeof rest_size - rest_size;
+  Unpacker u(std::string_view(bytes).substr(text_size, rest_size));
   Finished f;
   f.first = u.get<std::uint64_t>();
   f.count = u.get<std::uint64_t>();
@@ -152,7 +165,8 @@ Finished unpack_finished(const std::string& bytes) {
   }
   f.row_us.resize(u.get<std::uint64_t>());
   for (double& us : f.row_us) us = u.get<double>();
-  f.text = std::string(u.get_text());
+  bytes.resize(text_size);  // shortens in place
+  f.text = std::move(bytes);
   return f;
 }
 
@@ -232,6 +246,17 @@ class ComputeTeam {
     const std::lock_guard lock(mutex_);
     return std::exchange(results_, {});
   }
+  /// A written chunk's text, kept for a later chunk's rows (fresh memory costs page faults);
+  /// at most 2 per queued chunk and spare_text_bytes in all.
+  void recycle(std::string&& text) {
+    text.clear();
+    const std::lock_guard lock(mutex_);
+    if (spare_texts_.size() >= static_cast<std::size_t>(2 * chunks_per_thread * threads_) ||
+        spare_bytes_ + text.capacity() > spare_text_bytes)
+      return;
+    spare_bytes_ += text.capacity();
+    spare_texts_.push_back(std::move(text));
+  }
   /// Waits until a result is ready or `timeout` passed.
   void wait(std::chrono::microseconds timeout) {
     std::unique_lock lock(mutex_);
@@ -255,6 +280,7 @@ class ComputeTeam {
 #endif
       for (;;) {
         Range range;
+        Finished done;
         {
           std::unique_lock lock(mutex_);
           work_.wait(lock, [&] { return stopping_.load() || closed_ || !queue_.empty(); });
@@ -262,8 +288,12 @@ class ComputeTeam {
           range = queue_.front();
           queue_.pop_front();
           ++running_;
+          if (!spare_texts_.empty()) {
+            spare_bytes_ -= spare_texts_.back().capacity();
+            done.text = std::move(spare_texts_.back());
+            spare_texts_.pop_back();
+          }
         }
-        Finished done;
         done.first = range.first;
         done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
         const Clock::time_point start = Clock::now();
@@ -309,6 +339,8 @@ class ComputeTeam {
   std::condition_variable work_, done_;
   std::deque<Range> queue_;
   std::vector<Finished> results_;
+  std::vector<std::string> spare_texts_;
+  std::size_t spare_bytes_ = 0;
   bool closed_ = false, exited_ = false;
   std::atomic<bool> stopping_{false};
   int running_ = 0;
@@ -367,7 +399,10 @@ class Scheduler {
 /// Rank 0's reorder buffer: rows go to the output in index order.
 class OrderedWriter {
  public:
-  OrderedWriter(SweepOutput& output, std::size_t count) : output_(output), count_(count) {}
+  /// `recycle` gets every written chunk's text.
+  OrderedWriter(SweepOutput& output, std::size_t count,
+                std::function<void(std::string&&)> recycle)
+      : output_(output), count_(count), recycle_(std::move(recycle)) {}
   void add(Finished&& rows) {
     if (rows.count > 0) waiting_.emplace(rows.first, std::move(rows));
   }
@@ -385,6 +420,7 @@ class OrderedWriter {
       output_.write_rows(rows.first, rows.count, rows.text, rows.row_us);
       position_ += rows.count;
       written_ += rows.count;
+      recycle_(std::move(rows.text));
       waiting_.erase(it);
     }
   }
@@ -405,6 +441,7 @@ class OrderedWriter {
  private:
   SweepOutput& output_;
   const std::size_t count_;
+  std::function<void(std::string&&)> recycle_;
   std::size_t position_ = 0, written_ = 0;
   std::map<std::size_t, Finished> waiting_;
 };
@@ -496,7 +533,8 @@ class RootSweep {
       : rows_(rows), output_(output), size_(ranks()),
         scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
                    output),
-        writer_(output, rows.count), progress_(rows), poll_(size_ == 1, 1000),
+        writer_(output, rows.count, [this](std::string&& text) { team_.recycle(std::move(text)); }),
+        progress_(rows), poll_(size_ == 1, 1000),
         peers_(static_cast<std::size_t>(size_)), team_(rows, rows.threads) {
     outcome_.count = rows.count;
     outcome_.threads = rows.threads * size_;
@@ -570,7 +608,9 @@ class RootSweep {
       Peer& peer = peers_[static_cast<std::size_t>(message->source)];
       switch (message->tag) {
         case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
-        case tag_result: accept(unpack_finished(message->payload), message->source); break;
+        case tag_result:
+          accept(unpack_finished(std::move(message->payload)), message->source);
+          break;
         case tag_stopping:
           outcome_.interrupted = true;
           close(rows_.grace_seconds);
@@ -719,6 +759,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
   PollInterval poll(false, 4000);
   bool requested = false, exhausted = false, stopping = false, told = false;
   bool finished_sent = false, done = false;
+  std::vector<std::string> sent;
   Clock::time_point deadline{};
   const auto stop = [&](double grace) {
     if (stopping) return;
@@ -729,7 +770,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
   };
   while (!done) {
     bool active = false;
-    for (const Finished& f : team.take()) {
+    for (Finished& f : team.take()) {
       outcome.computed += f.count;
       // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
       // a long one arrives only when all of it is through.
@@ -739,7 +780,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
           requested = true;
         }
       }
-      post(0, tag_result, pack_finished(f));
+      post(0, tag_result, pack_finished(std::move(f)));
       active = true;
     }
     while (std::optional<Message> message = receive()) {
@@ -777,14 +818,17 @@ SweepOutcome run_worker(const SweepRows& rows) {
       }
     }
     if (stopping && !finished_sent && (team.idle() || Clock::now() >= deadline)) {
-      for (const Finished& f : team.take()) {
+      for (Finished& f : team.take()) {
         outcome.computed += f.count;
-        post(0, tag_result, pack_finished(f));
+        post(0, tag_result, pack_finished(std::move(f)));
       }
       post(0, tag_finished, Packer().put<std::uint8_t>(!team.idle()).take());
       finished_sent = true;
     }
-    sends_pending();
+    // The sent rows' memory serves later chunks (fresh memory costs a page fault every 4 kB).
+    sent.clear();
+    sends_pending(&sent);
+    for (std::string& bytes : sent) team.recycle(std::move(bytes));
     // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
     // counts as active: the answer is noticed at once, and no computation is disturbed.
     if (!done)

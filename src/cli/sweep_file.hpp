@@ -73,6 +73,7 @@ class SweepFile : public SweepOutput {
 
  private:
   void flush();
+  void write_out(std::string_view text);
   std::optional<AtomicFile> file_;
   ResumedRows* resumed_ = nullptr;
   std::string buffer_;
