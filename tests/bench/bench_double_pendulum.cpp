@@ -12,6 +12,8 @@
 //                                2 s and 5 s. Targets: 38 digits median <= 1 ms, worst <= 3 ms;
 //                                77 digits worst <= 5 ms.
 //   BM_double_named/<name>       single typical cases.
+// Every timed call passes an IntegralWorkspace kept across calls, as pendavg::average and the CLI
+// do (the overload without one allocates its node buffers per call: ~15% on 65-node cases).
 // Per-case times are thread CPU time (CLOCK_THREAD_CPUTIME_ID, one reading per block), so other
 // processes on the cores matter less; repeat the runs and compare medians all the same.
 //
@@ -143,6 +145,7 @@ void BM_double_all_cases(benchmark::State& state) {
     }
   }
   long failures = 0;
+  pendavg::IntegralWorkspace<double> workspace;
   const auto start = clock_type::now();
   for (auto _ : state) {
     for (std::size_t i = 0; i < cases.size(); ++i) {
@@ -151,7 +154,8 @@ void BM_double_all_cases(benchmark::State& state) {
         continue;
       }
       try {
-        auto r = pendavg::reduced_integral_average<double>(*chains[i], cases[i].beta, 16);
+        auto r = pendavg::reduced_integral_average<double>(*chains[i], cases[i].beta, 16, {},
+                                                           workspace);
         benchmark::DoNotOptimize(r);
       } catch (const std::exception& e) {
         ++failures;
@@ -178,14 +182,15 @@ std::vector<double> per_case_times(const std::vector<Case>& cases, int digits, i
                                    int max_reps, double block_budget, const char* bench,
                                    Problems& problems) {
   std::vector<double> times(cases.size(), std::nan(""));
+  pendavg::IntegralWorkspace<Real> workspace;  // as pendavg::average and the CLI keep one
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const Case& c = cases[i];
     try {
       const Chain<Real> chain = make_chain<Real>(c);
       const Real beta(c.beta);
-      // Warm-up call (thread_local workspaces, rule levels) and its result check.
+      // Warm-up call (workspace, rule levels) and its result check.
       auto t0 = clock_type::now();
-      auto first = pendavg::reduced_integral_average<Real>(chain, beta, digits);
+      auto first = pendavg::reduced_integral_average<Real>(chain, beta, digits, {}, workspace);
       const double one = seconds_since(t0);
       check_result(first, bench, i, c, problems);
       const int reps = static_cast<int>(
@@ -195,7 +200,7 @@ std::vector<double> per_case_times(const std::vector<Case>& cases, int digits, i
       for (int b = 0; b < blocks; ++b) {
         const double start = thread_cpu_seconds();
         for (int k = 0; k < reps; ++k) {
-          auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits);
+          auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits, {}, workspace);
           benchmark::DoNotOptimize(r);
         }
         block_times.push_back((thread_cpu_seconds() - start) / reps);
@@ -287,8 +292,9 @@ void BM_double_named(benchmark::State& state, Case c) {
     return;
   }
   std::size_t evaluations = 0;
+  pendavg::IntegralWorkspace<double> workspace;
   for (auto _ : state) {
-    auto r = pendavg::reduced_integral_average<double>(chain, c.beta, 16);
+    auto r = pendavg::reduced_integral_average<double>(chain, c.beta, 16, {}, workspace);
     evaluations = r.evaluations;
     benchmark::DoNotOptimize(r);
   }
@@ -323,7 +329,8 @@ int profile_cases(int digits, std::size_t first, std::size_t count,
     auto run = [&]<class Real>() {
       const Chain<Real> chain = make_chain<Real>(c);
       const Real beta(c.beta);
-      auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits, options);
+      pendavg::IntegralWorkspace<Real> workspace;
+      auto r = pendavg::reduced_integral_average<Real>(chain, beta, digits, options, workspace);
       std::vector<double> t;
       const int reps = std::is_same_v<Real, double> ? 50 : 1;
       // Thread CPU time: robust against other processes sharing the cores.
@@ -331,7 +338,7 @@ int profile_cases(int digits, std::size_t first, std::size_t count,
       for (int b = 0; b < 5; ++b) {
         const double start = cpu_seconds();
         for (int k = 0; k < reps; ++k) {
-          auto x = pendavg::reduced_integral_average<Real>(chain, beta, digits, options);
+          auto x = pendavg::reduced_integral_average<Real>(chain, beta, digits, options, workspace);
           benchmark::DoNotOptimize(x);
         }
         t.push_back((cpu_seconds() - start) / reps);
