@@ -603,6 +603,111 @@ Plan moments_plan(const Real& mu1, const Real& mu2, std::size_t K) {
   return plan;
 }
 
+/// The recursion's start pairs (Q_K, D_{K-1}) of rows -1/2 (sa) and -3/2 (sb), each as a
+/// hi + lo pair of Wr, from the series' top values Q_K(1/2), Q_K(-1/2) (in Ws; long double with
+/// plan.series_in_mpfr: in MPFR with the plan's extra digits). Returns the top values' relative
+/// error.
+template <class Real, class Ws, class Wr>
+Wr series_start_pairs(const Plan& plan, const Real& mu1, const Real& mu2, const Ws& mu1s,
+                      const Ws& mu2s, std::size_t K, Wr (&sa)[4], Wr (&sb)[4]) {
+  namespace impl = fourier_moments_impl;
+  auto make_start = [&](const auto& m1, const auto& m2, const auto& top, auto split) {
+    using T = std::decay_t<decltype(m1)>;
+    const T kw = T(static_cast<double>(K));
+    const T q3 = -(4 * kw * kw - 1) * top.q_half / m1;
+    const T dA = (2 * m1 * top.q_mhalf - 2 * (2 * kw + 1) * top.q_half) / m2;
+    const T dB = (2 * m1 * q3 + 2 * (2 * kw - 1) * top.q_mhalf) / m2;
+    split(top.q_mhalf, sa[0], sa[1]);
+    split(dA, sa[2], sa[3]);
+    split(q3, sb[0], sb[1]);
+    split(dB, sb[2], sb[3]);
+  };
+  if (plan.series_in_mpfr) {
+    if constexpr (std::is_same_v<Real, long double>) {
+      working_precision guard(std::numeric_limits<long double>::digits10 + 3 + plan.extra_digits);
+      const mpfr_real m1 = mpfr_real(mu1);
+      const mpfr_real m2 = mpfr_real(mu2);
+      const auto top = impl::series_top(m1, K);
+      if (!top.ok) throw std::runtime_error("q_power_moments: series did not converge");
+      make_start(m1, m2, top, [](const mpfr_real& v, Wr& hi, Wr& lo) {
+        hi = static_cast<Wr>(v);
+        lo = static_cast<Wr>(mpfr_real(v - mpfr_real(hi)));
+      });
+      return static_cast<Wr>(top.rel_err);
+    }
+    return Wr(0);
+  }
+  const auto top = impl::series_top(mu1s, K);
+  if (!top.ok) throw std::runtime_error("q_power_moments: series did not converge");
+  make_start(mu1s, mu2s, top, [](const Ws& v, Wr& hi, Wr& lo) {
+    hi = static_cast<Wr>(v);
+    lo = static_cast<Wr>(v - static_cast<Ws>(hi));
+  });
+  return static_cast<Wr>(top.rel_err);
+}
+
+/// A Miller run's rows scaled to their exact Q_0 (fa = K(m)/qa[0], fb = E(m)/(mu1 qb[0]));
+/// values that would underflow become 0 (the rows decrease in |Q_k|).
+template <class Wr>
+void normalise_miller_rows(Wr* qa, Wr* qb, std::size_t K, const Wr& Kell, const Wr& E_mu1) {
+  using std::abs;
+  const Wr fa = Kell / qa[0];
+  const Wr fb = E_mu1 / qb[0];
+  auto normalise = [&](Wr* q, const Wr& f) {
+    Wr lim = 0;
+    if constexpr (!is_mpfr_v<Wr>) lim = std::numeric_limits<Wr>::min() / f;
+    std::size_t k = 0;
+    for (; k < K && abs(q[k]) >= lim; ++k) q[k] *= f;
+    for (; k < K; ++k) q[k] = 0;
+  };
+  normalise(qa, fa);
+  normalise(qb, fb);
+}
+
+/// The output rows from the recursion's rows -1/2 (qa) and -3/2 (qb): row 1/2 from row -3/2
+/// (Q_k(1/2) = -mu1 Q_k(-3/2) / (4k^2 - 1), Q_0(1/2) = E), everything rounded to Real (MPFR: to
+/// the caller's p_real digits); `bound` gets the relative error bound `b` (in Wr), with the
+/// final rounding for MPFR (assigned into the caller's `bound`, at its precision).
+template <class Real, class Wr, class Elliptic>
+void round_moment_rows(const Wr* qa, const Wr* qb, std::size_t K, const Real& mu1, const Wr& mu1r,
+                       const Elliptic& ell, int p_real, const Wr& b, const Real& u_R,
+                       QPowerMoments<Real>& out, Real& bound) {
+  auto& Qh = out.Q[0];
+  auto& Qm = out.Q[1];
+  auto& Q3 = out.Q[2];
+  if constexpr (is_mpfr_v<Real>) {
+    const unsigned pr = static_cast<unsigned>(p_real);
+    Wr t;
+    for (std::size_t k = 0; k < K; ++k) {
+      Qm[k] = Real(qa[k], pr);
+      Q3[k] = Real(qb[k], pr);
+      if (k == 0) {
+        Qh[k] = Real(Wr(ell.E), pr);
+      } else {
+        const unsigned long ku = static_cast<unsigned long>(k);
+        t = qb[k];
+        t *= mu1r;
+        t /= (4 * ku * ku - 1);
+        t = -t;
+        Qh[k] = Real(t, pr);
+      }
+    }
+    bound = Real(b, pr) + Real(1.5) * u_R;
+  } else {
+    (void)qa;
+    (void)qb;
+    (void)mu1r;
+    (void)p_real;
+    (void)u_R;
+    Qh[0] = static_cast<Real>(ell.E);
+    for (std::size_t k = 1; k < K; ++k) {
+      const Real kk = static_cast<Real>(k);
+      Qh[k] = -mu1 * (Q3[k] / (4 * kk * kk - 1));
+    }
+    bound = b;
+  }
+}
+
 // Implementation with explicit evaluation types: Ws for the top values and K, E (also the
 // series conditioning limit), Compensate for TwoSum-compensated recursion sums. The
 // recursion runs in Real (MPFR: in Real with extra digits).
@@ -619,7 +724,6 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
   if constexpr (!is_mpfr_v<Real>) {
     if (short_row_moments(mu1, mu2, K, out)) return out;
   }
-  constexpr bool is_ldouble = std::is_same_v<Real, long double>;
   using Wr = Real;
   constexpr bool compensate = Compensate && !is_mpfr_v<Real>;
 
@@ -627,12 +731,9 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
 
   // ---- evaluation
   const int p_real = current_digits10<Real>();
-  auto& Qh = out.Q[0];
-  auto& Qm = out.Q[1];
-  auto& Q3 = out.Q[2];
-  Qh.resize(K);
-  Qm.resize(K);
-  Q3.resize(K);
+  out.Q[0].resize(K);
+  out.Q[1].resize(K);
+  out.Q[2].resize(K);
   Real bound;
   auto body = [&]() {
     // inputs in the evaluation types (exact conversions)
@@ -664,65 +765,21 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
       qa = wa_store.data();
       qb = wb_store.data();
     } else {
-      qa = Qm.data();
-      qb = Q3.data();
+      qa = out.Q[1].data();
+      qb = out.Q[2].data();
     }
     Wr top_err = 0, mismatch = 0;
     if (plan.series) {
       // top values Q_K(1/2), Q_K(-1/2) -> start pairs (Q_K, D_{K-1}) of rows -1/2 and -3/2
       Wr sa[4], sb[4];
-      auto make_start = [&](const auto& m1, const auto& m2, const auto& top, auto split) {
-        using T = std::decay_t<decltype(m1)>;
-        const T kw = T(static_cast<double>(K));
-        const T q3 = -(4 * kw * kw - 1) * top.q_half / m1;
-        const T dA = (2 * m1 * top.q_mhalf - 2 * (2 * kw + 1) * top.q_half) / m2;
-        const T dB = (2 * m1 * q3 + 2 * (2 * kw - 1) * top.q_mhalf) / m2;
-        split(top.q_mhalf, sa[0], sa[1]);
-        split(dA, sa[2], sa[3]);
-        split(q3, sb[0], sb[1]);
-        split(dB, sb[2], sb[3]);
-      };
-      if (plan.series_in_mpfr) {
-        if constexpr (is_ldouble) {
-          working_precision guard(std::numeric_limits<long double>::digits10 + 3 +
-                                  plan.extra_digits);
-          const mpfr_real m1 = mpfr_real(mu1);
-          const mpfr_real m2 = mpfr_real(mu2);
-          const auto top = impl::series_top(m1, K);
-          if (!top.ok) throw std::runtime_error("q_power_moments: series did not converge");
-          make_start(m1, m2, top, [](const mpfr_real& v, Wr& hi, Wr& lo) {
-            hi = static_cast<Wr>(v);
-            lo = static_cast<Wr>(mpfr_real(v - mpfr_real(hi)));
-          });
-          top_err = static_cast<Wr>(top.rel_err);
-        }
-      } else {
-        const auto top = impl::series_top(mu1s, K);
-        if (!top.ok) throw std::runtime_error("q_power_moments: series did not converge");
-        make_start(mu1s, mu2s, top, [](const Ws& v, Wr& hi, Wr& lo) {
-          hi = static_cast<Wr>(v);
-          lo = static_cast<Wr>(v - static_cast<Ws>(hi));
-        });
-        top_err = static_cast<Wr>(top.rel_err);
-      }
+      top_err = series_start_pairs<Real, Ws, Wr>(plan, mu1, mu2, mu1s, mu2s, K, sa, sb);
       impl::recurse_down<Wr, compensate>(e, K, K, sa, sb, qa, qb);
       mismatch = abs(qa[0] / Kell - 1);
       const Wr mb = abs(qb[0] / E_mu1 - 1);
       if (mb > mismatch) mismatch = mb;
     } else {
       impl::recurse_down<Wr, compensate>(e, K, plan.miller_top, nullptr, nullptr, qa, qb);
-      // normalise to Q_0; values that would underflow become 0 (rows decrease in |Q_k|)
-      const Wr fa = Kell / qa[0];
-      const Wr fb = E_mu1 / qb[0];
-      auto normalise = [&](Wr* q, const Wr& f) {
-        Wr lim = 0;
-        if constexpr (!is_mpfr_v<Wr>) lim = std::numeric_limits<Wr>::min() / f;
-        std::size_t k = 0;
-        for (; k < K && abs(q[k]) >= lim; ++k) q[k] *= f;
-        for (; k < K; ++k) q[k] = 0;
-      };
-      normalise(qa, fa);
-      normalise(qb, fb);
+      normalise_miller_rows(qa, qb, K, Kell, E_mu1);
     }
     qa[0] = Kell;
     qb[0] = E_mu1;
@@ -738,33 +795,7 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
     } else {
       b += uw * (plan.series ? 6 : 12);
     }
-    // row 1/2 and rounding to Real
-    if constexpr (is_mpfr_v<Real>) {
-      const unsigned pr = static_cast<unsigned>(p_real);
-      Wr t;
-      for (std::size_t k = 0; k < K; ++k) {
-        Qm[k] = Real(qa[k], pr);
-        Q3[k] = Real(qb[k], pr);
-        if (k == 0) {
-          Qh[k] = Real(Wr(ell.E), pr);
-        } else {
-          const unsigned long ku = static_cast<unsigned long>(k);
-          t = qb[k];
-          t *= mu1r;
-          t /= (4 * ku * ku - 1);
-          t = -t;
-          Qh[k] = Real(t, pr);
-        }
-      }
-      bound = Real(b, pr) + Real(1.5) * u_R;
-    } else {
-      Qh[0] = static_cast<Real>(ell.E);
-      for (std::size_t k = 1; k < K; ++k) {
-        const Real kk = static_cast<Real>(k);
-        Qh[k] = -mu1 * (Q3[k] / (4 * kk * kk - 1));
-      }
-      bound = b;
-    }
+    round_moment_rows(qa, qb, K, mu1, mu1r, ell, p_real, b, u_R, out, bound);
   };
   if constexpr (is_mpfr_v<Real>) {
     // Values of the caller's precision and of this wider one meet here, and Boost 1.74 switches
