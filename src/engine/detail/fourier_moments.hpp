@@ -139,31 +139,39 @@ W digamma_minus_log(const W& x, const W& u) {
     if (x < x0 && x >= 1) {
       // Integers and half-integers (series_top asks for psi(K + 1/2)) in closed form (DLMF
       // 5.4.14-15): psi(n) = -gamma + sum_{k<n} 1/k, psi(n + 1/2) = -gamma - 2 ln 2 +
-      // sum_{k<=n} 2/(2k - 1); word divisions only (the recurrence and series below cost ~5x).
+      // sum_{k<=n} 2/(2k - 1), minus ln x; word divisions only (the recurrence and series below
+      // cost ~5x). Summed and cancelled against ln x with 64 guard bits, then rounded once.
       W twice = x;
       twice *= 2;
       if (twice == floor(twice) && twice < 1e9) {
         const auto n2 = static_cast<unsigned long>(twice);  // 2x
-        W psi, t;
-        mpfr_const_euler(psi.backend().data(), MPFR_RNDN);
-        psi = -psi;
+        W result;
+        mpfr_t psi, t;
+        mpfr_inits2(mpfr_get_prec(result.backend().data()) + 64, psi, t,
+                    static_cast<mpfr_ptr>(nullptr));
+        mpfr_const_euler(psi, MPFR_RNDN);
+        mpfr_neg(psi, psi, MPFR_RNDN);
         if (n2 % 2 == 1) {
-          mpfr_const_log2(t.backend().data(), MPFR_RNDN);
-          t *= 2;
-          psi -= t;
+          mpfr_const_log2(t, MPFR_RNDN);
+          mpfr_mul_2ui(t, t, 1, MPFR_RNDN);
+          mpfr_sub(psi, psi, t, MPFR_RNDN);
           for (unsigned long odd = 1; odd < n2; odd += 2) {  // 2k - 1 < 2n + 1
-            t = 2;
-            t /= odd;
-            psi += t;
+            mpfr_set_ui(t, 2, MPFR_RNDN);
+            mpfr_div_ui(t, t, odd, MPFR_RNDN);
+            mpfr_add(psi, psi, t, MPFR_RNDN);
           }
         } else {
           for (unsigned long k = 1; 2 * k < n2; ++k) {
-            t = 1;
-            t /= k;
-            psi += t;
+            mpfr_set_ui(t, 1, MPFR_RNDN);
+            mpfr_div_ui(t, t, k, MPFR_RNDN);
+            mpfr_add(psi, psi, t, MPFR_RNDN);
           }
         }
-        return psi - log(x);
+        mpfr_log(t, x.backend().data(), MPFR_RNDN);
+        mpfr_sub(psi, psi, t, MPFR_RNDN);
+        mpfr_set(result.backend().data(), psi, MPFR_RNDN);
+        mpfr_clears(psi, t, static_cast<mpfr_ptr>(nullptr));
+        return result;
       }
     }
     W y = x, shift = 0;
