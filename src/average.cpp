@@ -55,54 +55,51 @@ bool is_torus(AverageMethod m) {
   return m == AverageMethod::torus_trapezoid || m == AverageMethod::torus_gauss;
 }
 
-/// Refuses every option the resolved method does not use, and out-of-range values. `chosen`
-/// names what runs, for the messages.
+/// Refuses every option the resolved method does not use, and out-of-range values. `chosen()`
+/// names what runs, for the messages (called only to build one: a valid call allocates nothing).
+template <class ChosenText>
 void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t n,
-                   const char* what, const std::string& chosen) {
-  const std::string context = std::string(what) + ": ";
+                   const char* what, const ChosenText& chosen) {
+  const auto refuse = [what](const std::string& message) {
+    throw invalid_input(std::string(what) + ": " + message);
+  };
   if (o.digits < min_digits || o.digits > max_digits)
-    throw invalid_input(context + "digits must be in " + std::to_string(min_digits) + ".." +
-                        std::to_string(max_digits) + ", got " + std::to_string(o.digits));
-  if (o.threads < 1) throw invalid_input(context + "threads must be >= 1");
+    refuse("digits must be in " + std::to_string(min_digits) + ".." +
+           std::to_string(max_digits) + ", got " + std::to_string(o.digits));
+  if (o.threads < 1) refuse("threads must be >= 1");
   if (!method_supports_digits(resolved, o.digits))
-    throw invalid_input(context + "digits " + std::to_string(o.digits) +
-                        " is not available with " + chosen + " (" +
-                        average_method_name(resolved) + " runs in double only)");
+    refuse("digits " + std::to_string(o.digits) + " is not available with " + chosen() + " (" +
+           average_method_name(resolved) + " runs in double only)");
   if (o.tolerance) {
     if (!method_uses_option(resolved, AverageOption::tolerance, min_digits))
-      throw invalid_input(context + "tol is used by the torus and transfer methods only, not by " +
-                          chosen);
+      refuse("tol is used by the torus and transfer methods only, not by " + chosen());
     if (!method_uses_option(resolved, AverageOption::tolerance, o.digits))
-      throw invalid_input(context + "tol is for double runs (digits 16); with digits " +
-                          std::to_string(o.digits) + " the torus tolerance is 1e-" +
-                          std::to_string(o.digits));
-    if (!(*o.tolerance > 0 && *o.tolerance < 1))
-      throw invalid_input(context + "tol must be in (0, 1)");
+      refuse("tol is for double runs (digits 16); with digits " + std::to_string(o.digits) +
+             " the torus tolerance is 1e-" + std::to_string(o.digits));
+    if (!(*o.tolerance > 0 && *o.tolerance < 1)) refuse("tol must be in (0, 1)");
   }
   for (const auto& [given, option] : {std::pair{o.samples.has_value(), AverageOption::samples},
                                       std::pair{o.shifts.has_value(), AverageOption::shifts},
                                       std::pair{o.seed.has_value(), AverageOption::seed}}) {
     if (given && !method_uses_option(resolved, option, o.digits))
-      throw invalid_input(context + average_option_name(option) + " is used by qmc only, not by " +
-                          chosen);
+      refuse(std::string(average_option_name(option)) + " is used by qmc only, not by " +
+             chosen());
   }
   if (resolved == AverageMethod::transfer && n > transfer_max_particles)
-    throw invalid_input(context + "transfer takes N <= " + std::to_string(transfer_max_particles) +
-                        ", not " + particles_text(n));
+    refuse("transfer takes N <= " + std::to_string(transfer_max_particles) + ", not " +
+           particles_text(n));
   if (resolved == AverageMethod::qmc) {
     if (n > detail::qmc::lattice_max_dimension)
-      throw invalid_input(context + "qmc's built-in lattices cover N <= " +
-                          std::to_string(detail::qmc::lattice_max_dimension) + ", not " +
-                          particles_text(n));
+      refuse("qmc's built-in lattices cover N <= " +
+             std::to_string(detail::qmc::lattice_max_dimension) + ", not " + particles_text(n));
     if (o.samples) {
       const std::size_t s = *o.samples;
       if (s < 1024 || s > (std::size_t(1) << 20) || (s & (s - 1)) != 0)
-        throw invalid_input(context + "samples must be a power of two in 1024..1048576, got " +
-                            std::to_string(s));
+        refuse("samples must be a power of two in 1024..1048576, got " + std::to_string(s));
     }
     if (o.shifts && (*o.shifts < 4 || *o.shifts > max_shifts))
-      throw invalid_input(context + "shifts must be in 4.." + std::to_string(max_shifts) +
-                          ", got " + std::to_string(*o.shifts));
+      refuse("shifts must be in 4.." + std::to_string(max_shifts) + ", got " +
+             std::to_string(*o.shifts));
   }
 }
 
@@ -426,7 +423,8 @@ AverageMethod resolve_average_method(std::size_t n, const AverageOptions& option
       break;
     default: break;
   }
-  check_options(options, method, n, "average", method_text(options.method, method, n));
+  check_options(options, method, n, "average",
+                [&] { return method_text(options.method, method, n); });
   if (is_torus(method)) torus_options(options, method, n, "average");  // the grid's size
   return method;
 }
@@ -525,10 +523,11 @@ Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOpt
   const AverageMethod method = n == 2                           ? AverageMethod::automatic
                                : n <= limit_torus_max_particles ? AverageMethod::torus_trapezoid
                                                                 : AverageMethod::transfer;
-  check_options(options, method, n, "limit",
-                n == 2 ? std::string("the beta -> 0 limit of N = 2 (the elliptic formula)")
-                       : std::string("the beta -> 0 limit of ") + particles_text(n) + " (" +
-                             average_method_name(method) + " at g = 0)");
+  check_options(options, method, n, "limit", [&] {
+    return n == 2 ? std::string("the beta -> 0 limit of N = 2 (the elliptic formula)")
+                  : std::string("the beta -> 0 limit of ") + particles_text(n) + " (" +
+                        average_method_name(method) + " at g = 0)";
+  });
   check_digits<Real>(options.digits);
   const precision_guard<Real> precision(options.digits + guard_digits);
   if (n == 2) {
@@ -559,7 +558,7 @@ Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOpti
     throw invalid_input(std::string("limit: method ") + average_method_name(options.method) +
                         " cannot be chosen; the limits pick their own");
   check_options(options, AverageMethod::automatic, chain.size(), "limit",
-                "the beta -> infinity limit (a closed form)");
+                [] { return std::string("the beta -> infinity limit (a closed form)"); });
   check_digits<Real>(options.digits);
   const precision_guard<Real> precision(options.digits + guard_digits);
   return low_temperature_limit_any(at_working_precision(chain));

@@ -22,13 +22,14 @@ std::string position(const char* what, std::size_t i) {
 }
 
 /// A hardware float below its normal range carries fewer significant bits than the digits
-/// asked for (1e-320 as a double is off by 1e-3 relative): refused, with the way out.
-template <class Real>
-void check_normal(const Real& x, const std::string& what) {
+/// asked for (1e-320 as a double is off by 1e-3 relative): refused, with the way out. `what()`
+/// names the parameter (called only for the message).
+template <class Real, class What>
+void check_normal(const Real& x, const What& what) {
   if constexpr (std::numeric_limits<Real>::is_specialized && std::numeric_limits<Real>::is_iec559) {
     if (x < std::numeric_limits<Real>::min()) {
-      throw invalid_input(what + " is below the normal range of double (2.2e-308), where it " +
-                          "loses digits; request 17 or more digits (MPFR)");
+      throw invalid_input(std::string(what()) + " is below the normal range of double " +
+                          "(2.2e-308), where it loses digits; request 17 or more digits (MPFR)");
     }
   } else {
     (void)x;
@@ -53,11 +54,11 @@ Chain<Real>::Chain(std::vector<Real> masses, std::vector<Real> lengths, Real g)
     if (!finite(lengths_[i]) || !(lengths_[i] > 0)) {
       throw invalid_input(position("length", i) + " must be finite and > 0");
     }
-    check_normal(masses_[i], position("mass", i));
-    check_normal(lengths_[i], position("length", i));
+    check_normal(masses_[i], [i] { return position("mass", i); });
+    check_normal(lengths_[i], [i] { return position("length", i); });
   }
   if (!finite(g_) || g_ < 0) throw invalid_input("g must be finite and >= 0");
-  if (g_ > 0) check_normal(g_, "g");
+  if (g_ > 0) check_normal(g_, [] { return "g"; });
   tail_masses_.assign(masses_.size(), Real(0));
   Real sum = 0;
   for (std::size_t j = masses_.size(); j-- > 0;) {
@@ -70,7 +71,7 @@ Chain<Real>::Chain(std::vector<Real> masses, std::vector<Real> lengths, Real g)
 template <class Real>
 void check_beta(const Real& beta) {
   if (!finite(beta) || !(beta > 0)) throw invalid_input("beta must be finite and > 0");
-  check_normal(beta, "beta");
+  check_normal(beta, [] { return "beta"; });
 }
 
 template <class Real>

@@ -9,7 +9,9 @@
 
 #include <cmath>
 #include <limits>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -45,4 +47,56 @@ TEST_CASE("printed errors cover the printing of tiny values (subnormal half unit
             pendavg::mpfr_real(pendavg::cli::printed_error(x, error, digits)));
     }
   }
+}
+
+// printed_error takes the value's decimal exponent from its binary exponent and one comparison
+// with a power of ten, and asks std::log10 only within 1e-12 of a power of ten: the result must be
+// the one floor(log10 |x|) gives, bit for bit, everywhere (powers of ten and their neighbours
+// included, where log10 may round onto the integer).
+TEST_CASE("printed errors: the decimal exponent without log10 agrees with floor(log10)",
+          "[cli][format]") {
+  const auto reference = [](double x, double error, int digits) {
+    const double exponent = std::floor(std::log10(std::abs(x))) - (digits - 1);
+    return error + std::pow(10.0, exponent) / 2;
+  };
+  std::vector<double> values;
+  for (int k = -290; k <= 308; ++k) {
+    const double ten = std::pow(10.0, k);
+    double up = ten, down = ten;
+    for (int step = 0; step < 4; ++step) {
+      values.push_back(up);
+      values.push_back(down);
+      up = std::nextafter(up, HUGE_VAL);
+      down = std::nextafter(down, 0.0);
+    }
+    for (const double r : {1e-13, 1e-12, 2e-12, 1e-11, 0.3, 0.5, 0.99})
+      for (const double x : {ten * (1 + r), ten * (1 - r), ten * 9.999999999999, ten * 3.1622776})
+        values.push_back(x);
+  }
+  std::uint64_t state = 2026;  // splitmix64: finite doubles of every binary exponent
+  for (int i = 0; i < 200000; ++i) {
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    const double x = std::ldexp(1.0 + static_cast<double>(z >> 12) * 0x1.0p-52,
+                                static_cast<int>(z % 1990) - 960);
+    values.push_back(x);
+  }
+  std::size_t checked = 0, mismatches = 0;
+  for (const double x : values) {
+    if (!(std::abs(x) >= 1e-290) || !std::isfinite(x)) continue;
+    for (const int digits : {3, 16}) {
+      for (const double sign : {1.0, -1.0}) {
+        const double got = pendavg::cli::printed_error(sign * x, 1e-300, digits);
+        const double want = reference(sign * x, 1e-300, digits);
+        ++checked;
+        if (got != want) {
+          if (++mismatches <= 5) FAIL_CHECK("x = " << pendavg::cli::decimal(x, 17) << ", digits " << digits);
+        }
+      }
+    }
+  }
+  CHECK(checked > 800000);
+  CHECK(mismatches == 0);
 }

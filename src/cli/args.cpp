@@ -4,12 +4,15 @@
 #include "engine/precision.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <fstream>
-#include <iterator>
 #include <optional>
 #include <system_error>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace pendavg::cli {
 
@@ -315,16 +318,33 @@ Header parse_header(std::string_view line, const std::string& where) {
 namespace {
 
 std::string read_file(const std::string& path) {
+  // read(2) into a string sized from fstat (a cases file may hold millions of rows: no
+  // character-by-character stream, no regrowth copies); grows for files that are not regular.
   const usage_error unreadable("cannot read cases file " + in_quotes(path));
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw unreadable;
-  try {
-    std::string contents{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-    if (file.bad()) throw unreadable;
-    return contents;
-  } catch (const std::ios_base::failure&) {  // e.g. a directory
-    throw unreadable;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw unreadable;
+  struct Descriptor {
+    int fd;
+    ~Descriptor() { ::close(fd); }
+  } const descriptor{fd};
+  struct stat status {};
+  std::size_t expected = 0;
+  if (::fstat(fd, &status) == 0 && S_ISREG(status.st_mode))
+    expected = static_cast<std::size_t>(status.st_size);
+  std::string contents(expected + 1, '\0');  // one more byte: the end shows in one read
+  std::size_t size = 0;
+  for (;;) {
+    if (size == contents.size()) contents.resize(std::max<std::size_t>(65536, 2 * size));
+    const ssize_t n = ::read(fd, contents.data() + size, contents.size() - size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw unreadable;  // e.g. a directory (EISDIR)
+    }
+    if (n == 0) break;
+    size += static_cast<std::size_t>(n);
   }
+  contents.resize(size);
+  return contents;
 }
 
 }  // namespace

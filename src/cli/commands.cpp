@@ -691,6 +691,22 @@ void check_microcanonical_case(const CasesFile& file, const CaseRow& row,
   microcanonical_state(chain, file.state, fields[0], columns[0], options);
 }
 
+/// The numbers of the cases rows this rank checked, in a double run: the check parses each row
+/// once and keeps beta, g, m1..mN, l1..lN here for the row's computation (rows checked on
+/// another rank, and every row of an MPFR run, are parsed again). 8 (2N + 2) bytes a row.
+struct CheckedNumbers {
+  std::size_t per_row = 0;
+  std::vector<double> values;         ///< row-major, per_row numbers a row
+  std::vector<unsigned char> stored;  ///< 1 where `values` hold the row (threads write distinct rows)
+  CheckedNumbers(std::size_t rows, std::size_t particles)
+      : per_row(2 * particles + 2), values(rows * per_row), stored(rows, 0) {}
+  std::span<double> row(std::size_t k) { return {values.data() + k * per_row, per_row}; }
+  std::span<const double> row_if_stored(std::size_t k) const {
+    if (!stored[k]) return {};
+    return {values.data() + k * per_row, per_row};
+  }
+};
+
 /// Per-thread scratch of `average --cases`: reused from row to row.
 template <class Real>
 struct CaseScratch {
@@ -713,7 +729,7 @@ std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digit
 template <class Real>
 char* write_case(char* p, const CasesFile& file, const CaseRow& row,
                  const std::vector<std::string>& columns, const AverageOptions& options,
-                 CaseScratch<Real>& scratch) {
+                 CaseScratch<Real>& scratch, std::span<const double> checked = {}) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
   auto& fields = scratch.fields;
@@ -721,17 +737,21 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   case_fields(file, row, fields);
   const std::size_t n = file.particles;
   const int digits = options.digits;
-  const Real beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
-  std::vector<Real>& masses = scratch.masses;
-  std::vector<Real>& lengths = scratch.lengths;
-  masses.clear();
-  lengths.clear();
-  for (std::size_t i = 0; i < n; ++i)
-    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
-  for (std::size_t i = 0; i < n; ++i)
-    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
-  const Chain<Real> chain = make_chain<Real>(
-      masses, lengths, parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
+  Real beta;
+  std::optional<Chain<Real>> parsed;
+  if constexpr (std::is_same_v<Real, double>) {
+    if (!checked.empty()) {  // the check's numbers: beta, g, m1..mN, l1..lN
+      beta = checked[0];
+      scratch.masses.assign(checked.begin() + 2, checked.begin() + 2 + static_cast<long>(n));
+      scratch.lengths.assign(checked.begin() + 2 + static_cast<long>(n), checked.end());
+      parsed.emplace(make_chain<Real>(scratch.masses, scratch.lengths, checked[1]));
+    }
+  }
+  if (!parsed) {
+    beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
+    parsed.emplace(case_chain<Real>(fields, columns, n, scratch.masses, scratch.lengths));
+  }
+  const Chain<Real>& chain = *parsed;
   const Averages<Real> averages = average(chain, beta, options, scratch.workspace);
   const auto put = [&p](std::string_view text) {
     std::memcpy(p, text.data(), text.size());
@@ -850,23 +870,27 @@ void report_case_timing(const std::vector<double>& row_us, const CasesFile& file
 
 /// Checks one cases row as the library will see it (fields, numbers at the working precision,
 /// the chain, the method's domain), without computing it.
+/// A double run keeps the row's numbers in `numbers` (beta, g, m1..mN, l1..lN) when it passes.
 template <class Real>
 void check_case(const CasesFile& file, const CaseRow& row, const std::vector<std::string>& columns,
-                const AverageOptions& options) {
+                const AverageOptions& options, CaseScratch<Real>& scratch,
+                std::span<double> numbers = {}) {
   std::optional<working_precision> precision;
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
-  std::vector<std::string_view> fields(columns.size());
-  case_fields(file, row, fields);
-  const std::size_t n = file.particles;
-  const Real beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
-  std::vector<Real> masses, lengths;
-  for (std::size_t i = 0; i < n; ++i)
-    masses.push_back(parse_real<Real>(fields[2 + i], columns[2 + i], Domain::positive));
-  for (std::size_t i = 0; i < n; ++i)
-    lengths.push_back(parse_real<Real>(fields[2 + n + i], columns[2 + n + i], Domain::positive));
-  check_average(make_chain<Real>(std::move(masses), std::move(lengths),
-                                 parse_real<Real>(fields[1], columns[1], Domain::nonnegative)),
-                beta, options);
+  scratch.fields.resize(columns.size());
+  case_fields(file, row, scratch.fields);
+  const Real beta = parse_real<Real>(scratch.fields[0], columns[0], Domain::positive);
+  const Chain<Real> chain =
+      case_chain<Real>(scratch.fields, columns, file.particles, scratch.masses, scratch.lengths);
+  check_average(chain, beta, options);
+  if constexpr (std::is_same_v<Real, double>) {
+    if (!numbers.empty()) {
+      numbers[0] = beta;
+      numbers[1] = chain.gravity();
+      std::ranges::copy(chain.masses(), numbers.begin() + 2);
+      std::ranges::copy(chain.lengths(), numbers.begin() + 2 + static_cast<long>(chain.size()));
+    }
+  }
 }
 
 /// Where --cases writes, and what it keeps from an earlier run.
@@ -1016,18 +1040,31 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     return path + " line " + std::to_string(rows[k].line) + ": ";
   };
   const StopOnSignal signals;  // from here on SIGINT/SIGTERM stop the sweep
-  const auto check = [&](std::size_t k) {
+  // Per-thread scratch (fields, numbers, the engine's workspace), reused from row to row by the
+  // check below and by the sweep.
+  std::vector<std::optional<CaseScratch<Real>>> scratch(static_cast<std::size_t>(threads));
+  const auto scratch_of = [&](int thread) -> CaseScratch<Real>& {
+    std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
+    if (!mine) mine.emplace();
+    return *mine;
+  };
+  std::optional<CheckedNumbers> checked;
+  if (std::is_same_v<Real, double> && !plan.microcanonical) checked.emplace(rows.size(), n);
+  const auto check = [&](std::size_t k, int thread) {
     try {
-      if (plan.microcanonical)
+      if (plan.microcanonical) {
         check_microcanonical_case<Real>(file, rows[k], columns, digits, plan.micro);
-      else
-        check_case<Real>(file, rows[k], columns, plan.options);
+      } else {
+        check_case<Real>(file, rows[k], columns, plan.options, scratch_of(thread),
+                         checked ? checked->row(k) : std::span<double>{});
+        if (checked) checked->stored[k] = 1;
+      }
     } catch (const invalid_input& bad) {
       throw usage_error(line_context(k) + bad.what());
     }
   };
   if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
-    check(bad);  // throws the first bad row's error, on every rank
+    check(bad, 0);  // throws the first bad row's error, on every rank
 
   const std::string header = cases_header(file, path, settings, columns, !where.path.empty());
   std::optional<ResumedRows> resumed;
@@ -1043,7 +1080,6 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       for (std::size_t k = 0; k < us.size(); ++k) row_us[first + k] = us[k] - timer_us;
     };
   }
-  std::vector<std::optional<CaseScratch<Real>>> scratch(static_cast<std::size_t>(threads));
   SweepRows sweep;
   sweep.count = rows.size();
   sweep.threads = plan.options.threads > 1 ? 1 : threads;
@@ -1058,11 +1094,11 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       microcanonical_case<Real>(text, file, rows[k], columns, plan.micro, digits);
       return;
     }
-    std::optional<CaseScratch<Real>>& mine = scratch[static_cast<std::size_t>(thread)];
-    if (!mine) mine.emplace();
     const std::size_t start = text.size();
     text.resize(start + case_line_bound(rows[k], n, digits));
-    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, plan.options, *mine);
+    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, plan.options,
+                                 scratch_of(thread),
+                                 checked ? checked->row_if_stored(k) : std::span<const double>{});
     text.resize(static_cast<std::size_t>(end - text.data()));
   };
   run_sweep(sweep, output ? &*output : nullptr, [&](const SweepOutcome& outcome) {

@@ -102,28 +102,30 @@ inline char* scientific_fast(char* out, double x, int digits) {
   }
   char* p = out;
   if (bits >> 63) *p++ = '-';
-  // Digits two at a time from a table, in two 32-bit halves of at most 9 digits.
-  static constexpr char pairs[] =
-      "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
-      "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
-      "8081828384858687888990919293949596979899";
-  char digits_text[20];
-  int i = digits;
-  auto put = [&](std::uint32_t v, int count) {  // the last `count` digits of v, leading zeros
-    while (count >= 2) {
-      i -= 2;
-      std::memcpy(digits_text + i, pairs + 2 * (v % 100), 2);
-      v /= 100;
-      count -= 2;
-    }
-    if (count) digits_text[--i] = static_cast<char>('0' + v % 10);
+  // The places of q (< 10^17, leading zeros included) at once: the top place, then two blocks
+  // of 8 digits (one block for digits <= 8), each turned into 8 ASCII bytes with three multiply-shift splits over
+  // the lanes of one 64-bit word (SWAR); the number's digits are the last `digits` places.
+  char places[17];
+  const auto eight = [](std::uint32_t v, char* to) {  // v < 10^8, written as 8 digits
+    // lanes of 4 digits (high half in the low word: memory order), then 2, then 1
+    std::uint64_t x = (v / 10000) | (static_cast<std::uint64_t>(v % 10000) << 32);
+    std::uint64_t h = ((x * 5243) >> 19) & 0x0000007F0000007Full;  // lane / 100
+    x = h | ((x - 100 * h) << 16);
+    h = ((x * 103) >> 10) & 0x000F000F000F000Full;  // lane / 10
+    x = h | ((x - 10 * h) << 8);
+    x |= 0x3030303030303030ull;
+    if constexpr (std::endian::native == std::endian::big) x = __builtin_bswap64(x);
+    std::memcpy(to, &x, 8);
   };
-  if (digits > 9) {
-    put(static_cast<std::uint32_t>(q % 1000000000u), 9);
-    put(static_cast<std::uint32_t>(q / 1000000000u), digits - 9);
+  if (digits <= 8) {
+    eight(static_cast<std::uint32_t>(q), places + 9);
   } else {
-    put(static_cast<std::uint32_t>(q), digits);
+    places[0] = static_cast<char>('0' + q / 10000000000000000ull);
+    const std::uint64_t rest = q % 10000000000000000ull;
+    eight(static_cast<std::uint32_t>(rest / 100000000u), places + 1);
+    eight(static_cast<std::uint32_t>(rest % 100000000u), places + 9);
   }
+  const char* digits_text = places + (17 - digits);
   *p++ = digits_text[0];
   if (digits > 1) {
     *p++ = '.';

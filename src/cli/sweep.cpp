@@ -858,7 +858,7 @@ void rethrow_failure(const SweepOutcome& outcome,
 }
 
 std::size_t first_failing_row(std::size_t count, int threads,
-                              const std::function<void(std::size_t index)>& check) {
+                              const std::function<void(std::size_t index, int thread)>& check) {
   const auto size = static_cast<std::size_t>(ranks());
   const auto me = static_cast<std::size_t>(rank());
   const std::size_t begin = count / size * me + std::min(me, count % size);
@@ -873,7 +873,11 @@ std::size_t first_failing_row(std::size_t count, int threads,
     if (index > first.load(std::memory_order_relaxed)) continue;
     if (stop_flag().load(std::memory_order_relaxed)) continue;  // stopped: no row will run
     try {
-      check(index);
+#if defined(_OPENMP)
+      check(index, omp_get_thread_num());
+#else
+      check(index, 0);
+#endif
     } catch (...) {
       std::size_t seen = first.load();
       while (index < seen && !first.compare_exchange_weak(seen, index)) {

@@ -91,13 +91,14 @@ SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
 void rethrow_failure(const SweepOutcome& outcome,
                      const std::function<std::string(std::size_t row)>& context);
 
-/// Calls `check(index)` for rows 0..count-1, split between the ranks and their `threads`
-/// threads (collective). Returns the smallest index for which it threw, on every rank, or
-/// `count` when none did. Run check(index) again to get the error. Once stop_flag() is set
+/// Calls `check(index, thread)` for rows 0..count-1, split between the ranks and their `threads`
+/// threads (`thread` in 0..threads-1, for per-thread scratch; collective). Returns the smallest
+/// index for which it threw, on every rank, or `count` when none did. Run check(index, 0) again
+/// to get the error. Once stop_flag() is set
 /// (a signal while a StopOnSignal is alive) the remaining rows are skipped: the sweep that
 /// follows will start none of them.
 std::size_t first_failing_row(std::size_t count, int threads,
-                              const std::function<void(std::size_t index)>& check);
+                              const std::function<void(std::size_t index, int thread)>& check);
 
 /// The start time of a run in UTC ("2026-01-02T03:04:05Z"); SOURCE_DATE_EPOCH (seconds since
 /// 1970) replaces the clock, for reproducible files.

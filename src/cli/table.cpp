@@ -906,7 +906,7 @@ std::string table_command(const Options& options) {
     return row_method(plan, n, digits).options;
   };
   const std::size_t row_count = space.count();
-  const auto check = [&](std::size_t k) {
+  const auto check = [&](std::size_t k, int /*thread*/) {
     const Point point = space.point(k, row_options);
     try {
       if (point.options.digits == min_digits) check_point<double>(point);
@@ -917,7 +917,7 @@ std::string table_command(const Options& options) {
   };
   const int threads = hardware_threads();
   if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
-    check(bad);  // throws the first bad point's error, on every rank
+    check(bad, 0);  // throws the first bad point's error, on every rank
 
   run_table(request, space, row_options, target, table_header(request, methods, row_count),
             threads);

@@ -81,9 +81,10 @@ Real at_working_precision(const Real& x) {
   }
 }
 
-/// The chain with every parameter rounded to the working precision (see at_working_precision).
+/// The chain with every parameter rounded to the working precision (see at_working_precision);
+/// in a hardware type the chain itself (a reference: no copy).
 template <class Real>
-Chain<Real> at_working_precision(const Chain<Real>& chain) {
+decltype(auto) at_working_precision(const Chain<Real>& chain) {
   if constexpr (is_mpfr_v<Real>) {
     std::vector<Real> masses, lengths;
     masses.reserve(chain.size());
@@ -95,7 +96,7 @@ Chain<Real> at_working_precision(const Chain<Real>& chain) {
     return Chain<Real>(std::move(masses), std::move(lengths),
                        at_working_precision(chain.gravity()));
   } else {
-    return chain;
+    return (chain);
   }
 }
 
