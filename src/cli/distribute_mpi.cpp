@@ -51,6 +51,31 @@ struct PendingReceive {
   MPI_Request request = MPI_REQUEST_NULL;
 };
 std::deque<PendingReceive> pending_receives;
+/// Payloads given back by recycle_received, for long messages to arrive in.
+std::vector<std::string> receive_pool;
+std::size_t receive_pool_bytes = 0;
+constexpr std::size_t receive_pool_limit = 16u << 20;
+constexpr std::size_t long_message_bytes = 64u << 10;
+
+/// A buffer for a message of `size` bytes: the smallest kept one that holds it (else the largest,
+/// which grows), or a fresh one.
+std::string receive_buffer(std::size_t size) {
+  std::string buffer;
+  if (size >= long_message_bytes && !receive_pool.empty()) {
+    auto best = receive_pool.end(), largest = receive_pool.begin();
+    for (auto it = receive_pool.begin(); it != receive_pool.end(); ++it) {
+      if (it->capacity() >= size && (best == receive_pool.end() || it->capacity() < best->capacity()))
+        best = it;
+      if (it->capacity() > largest->capacity()) largest = it;
+    }
+    const auto chosen = best != receive_pool.end() ? best : largest;
+    receive_pool_bytes -= chosen->capacity();
+    buffer = std::move(*chosen);
+    receive_pool.erase(chosen);
+  }
+  buffer.resize(size);
+  return buffer;
+}
 
 int byte_count(std::size_t size) {
   if (size > static_cast<std::size_t>(INT_MAX))
@@ -175,7 +200,7 @@ void post(int destination, int tag, std::string payload) {
         "MPI_Isend");
 }
 
-std::optional<Message> receive() {
+std::optional<Message> receive(int urgent_tag) {
   if (!joined) return std::nullopt;
   for (;;) {  // start receiving everything that has arrived
     int arrived = 0;
@@ -189,12 +214,23 @@ std::optional<Message> receive() {
     PendingReceive& receiving = pending_receives.emplace_back();
     receiving.message.source = status.MPI_SOURCE;
     receiving.message.tag = status.MPI_TAG;
-    receiving.message.payload.resize(static_cast<std::size_t>(size));
+    receiving.message.payload = receive_buffer(static_cast<std::size_t>(size));
     check(MPI_Imrecv(receiving.message.payload.data(), size, MPI_BYTE, &handle,
                      &receiving.request),
           "MPI_Imrecv");
   }
   if (pending_receives.empty()) return std::nullopt;
+  if (urgent_tag >= 0) {
+    for (auto it = pending_receives.begin() + 1; it != pending_receives.end(); ++it) {
+      if (it->message.tag != urgent_tag) continue;
+      int complete = 0;
+      check(MPI_Test(&it->request, &complete, MPI_STATUS_IGNORE), "MPI_Test");
+      if (!complete) continue;
+      Message message = std::move(it->message);
+      pending_receives.erase(it);
+      return message;
+    }
+  }
   int done = 0;
   check(MPI_Test(&pending_receives.front().request, &done, MPI_STATUS_IGNORE), "MPI_Test");
   if (!done) return std::nullopt;
@@ -222,7 +258,16 @@ bool sends_pending(std::vector<std::string>* sent) {
   return !pending_sends.empty();
 }
 
-bool transfers_pending() { return sends_pending() || !pending_receives.empty(); }
+void recycle_received(std::string&& payload) {
+  if (payload.capacity() < long_message_bytes ||
+      receive_pool_bytes + payload.capacity() > receive_pool_limit)
+    return;
+  payload.clear();
+  receive_pool_bytes += payload.capacity();
+  receive_pool.push_back(std::move(payload));
+}
+
+bool receives_pending() { return !pending_receives.empty(); }
 
 void exit_process(int code) {
   std::fflush(stdout);

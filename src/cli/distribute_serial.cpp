@@ -23,9 +23,10 @@ std::vector<std::string> gather_to_root(const std::string& local) { return {loca
 const ShiftPartition* shift_partition() { return nullptr; }
 
 void post(int, int, std::string) { throw std::logic_error("post: a plain run has no other rank"); }
-std::optional<Message> receive() { return std::nullopt; }
+std::optional<Message> receive(int) { return std::nullopt; }
 bool sends_pending(std::vector<std::string>*) { return false; }
-bool transfers_pending() { return false; }
+bool receives_pending() { return false; }
+void recycle_received(std::string&&) {}
 
 void exit_process(int code) {
   std::fflush(stdout);

@@ -248,14 +248,16 @@ class ComputeTeam {
   }
   /// A written chunk's text, kept for a later chunk's rows (fresh memory costs page faults);
   /// at most 2 per queued chunk and spare_text_bytes in all.
-  void recycle(std::string&& text) {
-    text.clear();
+  /// Returns false (and leaves `text` as it was) when the team keeps enough already.
+  bool recycle(std::string& text) {
     const std::lock_guard lock(mutex_);
     if (spare_texts_.size() >= static_cast<std::size_t>(2 * chunks_per_thread * threads_) ||
         spare_bytes_ + text.capacity() > spare_text_bytes)
-      return;
+      return false;
+    text.clear();
     spare_bytes_ += text.capacity();
     spare_texts_.push_back(std::move(text));
+    return true;
   }
   /// Waits until a result is ready or `timeout` passed.
   void wait(std::chrono::microseconds timeout) {
@@ -471,8 +473,11 @@ class Progress {
 /// Poll interval of a coordinator that talks to other ranks: 0.25 ms while messages come, up to
 /// 1 ms (rank 0, which answers requests) or 4 ms (the others, unless their threads wait for
 /// work) while nothing happens, so that a coordinator costs little CPU beside the compute threads
-/// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a message is
-/// in flight; 0.25 ms while its own threads are idle (nothing to disturb).
+/// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a long
+/// message is arriving (the receiver copies it: see distribute.hpp); 0.25 ms while its own
+/// threads are idle (nothing to disturb). A rank whose long result is on its way out needs no
+/// fast polls: waking every 50 us made its compute thread ~20% slower per row (a 2-rank double
+/// sweep).
 class PollInterval {
  public:
   /// `alone`: no other rank; `longest`: the longest interval (us).
@@ -480,9 +485,8 @@ class PollInterval {
   /// `active`: something happened, or an answer is awaited by a thread without work.
   std::chrono::microseconds next(bool active) {
     if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
-    // A long message in flight moves only while both ends call MPI: poll at 50 us until it is
-    // through.
-    if (transfers_pending()) return std::chrono::microseconds(50);
+    // A long message arriving moves while the receiver calls MPI: poll at 50 us until it is in.
+    if (receives_pending()) return std::chrono::microseconds(50);
     current_ = active ? 250 : std::min(longest_, current_ * 2);
     return std::chrono::microseconds(current_);
   }
@@ -533,7 +537,11 @@ class RootSweep {
       : rows_(rows), output_(output), size_(ranks()),
         scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
                    output),
-        writer_(output, rows.count, [this](std::string&& text) { team_.recycle(std::move(text)); }),
+        // written texts serve this rank's later chunks, then the other ranks' next results
+        writer_(output, rows.count,
+                [this](std::string&& text) {
+                  if (!team_.recycle(text)) recycle_received(std::move(text));
+                }),
         progress_(rows), poll_(size_ == 1, 1000),
         peers_(static_cast<std::size_t>(size_)), team_(rows, rows.threads) {
     outcome_.count = rows.count;
@@ -602,7 +610,8 @@ class RootSweep {
       accept(std::move(f), 0);
       active = true;
     }
-    while (std::optional<Message> message = receive()) {
+    // Requests go ahead of long results still arriving (the grant is on its way sooner).
+    while (std::optional<Message> message = receive(tag_request)) {
       active = true;
       ++messages_;
       Peer& peer = peers_[static_cast<std::size_t>(message->source)];
@@ -770,19 +779,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
   };
   while (!done) {
     bool active = false;
-    for (Finished& f : team.take()) {
-      outcome.computed += f.count;
-      // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
-      // a long one arrives only when all of it is through.
-      if (!stopping && !exhausted && !requested) {
-        if (const std::size_t wanted = team.wanted(); wanted > 0) {
-          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
-          requested = true;
-        }
-      }
-      post(0, tag_result, pack_finished(std::move(f)));
-      active = true;
-    }
+    // Grants first: a request for more then goes out ahead of the rows just finished.
     while (std::optional<Message> message = receive()) {
       active = true;
       if (message->tag == tag_grant) {
@@ -801,6 +798,19 @@ SweepOutcome run_worker(const SweepRows& rows) {
       } else if (message->tag == tag_done) {
         done = true;
       }
+    }
+    for (Finished& f : team.take()) {
+      outcome.computed += f.count;
+      // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
+      // a long one arrives only when all of it is through.
+      if (!stopping && !exhausted && !requested) {
+        if (const std::size_t wanted = team.wanted(); wanted > 0) {
+          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
+          requested = true;
+        }
+      }
+      post(0, tag_result, pack_finished(std::move(f)));
+      active = true;
     }
     if (!told && !finished_sent && stop_flag().load()) {
       post(0, tag_stopping, {});
@@ -828,7 +838,7 @@ SweepOutcome run_worker(const SweepRows& rows) {
     // The sent rows' memory serves later chunks (fresh memory costs a page fault every 4 kB).
     sent.clear();
     sends_pending(&sent);
-    for (std::string& bytes : sent) team.recycle(std::move(bytes));
+    for (std::string& bytes : sent) team.recycle(bytes);
     // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
     // counts as active: the answer is noticed at once, and no computation is disturbed.
     if (!done)
