@@ -366,10 +366,13 @@ class Scheduler {
     const std::size_t limit = std::min(count_, first_unwritten + window_);
     if (next_ >= limit) return std::nullopt;
     const std::size_t remaining = count_ - next_;
-    std::size_t size = timed_rows_ == 0 ? 1
+    // Until a row's cost is known: chunks of 1, 2, 4, ... rows (a probe that keeps the first
+    // ranks busy while the first timings travel back, without betting on a row's cost).
+    std::size_t size = timed_rows_ == 0 ? probe_rows_
                        : static_cast<std::size_t>(std::max(
                              1.0, target_seconds_ * static_cast<double>(timed_rows_) /
                                       std::max(seconds_, 1e-12)));
+    if (timed_rows_ == 0) probe_rows_ = std::min<std::size_t>(2 * probe_rows_, max_chunk_rows);
     size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
                      std::max<std::size_t>(1, window_ / (4 * threads_)), limit - next_});
     for (std::size_t k = 1; k < size; ++k)
@@ -394,7 +397,7 @@ class Scheduler {
   const std::size_t count_, window_, threads_;
   const double target_seconds_;
   const SweepOutput& output_;
-  std::size_t next_ = 0, timed_rows_ = 0;
+  std::size_t next_ = 0, timed_rows_ = 0, probe_rows_ = 1;
   double seconds_ = 0;
 };
 

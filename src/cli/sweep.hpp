@@ -5,10 +5,11 @@
 // Work distribution. Rank 0 hands out chunks of consecutive rows on request (dynamic: rows may
 // differ 1000x in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread
 // of the job beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean
-// cost and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
+// cost (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
 // scheduling), so that the last chunks balance the ranks. Each rank keeps about two chunks per
 // thread queued, so the round trip to rank 0 is hidden (a rank asks for more, in a short message,
-// just before it sends a chunk's rows). Rank 0 computes too: its
+// just before it sends a chunk's rows; rank 0 reads requests ahead of long results still
+// arriving, and long results arrive in recycled memory). Rank 0 computes too: its
 // main thread only schedules, receives and writes (it sleeps between polls), and a second thread
 // runs the OpenMP team of every rank.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
