@@ -693,7 +693,9 @@ void check_microcanonical_case(const CasesFile& file, const CaseRow& row,
 
 /// The numbers of the cases rows this rank checked, in a double run: the check parses each row
 /// once and keeps beta, g, m1..mN, l1..lN here for the row's computation (rows checked on
-/// another rank, and every row of an MPFR run, are parsed again). 8 (2N + 2) bytes a row.
+/// another rank, every row of an MPFR run, and every row of a file whose numbers would take more
+/// than checked_numbers_budget, are parsed again). 8 (2N + 2) bytes a row.
+constexpr std::size_t checked_numbers_budget = std::size_t(256) << 20;
 struct CheckedNumbers {
   std::size_t per_row = 0;
   std::vector<double> values;         ///< row-major, per_row numbers a row
@@ -1048,8 +1050,10 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     if (!mine) mine.emplace();
     return *mine;
   };
-  std::optional<CheckedNumbers> checked;
-  if (std::is_same_v<Real, double> && !plan.microcanonical) checked.emplace(rows.size(), n);
+  std::optional<CheckedNumbers> checked;  // at most checked_numbers_budget bytes, else parse again
+  if (std::is_same_v<Real, double> && !plan.microcanonical &&
+      rows.size() * (2 * n + 2) * sizeof(double) <= checked_numbers_budget)
+    checked.emplace(rows.size(), n);
   const auto check = [&](std::size_t k, int thread) {
     try {
       if (plan.microcanonical) {
