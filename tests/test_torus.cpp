@@ -21,6 +21,8 @@
 // Tags: [torus] (default, ~2 s in Release), [torus][.slow] for the longer variants.
 #include <catch2/catch.hpp>
 
+#include <array>
+
 #include "pendavg/chain.hpp"
 #include "engine/double_pendulum.hpp"
 #include "engine/precision.hpp"
@@ -155,6 +157,46 @@ TEST_CASE("torus N = 2 agrees with the 1-D reduced integral", "[torus]") {
                   "<K1>/<K2>");
       // The error bars are honest but not wildly loose.
       CHECK(torus.beta_kinetic[0].error < 2e-14);
+    }
+  }
+}
+
+// Found by an extreme-input audit (2026-11-26): a light particle's traces vary on
+// sin^2 delta ~ m_1 / S_2, at delta = 0 and at delta = pi. Near pi the rules took the sine from
+// the rounded angle (an error u pi, relative u pi / eps), and Gauss-Legendre's nodes near angle 0
+// came from 1 + x with x rounded: the light particle's average was off by up to ~1e-12 relative,
+// 165 times the reported error at m1 = 1e-12, g = 0 (trapezoid, converged), 2.5 times with
+// Gauss-Legendre at m1 = 1e-8. Both rules against the MPFR reduced integral at 30 digits (code
+// shared with neither): the reported errors must cover.
+TEST_CASE("torus: light particles, errors cover near delta = 0 and pi (both rules)", "[torus]") {
+  struct Case {
+    double m1, l2, beta, g;
+  };
+  for (const Case c : {Case{1e-8, 1, 1e4, 0}, Case{1e-10, 1, 1, 0}, Case{1e-12, 1, 1, 0},
+                       Case{1e-12, 1e3, 1, 0}, Case{1e-13, 1e-3, 1, 0}, Case{1e-8, 1e8, 1, 1},
+                       Case{1e-15, 1, 1e4, 1}, Case{1e-8, 1, 1, 1}, Case{1e-11, 1, 0.1, 1}}) {
+    const Chain<double> chain({c.m1, 1.0}, {1.0, c.l2}, c.g);
+    std::array<double, 2> reference{};
+    {
+      const pendavg::working_precision wp(30 + pendavg::guard_digits);
+      const auto exact =
+          pendavg::reduced_integral_average(chain.cast<mpfr_real>(), mpfr_real(c.beta), 30);
+      for (std::size_t i = 0; i < 2; ++i)
+        reference[i] = exact.beta_kinetic[i].value.convert_to<double>();
+    }
+    for (const TorusRule rule : {TorusRule::trapezoid, TorusRule::gauss_legendre}) {
+      TorusOptions options;
+      options.rule = rule;
+      const auto torus = torus_average(chain, c.beta, options);
+      for (std::size_t i = 0; i < 2; ++i) {
+        INFO("m1 = " << c.m1 << ", l2 = " << c.l2 << ", beta = " << c.beta << ", g = " << c.g
+                     << (rule == TorusRule::trapezoid ? ", trapezoid" : ", Gauss-Legendre")
+                     << ", K" << i + 1 << " = " << torus.beta_kinetic[i].value << " +- "
+                     << torus.beta_kinetic[i].error << ", reference " << reference[i]);
+        // the reference rounded to double: half an ulp of slack
+        CHECK(std::abs(torus.beta_kinetic[i].value - reference[i]) <=
+              torus.beta_kinetic[i].error + 0.5 * std::abs(reference[i]) * 0x1p-52);
+      }
     }
   }
 }

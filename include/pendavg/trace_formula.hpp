@@ -84,6 +84,9 @@ class TraceWorkspace {
   friend const NodeTraces<R>& node_traces(const Chain<R>&, const R*, TraceWorkspace<R>&);
   template <class R>
   friend const NodeTraces<R>& node_traces_relative(const Chain<R>&, const R*, TraceWorkspace<R>&);
+  template <class R>
+  friend const NodeTraces<R>& node_traces_sincos(const Chain<R>&, const R*, const R*,
+                                                 TraceWorkspace<R>&);
 
   std::size_t n_;
   NodeTraces<Real> out_;
@@ -106,6 +109,14 @@ const NodeTraces<Real>& node_traces(const Chain<Real>& chain, const Real* phi,
 template <class Real>
 const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain, const Real* delta,
                                              TraceWorkspace<Real>& ws);
+
+/// The same from sin delta_i and cos delta_i (N - 1 each). The traces need only these, and a
+/// quadrature can form them more accurately than from a rounded angle: at delta = pi - eps the
+/// angle's rounding (u pi) is a relative error u pi / eps in sin delta, which a light particle
+/// (traces varying on sin^2 delta ~ m_i / S_{i+1}) turns into ~1e-12 relative in its average.
+template <class Real>
+const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& chain, const Real* sin_delta,
+                                           const Real* cos_delta, TraceWorkspace<Real>& ws);
 
 /// The paper's diagonal approximation, eq. ke-linear-tave-1 (MATH.md Sec. 8):
 ///     beta <K_i>  ~  (m_i / 2) sum_{j <= i} 1 / S_j.

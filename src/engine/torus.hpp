@@ -180,6 +180,9 @@ template <class Real>
 struct CircleRule {
   std::size_t n = 0;
   std::vector<Real> angle, cos_angle, sin_angle, weight;
+  /// pi - |angle|, formed without the angle's rounding (sin_angle and cos_angle of the nodes past
+  /// pi/2 are taken from it: sin(pi - tau) from a rounded angle near pi would be off by u pi).
+  std::vector<Real> from_pi;
   /// +1: k < mirror(k), evaluated and counted twice; 0: k = mirror(k); -1: mirror of a +1 node.
   std::vector<signed char> orbit;
   /// Nested rules: the node is also a node of the previous level (its sums are reused).
@@ -204,6 +207,7 @@ CircleRule<Real> trapezoid_rule(std::size_t n, bool nested_on_previous) {
   r.angle.resize(n);
   r.cos_angle.resize(n);
   r.sin_angle.resize(n);
+  r.from_pi.resize(n);
   r.weight.assign(n, Real(1));
   r.orbit.resize(n);
   r.inherited.resize(n);
@@ -212,7 +216,13 @@ CircleRule<Real> trapezoid_rule(std::size_t n, bool nested_on_previous) {
   const Real two_pi = 2 * pi<Real>();
   for (std::size_t k = 0; 2 * k <= n; ++k) {
     Real a = two_pi * Real(static_cast<double>(k)) / Real(static_cast<double>(n));
+    // pi (n - 2k) / n: the distance to pi, exact up to one rounding
+    const Real tau = pi<Real>() * Real(static_cast<double>(n - 2 * k)) / Real(static_cast<double>(n));
     Real c = cos(a), s = sin(a);
+    if (4 * k > n) {  // past pi/2: from the distance to pi
+      c = -cos(tau);
+      s = sin(tau);
+    }
     if (k == 0) {
       a = 0;
       c = 1;
@@ -225,11 +235,13 @@ CircleRule<Real> trapezoid_rule(std::size_t n, bool nested_on_previous) {
     r.angle[k] = a;
     r.cos_angle[k] = c;
     r.sin_angle[k] = s;
+    r.from_pi[k] = 2 * k == n ? Real(0) : tau;
     r.orbit[k] = (k == 0 || 2 * k == n) ? 0 : 1;
     if (k != 0 && 2 * k != n) {
       r.angle[n - k] = -a;
       r.cos_angle[n - k] = c;
       r.sin_angle[n - k] = -s;
+      r.from_pi[n - k] = tau;
       r.orbit[n - k] = -1;
     }
   }
@@ -240,7 +252,8 @@ CircleRule<Real> trapezoid_rule(std::size_t n, bool nested_on_previous) {
 /// Gauss-Legendre nodes x_k and weights on [-1, 1] (weights sum to 2), ascending, with
 /// x_{n-1-k} = -x_k exactly. double: GSL's table; other types: Newton on P_n from GSL's nodes.
 template <class Real>
-void gauss_legendre_nodes(std::size_t n, std::vector<Real>& x, std::vector<Real>& w) {
+void gauss_legendre_nodes(std::size_t n, std::vector<Real>& x, std::vector<Real>& w,
+                          std::vector<Real>& one_plus_x) {
   gsl_integration_glfixed_table* table = gsl_integration_glfixed_table_alloc(n);
   if (table == nullptr) throw invalid_input("cannot build a Gauss-Legendre table");
   std::vector<std::pair<double, double>> seed(n);
@@ -251,10 +264,35 @@ void gauss_legendre_nodes(std::size_t n, std::vector<Real>& x, std::vector<Real>
   std::sort(seed.begin(), seed.end());
   x.assign(n, Real(0));
   w.assign(n, Real(0));
+  one_plus_x.assign(n, Real(1));
   for (std::size_t k = 0; 2 * k < n; ++k) {  // the non-positive half, then mirror
     Real xk = seed[k].first, wk = seed[k].second;
+    Real yk = 1 + xk;
     if (2 * k + 1 == n) {
       xk = 0;
+      yk = 1;
+    }
+    if constexpr (std::is_same_v<Real, double>) {
+      // Near x = -1 the node is y = 1 + x, which x itself carries only to ~u absolute (a
+      // relative error u / y, ~3e-9 for n = 8192: the circle's nodes near angle 0 would be off by
+      // that much against their weights). Newton on P_n(-1 + y) in y, never forming x: the
+      // recurrence's x P_j is y P_j - P_j. Each step's rounding moves the root by ~u / n.
+      if (2 * xk < -1) {
+        Real derivative = 0;
+        for (int iteration = 0; iteration < 3; ++iteration) {
+          Real p_prev = 1, p = yk - 1;
+          for (std::size_t j = 1; j < n; ++j) {
+            const Real jj = static_cast<Real>(j);
+            const Real p_next = ((2 * jj + 1) * (yk * p - p) - jj * p_prev) / (jj + 1);
+            p_prev = p;
+            p = p_next;
+          }
+          derivative = static_cast<Real>(n) * ((yk * p - p) - p_prev) / (yk * (yk - 2));
+          yk -= p / derivative;
+        }
+        wk = 2 / (yk * (2 - yk) * derivative * derivative);
+        xk = yk - 1;
+      }
     }
     if constexpr (!std::is_same_v<Real, double>) {
       // Newton on P_n: P_{j+1} = ((2j+1) x P_j - j P_{j-1}) / (j+1), P'_n = n (x P_n - P_{n-1}) /
@@ -276,8 +314,10 @@ void gauss_legendre_nodes(std::size_t n, std::vector<Real>& x, std::vector<Real>
       }
       wk = 2 / ((1 - xk * xk) * derivative * derivative);
     }
+    if constexpr (!std::is_same_v<Real, double>) yk = 1 + xk;  // after the Newton steps above
     x[k] = xk;
     w[k] = wk;
+    one_plus_x[k] = yk;
     x[n - 1 - k] = -xk;
     w[n - 1 - k] = wk;
   }
@@ -289,14 +329,15 @@ template <class Real>
 CircleRule<Real> gauss_legendre_rule(std::size_t n) {
   using std::cos;
   using std::sin;
-  std::vector<Real> x, w;
-  gauss_legendre_nodes<Real>(n, x, w);
+  std::vector<Real> x, w, one_plus_x;
+  gauss_legendre_nodes<Real>(n, x, w, one_plus_x);
   CircleRule<Real> r;
   r.n = n;
   r.nested = false;
   r.angle.resize(n);
   r.cos_angle.resize(n);
   r.sin_angle.resize(n);
+  r.from_pi.resize(n);
   r.weight.resize(n);
   r.orbit.resize(n);
   r.inherited.assign(n, 0);
@@ -304,8 +345,13 @@ CircleRule<Real> gauss_legendre_rule(std::size_t n) {
   for (std::size_t k = 0; k < n; ++k) r.mirror[k] = n - 1 - k;
   const Real p = pi<Real>();
   for (std::size_t k = 0; 2 * k < n; ++k) {
-    const Real a = p * (1 + x[k]);  // in (0, pi]; its mirror -a is node n-1-k
+    const Real a = p * one_plus_x[k];  // in (0, pi]; its mirror -a is node n-1-k
+    const Real tau = -p * x[k];     // pi - a, exact up to one rounding (x <= 0)
     Real c = cos(a), s = sin(a);
+    if (2 * x[k] > -1) {  // past pi/2: from the distance to pi
+      c = -cos(tau);
+      s = sin(tau);
+    }
     if (2 * k + 1 == n) {
       c = -1;
       s = 0;
@@ -313,12 +359,14 @@ CircleRule<Real> gauss_legendre_rule(std::size_t n) {
     r.angle[k] = a;
     r.cos_angle[k] = c;
     r.sin_angle[k] = s;
+    r.from_pi[k] = 2 * k + 1 == n ? Real(0) : tau;
     r.weight[k] = w[k] / 2;
     r.orbit[k] = (2 * k + 1 == n) ? 0 : 1;
     if (2 * k + 1 != n) {
       r.angle[n - 1 - k] = -a;
       r.cos_angle[n - 1 - k] = c;
       r.sin_angle[n - 1 - k] = -s;
+      r.from_pi[n - 1 - k] = tau;
       r.weight[n - 1 - k] = w[k] / 2;
       r.orbit[n - 1 - k] = -1;
     }
@@ -334,40 +382,96 @@ CircleRule<Real> gauss_legendre_rule(std::size_t n) {
 /// and its levels still nest; the map commutes with delta -> -delta, so the halving stays exact.
 template <class Real>
 struct NodeMap {
-  Real a{0};
+  /// 1 - a, the Jacobian's minimum (kept rather than a: the map's node positions and Jacobian
+  /// near t = 0 are formed from it without cancellation; 1 - a rounded from a stored a near 1
+  /// would carry a relative error u / (1 - a), ~1e-12 for a light mass of 1e-12).
+  Real gap{1};
   int p = 1;
-  bool identity() const { return a == 0; }
+  bool identity() const { return gap == 1; }
 };
+
+/// x - sin x, without the cancellation of the direct difference for small |x| (its Taylor
+/// series there: x^3/6 - x^5/120 + ..., each term smaller by x^2 / 20 or more).
+template <class Real>
+Real x_minus_sin(const Real& x) {
+  using std::abs;
+  using std::sin;
+  if (!(abs(x) < Real(0.5))) return x - sin(x);
+  const Real x2 = x * x;
+  Real term = x * x2 / 6, sum = term;
+  for (int k = 2; k < 400; ++k) {
+    term = -term * x2 / Real((2 * k) * (2 * k + 1));
+    const Real next = sum + term;
+    if (next == sum) break;
+    sum = next;
+  }
+  return sum;
+}
 
 /// The rule `base` (nodes t, weights) after the map: nodes delta(t), weights times the Jacobian.
 /// Nodes at t = 0 and t = pi stay exactly there; mirrored nodes stay bitwise negated.
 template <class Real>
 CircleRule<Real> mapped_rule(const CircleRule<Real>& base, const NodeMap<Real>& map) {
+  using std::abs;
   using std::cos;
   using std::sin;
   if (map.identity()) return base;
   CircleRule<Real> r = base;
   const Real pp = Real(map.p);
+  const Real a = 1 - map.gap;
   for (std::size_t k = 0; k < base.n; ++k) {
     if (base.orbit[k] < 0) continue;  // set from its mirror below
     const Real& t = base.angle[k];
     const bool at_pi = (base.cos_angle[k] == -1 && base.sin_angle[k] == 0);
-    Real delta = t, c = base.cos_angle[k], s = base.sin_angle[k];
-    if (t != 0 && !at_pi) {
-      delta = t - map.a * sin(pp * t) / pp;
-      c = cos(delta);
-      s = sin(delta);
+    Real delta = t, c = base.cos_angle[k], s = base.sin_angle[k], from_pi = base.from_pi[k];
+    Real jacobian;
+    if (base.cos_angle[k] >= 0) {
+      const Real pt = pp * t;
+      if (t != 0) {
+        // delta = t - a sin(pt) / p = (pt - sin pt) / p + gap sin(pt) / p: two terms of one
+        // sign near t = 0, where the direct form cancels to ~gap t.
+        delta = (x_minus_sin<Real>(pt) + map.gap * sin(pt)) / pp;
+        c = cos(delta);
+        s = sin(delta);
+        from_pi = pi<Real>() - abs(delta);
+      }
+      // 1 - a cos(pt) = 2 sin^2(pt / 2) + gap cos(pt), without the cancellation at t ~ 0.
+      const Real half_sine = sin(pt / 2);
+      jacobian = 2 * half_sine * half_sine + map.gap * cos(pt);
+    } else {
+      // Past pi/2, from tau = pi - |t| (the base rule's, unrounded by the angle): the map is
+      // odd about pi as well, pi - |delta| = eps(tau) with eps = tau + a sin(tau) (p = 1) or
+      // (2 tau - sin 2 tau) / 2 + gap sin(2 tau) / 2 (p = 2); the Jacobian 1 + a cos(tau) or
+      // 2 sin^2(tau) + gap cos(2 tau). sin and cos of delta then come from eps, accurately
+      // even where eps is tiny (the light-mass features at delta = pi, p = 2).
+      const Real& tau = base.from_pi[k];
+      Real eps = tau;
+      if (map.p == 1) {
+        eps = tau + a * sin(tau);
+        jacobian = 1 + a * cos(tau);
+      } else {
+        eps = (x_minus_sin<Real>(2 * tau) + map.gap * sin(2 * tau)) / 2;
+        const Real sine = sin(tau);
+        jacobian = 2 * sine * sine + map.gap * cos(2 * tau);
+      }
+      if (!at_pi) {
+        delta = t > 0 ? Real(pi<Real>() - eps) : Real(eps - pi<Real>());
+        c = -cos(eps);
+        s = t > 0 ? Real(sin(eps)) : Real(-sin(eps));
+        from_pi = eps;
+      }
     }
-    const Real jacobian = 1 - map.a * cos(pp * t);
     r.angle[k] = delta;
     r.cos_angle[k] = c;
     r.sin_angle[k] = s;
+    r.from_pi[k] = from_pi;
     r.weight[k] = base.weight[k] * jacobian;
     const std::size_t m = base.mirror[k];
     if (m != k) {
       r.angle[m] = -delta;
       r.cos_angle[m] = c;
       r.sin_angle[m] = -s;
+      r.from_pi[m] = from_pi;
       r.weight[m] = r.weight[k];
     }
   }
@@ -408,7 +512,7 @@ std::vector<NodeMap<Real>> automatic_node_maps(const Chain<Real>& chain,
       }
     }
     if (eps < Real(0.3)) {
-      maps[i].a = 1 - exp(2 * log(eps) / 3);  // 1 - eps^(2/3)
+      maps[i].gap = exp(2 * log(eps) / 3);  // 1 - a = eps^(2/3)
       maps[i].p = p;
     }
   }
@@ -468,10 +572,11 @@ class ReducedIntegrand {
 
   /// Evaluates the node with relative angles delta (cosines cd, sines sd; N - 1 each) and adds
   /// weight * multiplicity * (its contributions) to `sums`.
-  void accumulate(const Real* delta, const Real* cd, const Real* sd, const Real& node_weight,
+  void accumulate(const Real* /*delta: see cd, sd*/, const Real* cd, const Real* sd, const Real& node_weight,
                   TorusSums<Real>& sums) {
     const std::size_t n = chain_.size();
-    const NodeTraces<Real>& traces = node_traces_relative(chain_, delta, workspace_);
+    // from sines and cosines: the rules form them accurately near pi (CircleRule::from_pi)
+    const NodeTraces<Real>& traces = node_traces_sincos(chain_, sd, cd, workspace_);
     // Unit vectors e^{i theta_j} by rotation products, and z = sum_j alpha_j e^{i theta_j}.
     unit_cos_[0] = 1;
     unit_sin_[0] = 0;

@@ -30,26 +30,12 @@ template <class Real>
 const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain, const Real* delta,
                                              TraceWorkspace<Real>& ws) {
   using std::cos;
-  using std::frexp;
-  using std::log;
   using std::sin;
   const std::size_t n = chain.size();
   if (ws.n_ != n) {
     throw invalid_input("trace workspace sized for " + std::to_string(ws.n_) +
                         " particles used with a chain of " + std::to_string(n));
   }
-  const std::vector<Real>& m = chain.masses();
-  const std::vector<Real>& l = chain.lengths();
-  Real* sin2 = ws.sin2_.data();
-  Real* cos2 = ws.cos2_.data();
-  Real* root_u = ws.root_u_.data();
-  Real* tr = ws.out_.trace_X.data();
-  Real* tr2 = ws.out_.trace_X_squared.data();
-
-  // Forward sweep, root to tail: u_i = m_i r_i, r the root-side compliance seen by particle i
-  // along its link direction. Link 1 is pinned, so u_1 = 0.
-  //   u_{i+1} = m_{i+1} (u_i + sin^2 delta_i) / (m_i (u_i + 1)).
-  root_u[0] = 0;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     Real s, c;
     if constexpr (is_mpfr_v<Real>) {  // one MPFR call for both (Boost has no sincos)
@@ -58,10 +44,40 @@ const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain, const Rea
       s = sin(delta[i]);
       c = cos(delta[i]);
     }
-    sin2[i] = s * s;
-    cos2[i] = c * c;
-    root_u[i + 1] = m[i + 1] * (root_u[i] + sin2[i]) / (m[i] * (root_u[i] + 1));
+    ws.sin2_[i] = s;  // squared in place by node_traces_sincos
+    ws.cos2_[i] = c;
   }
+  return node_traces_sincos(chain, ws.sin2_.data(), ws.cos2_.data(), ws);
+}
+
+template <class Real>
+const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& chain, const Real* sin_delta,
+                                           const Real* cos_delta, TraceWorkspace<Real>& ws) {
+  const std::size_t n = chain.size();
+  if (ws.n_ != n) {
+    throw invalid_input("trace workspace sized for " + std::to_string(ws.n_) +
+                        " particles used with a chain of " + std::to_string(n));
+  }
+  for (std::size_t i = 0; i + 1 < n; ++i) {  // (sin_delta may be ws.sin2_ itself: in place)
+    ws.sin2_[i] = sin_delta[i] * sin_delta[i];
+    ws.cos2_[i] = cos_delta[i] * cos_delta[i];
+  }
+  using std::frexp;
+  using std::log;
+  const std::vector<Real>& m = chain.masses();
+  const std::vector<Real>& l = chain.lengths();
+  const Real* sin2 = ws.sin2_.data();
+  const Real* cos2 = ws.cos2_.data();
+  Real* root_u = ws.root_u_.data();
+  Real* tr = ws.out_.trace_X.data();
+  Real* tr2 = ws.out_.trace_X_squared.data();
+
+  // Forward sweep, root to tail: u_i = m_i r_i, r the root-side compliance seen by particle i
+  // along its link direction. Link 1 is pinned, so u_1 = 0.
+  //   u_{i+1} = m_{i+1} (u_i + sin^2 delta_i) / (m_i (u_i + 1)).
+  root_u[0] = 0;
+  for (std::size_t i = 0; i + 1 < n; ++i)
+    root_u[i + 1] = m[i + 1] * (root_u[i] + sin2[i]) / (m[i] * (root_u[i] + 1));
 
   // Backward sweep, tail to root: kappa = k_{i+1} / m_i, k the articulated inertia of the links
   // beyond i seen along link i+1 (k_{N+1} = 0). d_i / m_i = 1 + kappa sin^2 delta_i is the pivot
@@ -146,6 +162,9 @@ std::vector<Real> diagonal_approximation(const Chain<Real>& chain) {
   template const NodeTraces<Real>& node_traces_relative<Real>(const Chain<Real>&,            \
                                                               const Real*,                   \
                                                               TraceWorkspace<Real>&);        \
+  template const NodeTraces<Real>& node_traces_sincos<Real>(const Chain<Real>&, const Real*, \
+                                                            const Real*,                     \
+                                                            TraceWorkspace<Real>&);          \
   template std::vector<Real> diagonal_approximation<Real>(const Chain<Real>&);
 
 PENDAVG_INSTANTIATE_TRACE_FORMULA(double)
