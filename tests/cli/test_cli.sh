@@ -100,6 +100,7 @@ bad "limit mass 0"      limit --masses 0,1
 bad "limit xml"         limit --masses 1,1 --format xml
 bad "series beta 0"     series "${pendulum[@]}" --beta 0 --terms 3
 bad "series terms -1"   series "${pendulum[@]}" --beta 1 --terms -1
+bad "series terms 200001" series "${pendulum[@]}" --beta 1 --terms 200001  # the library's cap, checked before any work
 bad "help unknown"      help nothing
 
 # the any-N options: malformed values, and options of a method that does not run
