@@ -30,8 +30,13 @@ struct SeriesRow {
   Real bound;          ///< rigorous bound on |beta<K1> - beta_kinetic1| from the tails
 };
 
+/// The most terms series_convergence takes when they are given explicitly (work grows like
+/// terms^2: 200,000 terms are hours).
+inline constexpr std::size_t max_series_terms = 200000;
+
 /// The series, term by term, up to `terms` terms (0: until the requested digits are certified;
-/// refused before any work when that needs more than the automatic cap of 6000 terms). N = 2
+/// refused before any work when that needs more than the automatic cap of 6000 terms, or when
+/// `terms` exceeds max_series_terms). N = 2
 /// only; throws invalid_input otherwise. `control` reports the Bessel table's progress and may
 /// stop it (throws `interrupted`: no row exists before the table is complete).
 template <class Real>

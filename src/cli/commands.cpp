@@ -1343,7 +1343,7 @@ std::string series_command(const Options& options) {
   constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
   const Format format = format_option(options, "text", formats);
   const auto terms = static_cast<std::size_t>(
-      parse_integer(options.get("terms", "0"), "--terms", 0, 200'000));
+      parse_integer(options.get("terms", "0"), "--terms", 0, static_cast<long>(max_series_terms)));
   const working_precision guard(digits + guard_digits);
   const std::string_view beta_text = options.required("beta");
   const Chain<mpfr_real> chain = chain_option<mpfr_real>(options, true);

@@ -227,7 +227,9 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
                         " (work grows like terms^2); use the integral method, or give the "
                         "number of terms explicitly");
   const std::size_t M = needed;
-  if (M > 200000) throw invalid_input("at most 200000 series terms can be requested");
+  if (M > max_series_terms)
+    throw invalid_input("at most " + std::to_string(max_series_terms) +
+                        " series terms can be requested");
   // Every term of the series and of R_n is positive, so rounding errors only add up along the
   // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
   // limbs make this O(M^2) loop faster).

@@ -42,7 +42,7 @@ py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::hand
                 py::handle digits, py::handle terms, const py::object& progress) {
   const int d = digits_option(digits);
   const auto term_count = static_cast<std::size_t>(
-      cli::parse_integer(number_text(terms), "--terms", 0, 1'000'000));
+      cli::parse_integer(number_text(terms), "--terms", 0, static_cast<long>(max_series_terms)));
   std::vector<std::string> mass_texts, length_texts;
   for (const py::object& x : entries(masses)) mass_texts.push_back(number_text(x));
   for (const py::object& x : entries(lengths)) length_texts.push_back(number_text(x));
