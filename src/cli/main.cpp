@@ -3,8 +3,10 @@
 // (commands that stream, such as table, write it themselves), and maps failures to exit codes
 // (2 bad input, 1 internal error, 130 stopped by a signal before anything was finished), each
 // with exactly one line on stderr (distribute.hpp, report_failure). Under MPI only rank 0 prints.
+// Before anything else it sets up how the process takes memory (memory.hpp).
 #include "commands.hpp"
 #include "distribute.hpp"
+#include "memory.hpp"
 
 #include <cstdio>
 #include <exception>
@@ -14,6 +16,7 @@
 #include <vector>
 
 int main(int argc, char** argv) {
+  pendavg::cli::prepare_process_memory();  // first: MPI and the command allocate after it
   const pendavg::cli::ProcessGroup processes(argc, argv);
   const std::vector<std::string_view> args(argv + 1, argv + argc);
   try {

@@ -206,10 +206,23 @@ class ComputeTeam {
   ComputeTeam(const ComputeTeam&) = delete;
   ComputeTeam& operator=(const ComputeTeam&) = delete;
 
+  /// Queues `range` with the memory its rows will be written to, taken here (the coordinator's
+  /// thread; see memory.hpp: the main thread's heap is in huge pages) from the spare texts or
+  /// afresh.
   void add(Range range) {
+    std::string text;
     {
       const std::lock_guard lock(mutex_);
-      queue_.push_back(range);
+      if (!spare_texts_.empty()) {
+        spare_bytes_ -= spare_texts_.back().capacity();
+        text = std::move(spare_texts_.back());
+        spare_texts_.pop_back();
+      }
+    }
+    text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
+    {
+      const std::lock_guard lock(mutex_);
+      queue_.push_back(Queued{range, std::move(text)});
     }
     work_.notify_one();
   }
@@ -287,17 +300,12 @@ class ComputeTeam {
           std::unique_lock lock(mutex_);
           work_.wait(lock, [&] { return stopping_.load() || closed_ || !queue_.empty(); });
           if (stopping_.load() || queue_.empty()) break;
-          range = queue_.front();
+          range = queue_.front().range;
+          done.text = std::move(queue_.front().text);
           queue_.pop_front();
           ++running_;
-          if (!spare_texts_.empty()) {
-            spare_bytes_ -= spare_texts_.back().capacity();
-            done.text = std::move(spare_texts_.back());
-            spare_texts_.pop_back();
-          }
         }
         done.first = range.first;
-        done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
         const Clock::time_point start = Clock::now();
         for (std::size_t i = range.first; i < range.first + range.count; ++i) {
           if (stopped()) break;
@@ -339,7 +347,11 @@ class ComputeTeam {
   const int threads_;
   mutable std::mutex mutex_;
   std::condition_variable work_, done_;
-  std::deque<Range> queue_;
+  struct Queued {
+    Range range;
+    std::string text;  ///< room for the chunk's rows
+  };
+  std::deque<Queued> queue_;
   std::vector<Finished> results_;
   std::vector<std::string> spare_texts_;
   std::size_t spare_bytes_ = 0;

@@ -334,6 +334,15 @@ assert lines[1] == "# digits = 250, method = auto\n", lines[1]
 assert lines[2].startswith("# pendavg ") and ", generated 2026-01-01T00:00:00Z (UTC) from " in lines[2], lines[2]
 assert "".join(lines[3:]) == open(sys.argv[2]).read()
 PY
+# The process' memory set-up (src/cli/memory.hpp: large buffers in huge pages) changes no byte,
+# in double (two threads) and at 250 digits.
+PENDAVG_MALLOC=default "$pendavg" average --cases "$work/cases300.csv" --digits 250 >"$work/cases_malloc.csv" 2>/dev/null
+check "cases at 250 digits: glibc's default memory set-up gives the same rows" \
+  cmp -s "$work/cases_malloc.csv" "$work/cases_stdout.csv"
+"$pendavg" average --cases "$work/cases300.csv" >"$work/cases_double.csv" 2>/dev/null
+PENDAVG_MALLOC=default "$pendavg" average --cases "$work/cases300.csv" >"$work/cases_malloc.csv" 2>/dev/null
+check "cases in double: glibc's default memory set-up gives the same rows" \
+  cmp -s "$work/cases_malloc.csv" "$work/cases_double.csv"
 delay=$("$python" -c 'import random; print(round(random.uniform(0.2, 0.8), 2))')
 start_then_signal "$delay" INT average --cases "$work/cases300.csv" --digits 250 --output "$work/cases_resumed.csv"
 run average --cases "$work/cases300.csv" --digits 250 --resume "$work/cases_resumed.csv"
