@@ -73,6 +73,17 @@ void recycle_received(std::string&& payload);
 /// memory; the sender's MPI calls only complete the send).
 bool receives_pending();
 
+/// Cells in rank 0's memory that every rank of the job reads and changes with atomic operations
+/// (an MPI-3 shared-memory window: the sweep's next row and its reorder limit, so that a rank
+/// takes its next chunk without waiting for rank 0 to answer). Collective: every rank calls it at
+/// the same point. Returns `count` 8-byte-aligned cells, zeroed, or null when the ranks cannot
+/// all reach rank 0's memory (not one node, one rank, a plain run, or PENDAVG_SWEEP_SHARED=0 on
+/// any rank): then the caller uses messages.
+std::uint64_t* open_shared_cells(int count);
+/// Collective: releases the cells of open_shared_cells (every rank, at the same point; nothing
+/// when there were none).
+void close_shared_cells();
+
 /// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
 /// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for
 /// `failure`, on rank 0 only; one line.

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <list>
 #include <stdexcept>
+#include <string_view>
 
 namespace pendavg::cli {
 
@@ -268,6 +269,49 @@ void recycle_received(std::string&& payload) {
 }
 
 bool receives_pending() { return !pending_receives.empty(); }
+
+namespace {
+MPI_Win shared_window = MPI_WIN_NULL;
+}  // namespace
+
+std::uint64_t* open_shared_cells(int count) {
+  if (!joined || my_size == 1) return nullptr;
+  // Every rank must agree: one node (a shared-memory communicator of all ranks) and nobody
+  // asked for messages.
+  MPI_Comm node = MPI_COMM_NULL;
+  check(MPI_Comm_split_type(world, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node),
+        "MPI_Comm_split_type");
+  int node_size = 0;
+  MPI_Comm_size(node, &node_size);
+  MPI_Comm_free(&node);
+  const char* wanted = std::getenv("PENDAVG_SWEEP_SHARED");
+  std::uint64_t usable = node_size == my_size && !(wanted && std::string_view(wanted) == "0");
+  if (min_over_ranks(usable) == 0) return nullptr;
+  void* base = nullptr;
+  const MPI_Aint bytes = my_rank == 0 ? static_cast<MPI_Aint>(count) * 8 : 0;
+  check(MPI_Win_allocate_shared(bytes, 8, MPI_INFO_NULL, world, &base, &shared_window),
+        "MPI_Win_allocate_shared");
+  MPI_Aint size = 0;
+  int unit = 0;
+  check(MPI_Win_shared_query(shared_window, 0, &size, &unit, &base), "MPI_Win_shared_query");
+  auto* cells = static_cast<std::uint64_t*>(base);
+  if (my_rank == 0)
+    for (int i = 0; i < count; ++i) cells[i] = 0;
+  // A passive-target epoch for the whole sweep (the cells are read and written with atomic
+  // instructions in the unified memory model); the barrier publishes the zeros.
+  check(MPI_Win_lock_all(MPI_MODE_NOCHECK, shared_window), "MPI_Win_lock_all");
+  MPI_Win_sync(shared_window);
+  check(MPI_Barrier(world), "MPI_Barrier");
+  MPI_Win_sync(shared_window);
+  return cells;
+}
+
+void close_shared_cells() {
+  if (shared_window == MPI_WIN_NULL) return;
+  MPI_Win_unlock_all(shared_window);
+  MPI_Win_free(&shared_window);
+  shared_window = MPI_WIN_NULL;
+}
 
 void exit_process(int code) {
   std::fflush(stdout);

@@ -363,42 +363,56 @@ class ComputeTeam {
 
 // ---------------------------------------------------------------- rank 0: schedule and write
 
-/// Hands out chunks of rows in index order (see sweep.hpp: sizes and window).
+/// Hands out chunks of rows in index order (see sweep.hpp: sizes and window). The next row to
+/// hand out is rank 0's own counter, or a cell in rank 0's memory that every rank advances
+/// (distribute.hpp: open_shared_cells): then each rank's coordinator takes its chunks itself,
+/// sized from its own rows' timings, and no rank waits for rank 0 to answer a request.
 class Scheduler {
  public:
-  Scheduler(std::size_t count, std::size_t window, int threads, const SweepOutput& output)
+  /// `kept(i)`: row i is in the output already (resumed); `shared_next`: the shared cell, or null.
+  Scheduler(std::size_t count, std::size_t window, int threads,
+            std::function<bool(std::size_t)> kept, std::uint64_t* shared_next = nullptr)
       : count_(count), window_(window), threads_(static_cast<std::size_t>(threads)),
         target_seconds_(std::max(chunk_target_seconds,
                                  chunk_target_per_thread * static_cast<double>(threads))),
-        output_(output) {}
+        kept_(std::move(kept)), shared_next_(shared_next) {}
 
   /// The next chunk, or nothing when every row is handed out or the window is full.
   std::optional<Range> next(std::size_t first_unwritten) {
-    while (next_ < count_ && output_.kept(next_)) ++next_;
-    const std::size_t limit = std::min(count_, first_unwritten + window_);
-    if (next_ >= limit) return std::nullopt;
-    const std::size_t remaining = count_ - next_;
-    // Until a row's cost is known: chunks of 1, 2, 4, ... rows (a probe that keeps the first
-    // ranks busy while the first timings travel back, without betting on a row's cost).
-    std::size_t size = timed_rows_ == 0 ? probe_rows_
-                       : static_cast<std::size_t>(std::max(
-                             1.0, target_seconds_ * static_cast<double>(timed_rows_) /
-                                      std::max(seconds_, 1e-12)));
-    if (timed_rows_ == 0) probe_rows_ = std::min<std::size_t>(2 * probe_rows_, max_chunk_rows);
-    size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
-                     std::max<std::size_t>(1, window_ / (4 * threads_)), limit - next_});
-    for (std::size_t k = 1; k < size; ++k)
-      if (output_.kept(next_ + k)) {
-        size = k;
-        break;
-      }
-    const Range range{next_, size};
-    next_ += size;
-    return range;
+    for (;;) {
+      const std::size_t claimed = load();
+      std::size_t first = claimed;
+      while (first < count_ && kept_(first)) ++first;
+      const std::size_t limit = std::min(count_, first_unwritten + window_);
+      if (first >= limit) return std::nullopt;
+      const std::size_t remaining = count_ - first;
+      // Until a row's cost is known: chunks of 1, 2, 4, ... rows (a probe that keeps the first
+      // ranks busy while the first timings come in, without betting on a row's cost).
+      std::size_t size = timed_rows_ == 0 ? probe_rows_
+                         : static_cast<std::size_t>(std::max(
+                               1.0, target_seconds_ * static_cast<double>(timed_rows_) /
+                                        std::max(seconds_, 1e-12)));
+      size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
+                       std::max<std::size_t>(1, window_ / (4 * threads_)), limit - first});
+      for (std::size_t k = 1; k < size; ++k)
+        if (kept_(first + k)) {
+          size = k;
+          break;
+        }
+      if (!advance(claimed, first + size)) continue;  // another rank took rows meanwhile
+      if (timed_rows_ == 0) probe_rows_ = std::min<std::size_t>(2 * probe_rows_, max_chunk_rows);
+      return Range{first, size};
+    }
   }
-  bool exhausted() {
-    while (next_ < count_ && output_.kept(next_)) ++next_;
-    return next_ >= count_;
+  bool exhausted() const {
+    std::size_t first = load();
+    while (first < count_ && kept_(first)) ++first;
+    return first >= count_;
+  }
+  /// No row is handed out any more, by any rank (the sweep closes).
+  void stop() {
+    if (shared_next_) std::atomic_ref<std::uint64_t>(*shared_next_).store(count_);
+    else next_ = count_;
   }
   void record(std::size_t rows, double seconds) {
     timed_rows_ += rows;
@@ -406,12 +420,38 @@ class Scheduler {
   }
 
  private:
+  std::size_t load() const {
+    if (!shared_next_) return next_;
+    return static_cast<std::size_t>(std::atomic_ref<std::uint64_t>(*shared_next_).load());
+  }
+  bool advance(std::size_t from, std::size_t to) {
+    if (!shared_next_) {
+      next_ = to;
+      return true;
+    }
+    std::uint64_t expected = from;
+    return std::atomic_ref<std::uint64_t>(*shared_next_).compare_exchange_strong(expected, to);
+  }
+
   const std::size_t count_, window_, threads_;
   const double target_seconds_;
-  const SweepOutput& output_;
+  const std::function<bool(std::size_t)> kept_;
+  std::uint64_t* const shared_next_;
   std::size_t next_ = 0, timed_rows_ = 0, probe_rows_ = 1;
   double seconds_ = 0;
 };
+
+/// Rows that may wait in the reorder buffer (see sweep.hpp: window); `threads`: of the job.
+std::size_t reorder_window(const SweepRows& rows, int threads) {
+  const auto total_threads = static_cast<std::size_t>(threads);
+  return std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
+                       std::max<std::size_t>(rows.row_bytes, 1),
+                   16 * total_threads, std::size_t(64)});
+}
+
+/// The cells of a one-node job (distribute.hpp: open_shared_cells): the next row to hand out,
+/// and the first row not yet written (rank 0 moves it; the window starts there).
+enum SharedCell : int { cell_next = 0, cell_unwritten, cell_count };
 
 /// Rank 0's reorder buffer: rows go to the output in index order.
 class OrderedWriter {
@@ -489,19 +529,21 @@ class Progress {
 /// 1 ms (rank 0, which answers requests) or 4 ms (the others, unless their threads wait for
 /// work) while nothing happens, so that a coordinator costs little CPU beside the compute threads
 /// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a long
-/// message is arriving (the receiver copies it: see distribute.hpp); 0.25 ms while its own
-/// threads are idle (nothing to disturb). A rank whose long result is on its way out needs no
+/// message is arriving (the receiver copies it: see distribute.hpp); 50 us while its own
+/// threads are idle (nothing to disturb: the end of a sweep, where every poll of the closing
+/// handshake counts). A rank whose long result is on its way out needs no
 /// fast polls: waking every 50 us made its compute thread ~20% slower per row (a 2-rank double
 /// sweep).
 class PollInterval {
  public:
   /// `alone`: no other rank; `longest`: the longest interval (us).
   PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
-  /// `active`: something happened, or an answer is awaited by a thread without work.
-  std::chrono::microseconds next(bool active) {
+  /// `active`: something happened, or an answer is awaited by a thread without work; `idle`: this
+  /// rank's compute threads have nothing to do.
+  std::chrono::microseconds next(bool active, bool idle) {
     if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
     // A long message arriving moves while the receiver calls MPI: poll at 50 us until it is in.
-    if (receives_pending()) return std::chrono::microseconds(50);
+    if (receives_pending() || idle) return std::chrono::microseconds(50);
     current_ = active ? 250 : std::min(longest_, current_ * 2);
     return std::chrono::microseconds(current_);
   }
@@ -522,7 +564,7 @@ struct Peer {
 /// coordinator's CPU time and message count, and each rank's rows and busy time -- what
 /// tests/bench/mpi_scaling.sh reads.
 void report_distribution(const SweepOutcome& outcome, const std::vector<Peer>& peers,
-                         std::size_t messages, double coordinator_cpu_seconds) {
+                         std::size_t messages, double coordinator_cpu_seconds, bool shared) {
   const char* wanted = std::getenv("PENDAVG_SWEEP_REPORT");
   if (!wanted || std::string_view(wanted) != "1") return;
   std::string ranks_text;
@@ -536,9 +578,11 @@ void report_distribution(const SweepOutcome& outcome, const std::vector<Peer>& p
   }
   std::fprintf(stderr,
                "pendavg: sweep: rows=%zu computed=%zu ranks=%zu threads=%d seconds=%.6f "
-               "coordinator_cpu_seconds=%.6f messages=%zu per_rank(rows/chunks/busy_s)=%s\n",
+               "coordinator_cpu_seconds=%.6f messages=%zu chunks_from=%s "
+               "per_rank(rows/chunks/busy_s)=%s\n",
                outcome.count, outcome.computed, peers.size(), outcome.threads, outcome.seconds,
-               coordinator_cpu_seconds, messages, ranks_text.c_str());
+               coordinator_cpu_seconds, messages, shared ? "shared_memory" : "rank_0",
+               ranks_text.c_str());
 }
 
 double thread_cpu_seconds() { return 1e-6 * thread_cpu_microseconds(); }
@@ -548,10 +592,12 @@ double thread_cpu_seconds() { return 1e-6 * thread_cpu_microseconds(); }
 /// these steps until every row is written, or a signal or a failing row closes the sweep.
 class RootSweep {
  public:
-  RootSweep(const SweepRows& rows, SweepOutput& output)
-      : rows_(rows), output_(output), size_(ranks()),
+  /// `cells`: the shared cells of a one-node job (SharedCell), or null.
+  RootSweep(const SweepRows& rows, SweepOutput& output, std::uint64_t* cells)
+      : rows_(rows), output_(output), size_(ranks()), cells_(cells),
         scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
-                   output),
+                   [&output](std::size_t i) { return output.kept(i); },
+                   cells ? &cells[cell_next] : nullptr),
         // written texts serve this rank's later chunks, then the other ranks' next results
         writer_(output, rows.count,
                 [this](std::string&& text) {
@@ -579,21 +625,15 @@ class RootSweep {
       sends_pending();
       // With nothing of its own to compute (the last rows are elsewhere, or closing) the core
       // is free: notice the last results and the peers' goodbyes at once.
-      team_.wait(poll_.next(active || closing_ || team_.idle()));
+      const bool idle = team_.idle();
+      team_.wait(poll_.next(active || closing_ || idle, idle));
     }
     release_peers();
+    close_shared_cells();  // collective: every rank is past its last chunk
     return conclude(finish);
   }
 
  private:
-  /// Rows that may wait in the reorder buffer (see sweep.hpp: window).
-  static std::size_t reorder_window(const SweepRows& rows, int threads) {
-    const auto total_threads = static_cast<std::size_t>(threads);
-    return std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
-                         std::max<std::size_t>(rows.row_bytes, 1),
-                     16 * total_threads, std::size_t(64)});
-  }
-
   /// Finished rows from rank `source` (0: this rank's team) go to the writer.
   void accept(Finished&& rows_done, int source) {
     Peer& from = peers_[static_cast<std::size_t>(source)];
@@ -613,6 +653,7 @@ class RootSweep {
     if (closing_) return;
     closing_ = true;
     team_.stop();
+    scheduler_.stop();  // other ranks that take their own chunks take no more
     deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                    std::chrono::duration<double>(grace));
     for (int r = 1; r < size_; ++r) post(r, tag_stop, {});
@@ -659,7 +700,8 @@ class RootSweep {
       team_.add(*chunk);
       active = true;
     }
-    for (int r = 1; r < size_; ++r) {
+    // With shared cells the other ranks take their chunks themselves.
+    for (int r = 1; r < size_ && !cells_; ++r) {
       Peer& peer = peers_[static_cast<std::size_t>(r)];
       if (peer.wanted == 0 && !(scheduler_.exhausted() && !peer.told_exhausted)) continue;
       std::vector<Range> chunks;
@@ -688,6 +730,8 @@ class RootSweep {
   void write_ready() {
     try {
       writer_.advance();
+      if (cells_)
+        std::atomic_ref<std::uint64_t>(cells_[cell_unwritten]).store(writer_.position());
     } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
       if (!failure_) failure_ = RowFailure{rows_.count, true, bad.what()};
     } catch (const std::exception& error) {
@@ -736,7 +780,8 @@ class RootSweep {
       outcome_.bad_input = failure_->bad_input;
     }
     progress_.report(outcome_.computed + output_.kept_count(), true);
-    report_distribution(outcome_, peers_, messages_, thread_cpu_seconds() - start_cpu_);
+    report_distribution(outcome_, peers_, messages_, thread_cpu_seconds() - start_cpu_,
+                        cells_ != nullptr);
     if (!abandoned) {
       finish(outcome_);
       return outcome_;
@@ -757,6 +802,7 @@ class RootSweep {
   const SweepRows& rows_;
   SweepOutput& output_;
   const int size_;
+  std::uint64_t* const cells_;
   SweepOutcome outcome_;
   Scheduler scheduler_;
   OrderedWriter writer_;
@@ -770,17 +816,18 @@ class RootSweep {
   ComputeTeam team_;  // last: its threads stop (destructor) before the state above goes
 };
 
-SweepOutcome run_root(const SweepRows& rows, SweepOutput& output,
-                      const std::function<void(const SweepOutcome&)>& finish) {
-  return RootSweep(rows, output).run(finish);
-}
-
-SweepOutcome run_worker(const SweepRows& rows) {
+/// A rank other than 0. `cells`: the shared cells (it takes its own chunks), or null (it asks
+/// rank 0 for them); `kept`: one byte per row, 1 for a row kept from a resumed file (empty: none).
+SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::string& kept) {
   SweepOutcome outcome;
   outcome.count = rows.count;
   outcome.threads = rows.threads * ranks();
   ComputeTeam team(rows, rows.threads);
   PollInterval poll(false, 4000);
+  Scheduler scheduler(
+      rows.count, reorder_window(rows, rows.threads * ranks()), rows.threads * ranks(),
+      [&kept](std::size_t i) { return !kept.empty() && kept[i] != 0; },
+      cells ? &cells[cell_next] : nullptr);
   bool requested = false, exhausted = false, stopping = false, told = false;
   bool finished_sent = false, done = false;
   std::vector<std::string> sent;
@@ -816,9 +863,10 @@ SweepOutcome run_worker(const SweepRows& rows) {
     }
     for (Finished& f : team.take()) {
       outcome.computed += f.count;
+      scheduler.record(f.count + (f.failure ? 1 : 0), f.seconds);
       // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
       // a long one arrives only when all of it is through.
-      if (!stopping && !exhausted && !requested) {
+      if (!cells && !stopping && !exhausted && !requested) {
         if (const std::size_t wanted = team.wanted(); wanted > 0) {
           post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
           requested = true;
@@ -832,7 +880,20 @@ SweepOutcome run_worker(const SweepRows& rows) {
       told = true;
       stop(rows.grace_seconds);
     }
-    if (!stopping) {
+    if (!stopping && cells) {  // take chunks from the shared cells
+      exhausted = exhausted || scheduler.exhausted();
+      if (exhausted) team.close();
+      for (std::size_t k = exhausted ? 0 : team.wanted(); k > 0; --k) {
+        const std::size_t unwritten =
+            std::atomic_ref<std::uint64_t>(cells[cell_unwritten]).load();
+        const std::optional<Range> chunk = scheduler.next(unwritten);
+        if (!chunk) break;
+        team.add(*chunk);
+        active = true;
+      }
+      // Idle threads wait for the window to move: look again soon.
+      requested = !exhausted && team.idle();
+    } else if (!stopping) {
       if (exhausted) {
         team.close();
       } else if (!requested) {
@@ -857,8 +918,10 @@ SweepOutcome run_worker(const SweepRows& rows) {
     // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
     // counts as active: the answer is noticed at once, and no computation is disturbed.
     if (!done)
-      team.wait(poll.next(active || (team.idle() && (requested || exhausted || stopping))));
+      team.wait(poll.next(active || (team.idle() && (requested || exhausted || stopping)),
+                          team.idle()));
   }
+  close_shared_cells();  // collective: rank 0 closes them after its last message
   while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)
   return outcome;
@@ -868,8 +931,19 @@ SweepOutcome run_worker(const SweepRows& rows) {
 
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
-  if (is_root()) return run_root(rows, *output, finish);
-  return run_worker(rows);
+  // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs to
+  // know the kept rows (one byte per row; empty when there are none).
+  std::uint64_t* const cells = open_shared_cells(cell_count);
+  std::string kept;
+  if (cells) {
+    if (is_root() && output->kept_count() > 0) {
+      kept.assign(rows.count, '\0');
+      for (std::size_t i = 0; i < rows.count; ++i) kept[i] = output->kept(i) ? 1 : 0;
+    }
+    kept = broadcast_from_root(std::move(kept));
+  }
+  if (is_root()) return RootSweep(rows, *output, cells).run(finish);
+  return run_worker(rows, cells, kept);
 }
 
 void rethrow_failure(const SweepOutcome& outcome,

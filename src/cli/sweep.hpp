@@ -2,16 +2,21 @@
 // rows 0..count-1, each a pure function of its index, computed on every rank's threads and
 // written in index order by rank 0.
 //
-// Work distribution. Rank 0 hands out chunks of consecutive rows on request (dynamic: rows may
-// differ 1000x in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread
-// of the job beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean
-// cost (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4 of the remaining rows per thread, as guided
-// scheduling), so that the last chunks balance the ranks. Each rank keeps about two chunks per
-// thread queued, so the round trip to rank 0 is hidden (a rank asks for more, in a short message,
-// just before it sends a chunk's rows; rank 0 reads requests ahead of long results still
-// arriving, and long results arrive in recycled memory). Rank 0 computes too: its
-// main thread only schedules, receives and writes (it sleeps between polls), and a second thread
-// runs the OpenMP team of every rank.
+// Work distribution. Chunks of consecutive rows are handed out dynamically (rows may differ 1000x
+// in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread of the job
+// beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean cost
+// (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4
+// of the remaining rows per thread, as guided scheduling), so that the last chunks balance the
+// ranks. Each rank keeps about two chunks per thread queued. When every rank reaches rank 0's
+// memory (one node: an MPI-3 shared-memory window), the next row to hand out and the reorder
+// limit are two cells there, and each rank's coordinator takes its chunks itself with an atomic
+// compare-and-swap (sized from its own rows' timings): nobody waits for rank 0 to be scheduled.
+// Otherwise (ranks on several nodes, or PENDAVG_SWEEP_SHARED=0) rank 0 hands them out on request,
+// and the queued chunks hide the round trip (a rank asks for more, in a short message, just
+// before it sends a chunk's rows; rank 0 reads requests ahead of long results still arriving).
+// Finished rows go to rank 0 in messages either way (long ones arrive in recycled memory). Rank
+// 0 computes too: its main thread only schedules, receives and writes (it sleeps between polls),
+// and a second thread runs the OpenMP team of every rank.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
 // that arrive early wait in a reorder buffer. No row more than `window` past the first unwritten
 // one is handed out, so the buffer holds at most window rows; window = (32 MB + 128 kB per

@@ -120,6 +120,37 @@ else
   pass
 fi
 
+# On one node the ranks take their chunks from cells in rank 0's memory; across nodes (or with
+# PENDAVG_SWEEP_SHARED=0) they ask rank 0 in messages. Both give the serial file, also when
+# completing a resumed file with holes (every third row missing).
+"$python" - "$work/cases_serial.csv" "$work/holes.csv" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines(keepends=True)
+head = [l for l in lines if l.startswith("#")]
+body = [l for l in lines if not l.startswith("#")]
+rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-2]
+open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
+PY
+for shared in 1 0; do
+  for ranks in 2 3; do
+    cp "$work/holes.csv" "$work/holes_resumed.csv"
+    for out in cases_msg.csv holes_resumed.csv; do
+      [ "$out" = cases_msg.csv ] && rm -f "$work/cases_msg.csv" && target=(--output "$work/$out")
+      [ "$out" = holes_resumed.csv ] && target=(--resume "$work/$out")
+      PENDAVG_SWEEP_SHARED=$shared PENDAVG_SWEEP_REPORT=1 "${launcher[@]}" -n "$ranks" \
+        "$pendavg" average --cases "$work/cases.csv" "${target[@]}" 2>"$work/err"
+      expected=$([ "$shared" = 1 ] && echo shared_memory || echo rank_0)
+      if ! grep -q "chunks_from=$expected " "$work/err"; then
+        fail "$out on $ranks ranks, PENDAVG_SWEEP_SHARED=$shared: chunks not from $expected"
+      elif ! cmp -s "$work/$out" "$work/cases_serial.csv"; then
+        fail "$out on $ranks ranks, chunks from $expected: differs from the serial file"
+      else
+        pass
+      fi
+    done
+  done
+done
+
 # Bad input: every rank refuses it, rank 0 alone says so (mpirun may add its own lines).
 "${launcher[@]}" -n 2 "$pendavg" table --beta log:1e-3:1e300:60 --digits 16,600 >"$work/out" 2>"$work/err"
 rc=$?
