@@ -635,10 +635,15 @@ class ReducedIntegrand {
 template <class Real>
 class GridWalker {
  public:
+  /// `control` (or null) is polled before each innermost row of nodes: a stop request abandons
+  /// the walk (abandoned(); the level is then discarded), so that a level of seconds (N = 8)
+  /// stops within milliseconds, not at the end of its outermost slice.
   GridWalker(const std::vector<CircleRule<Real>>& rules, std::size_t dims,
-             ReducedIntegrand<Real>& integrand)
-      : rules_(rules), dims_(dims), integrand_(integrand), delta_(dims), cd_(dims), sd_(dims),
-        weight_(dims + 1) {}
+             ReducedIntegrand<Real>& integrand, const RunControl* control = nullptr)
+      : rules_(rules), dims_(dims), integrand_(integrand), control_(control), delta_(dims),
+        cd_(dims), sd_(dims), weight_(dims + 1) {}
+
+  bool abandoned() const { return abandoned_; }
 
   /// Every node with outermost index k0 (dims >= 1), or the single node (dims = 0).
   void walk_outer(std::size_t k0, TorusSums<Real>& sums) {
@@ -670,8 +675,10 @@ class GridWalker {
                             multiplicity == 1 ? weight_[d] : Real(2 * weight_[d]), sums);
       return;
     }
+    if (d + 1 == dims_ && control_ != nullptr && control_->stop_requested()) abandoned_ = true;
+    if (abandoned_) return;
     const CircleRule<Real>& rule = rules_[d];
-    for (std::size_t k = 0; k < rule.n; ++k) {
+    for (std::size_t k = 0; k < rule.n && !abandoned_; ++k) {
       int orbit = 1;
       if (constrained) {
         orbit = rule.orbit[k];
@@ -686,6 +693,8 @@ class GridWalker {
   const std::vector<CircleRule<Real>>& rules_;  // one per dimension, same n and orbits
   std::size_t dims_;
   ReducedIntegrand<Real>& integrand_;
+  const RunControl* control_;
+  bool abandoned_ = false;
   std::vector<Real> delta_, cd_, sd_, weight_;
 };
 
@@ -712,7 +721,7 @@ TorusSums<Real> level_sums(const Chain<Real>& chain, const WeightConstants<Real>
     TorusSums<Real> local(n_particles);  // per thread: no false sharing between tasks
     errors.capture([&] {
       integrand.emplace(chain, constants);
-      walker.emplace(rules, dims, *integrand);
+      walker.emplace(rules, dims, *integrand, control);
     });
 #if defined(_OPENMP)
 #pragma omp for schedule(dynamic, 1)
@@ -722,6 +731,10 @@ TorusSums<Real> level_sums(const Chain<Real>& chain, const WeightConstants<Real>
         if (!walker || stop_seen.load(std::memory_order_relaxed)) return;
         local = TorusSums<Real>(n_particles);
         walker->walk_outer(static_cast<std::size_t>(k0), local);
+        if (walker->abandoned()) {  // a stop request inside the slice: the level is discarded
+          stop_seen.store(true, std::memory_order_relaxed);
+          return;
+        }
         partial[static_cast<std::size_t>(k0)] = local;
         if (control != nullptr) {
 #if defined(_OPENMP)
