@@ -159,22 +159,26 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
 
 /// A priori number of terms M that certainly reaches relative tolerance tol, from the bound
 /// with R_n <= R_0: rel. error <= c_{M+1} mu2^{M+1} (1 + 1/mu1) / (mu1 (1 - mu2)), where
-/// c_n <= 1/sqrt(pi n) (Wallis). Computed in double from log(mu1), log(mu2).
-inline std::size_t a_priori_terms(double log_mu1, double log_mu2, double log_tol) {
-  if (!(log_mu2 < 0)) return std::size_t(1) << 40;
+/// c_n <= 1/sqrt(pi n) (Wallis). Computed in double from log(mu1), log(mu2); a double, since
+/// a light particle (mu1 = 1e-12: ~4e13 terms) may need more than any run could compute (the
+/// caller only compares it with its caps and names it). Infinity when mu2 rounds to 1.
+inline double a_priori_terms(double log_mu1, double log_mu2, double log_tol) {
+  if (!(log_mu2 < 0)) return std::numeric_limits<double>::infinity();
   const double rhs = log_tol + 2.0 * log_mu1 - std::log(2.0);  // (1 + 1/mu1)/mu1 <= 2/mu1^2
-  std::size_t M = 1;
-  // c_{M+1} mu2^{M+1} <= tol mu1^2 / 2: increase M geometrically, then bisect.
+  // c_{M+1} mu2^{M+1} <= tol mu1^2 / 2: increase M geometrically, then bisect (to the integer,
+  // or to 1e-12 relative beyond 2^40).
   auto ok = [&](double m) { return -0.5 * std::log(3.14159265 * (m + 1)) + (m + 1) * log_mu2 <= rhs; };
-  std::size_t hi = 1;
-  while (!ok(static_cast<double>(hi)) && hi < (std::size_t(1) << 40)) hi *= 2;
-  std::size_t lo = hi / 2;
-  while (lo + 1 < hi) {
-    const std::size_t mid = (lo + hi) / 2;
-    (ok(static_cast<double>(mid)) ? hi : lo) = mid;
+  double hi = 1;
+  while (!ok(hi)) {
+    hi *= 2;
+    if (hi > 1e300) return std::numeric_limits<double>::infinity();
   }
-  M = hi;
-  return M + 1;
+  double lo = hi / 2;
+  while (hi - lo > std::max(1.0, 1e-12 * hi)) {
+    const double mid = std::floor((lo + hi) / 2);
+    (ok(mid) ? hi : lo) = mid;
+  }
+  return hi + 1;
 }
 
 /// Terms the automatic mode computes at most (the work grows like M^2); beyond it the result
@@ -217,16 +221,24 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
                                          : std::log(4 * std::numeric_limits<double>::epsilon());
   const double log_mu1 = static_cast<double>(log(chain.mass_fraction(0)));
   const double log_mu2 = static_cast<double>(log(chain.mass_fraction(1)));
-  const std::size_t needed = terms > 0 ? terms : a_priori_terms(log_mu1, log_mu2, log_tol);
-  if (terms == 0 && needed > max_automatic_terms)
-    throw invalid_input("series: mu2 = " + short_decimal(std::exp(log_mu2)) +
-                        " converges like mu2^n: about " + std::to_string(needed) +
+  const double estimate = terms > 0 ? double(terms) : a_priori_terms(log_mu1, log_mu2, log_tol);
+  if (terms == 0 && !(estimate <= double(max_automatic_terms))) {
+    // mu2 = 1 - mu1 for a light first particle (printed as 1 by a short decimal)
+    const double mu1 = std::exp(log_mu1);
+    const std::string mu2_text =
+        mu1 < 1e-3 ? "1 - " + short_decimal(mu1) : short_decimal(std::exp(log_mu2));
+    const std::string terms_text = !std::isfinite(estimate) ? "more than 1e300"
+                                   : estimate < 1e15
+                                       ? "about " + std::to_string(static_cast<long long>(estimate))
+                                       : "about " + short_decimal(estimate);
+    throw invalid_input("series: mu2 = " + mu2_text + " converges like mu2^n: " + terms_text +
                         " terms for " + std::to_string(is_mpfr_v<Real> ? digits : 16) +
                         " digits, beyond the automatic cap of " +
                         std::to_string(max_automatic_terms) +
                         " (work grows like terms^2); use the integral method, or give the "
                         "number of terms explicitly");
-  const std::size_t M = needed;
+  }
+  const std::size_t M = terms > 0 ? terms : static_cast<std::size_t>(estimate);
   if (M > max_series_terms)
     throw invalid_input("at most " + std::to_string(max_series_terms) +
                         " series terms can be requested");

@@ -757,6 +757,14 @@ wait "$pid"
 rc=$?
 if [ "$rc" -eq 130 ] && [ ! -s "$work/out" ] && grep -q '^pendavg: interrupted: ' "$work/err"; then pass; else fail "series SIGINT"; fi
 bad "series beyond the term cap" series --masses 1,1e3 --lengths 1,1 --beta 1
+# A light first particle: the refusal names mu2 = 1 - mu1 (not "1") and the a priori term
+# count (~ln(tol mu1^2 / 2) / ln mu2 = 7.9e13 for mu1 = 1e-12; it stopped at 2^40 + 1).
+bad "series, mu1 = 1e-12: refused" series --masses 1e-12,1 --lengths 1,1 --beta 1
+if grep -Eq 'mu2 = 1 - 1e-12 converges like mu2\^n: about [1-9][0-9]{13} terms' "$work/err"; then
+  pass
+else
+  fail "series, mu1 = 1e-12: message"
+fi
 # SIGINT during a long torus run: the last finished level, "interrupted": true, errors covering.
 "$pendavg" average --masses 1,1,1,1 --lengths 1,1,1,1 --beta 1e3 --digits 30 >"$work/out" 2>"$work/err" &
 pid=$!
