@@ -9,12 +9,16 @@
 #include <malloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
+// mallinfo2 (the free space at the heap's top) came with glibc 2.33; older ones keep the defaults.
+#if __GLIBC_PREREQ(2, 33) && defined(MADV_HUGEPAGE) && defined(M_TOP_PAD)
+#define PENDAVG_SET_UP_MALLOC 1
+#endif
 #endif
 
 namespace pendavg::cli {
 
 bool prepare_process_memory() {
-#if defined(__GLIBC__) && defined(MADV_HUGEPAGE) && defined(M_TOP_PAD)
+#if defined(PENDAVG_SET_UP_MALLOC)
   if (const char* wanted = std::getenv("PENDAVG_MALLOC");
       wanted && std::string_view(wanted) == "default")
     return false;
