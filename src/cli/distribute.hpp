@@ -77,8 +77,8 @@ bool receives_pending();
 /// (an MPI-3 shared-memory window: the sweep's next row and its reorder limit, so that a rank
 /// takes its next chunk without waiting for rank 0 to answer). Collective: every rank calls it at
 /// the same point. Returns `count` 8-byte-aligned cells, zeroed, or null when the ranks cannot
-/// all reach rank 0's memory (not one node, one rank, a plain run, or PENDAVG_SWEEP_SHARED=0 on
-/// any rank): then the caller uses messages.
+/// all reach rank 0's memory (not one node, one rank, a plain run, a window without the unified
+/// memory model, or PENDAVG_SWEEP_SHARED=0 on any rank): then the caller uses messages.
 std::uint64_t* open_shared_cells(int count);
 /// Collective: releases the cells of open_shared_cells (every rank, at the same point; nothing
 /// when there were none).

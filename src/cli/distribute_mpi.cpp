@@ -291,6 +291,17 @@ std::uint64_t* open_shared_cells(int count) {
   const MPI_Aint bytes = my_rank == 0 ? static_cast<MPI_Aint>(count) * 8 : 0;
   check(MPI_Win_allocate_shared(bytes, 8, MPI_INFO_NULL, world, &base, &shared_window),
         "MPI_Win_allocate_shared");
+  // The cells are read and written with the CPU's atomic instructions: that needs the unified
+  // memory model (public and private copies are the same memory), as every rank must agree.
+  int* model = nullptr;
+  int has_model = 0;
+  MPI_Win_get_attr(shared_window, MPI_WIN_MODEL, &model, &has_model);
+  const std::uint64_t unified = has_model && model && *model == MPI_WIN_UNIFIED;
+  if (min_over_ranks(unified) == 0) {
+    MPI_Win_free(&shared_window);
+    shared_window = MPI_WIN_NULL;
+    return nullptr;
+  }
   MPI_Aint size = 0;
   int unit = 0;
   check(MPI_Win_shared_query(shared_window, 0, &size, &unit, &base), "MPI_Win_shared_query");

@@ -442,16 +442,33 @@ class Scheduler {
 };
 
 /// Rows that may wait in the reorder buffer (see sweep.hpp: window); `threads`: of the job.
+/// Rank 0 decides it (the other ranks learn it from rank 0). PENDAVG_SWEEP_WINDOW_ROWS=K, for
+/// tests, makes it K rows (at least 1).
 std::size_t reorder_window(const SweepRows& rows, int threads) {
+  if (const char* forced = std::getenv("PENDAVG_SWEEP_WINDOW_ROWS"); forced && *forced)
+    return std::max<std::size_t>(1, std::strtoull(forced, nullptr, 10));
   const auto total_threads = static_cast<std::size_t>(threads);
   return std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
                        std::max<std::size_t>(rows.row_bytes, 1),
                    16 * total_threads, std::size_t(64)});
 }
 
-/// The cells of a one-node job (distribute.hpp: open_shared_cells): the next row to hand out,
-/// and the first row not yet written (rank 0 moves it; the window starts there).
-enum SharedCell : int { cell_next = 0, cell_unwritten, cell_count };
+/// The cells of a one-node job (distribute.hpp: open_shared_cells), each on a cache line of its
+/// own (the index counts 8-byte cells): the next row to hand out (every rank advances it), the
+/// first row not yet written (rank 0 moves it; the window starts there), 1 once rank 0 closed
+/// the sweep (start no more rows), and the window in rows (rank 0's, set before any chunk).
+enum SharedCell : int { cell_next = 0, cell_unwritten = 8, cell_closed = 16, cell_window = 24,
+                        cell_count = 32 };
+std::atomic_ref<std::uint64_t> shared_cell(std::uint64_t* cells, SharedCell cell) {
+  static_assert(std::atomic_ref<std::uint64_t>::is_always_lock_free,
+                "the cells are shared between processes: their atomics must not take a lock");
+  return std::atomic_ref<std::uint64_t>(cells[cell]);
+}
+
+/// Kept rows as bits (row i: bit i % 8 of byte i / 8), for the ranks that take their own chunks.
+bool kept_bit(const std::string& bits, std::size_t i) {
+  return !bits.empty() && ((static_cast<unsigned char>(bits[i / 8]) >> (i % 8)) & 1u) != 0;
+}
 
 /// Rank 0's reorder buffer: rows go to the output in index order.
 class OrderedWriter {
@@ -657,6 +674,7 @@ class RootSweep {
     closing_ = true;
     team_.stop();
     scheduler_.stop();  // other ranks that take their own chunks take no more
+    if (cells_) shared_cell(cells_, cell_closed).store(1);  // and start none of theirs
     deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                    std::chrono::duration<double>(grace));
     for (int r = 1; r < size_; ++r) post(r, tag_stop, {});
@@ -733,8 +751,8 @@ class RootSweep {
   void write_ready() {
     try {
       writer_.advance();
-      if (cells_)
-        std::atomic_ref<std::uint64_t>(cells_[cell_unwritten]).store(writer_.position());
+      if (cells_ && writer_.position() != published_)
+        shared_cell(cells_, cell_unwritten).store(published_ = writer_.position());
     } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
       if (!failure_) failure_ = RowFailure{rows_.count, true, bad.what()};
     } catch (const std::exception& error) {
@@ -806,6 +824,7 @@ class RootSweep {
   SweepOutput& output_;
   const int size_;
   std::uint64_t* const cells_;
+  std::size_t published_ = 0;  ///< the first unwritten row as the cells last said
   SweepOutcome outcome_;
   Scheduler scheduler_;
   OrderedWriter writer_;
@@ -820,7 +839,7 @@ class RootSweep {
 };
 
 /// A rank other than 0. `cells`: the shared cells (it takes its own chunks), or null (it asks
-/// rank 0 for them); `kept`: one byte per row, 1 for a row kept from a resumed file (empty: none).
+/// rank 0 for them); `kept`: the rows kept from a resumed file, as bits (empty: none).
 SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::string& kept) {
   SweepOutcome outcome;
   outcome.count = rows.count;
@@ -828,8 +847,10 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
   ComputeTeam team(rows, rows.threads);
   PollInterval poll(false, 4000);
   Scheduler scheduler(
-      rows.count, reorder_window(rows, rows.threads * ranks()), rows.threads * ranks(),
-      [&kept](std::size_t i) { return !kept.empty() && kept[i] != 0; },
+      rows.count,
+      cells ? static_cast<std::size_t>(shared_cell(cells, cell_window).load())
+            : reorder_window(rows, rows.threads * ranks()),
+      rows.threads * ranks(), [&kept](std::size_t i) { return kept_bit(kept, i); },
       cells ? &cells[cell_next] : nullptr);
   bool requested = false, exhausted = false, stopping = false, told = false;
   bool finished_sent = false, done = false;
@@ -883,12 +904,13 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
       told = true;
       stop(rows.grace_seconds);
     }
+    if (!stopping && cells && shared_cell(cells, cell_closed).load() != 0)
+      stop(rows.grace_seconds);  // rank 0 closed the sweep (its tag_stop follows)
     if (!stopping && cells) {  // take chunks from the shared cells
       exhausted = exhausted || scheduler.exhausted();
       if (exhausted) team.close();
       for (std::size_t k = exhausted ? 0 : team.wanted(); k > 0; --k) {
-        const std::size_t unwritten =
-            std::atomic_ref<std::uint64_t>(cells[cell_unwritten]).load();
+        const std::size_t unwritten = shared_cell(cells, cell_unwritten).load();
         const std::optional<Range> chunk = scheduler.next(unwritten);
         if (!chunk) break;
         team.add(*chunk);
@@ -934,14 +956,24 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
 
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
-  // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs to
-  // know the kept rows (one byte per row; empty when there are none).
+  // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs
+  // rank 0's window and the kept rows (bits; empty when there are none). The broadcast also
+  // orders rank 0's store of the window before the other ranks' first look.
   std::uint64_t* const cells = open_shared_cells(cell_count);
+  // Closes the cells on every rank when an exception leaves the sweep everywhere (e.g. a
+  // message too long for MPI); the normal ends close them earlier (closing twice does nothing).
+  struct CloseCells {
+    ~CloseCells() { close_shared_cells(); }
+  } close_cells;
   std::string kept;
   if (cells) {
-    if (is_root() && output->kept_count() > 0) {
-      kept.assign(rows.count, '\0');
-      for (std::size_t i = 0; i < rows.count; ++i) kept[i] = output->kept(i) ? 1 : 0;
+    if (is_root()) {
+      shared_cell(cells, cell_window).store(reorder_window(rows, rows.threads * ranks()));
+      if (output->kept_count() > 0) {
+        kept.assign((rows.count + 7) / 8, '\0');
+        for (std::size_t i = 0; i < rows.count; ++i)
+          if (output->kept(i)) kept[i / 8] = static_cast<char>(kept[i / 8] | (1 << (i % 8)));
+      }
     }
     kept = broadcast_from_root(std::move(kept));
   }
