@@ -11,6 +11,7 @@ set -u
 pendavg=${1:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
 mpiexec=${2:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
 python=/usr/bin/python3
+here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 passed=0
@@ -126,14 +127,7 @@ fi
 # rows (PENDAVG_SWEEP_WINDOW_ROWS: rows wait for the window to move); the ranks other than 0
 # compute rows; every run ends (a bound of 120 s: a liveness check, not a timing).
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null
-"$python" - "$work/cases38.csv" "$work/holes.csv" <<'PY'
-import sys
-lines = open(sys.argv[1]).read().splitlines(keepends=True)
-head = [l for l in lines if l.startswith("#")]
-body = [l for l in lines if not l.startswith("#")]
-rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-2]
-open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
-PY
+"$python" "$here/punch_holes.py" "$work/cases38.csv" "$work/holes.csv"
 for shared in 1 0; do
   expected=$([ "$shared" = 1 ] && echo shared_memory || echo rank_0)
   for ranks in 2 3; do

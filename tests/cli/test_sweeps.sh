@@ -11,6 +11,7 @@ set -u
 
 pendavg=${1:?usage: test_sweeps.sh PATH/TO/pendavg}
 python=/usr/bin/python3
+here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 passed=0
@@ -263,14 +264,7 @@ check "table killed after $delay s (interrupted: $interrupted) and resumed = uni
   cmp -s "$work/resumed.csv" "$work/reference.csv"
 check "resume: no temporary" no_temporaries
 # Rows missing anywhere (here every third, and the last ones) are computed again in place.
-"$python" - "$work/reference.csv" "$work/holes.csv" <<'PY'
-import sys
-lines = open(sys.argv[1]).read().splitlines(keepends=True)
-head = [l for l in lines if l.startswith("#")]
-body = [l for l in lines if not l.startswith("#")]
-rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-5]
-open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
-PY
+"$python" "$here/punch_holes.py" "$work/reference.csv" "$work/holes.csv" 5
 run "${sweep[@]}" --resume "$work/holes.csv"
 check "table with missing rows resumed = uninterrupted" cmp -s "$work/holes.csv" "$work/reference.csv"
 run "${sweep[@]}" --resume "$work/holes.csv"
@@ -289,16 +283,7 @@ check "failed resumes leave the file" cmp -s "$work/other.csv" "$work/reference.
 
 # Microcanonical sweeps (issue 15) share the engine: a table at fixed excitation and cases with
 # an energy column, rows missing anywhere, resumed = uninterrupted.
-punch_holes() { # FILE OUT: every third row and the last 2 left out, an interrupted line
-  "$python" - "$1" "$2" <<'PY'
-import sys
-lines = open(sys.argv[1]).read().splitlines(keepends=True)
-head = [l for l in lines if l.startswith("#")]
-body = [l for l in lines if not l.startswith("#")]
-rows = [r for k, r in enumerate(body[1:]) if k % 3 != 1][:-2]
-open(sys.argv[2], "w").write("".join(head + body[:1] + rows) + "# interrupted: x\n")
-PY
-}
+punch_holes() { "$python" "$here/punch_holes.py" "$1" "$2"; }  # FILE OUT (punch_holes.py)
 micro_sweep=(table --excitation log:1e-9:1:10 --g 1,9.81 --chain 3)
 "$pendavg" "${micro_sweep[@]}" --output "$work/micro_reference.csv" 2>/dev/null
 punch_holes "$work/micro_reference.csv" "$work/micro_holes.csv"
