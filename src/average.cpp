@@ -449,7 +449,7 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
 /// checks before the work are meant to make this unreachable; if an engine still meets a case
 /// they miss, the caller gets one clear error instead of a NaN (never converged = true with it).
 template <class Real>
-const Averages<Real>& finite_or_thrown(const Averages<Real>& a, const char* command) {
+void check_finite(const Averages<Real>& a, const char* command) {
   using std::isfinite;
   const auto bad = [](const Estimate<Real>& e) { return !isfinite(e.value) || !isfinite(e.error); };
   const char* which = nullptr;
@@ -464,7 +464,6 @@ const Averages<Real>& finite_or_thrown(const Averages<Real>& a, const char* comm
     throw invalid_input(std::string(command) + ": " + method_name(a.method) +
                         " produced a non-finite " + which + " for this input, outside its domain "
                         "(try more --digits or another --method, and please report it)");
-  return a;
 }
 
 template <class Real>
@@ -473,13 +472,17 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
   const AverageMethod method = resolve_average_method(chain.size(), options);
   check_digits<Real>(options.digits);
   check_beta(beta);
+  // The engine's result is checked in place and returned as is (no copy of its vectors).
   if constexpr (is_mpfr_v<Real>) {
     const working_precision precision(options.digits + guard_digits);
-    return finite_or_thrown(run_average(at_working_precision(chain), at_working_precision(beta),
-                                        options, method, workspace),
-                            "average");
+    Averages<Real> out = run_average(at_working_precision(chain), at_working_precision(beta),
+                                     options, method, workspace);
+    check_finite(out, "average");
+    return out;
   } else {
-    return finite_or_thrown(run_average(chain, beta, options, method, workspace), "average");
+    Averages<Real> out = run_average(chain, beta, options, method, workspace);
+    check_finite(out, "average");
+    return out;
   }
 }
 

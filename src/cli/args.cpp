@@ -22,8 +22,6 @@ bool digits_advice = true;  // set_digits_advice
 
 void set_digits_advice(bool command_takes_digits) { digits_advice = command_takes_digits; }
 
-namespace {
-
 std::string in_quotes(std::string_view text) {
   std::string quoted;  // appended piecewise: "'" + std::string(text) trips GCC 12's -Wrestrict
   quoted.reserve(text.size() + 2);
@@ -32,6 +30,8 @@ std::string in_quotes(std::string_view text) {
   quoted += '\'';
   return quoted;
 }
+
+namespace {
 
 /// Length of the leading run of decimal digits of `text`.
 std::size_t digit_run(std::string_view text) {

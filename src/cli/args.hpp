@@ -23,6 +23,9 @@ class usage_error : public invalid_input {
   using invalid_input::invalid_input;
 };
 
+/// 'text', for messages.
+std::string in_quotes(std::string_view text);
+
 /// The options of one command, `--name value` or `--name=value`, each given at most once, and
 /// flags, `--name` alone (no value).
 class Options {

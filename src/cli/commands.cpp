@@ -9,6 +9,7 @@
 #include "files.hpp"
 #include "format.hpp"
 #include "average_options.hpp"
+#include "case_columns.hpp"
 #include "interrupt.hpp"
 #include "simulate.hpp"
 #include "sweep.hpp"
@@ -50,7 +51,7 @@ constexpr std::string_view general_usage =
     "usage:\n"
     "  pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [options]\n"
     "  pendavg average --masses ... --lengths ... (--energy E | --excitation D) [options]\n"
-    "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options] [--timing]\n"
+    "  pendavg average --cases FILE.csv [--digits D] [--method M] [method options] [--columns LIST] [--timing]\n"
     "  pendavg limit   --masses M1,M2 [--lengths L1,L2] [--g G] [--digits D] [--format F]\n"
     "  pendavg series  --masses M1,M2 --lengths L1,L2 [--g G] --beta B [--terms N] [options]\n"
     "  pendavg table   --beta SPEC [--mu1 SPEC] [--l2 SPEC] [--g SPEC] ... [--chain LIST] [--digits LIST] [--output FILE.csv]\n"
@@ -104,7 +105,10 @@ constexpr std::string_view average_usage =
     "converged, then cos_phi_error_kind, var_K_error_kind (what those errors promise: a series\n"
     "row's beta_K error is a bound, its cos_phi and var_K errors estimates), work_unit,\n"
     "equipartition_residual, beta_Kc1..N, beta_Kc_error1..N, beta_Kc_error_kind. Every row is\n"
-    "checked before the first is computed. Rows run on all cores (and,\n"
+    "checked before the first is computed. --columns LIST prints only the listed output\n"
+    "columns, in that order, after the input columns: names as above, or a per-particle stem\n"
+    "(cos_phi: cos_phi1..N), e.g. --columns beta_K,error_K,ratio (smaller files, faster\n"
+    "rows; --resume needs the same LIST). Rows run on all cores (and,\n"
     "under mpirun/srun with pendavg built with MPI, on all ranks); the output does not depend\n"
     "on the thread or rank count. Rows are streamed in file order as they finish.\n"
     "--output FILE writes the CSV atomically to FILE, after '#' lines naming the cases (by a\n"
@@ -115,8 +119,9 @@ constexpr std::string_view average_usage =
     "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
     "is the same for any number of ranks.\n"
     "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
-    "and worst thread CPU time per row in microseconds (from parsing the row to its formatted\n"
-    "output line; the timer's own cost, timer_us, is measured and subtracted), the worst row\n"
+    "and worst thread CPU time per row in microseconds (the row's computation and formatted\n"
+    "output line, and parsing it unless the check before the run kept its numbers, as it does\n"
+    "for double rows; the timer's own cost, timer_us, is measured and subtracted), the worst row\n"
     "(0-based data row and file line) and the thread count:\n"
     "  pendavg: timing: rows=R median_us=X p90_us=Y worst_us=Z worst_row=I worst_line=L\n"
     "  threads=T timer_us=U (...)\n"
@@ -638,11 +643,12 @@ std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_
   return header;
 }
 
-/// One row of `average --cases` with an energy or excitation column (microcanonical_case_columns
-/// after the input fields as written), appended to `line`.
+/// One row of `average --cases` with an energy or excitation column (the input fields as
+/// written, then the `chosen` positions of microcanonical_case_columns), appended to `line`.
 template <class Real>
 void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow& row,
-                         const std::vector<std::string>& columns, const MicrocanonicalOptions& micro,
+                         const std::vector<std::string>& columns,
+                         std::span<const std::size_t> chosen, const MicrocanonicalOptions& micro,
                          int digits) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
@@ -673,7 +679,9 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
   out.push_back(file.state == "energy" ? v.excitation : v.energy);
   out.insert(out.end(), {v.kinetic_total, v.kinetic_total_error, v.density_of_states,
                          v.density_of_states_error, v.work_unit});
-  append_csv_line(line, out);
+  std::vector<std::string> selected(fields.begin(), fields.end());  // the input, then --columns'
+  for (const std::size_t k : chosen) selected.push_back(std::move(out[fields.size() + k]));
+  append_csv_line(line, selected);
 }
 
 /// Checks one microcanonical cases row (fields, numbers at the working precision, the chain, the
@@ -715,7 +723,8 @@ struct CaseScratch {
   std::vector<std::string_view> fields;  ///< the row's fields in canonical order
   std::vector<Real> masses, lengths;
   AverageWorkspace<Real> workspace;
-  std::string variance_errors;  ///< a row's Var K_i errors, written after its values
+  std::string variance_text;  ///< a row's Var K_i and errors, "value,error" per particle
+  std::vector<std::size_t> variance_at;  ///< where each starts, its comma, then the end
 };
 
 /// Longest output line of a cases row: the row's text and a comma per field (at most one per
@@ -730,8 +739,9 @@ std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digit
 /// `p` (room for case_line_bound characters); returns its end.
 template <class Real>
 char* write_case(char* p, const CasesFile& file, const CaseRow& row,
-                 const std::vector<std::string>& columns, const AverageOptions& options,
-                 CaseScratch<Real>& scratch, std::span<const double> checked = {}) {
+                 const std::vector<std::string>& columns, std::span<const CaseColumn> output,
+                 const AverageOptions& options, CaseScratch<Real>& scratch,
+                 std::span<const double> checked = {}) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
   auto& fields = scratch.fields;
@@ -759,64 +769,83 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
     std::memcpy(p, text.data(), text.size());
     p += text.size();
   };
-  const auto number = [&](const Real& value, int significant) {
-    p = write_decimal(p, value, significant);
-    *p++ = ',';
-  };
-  const auto error = [&](const Estimate<Real>& e) {
-    number(printed_error(e.value, e.error, digits), error_digits);
-  };
   for (const std::string_view field : fields) {
     put(field);
     *p++ = ',';
   }
-  for (const Estimate<Real>& k : averages.beta_kinetic) number(k.value, digits);
-  for (const Estimate<Real>& k : averages.beta_kinetic) error(k);
-  if (averages.ratio) p = write_decimal(p, averages.ratio->value, digits);
-  *p++ = ',';
-  for (const Estimate<Real>& c : averages.cos_angle) number(c.value, digits);
-  put(method_name(averages.method));
-  *p++ = ',';
-  p = std::to_chars(p, p + 24, averages.evaluations).ptr;
-  *p++ = ',';
-  if (averages.ratio) p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits), error_digits);
-  *p++ = ',';
-  for (const Estimate<Real>& c : averages.cos_angle) error(c);
-  // Var K_i = beta^2 Var K_i / beta^2, printed as averages_text prints it (write_quotient), so
-  // that these columns equal table's and `average`'s: the values here, their errors after them.
-  const quotient_t<Real> beta2 = quotient_t<Real>(beta) * quotient_t<Real>(beta);
-  std::string& errors = scratch.variance_errors;
-  errors.resize(n * (decimal_max_length(error_digits) + 1));
-  char* e = errors.data();
-  for (const Estimate<Real>& v : averages.beta2_kinetic_variance) {
-    char* const start = p;
-    p = write_quotient(p, v.value, v.error, beta2, digits, ',');
-    const char* comma = std::find(start, p, ',');
-    e = std::copy(comma + 1, static_cast<const char*>(p), e);
-    *e++ = ',';
-    p = const_cast<char*>(comma) + 1;
-  }
-  put(std::string_view(errors.data(), static_cast<std::size_t>(e - errors.data())));
-  put(error_kind_name(averages.error_kind));
-  *p++ = ',';
-  put(averages.converged ? "true" : "false");
-  *p++ = ',';
-  // Added after the original columns: the kinds of the other errors, the work unit, the
-  // equipartition residual and beta<K_i^(c)> with its errors.
+  // An observable of particle i (an engine that left it out leaves the field empty).
+  const auto value = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
+    if (i < estimates.size()) p = write_decimal(p, estimates[i].value, digits);
+  };
+  const auto error = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
+    if (i < estimates.size())
+      p = write_decimal(p, printed_error(estimates[i].value, estimates[i].error, digits),
+                        error_digits);
+  };
   const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
     return error_kind_name(estimates.empty() ? averages.error_kind : estimates.front().kind);
   };
-  put(kind_of(averages.cos_angle));
-  *p++ = ',';
-  put(kind_of(averages.beta2_kinetic_variance));
-  *p++ = ',';
-  put(work_unit_name(averages.work_unit));
-  *p++ = ',';
-  number(averages.equipartition_residual, error_digits);
-  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) number(c.value, digits);
-  for (const Estimate<Real>& c : averages.beta_kinetic_canonical) error(c);
-  put(kind_of(averages.beta_kinetic_canonical));
-  *p++ = '\n';
+  // Var K_i = beta^2 Var K_i / beta^2 and its error, printed as averages_text prints them
+  // (write_quotient), so that these columns equal table's and `average`'s: formed once a row,
+  // at the first of its columns, as "value,error" for each particle.
+  std::string& variance_text = scratch.variance_text;
+  std::vector<std::size_t>& variance_at = scratch.variance_at;  // start, comma of particle i
+  variance_at.clear();
+  const auto variance = [&](std::size_t i, bool of_error) {
+    if (variance_at.empty()) {
+      const quotient_t<Real> beta2 = quotient_t<Real>(beta) * quotient_t<Real>(beta);
+      variance_text.resize(n * 2 * (decimal_max_length(digits) + 1));
+      char* v = variance_text.data();
+      for (const Estimate<Real>& e : averages.beta2_kinetic_variance) {
+        char* const first = v;
+        v = write_quotient(v, e.value, e.error, beta2, digits, ',');
+        variance_at.push_back(static_cast<std::size_t>(first - variance_text.data()));
+        variance_at.push_back(
+            static_cast<std::size_t>(std::find(first, v, ',') - variance_text.data()));
+      }
+      variance_at.push_back(static_cast<std::size_t>(v - variance_text.data()));
+    }
+    if (2 * i + 2 >= variance_at.size()) return;
+    const std::size_t begin = of_error ? variance_at[2 * i + 1] + 1 : variance_at[2 * i];
+    const std::size_t end = of_error ? variance_at[2 * i + 2] : variance_at[2 * i + 1];
+    put(std::string_view(variance_text.data() + begin, end - begin));
+  };
+  for (const CaseColumn& column : output) {
+    const std::size_t i = column.particle;
+    switch (column.field) {
+      case CaseField::beta_kinetic: value(averages.beta_kinetic, i); break;
+      case CaseField::beta_kinetic_error: error(averages.beta_kinetic, i); break;
+      case CaseField::ratio:
+        if (averages.ratio) p = write_decimal(p, averages.ratio->value, digits);
+        break;
+      case CaseField::cos_angle: value(averages.cos_angle, i); break;
+      case CaseField::method: put(method_name(averages.method)); break;
+      case CaseField::evaluations: p = std::to_chars(p, p + 24, averages.evaluations).ptr; break;
+      case CaseField::ratio_error:
+        if (averages.ratio)
+          p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits),
+                            error_digits);
+        break;
+      case CaseField::cos_angle_error: error(averages.cos_angle, i); break;
+      case CaseField::variance: variance(i, false); break;
+      case CaseField::variance_error: variance(i, true); break;
+      case CaseField::error_kind: put(error_kind_name(averages.error_kind)); break;
+      case CaseField::converged: put(averages.converged ? "true" : "false"); break;
+      case CaseField::cos_angle_error_kind: put(kind_of(averages.cos_angle)); break;
+      case CaseField::variance_error_kind: put(kind_of(averages.beta2_kinetic_variance)); break;
+      case CaseField::work_unit: put(work_unit_name(averages.work_unit)); break;
+      case CaseField::equipartition_residual:
+        p = write_decimal(p, averages.equipartition_residual, error_digits);
+        break;
+      case CaseField::kinetic_canonical: value(averages.beta_kinetic_canonical, i); break;
+      case CaseField::kinetic_canonical_error: error(averages.beta_kinetic_canonical, i); break;
+      case CaseField::kinetic_canonical_error_kind:
+        put(kind_of(averages.beta_kinetic_canonical));
+        break;
+    }
+    *p++ = ',';
+  }
+  p[-1] = '\n';
   return p;
 }
 
@@ -865,7 +894,7 @@ void report_case_timing(const std::vector<double>& row_us, const CasesFile& file
   std::fprintf(stderr,
                "pendavg: timing: rows=%zu median_us=%.3f p90_us=%.3f worst_us=%.3f "
                "worst_row=%zu worst_line=%zu threads=%d timer_us=%.3f (thread CPU time per row, "
-               "parsing to formatted line, timer overhead subtracted)\n",
+               "row to formatted line, timer overhead subtracted)\n",
                count, median, rank(0.9), sorted.back(), worst, file.rows[worst].line, threads,
                timer_us);
 }
@@ -897,6 +926,7 @@ void check_case(const CasesFile& file, const CaseRow& row, const std::vector<std
 
 /// Where --cases writes, and what it keeps from an earlier run.
 struct CasesOutput {
+  std::optional<std::string> columns;  ///< --columns (none: every output column)
   std::string path;       ///< --output or --resume (empty: stdout)
   std::string resume;     ///< --resume
   std::string timing_rows;  ///< --timing-rows
@@ -933,10 +963,10 @@ CasesPlan plan_cases(const CasesFile& file, const AverageOptions& settings, int 
 
 /// Step 2, format: with --output, the '#' lines that say what made the file (and that --resume
 /// checks): the cases (by content), digits, method and its options, version; then the column
-/// line.
+/// line (the input columns, then `output_names`).
 std::string cases_header(const CasesFile& file, const std::string& path,
                          const AverageOptions& settings, const std::vector<std::string>& columns,
-                         bool provenance) {
+                         const std::vector<std::string>& output_names, bool provenance) {
   const std::size_t n = file.particles;
   std::string header;
   if (provenance) {
@@ -954,28 +984,8 @@ std::string cases_header(const CasesFile& file, const std::string& path,
   }
   append_csv_line(header, columns);
   header.pop_back();
-  const auto add_names = [&](std::string_view stem) {
-    for (const std::string& name : indexed_names(stem, n)) (header += ',') += name;
-  };
-  if (file.state != "beta") {
-    for (const std::string& name : microcanonical_case_columns(n, file.state))
-      (header += ',') += name;
-    header += '\n';
-    return header;
-  }
-  add_names("beta_K");
-  add_names("error_K");
-  header += ",ratio";
-  add_names("cos_phi");
-  header += ",method,evaluations,ratio_error";
-  add_names("cos_phi_error");
-  add_names("var_K");
-  add_names("var_K_error");
-  header += ",error_kind,converged,cos_phi_error_kind,var_K_error_kind,work_unit,"
-            "equipartition_residual";
-  add_names("beta_Kc");
-  add_names("beta_Kc_error");
-  header += ",beta_Kc_error_kind\n";
+  for (const std::string& name : output_names) (header += ',') += name;
+  header += '\n';
   return header;
 }
 
@@ -1037,6 +1047,24 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const int digits = settings.digits;
   const int threads = hardware_threads();
   const CasesPlan plan = plan_cases(file, settings, threads);
+  // The output columns after the input ones: all of them, or --columns' choice.
+  const std::vector<std::string> all_names =
+      plan.microcanonical ? microcanonical_case_columns(n, file.state)
+                          : canonical_case_column_names(n);
+  std::vector<std::size_t> chosen;
+  if (where.columns) {
+    chosen = select_case_columns(*where.columns, all_names, n);
+  } else {
+    chosen.resize(all_names.size());
+    for (std::size_t k = 0; k < chosen.size(); ++k) chosen[k] = k;
+  }
+  std::vector<std::string> output_names;
+  for (const std::size_t k : chosen) output_names.push_back(all_names[k]);
+  std::vector<CaseColumn> printed;
+  if (!plan.microcanonical) {
+    const std::vector<CaseColumn> all = canonical_case_columns(n);
+    for (const std::size_t k : chosen) printed.push_back(all[k]);
+  }
 
   const auto line_context = [&](std::size_t k) {
     return path + " line " + std::to_string(rows[k].line) + ": ";
@@ -1070,7 +1098,8 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
     check(bad, 0);  // throws the first bad row's error, on every rank
 
-  const std::string header = cases_header(file, path, settings, columns, !where.path.empty());
+  const std::string header =
+      cases_header(file, path, settings, columns, output_names, !where.path.empty());
   std::optional<ResumedRows> resumed;
   open_cases_outputs(file, columns, header, where, resumed);
 
@@ -1095,13 +1124,13 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                                                      decimal_max_length(digits) + 1);
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
     if (plan.microcanonical) {
-      microcanonical_case<Real>(text, file, rows[k], columns, plan.micro, digits);
+      microcanonical_case<Real>(text, file, rows[k], columns, chosen, plan.micro, digits);
       return;
     }
     const std::size_t start = text.size();
     text.resize(start + case_line_bound(rows[k], n, digits));
-    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, plan.options,
-                                 scratch_of(thread),
+    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, printed,
+                                 plan.options, scratch_of(thread),
                                  checked ? checked->row_if_stored(k) : std::span<const double>{});
     text.resize(static_cast<std::size_t>(end - text.data()));
   };
@@ -1127,7 +1156,8 @@ std::string average_cases(const CasesFile& file, const std::string& path,
 std::string average_command(const Options& options) {
   const AverageOptions settings = average_settings(options);
   if (!options.has("cases")) {
-    for (const std::string_view cases_only : {"timing", "timing-rows", "output", "resume"})
+    for (const std::string_view cases_only :
+         {"timing", "timing-rows", "output", "resume", "columns"})
       if (options.has(cases_only))
         throw usage_error("average: --" + std::string(cases_only) + " is for --cases only");
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
@@ -1149,6 +1179,7 @@ std::string average_command(const Options& options) {
   const std::string path(options.required("cases"));
   CasesOutput where;
   where.timing_rows = std::string(options.get("timing-rows", ""));
+  if (options.has("columns")) where.columns = std::string(options.get("columns", ""));
   where.resume = std::string(options.get("resume", ""));
   where.path = std::string(options.get("output", ""));
   for (const std::string_view name : {"timing-rows", "output", "resume"})
@@ -1402,10 +1433,10 @@ struct Command {
   bool distributed = false;  ///< runs on every MPI rank; the others run on rank 0 alone
 };
 
-constexpr std::array<std::string_view, 17> average_options{
+constexpr std::array<std::string_view, 18> average_options{
     "masses", "lengths", "g",      "beta",   "digits",      "method", "format",
     "cases",  "tol",     "samples", "shifts", "seed",       "timing-rows", "output",
-    "resume", "energy",  "excitation"};
+    "resume", "energy",  "excitation", "columns"};
 constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};

@@ -4,8 +4,9 @@
 #
 #  1. whole runs (hyperfine, or a `date` loop): median seconds per run and the mean us per row
 #     (everything included: reading, all rows on all cores, writing);
-#  2. per row (`--timing-rows`): each row's thread CPU time from parsing it to its formatted
-#     output line, the timer's own cost subtracted (see `pendavg average --help`). Printed per
+#  2. per row (`--timing-rows`): each row's thread CPU time to its formatted output line (a
+#     double row's numbers are parsed by the check before the run), the timer's own cost
+#     subtracted (see `pendavg average --help`). Printed per
 #     run as pendavg's summary (rows: median, p90, worst), and per parameter set: the median
 #     over a case's replicas, then the median, p90 and worst over the 1000 cases -- the
 #     statistics of BM_double_case_distribution. Worst single rows are mostly noise (interrupts,
@@ -20,6 +21,8 @@
 #                           build tree)
 # Environment: PENDAVG_BENCH_RUNS (default 5), PENDAVG_BENCH_REPLICATE (default 100),
 #              PENDAVG_BENCH_DIGITS (default 16, passed as --digits),
+#              PENDAVG_BENCH_COLUMNS (passed as --columns: e.g. beta_K,error_K,ratio,cos_phi,
+#              method,evaluations, the columns of 9ae1382; default: every column),
 #              PENDAVG_BENCH_NO_HYPERFINE=1 (use the date loop even when hyperfine is installed),
 #              PENDAVG_BENCH_TIMING_RUNS (default 3; 0 skips the per-row timing),
 #              PENDAVG_BENCH_TIMING_THREADS (default 1: OMP_NUM_THREADS of the timing runs),
@@ -58,6 +61,7 @@ count=$((rows / replicate))
 echo "cases file: $rows rows ($count cases x $replicate, $layout)" >&2
 
 cmd=("$pendavg" average --cases "$cases" --digits "$digits")
+if [ -n "${PENDAVG_BENCH_COLUMNS:-}" ]; then cmd+=(--columns "$PENDAVG_BENCH_COLUMNS"); fi
 
 # One checked run first: the command must succeed and print one line per row plus a header.
 "${cmd[@]}" >"$work/out.csv"

@@ -217,11 +217,50 @@ PY
 if check_cases_as_average 16; then pass; else fail "cases columns = average --format csv (double)"; fi
 if check_cases_as_average 25; then pass; else fail "cases columns = average --format csv (MPFR)"; fi
 
+# --columns LIST: the listed output columns (names or per-particle stems), in that order, each
+# with the same text as in the full output; the input columns stay in front. Bad lists exit 2.
+check_columns() { # DIGITS LIST EXPECTED-NAMES(comma separated)
+  "$pendavg" average --cases "$work/cases.csv" --digits "$1" >"$work/cols_all.csv" 2>/dev/null &&
+    "$pendavg" average --cases "$work/cases.csv" --digits "$1" --columns "$2" >"$work/cols_some.csv" 2>/dev/null &&
+    "$python" - "$work/cols_all.csv" "$work/cols_some.csv" "$3" <<'PY'
+import csv, sys
+full = list(csv.reader(open(sys.argv[1])))
+some = list(csv.reader(open(sys.argv[2])))
+expected = ["beta", "g", "m1", "m2", "l1", "l2"] + sys.argv[3].split(",")
+assert some[0] == expected, (some[0], expected)
+assert len(some) == len(full) == 4
+for a, b in zip(full[1:], some[1:]):
+    row = dict(zip(full[0], a))
+    assert b == [row[name] for name in expected], (a, b)
+PY
+}
+check_columns 16 beta_K,error_K,ratio,cos_phi,method,evaluations \
+  beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations &&
+  pass || fail "cases --columns: the original seven numbers"
+check_columns 16 var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 \
+  var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 &&
+  pass || fail "cases --columns: any order, variance errors before values"
+check_columns 25 cos_phi_error,ratio_error,equipartition_residual,work_unit \
+  cos_phi_error1,cos_phi_error2,ratio_error,equipartition_residual,work_unit &&
+  pass || fail "cases --columns at 25 digits"
+bad "cases --columns unknown"          average --cases "$work/cases.csv" --columns beta_K,foo
+grep -q "unknown column 'foo'" "$work/err" && pass || fail "cases --columns unknown: message"
+bad "cases --columns twice selected"   average --cases "$work/cases.csv" --columns cos_phi,cos_phi2
+bad "cases --columns empty"            average --cases "$work/cases.csv" --columns ""
+bad "cases --columns empty item"       average --cases "$work/cases.csv" --columns beta_K,,ratio
+bad "cases --columns beyond N"         average --cases "$work/cases.csv" --columns beta_K3
+bad "cases --columns input column"     average --cases "$work/cases.csv" --columns beta
+bad "--columns without --cases"        average "${pendulum[@]}" --beta 1 --columns beta_K
+printf 'excitation,g,m1,m2,l1,l2\n1,1,1,1,1,1\n' >"$work/micro_cases.csv"
+good "cases --columns, microcanonical" \
+  '[ "$(head -1 "$work/out")" = "excitation,g,m1,m2,l1,l2,K2,density_of_states,energy" ] && [ "$(tail -1 "$work/out" | tr , "\n" | wc -l)" -eq 9 ]' \
+  average --cases "$work/micro_cases.csv" --columns K2,density_of_states,energy
+
 # --cases --timing: stdout unchanged, one summary line on stderr (its presence and format, not
 # its numbers); --timing-rows FILE: one CSV line per row with its file line. Bad uses exit 2.
 run average --cases "$work/cases.csv"
 cp "$work/out" "$work/cases_out.csv"
-timing_line='^pendavg: timing: rows=3 median_us=[0-9]+\.[0-9]{3} p90_us=[0-9]+\.[0-9]{3} worst_us=[0-9]+\.[0-9]{3} worst_row=[0-2] worst_line=(4|5|7) threads=[1-9][0-9]* timer_us=[0-9]+\.[0-9]{3} \(thread CPU time per row, parsing to formatted line, timer overhead subtracted\)$'
+timing_line='^pendavg: timing: rows=3 median_us=[0-9]+\.[0-9]{3} p90_us=[0-9]+\.[0-9]{3} worst_us=[0-9]+\.[0-9]{3} worst_row=[0-2] worst_line=(4|5|7) threads=[1-9][0-9]* timer_us=[0-9]+\.[0-9]{3} \(thread CPU time per row, row to formatted line, timer overhead subtracted\)$'
 check_timing() { # ARGS...: stdout as in $work/cases_out.csv, stderr one summary line
   run average --cases "$work/cases.csv" "$@"
   [ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/cases_out.csv" &&

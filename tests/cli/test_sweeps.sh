@@ -328,6 +328,17 @@ check "cases at 250 digits: glibc's default memory set-up gives the same rows" \
 PENDAVG_MALLOC=default "$pendavg" average --cases "$work/cases300.csv" >"$work/cases_malloc.csv" 2>/dev/null
 check "cases in double: glibc's default memory set-up gives the same rows" \
   cmp -s "$work/cases_malloc.csv" "$work/cases_double.csv"
+# --columns: a resumed file keeps its columns (resumed = uninterrupted); other columns are refused.
+columns=(average --cases "$work/cases300.csv" --columns ratio,var_K_error,beta_K1)
+"$pendavg" "${columns[@]}" --output "$work/columns_reference.csv" 2>/dev/null
+punch_holes "$work/columns_reference.csv" "$work/columns_holes.csv"
+run "${columns[@]}" --resume "$work/columns_holes.csv"
+check "cases --columns with missing rows resumed = uninterrupted" \
+  cmp -s "$work/columns_holes.csv" "$work/columns_reference.csv"
+bad "cases resume with other --columns" average --cases "$work/cases300.csv" --columns ratio \
+  --resume "$work/columns_reference.csv"
+bad "cases resume without its --columns" average --cases "$work/cases300.csv" \
+  --resume "$work/columns_reference.csv"
 delay=$("$python" -c 'import random; print(round(random.uniform(0.2, 0.8), 2))')
 start_then_signal "$delay" INT average --cases "$work/cases300.csv" --digits 250 --output "$work/cases_resumed.csv"
 run average --cases "$work/cases300.csv" --digits 250 --resume "$work/cases_resumed.csv"
