@@ -17,8 +17,19 @@ constexpr int exit_internal_error = 1;
 constexpr int exit_interrupted = 130;  // 128 + SIGINT, as a shell reports it
 
 int report(std::string_view kind, std::string message, int exit_code) {
-  if (!is_root()) return exit_code;  // every rank meets the same bad input; rank 0 says it
   std::ranges::replace(message, '\n', ' ');  // one line, whatever the message
+  const FailureReach reach = failure_reach();
+  if (reach == FailureReach::others_went_on) {  // this rank says it and stops the others
+    std::fprintf(stderr, "pendavg: %.*s: %s (rank %d alone; stopping the job)\n",
+                 static_cast<int>(kind.size()), kind.data(), message.c_str(), rank());
+    abort_job(exit_code);
+  }
+  if (reach == FailureReach::not_every_rank && !is_root()) {  // a failure of its own to report
+    std::fprintf(stderr, "pendavg: %.*s: %s (rank %d)\n", static_cast<int>(kind.size()),
+                 kind.data(), message.c_str(), rank());
+    return exit_code;
+  }
+  if (!is_root()) return exit_code;  // every rank meets the same bad input; rank 0 says it
   std::fprintf(stderr, "pendavg: %.*s: %s\n", static_cast<int>(kind.size()), kind.data(),
                message.c_str());
   return exit_code;

@@ -86,11 +86,24 @@ void close_shared_cells();
 
 /// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
 /// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for
-/// `failure`, on rank 0 only; one line.
+/// `failure`, on rank 0 only; one line. A failure not every rank shares (failure_reach) is
+/// printed by the rank that met it, naming the rank; when the others went on without it, the
+/// whole job stops with the same code (abort_job).
 int report_failure(const std::exception_ptr& failure);
 
 /// Ends the process now with `code`, after flushing stdio and leaving the MPI job: for a run
 /// whose compute threads were left behind (an interrupted sweep with rows still running).
 [[noreturn]] void exit_process(int code);
+
+/// After a failure on this rank, where the others are (every rank calls this or ends normally;
+/// the failed rank waits up to failure_agreement_seconds for them): every rank failed too (the
+/// same bad input reaches every rank; rank 0 reports it), some ended normally (this rank reports
+/// its own failure), or some did not come to their end in time: they went on into the next
+/// collective step, where they would wait for this rank forever.
+enum class FailureReach { every_rank, not_every_rank, others_went_on };
+FailureReach failure_reach();
+inline constexpr double failure_agreement_seconds = 10;
+/// Stops every rank of the job with `code` (MPI_Abort; a plain run just exits).
+[[noreturn]] void abort_job(int code);
 
 }  // namespace pendavg::cli

@@ -5,6 +5,8 @@
 
 #include <mpi.h>
 
+#include <algorithm>
+#include <chrono>
 #include <climits>
 #include <cstdio>
 #include <deque>
@@ -12,6 +14,7 @@
 #include <list>
 #include <stdexcept>
 #include <string_view>
+#include <thread>
 
 namespace pendavg::cli {
 
@@ -20,6 +23,37 @@ namespace {
 bool joined = false;  // MPI_Init_thread was called by us
 MPI_Comm world = MPI_COMM_NULL;
 int my_rank = 0, my_size = 1;
+/// Where the ranks meet at their end (a reduction of its own, never mixed with the commands'
+/// collectives): a rank that failed learns there whether the others failed too.
+MPI_Comm farewell = MPI_COMM_NULL;
+bool met_at_farewell = false;
+int farewell_failed = 0, every_rank_failed = 0;  // the reduction's buffers (MPI_MIN)
+
+/// Arrives at the end of the job (`failed`: this rank ends with a failure) and waits until
+/// every rank has, or (`limit_seconds` >= 0) until that many seconds passed. Polls with short
+/// sleeps: a rank waiting here (for rank 0's computation, say) leaves its core to the others.
+/// Returns whether all met.
+bool meet_at_farewell(bool failed, double limit_seconds) {
+  if (met_at_farewell || farewell == MPI_COMM_NULL) return true;
+  static MPI_Request request = MPI_REQUEST_NULL;
+  if (request == MPI_REQUEST_NULL) {
+    farewell_failed = failed ? 1 : 0;
+    MPI_Iallreduce(&farewell_failed, &every_rank_failed, 1, MPI_INT, MPI_MIN, farewell, &request);
+  }
+  const double start = MPI_Wtime();
+  long pause_us = 50;
+  for (;;) {
+    int done = 0;
+    MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    if (done) {
+      met_at_farewell = true;
+      return true;
+    }
+    if (limit_seconds >= 0 && MPI_Wtime() - start > limit_seconds) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(pause_us));
+    pause_us = std::min(2 * pause_us, 5000L);
+  }
+}
 
 /// Started by an MPI launcher? OpenMPI's mpirun, PMIx (srun --mpi=pmix, prterun), PMI-1/2
 /// (MPICH's hydra, srun --mpi=pmi2).
@@ -105,6 +139,7 @@ ProcessGroup::ProcessGroup(int& argc, char**& argv) {
   }
   joined = true;
   MPI_Comm_dup(MPI_COMM_WORLD, &world);
+  MPI_Comm_dup(MPI_COMM_WORLD, &farewell);
   MPI_Comm_rank(world, &my_rank);
   MPI_Comm_size(world, &my_size);
   if (provided < MPI_THREAD_FUNNELED && my_size > 1) {
@@ -122,6 +157,8 @@ ProcessGroup::~ProcessGroup() {
   if (finalized) return;
   while (sends_pending()) {
   }
+  meet_at_farewell(false, -1);
+  MPI_Comm_free(&farewell);
   MPI_Comm_free(&world);
   MPI_Finalize();
 }
@@ -289,8 +326,19 @@ std::uint64_t* open_shared_cells(int count) {
   if (min_over_ranks(usable) == 0) return nullptr;
   void* base = nullptr;
   const MPI_Aint bytes = my_rank == 0 ? static_cast<MPI_Aint>(count) * 8 : 0;
-  check(MPI_Win_allocate_shared(bytes, 8, MPI_INFO_NULL, world, &base, &shared_window),
-        "MPI_Win_allocate_shared");
+  // An MPI without a shared-memory window (e.g. its osc/sm component missing or excluded, or
+  // no room for the segment) fails here on every rank: then rank 0's messages hand out the
+  // chunks instead (the errors return rather than abort the job for this one call).
+  MPI_Comm_set_errhandler(world, MPI_ERRORS_RETURN);
+  const int allocated =
+      MPI_Win_allocate_shared(bytes, 8, MPI_INFO_NULL, world, &base, &shared_window);
+  MPI_Comm_set_errhandler(world, MPI_ERRORS_ARE_FATAL);
+  if (allocated != MPI_SUCCESS) shared_window = MPI_WIN_NULL;
+  if (min_over_ranks(allocated == MPI_SUCCESS) == 0) {
+    if (shared_window != MPI_WIN_NULL) MPI_Win_free(&shared_window);
+    shared_window = MPI_WIN_NULL;
+    return nullptr;
+  }
   // The cells are read and written with the CPU's atomic instructions: that needs the unified
   // memory model (public and private copies are the same memory), as every rank must agree.
   int* model = nullptr;
@@ -333,9 +381,24 @@ void exit_process(int code) {
     if (!finalized) {
       while (sends_pending()) {
       }
+      meet_at_farewell(false, -1);
       MPI_Finalize();
     }
   }
+  std::_Exit(code);
+}
+
+FailureReach failure_reach() {
+  if (!joined || my_size == 1) return FailureReach::every_rank;
+  if (!meet_at_farewell(true, failure_agreement_seconds)) return FailureReach::others_went_on;
+  return every_rank_failed ? FailureReach::every_rank : FailureReach::not_every_rank;
+}
+
+void abort_job(int code) {
+  std::fflush(stdout);
+  std::fflush(stderr);
+  if (!joined) std::_Exit(code);
+  MPI_Abort(MPI_COMM_WORLD, code);
   std::_Exit(code);
 }
 

@@ -956,6 +956,10 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
 
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
+  // For tests: a failure on one rank alone, just before the sweep's first collective step.
+  if (const char* failing = std::getenv("PENDAVG_TEST_FAIL_ON_RANK");
+      failing && *failing && std::atoi(failing) == rank())
+    throw std::runtime_error("a failure on this rank alone (PENDAVG_TEST_FAIL_ON_RANK)");
   // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs
   // rank 0's window and the kept rows (bits; empty when there are none). The broadcast also
   // orders rank 0's store of the window before the other ranks' first look.

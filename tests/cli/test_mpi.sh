@@ -125,23 +125,32 @@ fi
 # PENDAVG_SWEEP_SHARED=0) they ask rank 0 in messages. Both give the serial file, also when
 # completing a resumed file with holes (every third row missing), with a reorder window of 16
 # rows (PENDAVG_SWEEP_WINDOW_ROWS: rows wait for the window to move); the ranks other than 0
-# compute rows; every run ends (a bound of 120 s: a liveness check, not a timing).
+# compute rows; every run ends (a bound of 120 s: a liveness check, not a timing). An MPI that
+# cannot make a shared-memory window (OpenMPI without its osc/sm component: "nosm") falls back
+# to the messages instead of aborting.
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null
 "$python" "$here/punch_holes.py" "$work/cases38.csv" "$work/holes.csv"
-for shared in 1 0; do
-  expected=$([ "$shared" = 1 ] && echo shared_memory || echo rank_0)
+ways=(1 0)
+if [ "${launcher[*]}" != "$mpiexec" ]; then ways+=(nosm); fi  # OpenMPI's --mca
+for way in "${ways[@]}"; do
+  shared=1 window_options=()
+  case $way in
+    0) shared=0 ;;
+    nosm) window_options=(--mca osc ^sm) ;;
+  esac
+  expected=$([ "$way" = 1 ] && echo shared_memory || echo rank_0)
   for ranks in 2 3; do
     cp "$work/holes.csv" "$work/holes_resumed.csv"
     rm -f "$work/cases_msg.csv"
     for out in cases_msg.csv holes_resumed.csv; do
       if [ "$out" = cases_msg.csv ]; then target=(--output "$work/$out"); else target=(--resume "$work/$out"); fi
       PENDAVG_SWEEP_SHARED=$shared PENDAVG_SWEEP_WINDOW_ROWS=16 PENDAVG_SWEEP_REPORT=1 \
-        timeout 120 "${launcher[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" \
+        timeout 120 "${launcher[@]}" "${window_options[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" \
         --digits 38 "${target[@]}" 2>"$work/err"
       rc=$?
       others=$(sed -n 's/.*per_rank(rows\/chunks\/busy_s)=[0-9]*\/[^ ]* //p' "$work/err" |
                tr ' ' '\n' | awk -F/ '{ s += $1 } END { print s + 0 }')
-      what="$out on $ranks ranks, PENDAVG_SWEEP_SHARED=$shared"
+      what="$out on $ranks ranks, PENDAVG_SWEEP_SHARED=$shared${window_options[*]:+ ${window_options[*]}}"
       if [ "$rc" -ne 0 ]; then
         fail "$what: exit $rc"
       elif ! grep -q "chunks_from=$expected " "$work/err"; then
@@ -165,6 +174,30 @@ if [ "$rc" -eq 0 ] || [ -s "$work/out" ] || [ "$(grep -c '^pendavg: error: ' "$w
 else
   pass
 fi
+
+# A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK: just before the sweep's first
+# collective step, as a failing output on rank 0 would be) must not leave the others waiting
+# for it forever: that rank names itself and stops the job (MPI_Abort) once the others have not
+# ended within 10 s. Both cases at once (they mostly wait); a bound of 90 s: liveness, not timing.
+pids=()
+for failing in 0 1; do
+  PENDAVG_TEST_FAIL_ON_RANK=$failing timeout 90 "${launcher[@]}" -n 2 "$pendavg" average \
+    --cases "$work/cases.csv" --output "$work/alone$failing.csv" \
+    >"$work/alone$failing.out" 2>"$work/alone$failing.err" &
+  pids+=($!)
+done
+for failing in 0 1; do
+  wait "${pids[$failing]}"
+  rc=$?
+  if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] &&
+     grep -q "^pendavg: internal error: .*PENDAVG_TEST_FAIL_ON_RANK) (rank $failing alone; stopping the job)$" \
+       "$work/alone$failing.err" && [ ! -e "$work/alone$failing.csv" ]; then
+    pass
+  else
+    fail "a failure on rank $failing alone: exit $rc, no report naming it, or an output written"
+    sed 's/^/  stderr: /' "$work/alone$failing.err" | head -5
+  fi
+done
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
