@@ -3,6 +3,7 @@
 
 #include "args.hpp"
 
+#include <algorithm>
 #include <unordered_map>
 
 namespace pendavg::cli {
@@ -63,6 +64,7 @@ std::vector<std::string> canonical_case_column_names(std::size_t particles) {
 
 std::vector<std::size_t> select_case_columns(std::string_view list,
                                              const std::vector<std::string>& names,
+                                             const std::vector<std::string>& inputs,
                                              std::size_t particles) {
   const std::string where = "average: --columns: ";
   std::unordered_map<std::string_view, std::size_t> position;
@@ -96,6 +98,9 @@ std::vector<std::size_t> select_case_columns(std::string_view list,
       }
       continue;
     }
+    if (std::find(inputs.begin(), inputs.end(), item) != inputs.end())
+      throw usage_error(where + in_quotes(item) + " is an input column: every row starts with "
+                        "the input columns; --columns chooses among the output columns");
     std::string known;
     for (std::size_t k = 0; k < names.size() && known.size() < 400; ++k) {
       const std::string& name = names[k];

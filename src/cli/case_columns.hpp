@@ -46,9 +46,11 @@ std::vector<std::string> canonical_case_column_names(std::size_t particles);
 /// --columns LIST: the positions in `names` (a row's output columns, as in the header) of the
 /// columns LIST selects, in LIST's order. LIST is comma separated; an item is a column name
 /// (cos_phi2) or a per-particle family's stem (cos_phi: cos_phi1..N). Throws usage_error for an
-/// empty list or item, an unknown name or a column selected twice.
+/// empty list or item, an unknown name, an input column (`inputs`: always printed first) or a
+/// column selected twice.
 std::vector<std::size_t> select_case_columns(std::string_view list,
                                              const std::vector<std::string>& names,
+                                             const std::vector<std::string>& inputs,
                                              std::size_t particles);
 
 }  // namespace pendavg::cli

@@ -70,7 +70,8 @@ constexpr std::string_view average_usage =
     "       pendavg average --masses ... --lengths ... [--g G] (--energy E | --excitation D)\n"
     "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
-    "                       [--output FILE | --resume FILE] [--timing] [--timing-rows FILE]\n"
+    "                       [--columns LIST] [--output FILE | --resume FILE] [--timing]\n"
+    "                       [--timing-rows FILE]\n"
     "\n"
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
@@ -1053,7 +1054,7 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                           : canonical_case_column_names(n);
   std::vector<std::size_t> chosen;
   if (where.columns) {
-    chosen = select_case_columns(*where.columns, all_names, n);
+    chosen = select_case_columns(*where.columns, all_names, columns, n);
   } else {
     chosen.resize(all_names.size());
     for (std::size_t k = 0; k < chosen.size(); ++k) chosen[k] = k;

@@ -83,6 +83,10 @@ std::uint64_t* open_shared_cells(int count);
 /// Collective: releases the cells of open_shared_cells (every rank, at the same point; nothing
 /// when there were none).
 void close_shared_cells();
+/// Local: stops using the cells after a failure that left the sweep on this rank (nothing when
+/// they are closed). They are released at the end of the job if every rank let them go (the
+/// same failure everywhere); otherwise the job is stopped (report_failure) and they go with it.
+void abandon_shared_cells();
 
 /// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
 /// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for

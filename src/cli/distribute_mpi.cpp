@@ -26,6 +26,9 @@ int my_rank = 0, my_size = 1;
 /// Where the ranks meet at their end (a reduction of its own, never mixed with the commands'
 /// collectives): a rank that failed learns there whether the others failed too.
 MPI_Comm farewell = MPI_COMM_NULL;
+/// The shared cells (open_shared_cells), and whether a failure let them go on this rank.
+MPI_Win shared_window = MPI_WIN_NULL;
+bool shared_window_abandoned = false;
 bool met_at_farewell = false;
 int farewell_failed = 0, every_rank_failed = 0;  // the reduction's buffers (MPI_MIN)
 
@@ -47,6 +50,9 @@ bool meet_at_farewell(bool failed, double limit_seconds) {
     MPI_Test(&request, &done, MPI_STATUS_IGNORE);
     if (done) {
       met_at_farewell = true;
+      // Every rank is here: cells abandoned by a failure are abandoned everywhere (a rank that
+      // closed them normally would still be waiting in that collective call), so they can go.
+      if (shared_window != MPI_WIN_NULL) MPI_Win_free(&shared_window);
       return true;
     }
     if (limit_seconds >= 0 && MPI_Wtime() - start > limit_seconds) return false;
@@ -307,10 +313,6 @@ void recycle_received(std::string&& payload) {
 
 bool receives_pending() { return !pending_receives.empty(); }
 
-namespace {
-MPI_Win shared_window = MPI_WIN_NULL;
-}  // namespace
-
 std::uint64_t* open_shared_cells(int count) {
   if (!joined || my_size == 1) return nullptr;
   // Every rank must agree: one node (a shared-memory communicator of all ranks) and nobody
@@ -325,6 +327,7 @@ std::uint64_t* open_shared_cells(int count) {
   std::uint64_t usable = node_size == my_size && !(wanted && std::string_view(wanted) == "0");
   if (min_over_ranks(usable) == 0) return nullptr;
   void* base = nullptr;
+  shared_window_abandoned = false;
   const MPI_Aint bytes = my_rank == 0 ? static_cast<MPI_Aint>(count) * 8 : 0;
   // An MPI without a shared-memory window (e.g. its osc/sm component missing or excluded, or
   // no room for the segment) fails here on every rank: then rank 0's messages hand out the
@@ -335,7 +338,8 @@ std::uint64_t* open_shared_cells(int count) {
   MPI_Comm_set_errhandler(world, MPI_ERRORS_ARE_FATAL);
   if (allocated != MPI_SUCCESS) shared_window = MPI_WIN_NULL;
   if (min_over_ranks(allocated == MPI_SUCCESS) == 0) {
-    if (shared_window != MPI_WIN_NULL) MPI_Win_free(&shared_window);
+    // A window that exists on some ranks only cannot be freed (collective over ranks that do
+    // not have it): those ranks leave it to MPI_Finalize.
     shared_window = MPI_WIN_NULL;
     return nullptr;
   }
@@ -366,10 +370,16 @@ std::uint64_t* open_shared_cells(int count) {
 }
 
 void close_shared_cells() {
-  if (shared_window == MPI_WIN_NULL) return;
+  if (shared_window == MPI_WIN_NULL || shared_window_abandoned) return;
   MPI_Win_unlock_all(shared_window);
   MPI_Win_free(&shared_window);
   shared_window = MPI_WIN_NULL;
+}
+
+void abandon_shared_cells() {
+  if (shared_window == MPI_WIN_NULL || shared_window_abandoned) return;
+  MPI_Win_unlock_all(shared_window);  // local: ends this rank's access epoch
+  shared_window_abandoned = true;
 }
 
 void exit_process(int code) {

@@ -956,18 +956,28 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
 
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
-  // For tests: a failure on one rank alone, just before the sweep's first collective step.
-  if (const char* failing = std::getenv("PENDAVG_TEST_FAIL_ON_RANK");
-      failing && *failing && std::atoi(failing) == rank())
-    throw std::runtime_error("a failure on this rank alone (PENDAVG_TEST_FAIL_ON_RANK)");
+  // For tests, PENDAVG_TEST_FAIL_ON_RANK=K[:sweep]: a failure on rank K alone (K = all: on
+  // every rank), just before the sweep's first collective step (or, with ":sweep", once the
+  // sweep has begun).
+  const auto fail_here = [](bool begun) {
+    const char* failing = std::getenv("PENDAVG_TEST_FAIL_ON_RANK");
+    if (!failing || !*failing) return;
+    const std::string_view which(failing);
+    if (!which.starts_with("all") && std::atoi(failing) != rank()) return;
+    if (begun == (which.find(":sweep") != std::string_view::npos))
+      throw std::runtime_error("a failure injected on this rank (PENDAVG_TEST_FAIL_ON_RANK)");
+  };
+  fail_here(false);
   // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs
   // rank 0's window and the kept rows (bits; empty when there are none). The broadcast also
   // orders rank 0's store of the window before the other ranks' first look.
   std::uint64_t* const cells = open_shared_cells(cell_count);
-  // Closes the cells on every rank when an exception leaves the sweep everywhere (e.g. a
-  // message too long for MPI); the normal ends close them earlier (closing twice does nothing).
+  // When an exception leaves the sweep, the cells are let go on this rank alone (freeing them
+  // is collective: the other ranks may still be sweeping, and this rank must get on to report
+  // its failure; see distribute.hpp); the normal ends close them earlier (closing twice does
+  // nothing).
   struct CloseCells {
-    ~CloseCells() { close_shared_cells(); }
+    ~CloseCells() { abandon_shared_cells(); }
   } close_cells;
   std::string kept;
   if (cells) {
@@ -981,6 +991,7 @@ SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
     }
     kept = broadcast_from_root(std::move(kept));
   }
+  fail_here(true);
   if (is_root()) return RootSweep(rows, *output, cells).run(finish);
   return run_worker(rows, cells, kept);
 }

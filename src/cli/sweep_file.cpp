@@ -88,7 +88,7 @@ ResumedRows::ResumedRows(const std::string& path, std::string_view command,
     if (!same_header_line(want, line))
       throw usage_error(where + " is not an output of this sweep: its line '" + shortened(line) +
                         "' differs from '" + shortened(want) + "' (same parameters, method, "
-                        "digits and version are needed)");
+                        "digits, version and columns are needed)");
   }
   // The rows, matched to indices in order.
   std::size_t index = 0, row_number = 0;

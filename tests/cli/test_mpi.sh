@@ -175,29 +175,42 @@ else
   pass
 fi
 
-# A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK: just before the sweep's first
-# collective step, as a failing output on rank 0 would be) must not leave the others waiting
-# for it forever: that rank names itself and stops the job (MPI_Abort) once the others have not
-# ended within 10 s. Both cases at once (they mostly wait); a bound of 90 s: liveness, not timing.
+# A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK=K: just before the sweep's first
+# collective step, as a failing output on rank 0 would be; K:sweep: once the sweep has begun)
+# must not leave the others waiting for it forever: that rank names itself and stops the job
+# (MPI_Abort) once the others have not ended within 10 s. The four cases at once (they mostly
+# wait; a bound of 90 s: liveness, not timing). The same failure on every rank (all:sweep) is
+# reported once, by rank 0, at once, and leaves no file.
+cases=(0 1 0:sweep 1:sweep)
 pids=()
-for failing in 0 1; do
-  PENDAVG_TEST_FAIL_ON_RANK=$failing timeout 90 "${launcher[@]}" -n 2 "$pendavg" average \
-    --cases "$work/cases.csv" --output "$work/alone$failing.csv" \
-    >"$work/alone$failing.out" 2>"$work/alone$failing.err" &
+for k in "${!cases[@]}"; do
+  PENDAVG_TEST_FAIL_ON_RANK=${cases[$k]} timeout 90 "${launcher[@]}" -n 2 "$pendavg" average \
+    --cases "$work/cases.csv" --output "$work/alone$k.csv" >/dev/null 2>"$work/alone$k.err" &
   pids+=($!)
 done
-for failing in 0 1; do
-  wait "${pids[$failing]}"
+for k in "${!cases[@]}"; do
+  wait "${pids[$k]}"
   rc=$?
-  if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] &&
-     grep -q "^pendavg: internal error: .*PENDAVG_TEST_FAIL_ON_RANK) (rank $failing alone; stopping the job)$" \
-       "$work/alone$failing.err" && [ ! -e "$work/alone$failing.csv" ]; then
+  failing=${cases[$k]%%:*}
+  if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && [ ! -e "$work/alone$k.csv" ] &&
+     grep -q "^pendavg: internal error: .*(PENDAVG_TEST_FAIL_ON_RANK) (rank $failing alone; stopping the job)$" \
+       "$work/alone$k.err"; then
     pass
   else
-    fail "a failure on rank $failing alone: exit $rc, no report naming it, or an output written"
-    sed 's/^/  stderr: /' "$work/alone$failing.err" | head -5
+    fail "a failure on rank ${cases[$k]} alone: exit $rc, no report naming it, or an output written"
+    sed 's/^/  stderr: /' "$work/alone$k.err" | head -5
   fi
 done
+PENDAVG_TEST_FAIL_ON_RANK=all:sweep timeout 60 "${launcher[@]}" -n 3 "$pendavg" average \
+  --cases "$work/cases.csv" --output "$work/all.csv" >/dev/null 2>"$work/err"
+rc=$?
+if [ "$rc" -eq 1 ] && [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
+   grep -q '^pendavg: internal error: a failure injected on this rank (PENDAVG_TEST_FAIL_ON_RANK)$' "$work/err" &&
+   [ -z "$(find "$work" -name 'all.csv*' | head -1)" ]; then
+  pass
+else
+  fail "the same failure on every rank: exit $rc, not one report by rank 0, or a file left"
+fi
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
