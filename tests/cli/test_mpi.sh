@@ -78,6 +78,7 @@ with open(sys.argv[1], "w") as f:
         f.write(f"{beta:.6g},1,{mu1:.9g},{1 - mu1:.9g},1,{10 ** rng.uniform(-2, 2):.6g}\n")
 PY
 same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
+same_on_ranks "cases 2000 rows, --columns" average --cases "$work/cases.csv" --columns var_K,ratio,beta_K2
 "$pendavg" average --cases "$work/cases.csv" --output "$work/cases_serial.csv" 2>/dev/null
 for ranks in 2 3; do
   rm -f "$work/cases_ranks.csv"
