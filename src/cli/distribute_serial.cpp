@@ -28,8 +28,7 @@ bool sends_pending(std::vector<std::string>*) { return false; }
 bool receives_pending() { return false; }
 void recycle_received(std::string&&) {}
 std::uint64_t* open_shared_cells(int) { return nullptr; }
-void close_shared_cells() {}
-void abandon_shared_cells() {}
+void release_shared_cells() {}
 
 FailureReach failure_reach() { return FailureReach::every_rank; }
 void abort_job(int code) { exit_process(code); }

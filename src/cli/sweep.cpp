@@ -44,6 +44,8 @@ constexpr double chunk_target_per_thread = 50e-6;
 constexpr std::size_t reorder_budget_bytes = 32u << 20;
 constexpr std::size_t reorder_budget_per_thread = 128u << 10;
 constexpr std::size_t max_chunk_rows = 1u << 14;
+/// The smallest chunk towards the end of a sweep (from the rows' mean cost; a row at least).
+constexpr double chunk_floor_seconds = 2e-4;
 constexpr int chunks_per_thread = 2;                     ///< queued per compute thread
 constexpr std::size_t spare_text_bytes = 8u << 20;       ///< written texts kept for reuse
 
@@ -272,8 +274,12 @@ class ComputeTeam {
     spare_texts_.push_back(std::move(text));
     return true;
   }
-  /// Waits until a result is ready or `timeout` passed.
+  /// Waits until a result is ready or `timeout` passed; a zero `timeout` only yields the core.
   void wait(std::chrono::microseconds timeout) {
+    if (timeout.count() == 0) {
+      std::this_thread::yield();
+      return;
+    }
     std::unique_lock lock(mutex_);
     done_.wait_for(lock, timeout, [&] { return !results_.empty(); });
   }
@@ -392,7 +398,16 @@ class Scheduler {
                          : static_cast<std::size_t>(std::max(
                                1.0, target_seconds_ * static_cast<double>(timed_rows_) /
                                         std::max(seconds_, 1e-12)));
-      size = std::min({size, std::max<std::size_t>(1, remaining / (4 * threads_)), max_chunk_rows,
+      // Towards the end: a quarter of the remaining rows per thread, but not below ~0.2 ms of
+      // rows (each chunk costs its coordinators ~20-40 us; below that the last chunks of a
+      // 20,000-row double sweep were 1-row chunks, ~40 of them, 2% of its time).
+      const std::size_t tail_size = std::max<std::size_t>(
+          remaining / (4 * threads_),
+          timed_rows_ == 0 ? 1
+                           : static_cast<std::size_t>(chunk_floor_seconds *
+                                                      static_cast<double>(timed_rows_) /
+                                                      std::max(seconds_, 1e-12)));
+      size = std::min({size, std::max<std::size_t>(1, tail_size), max_chunk_rows,
                        std::max<std::size_t>(1, window_ / (4 * threads_)), limit - first});
       for (std::size_t k = 1; k < size; ++k)
         if (kept_(first + k)) {
@@ -547,19 +562,32 @@ class Progress {
 /// work; rank 0 when the ranks take chunks from shared cells, as it then answers nothing) while
 /// nothing happens, so that a coordinator costs little CPU beside the compute threads
 /// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a long
-/// message is arriving (the receiver copies it: see distribute.hpp); 50 us while its own
-/// threads are idle (nothing to disturb: the end of a sweep, where every poll of the closing
-/// handshake counts). A rank whose long result is on its way out needs no
-/// fast polls: waking every 50 us made its compute thread ~20% slower per row (a 2-rank double
-/// sweep).
+/// message is arriving (the receiver copies it: see distribute.hpp). A rank whose long result
+/// is on its way out needs no fast polls: waking every 50 us made its compute thread ~20%
+/// slower per row (a 2-rank double sweep).
+/// While its own threads are idle the core is free: for the first spin_seconds of that the
+/// coordinator polls without sleeping (yielding the core at each turn, for other ranks that
+/// share it), then every 50 us. These are the ends of a sweep, where every poll of the
+/// closing counts: a sleep of 50 us lets an idle core halt, and took 140 us on this machine's
+/// VM (the kernel's 50 us timer slack, then ~40 us to wake the vCPU), at each step.
 class PollInterval {
  public:
+  static constexpr double spin_seconds = 0.02;
   /// `alone`: no other rank; `longest`: the longest interval (us).
   PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
   /// `active`: something happened, or an answer is awaited by a thread without work; `idle`: this
-  /// rank's compute threads have nothing to do.
+  /// rank's compute threads have nothing to do. Zero: look again at once.
   std::chrono::microseconds next(bool active, bool idle) {
     if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
+    if (!idle) {
+      was_idle_ = false;
+    } else {
+      const Clock::time_point now = Clock::now();
+      if (!was_idle_) idle_since_ = now;
+      was_idle_ = true;
+      if (now - idle_since_ < std::chrono::duration<double>(spin_seconds))
+        return std::chrono::microseconds(0);
+    }
     // A long message arriving moves while the receiver calls MPI: poll at 50 us until it is in.
     if (receives_pending() || idle) return std::chrono::microseconds(50);
     current_ = active ? 250 : std::min(longest_, current_ * 2);
@@ -569,6 +597,8 @@ class PollInterval {
  private:
   bool alone_;
   long longest_, current_ = 250;
+  bool was_idle_ = false;
+  Clock::time_point idle_since_{};  ///< since when the threads are idle (when was_idle_)
 };
 
 struct Peer {
@@ -649,7 +679,7 @@ class RootSweep {
       team_.wait(poll_.next((active && !cells_) || closing_ || idle, idle));
     }
     release_peers();
-    close_shared_cells();  // collective: every rank is past its last chunk
+    release_shared_cells();  // freed at the job's end (distribute.hpp)
     return conclude(finish);
   }
 
@@ -677,7 +707,14 @@ class RootSweep {
     if (cells_) shared_cell(cells_, cell_closed).store(1);  // and start none of theirs
     deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                    std::chrono::duration<double>(grace));
-    for (int r = 1; r < size_; ++r) post(r, tag_stop, {});
+    // Every row written, and the other ranks took their chunks from the cells: each of them has
+    // sent all it computed and has no row left, so it needs no stop and says nothing more (it
+    // ends at tag_done). Otherwise the others stop and say when they have finished.
+    const bool quiet_end = cells_ && writer_.complete() && !failure_ && !outcome_.interrupted;
+    for (int r = 1; r < size_; ++r) {
+      if (quiet_end) peers_[static_cast<std::size_t>(r)].finished = true;
+      else post(r, tag_stop, {});
+    }
   }
 
   /// This rank's finished rows and every message from the other ranks; true when anything came.
@@ -941,12 +978,17 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
     sends_pending(&sent);
     for (std::string& bytes : sent) team.recycle(bytes);
     // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
-    // counts as active: the answer is noticed at once, and no computation is disturbed.
+    // counts as active: the answer is noticed at once, and no computation is disturbed. With
+    // the cells nothing else needs a quick look (the threads wake this loop when a chunk is
+    // done, and rank 0 has no answer to give): up to 4 ms between polls, as rank 0's. Each poll
+    // disturbs the compute thread of this core: polls at 0.25-1 ms after every chunk made rank
+    // 1's rows ~5% slower than alone (a 2-rank double sweep, thread CPU time per row).
     if (!done)
-      team.wait(poll.next(active || (team.idle() && (requested || exhausted || stopping)),
+      team.wait(poll.next((active && !cells) ||
+                              (team.idle() && (requested || exhausted || stopping)),
                           team.idle()));
   }
-  close_shared_cells();  // collective: rank 0 closes them after its last message
+  release_shared_cells();  // freed at the job's end (distribute.hpp)
   while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)
   return outcome;
@@ -972,13 +1014,12 @@ SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
   // rank 0's window and the kept rows (bits; empty when there are none). The broadcast also
   // orders rank 0's store of the window before the other ranks' first look.
   std::uint64_t* const cells = open_shared_cells(cell_count);
-  // When an exception leaves the sweep, the cells are let go on this rank alone (freeing them
-  // is collective: the other ranks may still be sweeping, and this rank must get on to report
-  // its failure; see distribute.hpp); the normal ends close them earlier (closing twice does
-  // nothing).
-  struct CloseCells {
-    ~CloseCells() { abandon_shared_cells(); }
-  } close_cells;
+  // The cells are let go on this rank alone (freeing them is collective, at the job's end: see
+  // distribute.hpp), at the end of its sweep or when an exception leaves it (the other ranks may
+  // still be sweeping, and this rank must get on to report its failure); twice does nothing.
+  struct ReleaseCells {
+    ~ReleaseCells() { release_shared_cells(); }
+  } release_cells;
   std::string kept;
   if (cells) {
     if (is_root()) {

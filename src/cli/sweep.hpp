@@ -6,8 +6,8 @@
 // in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread of the job
 // beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean cost
 // (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4
-// of the remaining rows per thread, as guided scheduling), so that the last chunks balance the
-// ranks. Each rank keeps about two chunks per thread queued. When every rank reaches rank 0's
+// of the remaining rows per thread, as guided scheduling, but not below ~0.2 ms of rows), so
+// that the last chunks balance the ranks. Each rank keeps about two chunks per thread queued. When every rank reaches rank 0's
 // memory (one node: an MPI-3 shared-memory window), the next row to hand out, the reorder
 // limit, the window and a "closed" flag are cells there, and each rank's coordinator takes its
 // chunks itself with an atomic compare-and-swap (sized from its own rows' timings): nobody waits

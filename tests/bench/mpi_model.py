@@ -9,7 +9,8 @@ It replays the engine's policy event by event:
   * a message takes `latency_us` on the network, and an idle coordinator notices it after half
     its 0.25 ms poll interval on average;
   * chunks aim at max(20 ms, 50 us x threads of the job) from the mean row cost seen so far, at
-    most a quarter of the remaining rows per thread (guided), at most window / (4 threads), where
+    most a quarter of the remaining rows per thread (guided) but not below 0.2 ms of rows, at
+    most window / (4 threads), where
     window = (32 MB + 128 kB per thread) / row bytes; every rank keeps 2 chunks per thread
     requested or queued, asking for more in a short message just ahead of its finished rows;
   * rank 0 computes too (its requests and rows skip the network and the per-message cost), its
@@ -63,7 +64,8 @@ def simulate(costs, ranks, threads, row_bytes, message_s, row_s, latency_s, poll
         remaining = n - s["next"]
         target = max(0.02, 50e-6 * total_threads)
         size = 1 if s["timed_rows"] == 0 else max(1, int(target * s["timed_rows"] / max(s["timed_s"], 1e-12)))
-        size = min(size, max(1, remaining // (4 * total_threads)), 1 << 14,
+        floor = 0 if s["timed_rows"] == 0 else int(2e-4 * s["timed_rows"] / max(s["timed_s"], 1e-12))
+        size = min(size, max(1, remaining // (4 * total_threads), floor), 1 << 14,
                    max(1, window // (4 * total_threads)), min(n, s["written"] + window) - s["next"])
         first = s["next"]
         s["next"] += size

@@ -179,9 +179,11 @@ fi
 # A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK=K: just before the sweep's first
 # collective step, as a failing output on rank 0 would be; K:sweep: once the sweep has begun)
 # must not leave the others waiting for it forever: that rank names itself and stops the job
-# (MPI_Abort) once the others have not ended within 10 s. The four cases at once (they mostly
-# wait; a bound of 90 s: liveness, not timing). The same failure on every rank (all:sweep) is
-# reported once, by rank 0, at once, and leaves no file.
+# (MPI_Abort) once the others have not ended within 10 s. Rank 1 failing once the sweep has
+# begun took no rows: rank 0 computes them all and ends normally, so rank 1 names itself
+# without stopping anyone, and the output is complete (the serial file). The four cases at once
+# (they mostly wait; a bound of 90 s: liveness, not timing). The same failure on every rank
+# (all:sweep) is reported once, by rank 0, at once, and leaves no file.
 cases=(0 1 0:sweep 1:sweep)
 pids=()
 for k in "${!cases[@]}"; do
@@ -193,7 +195,15 @@ for k in "${!cases[@]}"; do
   wait "${pids[$k]}"
   rc=$?
   failing=${cases[$k]%%:*}
-  if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && [ ! -e "$work/alone$k.csv" ] &&
+  if [ "${cases[$k]}" = 1:sweep ]; then
+    if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && cmp -s "$work/alone$k.csv" "$work/cases_serial.csv" &&
+       grep -q "^pendavg: internal error: .*(PENDAVG_TEST_FAIL_ON_RANK) (rank 1)$" "$work/alone$k.err"; then
+      pass
+    else
+      fail "a failure on rank 1 once the sweep began: exit $rc, no report naming it, or not the whole output"
+      sed 's/^/  stderr: /' "$work/alone$k.err" | head -5
+    fi
+  elif [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && [ ! -e "$work/alone$k.csv" ] &&
      grep -q "^pendavg: internal error: .*(PENDAVG_TEST_FAIL_ON_RANK) (rank $failing alone; stopping the job)$" \
        "$work/alone$k.err"; then
     pass
