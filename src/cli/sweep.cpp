@@ -470,10 +470,19 @@ std::size_t reorder_window(const SweepRows& rows, int threads) {
 
 /// The cells of a one-node job (distribute.hpp: open_shared_cells), each on a cache line of its
 /// own (the index counts 8-byte cells): the next row to hand out (every rank advances it), the
-/// first row not yet written (rank 0 moves it; the window starts there), 1 once rank 0 closed
-/// the sweep (start no more rows), and the window in rows (rank 0's, set before any chunk).
+/// first row not yet written (rank 0 moves it; the window starts there), how the sweep closed
+/// (Closed), and the window in rows (rank 0's, set before any chunk).
 enum SharedCell : int { cell_next = 0, cell_unwritten = 8, cell_closed = 16, cell_window = 24,
                         cell_count = 32 };
+/// The value of cell_closed. Rank 0 and a rank that got a signal each claim the close with a
+/// compare-and-swap from `not_closed`, so that a complete sweep's quiet end (nothing to stop, nothing
+/// said back) and a signal exclude each other: every message sent to rank 0 is received.
+enum Closed : std::uint64_t {
+  not_closed = 0,
+  closed_stopping = 1,  ///< rank 0 closed the sweep (signal or failure): stop, say finished
+  closed_complete = 2,  ///< rank 0 wrote every row: nothing to stop; wait for tag_done
+  closed_by_signal = 3  ///< a rank got SIGINT/SIGTERM; its tag_stopping is on its way
+};
 std::atomic_ref<std::uint64_t> shared_cell(std::uint64_t* cells, SharedCell cell) {
   static_assert(std::atomic_ref<std::uint64_t>::is_always_lock_free,
                 "the cells are shared between processes: their atomics must not take a lock");
@@ -565,21 +574,24 @@ class Progress {
 /// message is arriving (the receiver copies it: see distribute.hpp). A rank whose long result
 /// is on its way out needs no fast polls: waking every 50 us made its compute thread ~20%
 /// slower per row (a 2-rank double sweep).
-/// While its own threads are idle the core is free: for the first spin_seconds of that the
-/// coordinator polls without sleeping (yielding the core at each turn, for other ranks that
-/// share it), then every 50 us. These are the ends of a sweep, where every poll of the
-/// closing counts: a sleep of 50 us lets an idle core halt, and took 140 us on this machine's
-/// VM (the kernel's 50 us timer slack, then ~40 us to wake the vCPU), at each step.
+/// At the ends of a sweep (no row left to start on this rank, or closing) with its own threads
+/// idle the core is free: for the first spin_seconds of that the coordinator polls without
+/// sleeping (yielding the core at each turn, for other ranks that share it), then every 50 us.
+/// There every poll of the closing counts: a sleep of 50 us lets an idle core halt, and took
+/// 140 us on this machine's VM (the kernel's 50 us timer slack, then ~40 us to wake the vCPU),
+/// at each step. Idle threads in mid-sweep (a full window, a grant awaited) are polled every
+/// 50 us: their rows are elsewhere, maybe on this core.
 class PollInterval {
  public:
   static constexpr double spin_seconds = 0.02;
   /// `alone`: no other rank; `longest`: the longest interval (us).
   PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
   /// `active`: something happened, or an answer is awaited by a thread without work; `idle`: this
-  /// rank's compute threads have nothing to do. Zero: look again at once.
-  std::chrono::microseconds next(bool active, bool idle) {
+  /// rank's compute threads have nothing to do; `ending`: no row is left to start here, or the
+  /// sweep is closing. Zero: look again at once.
+  std::chrono::microseconds next(bool active, bool idle, bool ending) {
     if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
-    if (!idle) {
+    if (!(idle && ending)) {
       was_idle_ = false;
     } else {
       const Clock::time_point now = Clock::now();
@@ -598,7 +610,7 @@ class PollInterval {
   bool alone_;
   long longest_, current_ = 250;
   bool was_idle_ = false;
-  Clock::time_point idle_since_{};  ///< since when the threads are idle (when was_idle_)
+  Clock::time_point idle_since_{};  ///< since when the threads are idle at an end (was_idle_)
 };
 
 struct Peer {
@@ -676,7 +688,8 @@ class RootSweep {
       // With nothing of its own to compute (the last rows are elsewhere, or closing) the core
       // is free: notice the last results and the peers' goodbyes at once.
       const bool idle = team_.idle();
-      team_.wait(poll_.next((active && !cells_) || closing_ || idle, idle));
+      team_.wait(poll_.next((active && !cells_) || closing_ || idle, idle,
+                            closing_ || scheduler_.exhausted()));
     }
     release_peers();
     release_shared_cells();  // freed at the job's end (distribute.hpp)
@@ -704,13 +717,20 @@ class RootSweep {
     closing_ = true;
     team_.stop();
     scheduler_.stop();  // other ranks that take their own chunks take no more
-    if (cells_) shared_cell(cells_, cell_closed).store(1);  // and start none of theirs
     deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                    std::chrono::duration<double>(grace));
     // Every row written, and the other ranks took their chunks from the cells: each of them has
     // sent all it computed and has no row left, so it needs no stop and says nothing more (it
-    // ends at tag_done). Otherwise the others stop and say when they have finished.
-    const bool quiet_end = cells_ && writer_.complete() && !failure_ && !outcome_.interrupted;
+    // ends at tag_done) -- unless one of them claimed the close for a signal first. Otherwise
+    // the others stop (and start no rows: the cell says so) and say when they have finished.
+    bool quiet_end = false;
+    if (cells_) {
+      std::atomic_ref<std::uint64_t> closed = shared_cell(cells_, cell_closed);
+      std::uint64_t expected = not_closed;
+      quiet_end = writer_.complete() && !failure_ && !outcome_.interrupted &&
+                  closed.compare_exchange_strong(expected, closed_complete);
+      if (!quiet_end) closed.store(closed_stopping);
+    }
     for (int r = 1; r < size_; ++r) {
       if (quiet_end) peers_[static_cast<std::size_t>(r)].finished = true;
       else post(r, tag_stop, {});
@@ -937,12 +957,21 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
       active = true;
     }
     if (!told && !finished_sent && stop_flag().load()) {
-      post(0, tag_stopping, {});
       told = true;
-      stop(rows.grace_seconds);
+      // With the cells the signal claims the close, unless rank 0 closed a complete sweep
+      // first: then nothing runs here any more and nothing is said (rank 0 listens no more).
+      std::uint64_t closed = not_closed;
+      if (!cells || shared_cell(cells, cell_closed).compare_exchange_strong(closed, closed_by_signal) ||
+          closed != closed_complete) {
+        post(0, tag_stopping, {});
+        stop(rows.grace_seconds);
+      }
     }
-    if (!stopping && cells && shared_cell(cells, cell_closed).load() != 0)
-      stop(rows.grace_seconds);  // rank 0 closed the sweep (its tag_stop follows)
+    if (!stopping && cells) {
+      const std::uint64_t closed = shared_cell(cells, cell_closed).load();
+      if (closed == closed_stopping || closed == closed_by_signal)
+        stop(rows.grace_seconds);  // rank 0's tag_stop follows
+    }
     if (!stopping && cells) {  // take chunks from the shared cells
       exhausted = exhausted || scheduler.exhausted();
       if (exhausted) team.close();
@@ -953,8 +982,8 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
         team.add(*chunk);
         active = true;
       }
-      // Idle threads wait for the window to move: look again soon.
-      requested = !exhausted && team.idle();
+      // Threads without work wait for the window to move: look again soon.
+      requested = !exhausted && team.wanted() > 0;
     } else if (!stopping) {
       if (exhausted) {
         team.close();
@@ -978,15 +1007,16 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
     sends_pending(&sent);
     for (std::string& bytes : sent) team.recycle(bytes);
     // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
-    // counts as active: the answer is noticed at once, and no computation is disturbed. With
-    // the cells nothing else needs a quick look (the threads wake this loop when a chunk is
-    // done, and rank 0 has no answer to give): up to 4 ms between polls, as rank 0's. Each poll
-    // disturbs the compute thread of this core: polls at 0.25-1 ms after every chunk made rank
-    // 1's rows ~5% slower than alone (a 2-rank double sweep, thread CPU time per row).
+    // counts as active: the answer is noticed at once, and no computation is disturbed; so does
+    // a thread without work (with the cells: the window is full). With the cells nothing else
+    // needs a quick look (the threads wake this loop when a chunk is done, and rank 0 has no
+    // answer to give): up to 4 ms between polls, as rank 0's. Each poll disturbs the compute
+    // thread of this core: polls at 0.25-1 ms after every chunk made rank 1's rows ~5% slower
+    // than alone (a 2-rank double sweep, thread CPU time per row).
     if (!done)
-      team.wait(poll.next((active && !cells) ||
+      team.wait(poll.next((active && !cells) || (cells && requested) ||
                               (team.idle() && (requested || exhausted || stopping)),
-                          team.idle()));
+                          team.idle(), exhausted || stopping));
   }
   release_shared_cells();  // freed at the job's end (distribute.hpp)
   while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));

@@ -7,9 +7,10 @@
 // beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean cost
 // (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4
 // of the remaining rows per thread, as guided scheduling, but not below ~0.2 ms of rows), so
-// that the last chunks balance the ranks. Each rank keeps about two chunks per thread queued. When every rank reaches rank 0's
-// memory (one node: an MPI-3 shared-memory window), the next row to hand out, the reorder
-// limit, the window and a "closed" flag are cells there, and each rank's coordinator takes its
+// that the last chunks balance the ranks. Each rank keeps about two chunks per thread queued.
+// When every rank reaches rank 0's memory (one node: an MPI-3 shared-memory window), the next
+// row to hand out, the reorder limit, the window and how the sweep closed are cells there (a
+// complete sweep then ends with one message to each rank), and each rank's coordinator takes its
 // chunks itself with an atomic compare-and-swap (sized from its own rows' timings): nobody waits
 // for rank 0 to be scheduled. Rows kept from a resumed file go to every rank as bits.
 // Otherwise (ranks on several nodes, or PENDAVG_SWEEP_SHARED=0) rank 0 hands them out on request,

@@ -100,11 +100,13 @@ same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1
 same_on_ranks "limit on rank 0" limit --masses 0.5,0.5
 
 # A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
-# at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.
+# at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run; every
+# message of the interrupted run was received.
 sweep=(table --beta log:1:1000:40 --mu1 0.001,0.05 --digits 400)
 "$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
 delay=$("$python" -c 'import random; print(round(random.uniform(0.8, 2.0), 2))')
-"${launcher[@]}" -n 2 "$pendavg" "${sweep[@]}" --output "$work/resumed.csv" >/dev/null 2>&1 &
+PENDAVG_TEST_UNRECEIVED=1 "${launcher[@]}" -n 2 "$pendavg" "${sweep[@]}" --output "$work/resumed.csv" \
+  >/dev/null 2>"$work/killed.err" &
 pid=$!
 sleep "$delay"
 kill -TERM "$pid" 2>/dev/null
@@ -114,6 +116,8 @@ interrupted=$(grep -c '^# interrupted' "$work/resumed.csv")
 [ -s "$work/resumed.csv" ] || rm -f "$work/resumed.csv"
 if [ -n "$(find "$work" -name '*.tmp.*' | head -1)" ]; then
   fail "SIGTERM under mpirun left a temporary file"
+elif grep -q '^pendavg: test: .* did not receive' "$work/killed.err"; then
+  fail "SIGTERM under mpirun after $delay s: $(grep -m1 '^pendavg: test: .* did not receive' "$work/killed.err")"
 elif ! "${launcher[@]}" -n 3 "$pendavg" "${sweep[@]}" --resume "$work/resumed.csv" >/dev/null 2>"$work/err"; then
   fail "resume on 3 ranks"
 elif ! cmp -s "$work/resumed.csv" "$work/reference.csv"; then
@@ -126,7 +130,9 @@ fi
 # PENDAVG_SWEEP_SHARED=0) they ask rank 0 in messages. Both give the serial file, also when
 # completing a resumed file with holes (every third row missing), with a reorder window of 16
 # rows (PENDAVG_SWEEP_WINDOW_ROWS: rows wait for the window to move); the ranks other than 0
-# compute rows; every run ends (a bound of 120 s: a liveness check, not a timing). An MPI that
+# compute rows; every message is received (PENDAVG_TEST_UNRECEIVED=1: after the job's end each
+# rank names what was left for it; MPI_Finalize with a message pending is erroneous); every run
+# ends (a bound of 120 s: a liveness check, not a timing). An MPI that
 # cannot make a shared-memory window (OpenMPI without its osc/sm component: "nosm") falls back
 # to the messages instead of aborting.
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null
@@ -146,7 +152,7 @@ for way in "${ways[@]}"; do
     for out in cases_msg.csv holes_resumed.csv; do
       if [ "$out" = cases_msg.csv ]; then target=(--output "$work/$out"); else target=(--resume "$work/$out"); fi
       PENDAVG_SWEEP_SHARED=$shared PENDAVG_SWEEP_WINDOW_ROWS=16 PENDAVG_SWEEP_REPORT=1 \
-        timeout 120 "${launcher[@]}" "${window_options[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" \
+        PENDAVG_TEST_UNRECEIVED=1 timeout 120 "${launcher[@]}" "${window_options[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" \
         --digits 38 "${target[@]}" 2>"$work/err"
       rc=$?
       others=$(sed -n 's/.*per_rank(rows\/chunks\/busy_s)=[0-9]*\/[^ ]* //p' "$work/err" |
@@ -158,6 +164,8 @@ for way in "${ways[@]}"; do
         fail "$what: chunks not from $expected"
       elif [ "$others" -eq 0 ]; then
         fail "$what: the ranks other than 0 computed no row"
+      elif grep -q '^pendavg: test: .* did not receive' "$work/err"; then
+        fail "$what: $(grep -m1 '^pendavg: test: .* did not receive' "$work/err")"
       elif ! cmp -s "$work/$out" "$work/cases38.csv"; then
         fail "$what: differs from the serial file"
       else
@@ -179,16 +187,22 @@ fi
 # A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK=K: just before the sweep's first
 # collective step, as a failing output on rank 0 would be; K:sweep: once the sweep has begun)
 # must not leave the others waiting for it forever: that rank names itself and stops the job
-# (MPI_Abort) once the others have not ended within 10 s. Rank 1 failing once the sweep has
-# begun took no rows: rank 0 computes them all and ends normally, so rank 1 names itself
-# without stopping anyone, and the output is complete (the serial file). The four cases at once
-# (they mostly wait; a bound of 90 s: liveness, not timing). The same failure on every rank
-# (all:sweep) is reported once, by rank 0, at once, and leaves no file.
-cases=(0 1 0:sweep 1:sweep)
+# (MPI_Abort) once the others have not ended within 10 s. One exception: rank 1 failing once the
+# sweep has begun, on one node (the ranks take their chunks from the shared cells), took no
+# rows, so rank 0 computes them all and ends normally: rank 1 names itself without stopping
+# anyone, and the output is complete (the serial file). With rank 0's messages (the "messages"
+# case: PENDAVG_SWEEP_SHARED=0, as across nodes) rank 0 waits for rank 1 to say it finished, and
+# the job stops as for the others. The five cases at once (they mostly wait; a bound of 90 s:
+# liveness, not timing). The same failure on every rank (all:sweep) is reported once, by rank 0,
+# at once, and leaves no file.
+cases=(0 1 0:sweep 1:sweep 1:sweep:messages)
 pids=()
 for k in "${!cases[@]}"; do
-  PENDAVG_TEST_FAIL_ON_RANK=${cases[$k]} timeout 90 "${launcher[@]}" -n 2 "$pendavg" average \
-    --cases "$work/cases.csv" --output "$work/alone$k.csv" >/dev/null 2>"$work/alone$k.err" &
+  shared=1
+  [ "${cases[$k]%:messages}" != "${cases[$k]}" ] && shared=0
+  PENDAVG_SWEEP_SHARED=$shared PENDAVG_TEST_FAIL_ON_RANK=${cases[$k]%:messages} timeout 90 \
+    "${launcher[@]}" -n 2 "$pendavg" average --cases "$work/cases.csv" --output "$work/alone$k.csv" \
+    >/dev/null 2>"$work/alone$k.err" &
   pids+=($!)
 done
 for k in "${!cases[@]}"; do
