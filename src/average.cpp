@@ -4,6 +4,7 @@
 // residual).
 #include "pendavg/average.hpp"
 
+#include "domain.hpp"
 #include "engine/chain_transfer.hpp"
 #include "engine/double_pendulum.hpp"
 #include "engine/estimates.hpp"
@@ -11,12 +12,15 @@
 #include "engine/text.hpp"
 #include "engine/torus.hpp"
 
+#include <boost/math/policies/error_handling.hpp>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -37,6 +41,7 @@ namespace {
 /// The beta -> 0 limit runs the torus trapezoid (at g = 0) up to this N, transfer beyond.
 constexpr std::size_t limit_torus_max_particles = 5;
 constexpr std::size_t max_shifts = 1024;
+constexpr double min_tolerance = 1e-15;
 
 constexpr std::array<const char*, 7> method_names{
     "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc", "transfer"};
@@ -76,7 +81,10 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
     if (!method_uses_option(resolved, AverageOption::tolerance, o.digits))
       refuse("tol is for double runs (digits 16); with digits " + std::to_string(o.digits) +
              " the torus tolerance is 1e-" + std::to_string(o.digits));
-    if (!(*o.tolerance > 0 && *o.tolerance < 1)) refuse("tol must be in (0, 1)");
+    // Below ~5 ulps a double run cannot resolve the relative error asked for: the Gauss rule's
+    // levels, which do not nest, then refined until their grid limit (minutes) for --tol 1e-300.
+    if (!(*o.tolerance >= min_tolerance && *o.tolerance < 1))
+      refuse("tol must be in [1e-15, 1) (a double run resolves no finer relative error)");
   }
   for (const auto& [given, option] : {std::pair{o.samples.has_value(), AverageOption::samples},
                                       std::pair{o.shifts.has_value(), AverageOption::shifts},
@@ -173,32 +181,47 @@ struct JointStiffness {
 
 template <class Real>
 JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
-  using Wide = long double;
+  // In MPFR the products are formed in MPFR (converting beta = 1e400 to double gave inf, and
+  // inf / inf a NaN that passed every comparison); in double, in long double, which holds
+  // products of the doubles that domain::check_double_scales admits (alpha_j <= 1e300).
+  using Wide = std::conditional_t<is_mpfr_v<Real>, Real, long double>;
+  const auto narrow = [](const Wide& x) -> long double {
+    if constexpr (is_mpfr_v<Real>) {
+      // beyond long double's range the comparisons below need only "huge" (inf), never NaN
+      return x > Wide(std::numeric_limits<long double>::max())
+                 ? std::numeric_limits<long double>::infinity()
+                 : x.template convert_to<long double>();
+    } else {
+      return x;
+    }
+  };
   const std::size_t n = chain.size();
-  const Wide b = static_cast<Wide>(static_cast<double>(beta)), g = static_cast<double>(chain.gravity());
+  const Wide b = Wide(beta), g = Wide(chain.gravity());
   std::vector<Wide> alpha(n);
   Wide total = 0;
   for (std::size_t j = 0; j < n; ++j) {
-    alpha[j] = b * g * static_cast<double>(chain.tail_mass(j)) * static_cast<double>(chain.length(j));
+    alpha[j] = b * g * Wide(chain.tail_mass(j)) * Wide(chain.length(j));
     total += alpha[j];
   }
   JointStiffness k;
   if (n == 1) {
-    k.smallest = k.largest = k.smallest_effective = total;
+    k.smallest = k.largest = k.smallest_effective = narrow(total);
     return k;
   }
-  std::vector<Wide> below(n + 1, 0);  // below[i] = sum of alpha_j for j >= i, summed directly
+  std::vector<Wide> below(n + 1, Wide(0));  // below[i] = sum of alpha_j for j >= i, summed directly
   for (std::size_t j = n; j-- > 0;) below[j] = below[j + 1] + alpha[j];
-  k.smallest = k.smallest_effective = std::numeric_limits<Wide>::infinity();
+  k.smallest = k.smallest_effective = std::numeric_limits<long double>::infinity();
   Wide head = 0;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     head += alpha[i];
-    const Wide kappa = total > 0 ? head * (below[i + 1] / total) : 0;
+    const long double kappa = narrow(total > 0 ? Wide(head * (below[i + 1] / total)) : Wide(0));
+    const long double light = narrow(Wide(chain.mass(i)) / Wide(chain.tail_mass(i + 1)));
+    // NaN-proof: a NaN kappa (never from checked inputs) would be kept by std::min/std::max
+    if (std::isnan(kappa) || std::isnan(light))
+      throw invalid_input("average: a joint's stiffness is not a number for this input");
     k.smallest = std::min(k.smallest, kappa);
     k.largest = std::max(k.largest, kappa);
-    const Wide light = static_cast<Wide>(static_cast<double>(chain.mass(i))) /
-                       static_cast<double>(chain.tail_mass(i + 1));
-    k.smallest_effective = std::min(k.smallest_effective, kappa * std::min(Wide(1), light));
+    k.smallest_effective = std::min(k.smallest_effective, kappa * std::min(1.0L, light));
   }
   return k;
 }
@@ -294,13 +317,75 @@ std::string other_method_advice(const Chain<Real>& chain) {
                            : "use method transfer (the default for N >= 5)";
 }
 
+/// Whether the same chain and beta, rounded to double, pass the double torus' checks: the advice
+/// "at 16 digits pendavg extrapolates" is given only then (beta = 1e400 is no double).
+template <class Real>
+bool double_torus_accepts(const Chain<Real>& chain, const Real& beta) {
+  if constexpr (is_mpfr_v<Real>) {
+    try {
+      const auto narrow = [](const Real& x) {
+        const double d = x.template convert_to<double>();
+        if (!std::isfinite(d) || Real(d) != x) throw invalid_input("not a double");
+        return d;
+      };
+      std::vector<double> m, l;
+      for (std::size_t i = 0; i < chain.size(); ++i) {
+        m.push_back(narrow(chain.mass(i)));
+        l.push_back(narrow(chain.length(i)));
+      }
+      AverageOptions torus;
+      torus.method = AverageMethod::torus_trapezoid;
+      check_average(Chain<double>(m, l, narrow(chain.gravity())), narrow(beta), torus);
+      return true;
+    } catch (const std::exception&) {
+      return false;
+    }
+  } else {
+    (void)chain, (void)beta;
+    return false;
+  }
+}
+
+/// A link below the first whose own stiffness alpha_j = beta g S_j l_j exceeds the softest
+/// joint's by more than ~10^(1.25 W) (W the working digits) is beyond what the torus and qmc
+/// methods resolve: measured on N = 3 chains with one long link (double: l_3 = 1e20 converges in
+/// 0.2 s, 1e24 never; MPFR at 32 working digits: 1e40 in 1 s, 1e60 never), the weight's
+/// relative angles then lose their digits. The first link is exempt (theta_1 = 0 is the
+/// reference: l_1 = 1e24 converges as fast as 1). Refused before any work, with the digits
+/// that would resolve it when MPFR can.
+template <class Real>
+void check_stiffness_spread(const Chain<Real>& chain, const Real& beta,
+                            const JointStiffness& stiffness, bool runs_in_mpfr) {
+  if (!(stiffness.smallest > 0) || chain.size() < 2) return;  // g = 0: no peak at all
+  const domain::ChainScales scales = domain::chain_scales(chain, &beta);
+  constexpr double log10_of_2 = 0.30102999566398120;
+  const double softest = static_cast<double>(std::log10(stiffness.smallest));
+  const int working = is_mpfr_v<Real> ? current_digits10<Real>() : min_digits;
+  for (std::size_t j = 1; j < chain.size(); ++j) {
+    const double spread = scales.stiffness[j] * log10_of_2 - softest;  // log10 alpha_j / kappa
+    if (!(spread <= 1.25 * working)) {
+      const double needed = std::ceil(spread / 1.25) - guard_digits;
+      std::string advice;
+      if (runs_in_mpfr && needed <= 100 && stiffness.largest <= stiffness_resolved_mpfr)
+        advice = "; request " + std::to_string(std::max(17, static_cast<int>(needed))) +
+                 " or more digits";
+      throw invalid_input("average: the stiffness beta g S_j l_j of link " +
+                          std::to_string(j + 1) + " is 1e" +
+                          std::to_string(static_cast<long long>(std::floor(spread))) +
+                          " times the softest joint's, beyond what the torus and qmc methods "
+                          "resolve at " + std::to_string(working) + " working digits" + advice);
+    }
+  }
+}
+
 /// What the torus and qmc methods do at `beta`: run directly, or extrapolate to low temperature
 /// (every joint effectively stiffer than stiffness_extrapolated, double only). Throws invalid_input when the
 /// stiffnesses are outside what either resolves.
 enum class StiffnessPlan { direct, extrapolate };
 template <class Real>
-StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta) {
+StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta, AverageMethod method) {
   const JointStiffness stiffness = joint_stiffness(chain, beta);
+  check_stiffness_spread(chain, beta, stiffness, method != AverageMethod::qmc);
   if constexpr (!is_mpfr_v<Real>) {
     check_double_mass_range(chain);
     // Extrapolate when every joint is effectively stiff, or when a joint is too stiff to resolve
@@ -327,8 +412,11 @@ StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta) {
   } else if (stiffness.largest > stiffness_resolved_mpfr) {
     throw invalid_input("average: a joint's stiffness beta g S l = " +
                         short_decimal(stiffness.largest) + " is beyond what the torus "
-                        "resolves in MPFR (1e9); at 16 digits pendavg extrapolates to low "
-                        "temperature (every joint stiffer than 1e7)");
+                        "resolves in MPFR (1e9)" +
+                        (double_torus_accepts(chain, beta)
+                             ? "; at 16 digits pendavg extrapolates to low temperature (every "
+                               "joint stiffer than 1e7)"
+                             : ""));
   }
   return StiffnessPlan::direct;
 }
@@ -361,7 +449,7 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
                    ? qmc_average(chain, b, qmc_options(o))
                    : torus_average(chain, b, torus_options(o, method, chain.size(), "average"));
       };
-      if (check_stiffness(chain, beta) == StiffnessPlan::extrapolate)
+      if (check_stiffness(chain, beta, method) == StiffnessPlan::extrapolate)
         return low_temperature_extrapolation(chain, beta, joint_stiffness(chain, beta), run);
       return run(beta);
     }
@@ -445,25 +533,67 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
   return average(chain, beta, options, workspace);
 }
 
-/// The last line of defence: every value and error an engine returns is finite. The domain
-/// checks before the work are meant to make this unreachable; if an engine still meets a case
-/// they miss, the caller gets one clear error instead of a NaN (never converged = true with it).
+/// The last line of defence (domain::check_result): every value and error an engine returns is
+/// finite and, in double, of a normal magnitude. The domain checks before the work are meant to
+/// make this unreachable; if an engine still meets a case they miss, the caller gets one clear
+/// error instead of a NaN (never converged = true with it). The advice to request more digits is
+/// given only when the MPFR checks accept the same input.
 template <class Real>
-void check_finite(const Averages<Real>& a, const char* command) {
-  using std::isfinite;
-  const auto bad = [](const Estimate<Real>& e) { return !isfinite(e.value) || !isfinite(e.error); };
-  const char* which = nullptr;
-  for (auto [name, field] : {std::pair{"beta<K_i>", &a.beta_kinetic},
-                             std::pair{"<cos phi_i>", &a.cos_angle},
-                             std::pair{"Var K_i", &a.beta2_kinetic_variance}}) {
-    for (const Estimate<Real>& e : *field)
-      if (!which && bad(e)) which = name;
+void check_finite(const Averages<Real>& a, const char* command, const Chain<Real>& chain,
+                  const Real* beta, const AverageOptions& options) {
+  try {
+    domain::check_result(a, command);
+  } catch (const invalid_input&) {
+    if constexpr (std::is_same_v<Real, double>)
+      domain::check_result(a, command, domain::more_digits_advice(chain, beta, options));
+    throw;
   }
-  if (!which && a.ratio && bad(*a.ratio)) which = "<K1>/<K2>";
-  if (which)
-    throw invalid_input(std::string(command) + ": " + method_name(a.method) +
-                        " produced a non-finite " + which + " for this input, outside its domain "
-                        "(try more --digits or another --method, and please report it)");
+}
+
+/// A dependency's own refusal (Boost.Math's domain, pole, overflow and evaluation errors) inside
+/// an engine becomes the same one-line invalid_input as every other refusal.
+template <class Body>
+decltype(auto) translating_dependency_errors(const char* command, Body&& body) {
+  const auto refuse = [command](const std::exception& e) {
+    std::string what = e.what();
+    std::replace(what.begin(), what.end(), '\n', ' ');
+    return invalid_input(std::string(command) +
+                         ": a special function is outside its domain for this input (" + what +
+                         ")");
+  };
+  try {
+    return body();
+  } catch (const std::domain_error& e) {
+    throw refuse(e);
+  } catch (const std::overflow_error& e) {
+    throw refuse(e);
+  } catch (const std::underflow_error& e) {
+    throw refuse(e);
+  } catch (const boost::math::evaluation_error& e) {
+    throw refuse(e);
+  } catch (const boost::math::rounding_error& e) {
+    throw refuse(e);
+  }
+}
+
+/// The domain checks every method of average() shares (domain.hpp): in double, the lightest mass
+/// fraction in the normal range and every joint's stiffness (the last link's too) at most 1e300.
+template <class Real>
+void check_average_domain(const Chain<Real>& chain, const Real& beta, const AverageOptions& options,
+                          AverageMethod method) {
+  if constexpr (std::is_same_v<Real, double>) {
+    try {
+      // The torus and qmc methods extrapolate at large beta (they run at a beta where alpha_j
+      // is 1e3) and the N = 2 engines check a1 + a2 themselves: only transfer forms alpha_j at
+      // the given beta.
+      domain::check_double_scales(chain, method == AverageMethod::transfer ? &beta : nullptr,
+                                  "average");
+    } catch (const invalid_input& e) {
+      throw invalid_input(e.what() + domain::more_digits_advice(chain, &beta, options));
+    }
+  } else {
+    (void)chain, (void)beta, (void)options, (void)method;
+  }
 }
 
 template <class Real>
@@ -472,26 +602,26 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
   const AverageMethod method = resolve_average_method(chain.size(), options);
   check_digits<Real>(options.digits);
   check_beta(beta);
+  check_average_domain(chain, beta, options, method);
   // The engine's result is checked in place and returned as is (no copy of its vectors).
-  if constexpr (is_mpfr_v<Real>) {
-    const working_precision precision(options.digits + guard_digits);
-    Averages<Real> out = run_average(at_working_precision(chain), at_working_precision(beta),
-                                     options, method, workspace);
-    check_finite(out, "average");
-    return out;
-  } else {
-    Averages<Real> out = run_average(chain, beta, options, method, workspace);
-    check_finite(out, "average");
-    return out;
-  }
+  return translating_dependency_errors("average", [&] {
+    if constexpr (is_mpfr_v<Real>) {
+      const working_precision precision(options.digits + guard_digits);
+      Averages<Real> out = run_average(at_working_precision(chain), at_working_precision(beta),
+                                       options, method, workspace);
+      check_finite(out, "average", chain, &beta, options);
+      return out;
+    } else {
+      Averages<Real> out = run_average(chain, beta, options, method, workspace);
+      check_finite(out, "average", chain, &beta, options);
+      return out;
+    }
+  });
 }
 
+/// The chosen engine's own domain (cheap: no quadrature).
 template <class Real>
-void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options) {
-  const AverageMethod method = resolve_average_method(chain.size(), options);
-  check_digits<Real>(options.digits);
-  check_beta(beta);
-  const precision_guard<Real> precision(options.digits + guard_digits);
+void check_method_domain(const Chain<Real>& chain, const Real& beta, AverageMethod method) {
   switch (method) {
     case AverageMethod::series:
       if constexpr (!is_mpfr_v<Real>) {  // the series runs in MPFR at 16 digits
@@ -506,7 +636,7 @@ void check_average(const Chain<Real>& chain, const Real& beta, const AverageOpti
     case AverageMethod::torus_trapezoid:
     case AverageMethod::torus_gauss:
     case AverageMethod::qmc:
-      check_stiffness(at_working_precision(chain), at_working_precision(beta));
+      check_stiffness(at_working_precision(chain), at_working_precision(beta), method);
       break;
     case AverageMethod::transfer:
       // double only (check_options refuses more digits): the engine's own domain check
@@ -517,7 +647,45 @@ void check_average(const Chain<Real>& chain, const Real& beta, const AverageOpti
 }
 
 template <class Real>
-Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options) {
+void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options) {
+  const AverageMethod method = resolve_average_method(chain.size(), options);
+  check_digits<Real>(options.digits);
+  check_beta(beta);
+  check_average_domain(chain, beta, options, method);
+  const precision_guard<Real> precision(options.digits + guard_digits);
+  translating_dependency_errors("average", [&] { check_method_domain(chain, beta, method); });
+}
+
+/// The limits' domain (domain.hpp): in double, the lightest mass fraction in the normal range
+/// and, for the trace formula (the beta -> infinity limit of any N, the beta -> 0 limit of
+/// N >= 3), M / m_min <= 1e150. More digits are advised for N = 2 only, where both limits are
+/// closed forms in MPFR.
+template <class Real>
+void check_limit_domain(const Chain<Real>& chain, bool trace_formula) {
+  if constexpr (std::is_same_v<Real, double>) {
+    try {
+      domain::check_double_scales(chain, static_cast<const Real*>(nullptr), "limit");
+      if (trace_formula) domain::check_trace_formula_mass_range(chain, "limit");
+    } catch (const invalid_input& e) {
+      throw invalid_input(std::string(e.what()) +
+                          (chain.size() == 2 ? "; request 17 or more digits (MPFR)" : ""));
+    }
+  } else {
+    (void)chain, (void)trace_formula;
+  }
+}
+
+template <class Real>
+Averages<Real> checked_limit(const Chain<Real>& chain, Averages<Real> out) {
+  domain::check_result(out, "limit",
+                       chain.size() == 2 && std::is_same_v<Real, double>
+                           ? "; request 17 or more digits (MPFR)"
+                           : "");
+  return out;
+}
+
+template <class Real>
+Averages<Real> high_temperature_limit_unchecked(const Chain<Real>& chain, const AverageOptions& options) {
   const std::size_t n = chain.size();
   if (options.method != AverageMethod::automatic)
     throw invalid_input(std::string("limit: method ") + average_method_name(options.method) +
@@ -556,7 +724,7 @@ Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOpt
 }
 
 template <class Real>
-Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOptions& options) {
+Averages<Real> low_temperature_limit_unchecked(const Chain<Real>& chain, const AverageOptions& options) {
   if (options.method != AverageMethod::automatic)
     throw invalid_input(std::string("limit: method ") + average_method_name(options.method) +
                         " cannot be chosen; the limits pick their own");
@@ -565,6 +733,22 @@ Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOpti
   check_digits<Real>(options.digits);
   const precision_guard<Real> precision(options.digits + guard_digits);
   return low_temperature_limit_any(at_working_precision(chain));
+}
+
+template <class Real>
+Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options) {
+  check_limit_domain(chain, chain.size() >= 3);
+  return checked_limit(chain, translating_dependency_errors("limit", [&] {
+    return high_temperature_limit_unchecked(chain, options);
+  }));
+}
+
+template <class Real>
+Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOptions& options) {
+  check_limit_domain(chain, true);
+  return checked_limit(chain, translating_dependency_errors("limit", [&] {
+    return low_temperature_limit_unchecked(chain, options);
+  }));
 }
 
 #define PENDAVG_INSTANTIATE_AVERAGE(Real)                                                      \

@@ -28,8 +28,10 @@ template <class Real, class What>
 void check_normal(const Real& x, const What& what) {
   if constexpr (std::numeric_limits<Real>::is_specialized && std::numeric_limits<Real>::is_iec559) {
     if (x < std::numeric_limits<Real>::min()) {
+      // No advice here: whether more digits help depends on the method (transfer, qmc and the
+      // dynamics run in double only); the front ends add it where it is true.
       throw invalid_input(std::string(what()) + " is below the normal range of double " +
-                          "(2.2e-308), where it loses digits; request 17 or more digits (MPFR)");
+                          "(2.2e-308), where it loses digits");
     }
   } else {
     (void)x;

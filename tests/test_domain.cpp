@@ -199,7 +199,10 @@ TEST_CASE("domain: inputs beyond double's range are refused with advice that wor
   };
   const std::string mpfr_advice = "request 17 or more digits (MPFR)";
   SECTION("a subnormal mass") {
-    CHECK_THAT(in_double({1, 1e-320}, {1, 1}, 1), Catch::Contains(mpfr_advice));
+    // The model cannot know whether the method runs in MPFR: no advice from it (the CLI adds
+    // it for N = 2, where every method does).
+    CHECK_THAT(in_double({1, 1e-320}, {1, 1}, 1), Catch::Contains("below the normal range"));
+    CHECK_THAT(in_double({1, 1e-320}, {1, 1}, 1), !Catch::Contains("request"));
     CHECK(all_finite(in_mpfr({1, 1e-320}, {1, 1}, 1)));
   }
   SECTION("N = 2: mu1 = m1/M below 1e-150 (the variances' integral overflows)") {

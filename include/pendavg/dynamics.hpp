@@ -127,6 +127,15 @@ Real potential_energy(const Chain<Real>& chain, const ChainState<Real>& state);
 template <class Real>
 Real total_energy(const Chain<Real>& chain, const ChainState<Real>& state);
 
+/// A state at total energy `energy` near the angles phi and rates phidot: the rates scaled by
+/// sqrt((E - U) / K) when the chain moves and E > U(phi) (K is quadratic in phidot at fixed
+/// angles); otherwise the angles moved along grad U by a secant search on H = E with the rates
+/// kept. For replicas of one NVE run that start apart but on the same energy shell. Throws
+/// invalid_input when no such state is found near phi (|shift| <= 0.5 rad).
+template <class Real>
+ChainState<Real> state_at_energy(const Chain<Real>& chain, const std::vector<Real>& phi,
+                                 const std::vector<Real>& phidot, const Real& energy);
+
 /// max_i | |x_i - x_{i-1}| - l_i | / l_i.
 template <class Real>
 Real constraint_residual(const Chain<Real>& chain, const ChainState<Real>& state);
@@ -281,7 +290,7 @@ struct DynamicsObserver {
   /// Called every `trajectory_every` steps (and at step 0) with the current state.
   std::function<void(const ChainState<Real>&)> trajectory;
   std::size_t trajectory_every = 0;
-  /// Called about every 1% of the run with the fraction done.
+  /// Called every 1024 steps (or every 1% of a shorter run) with the fraction done.
   std::function<void(double)> progress;
   /// Checked every 1024 steps: true ends the run early with the averages so far.
   const std::atomic<bool>* stop = nullptr;

@@ -21,6 +21,7 @@ bool digits_advice = true;  // set_digits_advice
 }  // namespace
 
 void set_digits_advice(bool command_takes_digits) { digits_advice = command_takes_digits; }
+bool command_takes_digits() { return digits_advice; }
 
 std::string in_quotes(std::string_view text) {
   std::string quoted;  // appended piecewise: "'" + std::string(text) trips GCC 12's -Wrestrict

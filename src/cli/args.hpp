@@ -61,6 +61,8 @@ enum class Domain { positive, nonnegative, any };
 /// Whether the running command takes --digits: a number out of double's range is then refused
 /// with the advice "use --digits > 16" (set by run() for each command; on by default).
 void set_digits_advice(bool command_takes_digits);
+/// What set_digits_advice was last given.
+bool command_takes_digits();
 
 template <class Real>
 Real parse_real(std::string_view text, std::string_view what, Domain domain);

@@ -31,6 +31,9 @@
 #include <exception>
 #include <filesystem>
 #include <optional>
+#include <string>
+#include <string_view>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -197,7 +200,17 @@ Chain<Real> make_chain(std::vector<Real> masses, std::vector<Real> lengths, Real
   if (masses.size() != lengths.size())
     throw usage_error(std::to_string(masses.size()) + " masses but " +
                       std::to_string(lengths.size()) + " lengths");
-  return Chain<Real>(std::move(masses), std::move(lengths), std::move(g));
+  const std::size_t particles = masses.size();
+  try {
+    return Chain<Real>(std::move(masses), std::move(lengths), std::move(g));
+  } catch (const invalid_input& e) {
+    // A double below its normal range: for N = 2 every method runs in MPFR (the integral, the
+    // series, both limits, the microcanonical integral), so the advice is true there only.
+    if (std::is_same_v<Real, double> && particles == 2 && command_takes_digits() &&
+        std::string_view(e.what()).find("below the normal range") != std::string_view::npos)
+      throw invalid_input(std::string(e.what()) + "; request 17 or more digits (MPFR)");
+    throw;
+  }
 }
 
 /// The chain of --masses, --lengths (all 1 when optional and absent) and --g (default 1).

@@ -4,6 +4,7 @@
 #include "decimal.hpp"
 
 #include "engine/precision.hpp"
+#include "engine/text.hpp"
 
 #include <algorithm>
 #include <array>
@@ -36,6 +37,15 @@ char* write_quotient(char* out, const Real& value, const Real& error,
   const Wide q = Wide(value) / divisor, e = Wide(error) / divisor;
   if constexpr (std::is_same_v<Real, double>) {
     const double qd = static_cast<double>(q), ed = static_cast<double>(e);
+    // <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i / beta^2 of a double run are printed
+    // as doubles: a quotient outside double's normal range (Var K_i = 5e-601 at beta = 1e300)
+    // would read as 0 +- 0 or with lost digits, so it is refused rather than printed.
+    if (value != 0 && !std::isnormal(qd))
+      throw invalid_input("<K_i> = beta<K_i>/beta or Var K_i = beta^2 Var K_i/beta^2 is " +
+                          short_decimal(static_cast<long double>(q)) +
+                          ", outside double's normal range (2.2e-308..1.8e308) at this beta; "
+                          "a run with 17 or more digits (MPFR) keeps it where its method runs "
+                          "in MPFR");
     const auto plain = [](double x) { return x == 0 || std::isnormal(x); };
     if (plain(qd) && plain(ed)) {
       out = write_decimal(out, qd, digits);

@@ -61,7 +61,9 @@ const std::string_view simulate_usage =
     "  --replicas R    R independent trajectories on all cores (and all MPI ranks under\n"
     "                  mpirun/srun), combined: Langevin replicas differ by their noise (seeds\n"
     "                  mixed from --seed), NVE replicas by their start (every angle moved by up\n"
-    "                  to --perturb EPS radians, default 1e-6, from --seed; replica 0 unmoved).\n"
+    "                  to --perturb EPS radians, default 1e-6, at most 0.1, from --seed; replica 0\n"
+    "                  unmoved), then brought back to the run's energy (rates scaled, or the\n"
+    "                  angles moved along grad U when at rest), so all sample one shell.\n"
     "                  K_error is then the larger of the blocking error of the mean and the\n"
     "                  standard error of the spread between replicas (both printed, as\n"
     "                  K_error_blocking and K_error_replicas); the result is the same for any\n"
@@ -178,6 +180,7 @@ std::string number_array(const std::vector<double>& values) {
 }
 
 constexpr long max_replicas = 100000;
+constexpr double max_perturbation = 0.1;  ///< radians (--perturb)
 
 /// A replica's seed: replica 0 runs with --seed itself (as a single run does), the others with
 /// seeds mixed from it (splitmix64), so their noise streams and perturbations are independent.
@@ -377,14 +380,20 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
     const std::uint64_t own_seed = replica_seed(seed, replica);
     if (run.thermostat == Thermostat::langevin) options.seed = own_seed;
     std::vector<double> start = phi;
+    ChainState<double> initial;
     if (run.thermostat == Thermostat::none && replica > 0) {
       std::mt19937_64 random(own_seed);
       for (double& angle : start)
         angle += perturbation * (2 * (static_cast<double>(random() >> 11) * 0x1.0p-53) - 1);
+      // Replicas of an NVE run sample one energy shell: the perturbed start is brought back to
+      // the run's energy (combining averages at different energies would mix ensembles).
+      initial = state_at_energy(chain, start, phidot, energy);
+    } else {
+      initial = state_from_angles(chain, start, phidot);
     }
     DynamicsObserver<double> observer;
     observer.stop = &stop_flag();
-    out += pack_replica(simulate(chain, state_from_angles(chain, start, phidot), options, observer));
+    out += pack_replica(simulate(chain, std::move(initial), options, observer));
   };
   const StopOnSignal signals;
   std::optional<ReplicaCombiner> combiner;
@@ -497,6 +506,10 @@ SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
   }
   request.perturbation =
       parse_real<double>(options.get("perturb", "1e-6"), "--perturb", Domain::positive);
+  // A perturbation decorrelates replicas; beyond 0.1 rad the starts are different runs, and the
+  // energy correction (state_at_energy) has no nearby state to reach.
+  if (!(request.perturbation <= max_perturbation))
+    throw usage_error("simulate: --perturb must be in (0, 0.1] radians");
   request.exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
   request.csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
   if (options.has("trajectory") != options.has("every"))

@@ -52,10 +52,14 @@ DoublePendulumParameters<Real> double_pendulum_parameters(const Chain<Real>& cha
   // weights' scaled Bessel functions over R ~ a1 + a2 (and R^2) must too: a1, a2 <= 1e150.
   if (!(boost::math::isfinite)(p.a1 * p.a2) || !(boost::math::isfinite)(p.a1 + p.a2) ||
       (!is_mpfr_v<Real> && !(p.a1 + p.a2 <= Real(1e150)))) {
-    throw invalid_input("beta g M l1 + beta g m2 l2 = " +
-                        short_decimal(static_cast<double>(p.a1 + p.a2)) +
-                        " is beyond the double engine's range (1e150); request 17 or more "
-                        "digits (MPFR)");
+    if constexpr (is_mpfr_v<Real>)
+      throw invalid_input("beta g M l1 + beta g m2 l2 overflows MPFR's exponent range (the "
+                          "integral forms their product, beyond 1e323228496)");
+    else
+      throw invalid_input("beta g M l1 + beta g m2 l2 = " +
+                          short_decimal(static_cast<double>(p.a1 + p.a2)) +
+                          " is beyond the double engine's range (1e150); request 17 or more "
+                          "digits (MPFR)");
   }
   // The variances' integral J_{-3/2} grows like mu1^(-3/2) times the weight's peak: below
   // mu1 = 1e-150 it overflows double at large beta.

@@ -4,7 +4,11 @@
 // can, for x86-64-v3 = AVX2 + FMA, about twice as fast; the library runs on any x86-64 CPU).
 #include "engine/dynamics_kernels.hpp"
 
+#include "domain.hpp"
+#include "engine/text.hpp"
+
 #include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -183,18 +187,110 @@ void baoab_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h
 }
 
 template <class Real>
+ChainState<Real> state_at_energy(const Chain<Real>& chain, const std::vector<Real>& phi,
+                                 const std::vector<Real>& phidot, const Real& energy) {
+  using std::abs;
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const std::size_t n = chain.size();
+  const ChainState<Real> start = state_from_angles(chain, phi, phidot);
+  const Real u = potential_energy(chain, start);
+  const Real k = total_energy(chain, start) - u;
+  // The energy scale the tolerance is relative to: the well's depth sum_j gamma_j, or |E|.
+  Real scale = abs(energy);
+  for (std::size_t j = 0; j < n; ++j) scale += chain.potential_coefficient(j);
+  const Real tolerance = 8 * std::numeric_limits<Real>::epsilon() * scale;
+  if (k > 0 && energy - u > 0) {
+    const Real factor = sqrt((energy - u) / k);
+    std::vector<Real> rates = phidot;
+    for (Real& w : rates) w *= factor;
+    ChainState<Real> s = state_from_angles(chain, phi, rates);
+    if (abs(total_energy(chain, s) - energy) <= tolerance) return s;
+  }
+  // At rest (or short of energy): move the angles along grad U, d_j = gamma_j sin phi_j.
+  std::vector<Real> direction(n);
+  Real norm2 = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    direction[j] = chain.potential_coefficient(j) * sin(phi[j]);
+    norm2 += direction[j] * direction[j];
+  }
+  const auto mismatch = [&](const Real& step) {
+    std::vector<Real> angles = phi;
+    for (std::size_t j = 0; j < n; ++j) angles[j] += step * direction[j];
+    return std::pair{total_energy(chain, state_from_angles(chain, angles, phidot)) - energy, angles};
+  };
+  if (norm2 > 0) {
+    Real s0 = 0, f0 = mismatch(s0).first;
+    Real s1 = -f0 / norm2;  // dU/ds = |grad U|^2 at s = 0
+    for (int iteration = 0; iteration < 60; ++iteration) {
+      auto [f1, angles] = mismatch(s1);
+      if (abs(f1) <= tolerance && abs(s1) * sqrt(norm2) <= Real(0.5))
+        return state_from_angles(chain, angles, phidot);
+      if (f1 == f0) break;
+      const Real next = s1 - f1 * (s1 - s0) / (f1 - f0);
+      s0 = s1, f0 = f1, s1 = next;
+      using std::isfinite;
+      if (!isfinite(s1)) break;
+    }
+  }
+  throw invalid_input("simulate: no state at the energy " + short_decimal(static_cast<long double>(energy)) +
+                      " near these angles (a start at rest at an equilibrium cannot be moved "
+                      "along its energy shell); start elsewhere or use a smaller --perturb");
+}
+
+/// The result check of simulate() (domain.hpp): every time average, energy and residual finite.
+/// A statistical error is NaN only where it is documented as unknown (fewer than 16 blocks);
+/// an infinite or negative one is refused.
+template <class Real>
+void check_simulation_result(const SimulationResult<Real>& r) {
+  const auto average = [](const TimeAverage<Real>& a, const char* what) {
+    domain::check_finite_value(a.value, "simulate", what);
+    using std::isinf;
+    if (isinf(a.error) || a.error < 0)
+      throw invalid_input(std::string("simulate: the error of ") + what +
+                          " is not finite for this input (please report it)");
+  };
+  for (const auto& a : r.kinetic) average(a, "<K_i>");
+  for (const auto& a : r.kinetic_canonical) average(a, "<K_i^(c)>");
+  for (const auto& a : r.cos_angle) average(a, "<cos phi_i>");
+  average(r.kinetic_total, "<K>");
+  average(r.potential, "<U>");
+  for (const auto& [x, what] : {std::pair{&r.initial_energy, "initial energy"},
+                                std::pair{&r.final_energy, "final energy"},
+                                std::pair{&r.energy_error_max, "energy error"},
+                                std::pair{&r.energy_drift, "energy drift"},
+                                std::pair{&r.constraint_residual, "constraint residual"}})
+    domain::check_finite_value(*x, "simulate", what);
+}
+
+template <class Real>
 SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> initial,
                                 const SimulationOptions& options,
                                 const DynamicsObserver<Real>& observer) {
   check_simulation_options(options);
-  PENDAVG_DISPATCH(simulate_kernel(chain, std::move(initial), options, observer));
+  domain::check_dynamics_scales(chain, "simulate");
+  SimulationResult<Real> result = [&] {
+    PENDAVG_DISPATCH(simulate_kernel(chain, std::move(initial), options, observer));
+  }();
+  check_simulation_result(result);
+  return result;
 }
 
 template <class Real>
 PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& energy,
                                        const PoincareOptions& options,
                                        const DynamicsObserver<Real>& observer) {
-  PENDAVG_DISPATCH(poincare_section_kernel(chain, energy, options, observer));
+  domain::check_dynamics_scales(chain, "poincare");
+  PoincareSection<Real> section = [&] {
+    PENDAVG_DISPATCH(poincare_section_kernel(chain, energy, options, observer));
+  }();
+  for (const SectionPoint<Real>& p : section.points) {
+    domain::check_finite_value(p.phi2, "poincare", "phi_2 of a section point");
+    domain::check_finite_value(p.p2, "poincare", "p_2 of a section point");
+  }
+  domain::check_finite_value(section.energy_error_max, "poincare", "energy error");
+  return section;
 }
 
 #undef PENDAVG_DISPATCH
@@ -207,6 +303,8 @@ PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& ene
   template ChainObservables<Real> observables<Real>(const Chain<Real>&, const ChainState<Real>&); \
   template Real potential_energy<Real>(const Chain<Real>&, const ChainState<Real>&);            \
   template Real total_energy<Real>(const Chain<Real>&, const ChainState<Real>&);                \
+  template ChainState<Real> state_at_energy<Real>(const Chain<Real>&, const std::vector<Real>&, \
+                                                  const std::vector<Real>&, const Real&);        \
   template Real constraint_residual<Real>(const Chain<Real>&, const ChainState<Real>&);         \
   template Real velocity_constraint_residual<Real>(const Chain<Real>&, const ChainState<Real>&); \
   template class DynamicsWorkspace<Real>;                                                       \

@@ -848,7 +848,12 @@ void check_stable_time_step(const Chain<Real>& chain, double time_step, long dou
   const std::size_t n = chain.size();
   Wide omega2 = 0;
   const Wide g = static_cast<Wide>(chain.gravity());
-  const Wide k = std::max<Wide>(kinetic, 0);
+  // Fail closed: a NaN energy (std::max(NaN, 0) is NaN, std::max(0, NaN) is 0) must not read
+  // as a motionless chain whose every time step is stable.
+  if (std::isnan(kinetic))
+    throw invalid_input(std::string(command) + ": the initial energy is not a number for this "
+                        "input; choose units nearer 1");
+  const Wide k = kinetic > 0 ? kinetic : Wide(0);
   for (std::size_t i = 0; i < n; ++i) {
     const Wide li = static_cast<Wide>(chain.length(i));
     Wide stiffness = (g * static_cast<Wide>(chain.tail_mass(i)) + 2 * k / li) / li;
@@ -856,7 +861,8 @@ void check_stable_time_step(const Chain<Real>& chain, double time_step, long dou
       const Wide lj = static_cast<Wide>(chain.length(i + 1));
       stiffness += (g * static_cast<Wide>(chain.tail_mass(i + 1)) + 2 * k / lj) / lj;
     }
-    omega2 = std::max(omega2, stiffness / static_cast<Wide>(chain.mass(i)));
+    const Wide own = stiffness / static_cast<Wide>(chain.mass(i));
+    if (!(own <= omega2)) omega2 = own;  // a NaN stays, and is refused below
   }
   const Wide omega = std::sqrt(omega2);
   if (!std::isfinite(omega))
@@ -929,7 +935,10 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     }
   };
   const std::size_t total_steps = burn_steps + steps;
-  const std::size_t progress_every = std::max<std::size_t>(1, total_steps / 100);
+  // Every 1% or every 1024 steps, whichever comes first: a long run (1e9 steps) reports within
+  // a fraction of a second, and a front end throttles what it prints.
+  const std::size_t progress_every =
+      std::clamp<std::size_t>(total_steps / 100, 1, 1024);
   auto stop_requested = [&]() {
     return observer.stop != nullptr && observer.stop->load(std::memory_order_relaxed);
   };

@@ -225,8 +225,12 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
   if (terms == 0 && !(estimate <= double(max_automatic_terms))) {
     // mu2 = 1 - mu1 for a light first particle (printed as 1 by a short decimal)
     const double mu1 = std::exp(log_mu1);
+    // mu1 from its logarithm: exp underflows to 0 below 1e-308 ("1 - 0" was printed)
+    const std::string mu1_text =
+        mu1 > 0 ? short_decimal(mu1)
+                : "1e" + std::to_string(static_cast<long long>(std::floor(log_mu1 / std::log(10.0))));
     const std::string mu2_text =
-        mu1 < 1e-3 ? "1 - " + short_decimal(mu1) : short_decimal(std::exp(log_mu2));
+        mu1 < 1e-3 ? "1 - " + mu1_text : short_decimal(std::exp(log_mu2));
     const std::string terms_text = !std::isfinite(estimate) ? "more than 1e300"
                                    : estimate < 1e15
                                        ? "about " + std::to_string(static_cast<long long>(estimate))

@@ -1,0 +1,113 @@
+#!/usr/bin/env bash
+# tests/cli/test_fail_closed.sh PENDAVG -- the hostile-input audit's reproducers, one per root
+# cause, through the command line: each either exits 0 with finite numbers, or exits 2 with
+# exactly one line on stderr and nothing on stdout. Usage: test_fail_closed.sh build/pendavg
+set -uo pipefail
+P=${1:?usage: test_fail_closed.sh PENDAVG}
+pass=0
+fail=0
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# refused NAME EXPECTED-TEXT ARGS...: exit 2, one stderr line containing EXPECTED-TEXT, no stdout.
+refused() {
+  local name=$1 expected=$2
+  shift 2
+  timeout 60 "$P" "$@" >"$work/out" 2>"$work/err"
+  local rc=$? lines
+  lines=$(wc -l <"$work/err")
+  if [[ $rc -eq 2 && $lines -eq 1 && ! -s $work/out ]] && grep -qF -- "$expected" "$work/err"; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1))
+    echo "FAIL refused: $name (rc=$rc, $lines stderr lines): $(head -c 300 "$work/err")"
+  fi
+}
+
+# finite NAME ARGS...: exit 0 and no nan or inf in the output (CSV: a missing value is empty).
+finite() {
+  local name=$1
+  shift
+  timeout 60 "$P" "$@" >"$work/out" 2>"$work/err"
+  local rc=$?
+  if [[ $rc -eq 0 ]] && ! grep -qiE '(^|[,: \[])[-+]?(nan|inf)' "$work/out"; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1))
+    echo "FAIL finite: $name (rc=$rc): $(head -c 300 "$work/out") $(head -c 300 "$work/err")"
+  fi
+}
+
+# limit: NaN var_K_beta2 with converged true, subnormal values, Boost's ellint_rf domain error
+refused "limit: subnormal mass fraction" "below double's normal range" \
+  limit --masses 1e-300,1e20 --lengths 1,0.5
+refused "limit: subnormal mass fraction (text)" "below double's normal range" \
+  limit --masses 1e-300,1e20 --lengths 1,0.5 --format text
+refused "limit: M/m_min beyond the trace formula" "trace formula" limit --masses 1,1e154,1
+refused "limit: three scales" "below double's normal range" \
+  limit --masses 0.5,1e-300,5.467694768196e306
+refused "limit: mu1 = 1e-400 (was ellint_rf)" "below double's normal range" \
+  limit --masses 1e-200,1e200
+finite "limit: the advice works" limit --masses 1e-200,1e200 --digits 17 --format csv
+
+# simulate: null averages with zero errors and exit 0 (a NaN frequency passed the dt check)
+refused "simulate: length 1e-300" "choose units nearer 1" \
+  simulate --masses 1,1 --lengths 1e-300,1 --theta 1 --time 1
+refused "simulate: length 1e-300, Langevin" "choose units nearer 1" \
+  simulate --masses 1,1 --lengths 1e-300,1 --theta 1 --time 1 --thermostat langevin --beta 1
+refused "simulate: length 1e-300, rattle2" "choose units nearer 1" \
+  simulate --masses 1,1 --lengths 1e-300,1 --theta 1 --time 1 --integrator rattle2
+refused "simulate: length 1e-300, replicas" "choose units nearer 1" \
+  simulate --masses 1,1 --lengths 1e-300,1 --theta 1 --time 1 --replicas 2
+refused "simulate: length 1e-300, N = 3" "choose units nearer 1" \
+  simulate --masses 1,1,1 --lengths 1,1e-300,1 --theta 1 --time 1
+refused "simulate: --perturb 1e300" "--perturb must be in (0, 0.1]" \
+  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 4 --perturb 1e300
+refused "poincare: length 1e-300" "choose units nearer 1" \
+  poincare --masses 1,1 --lengths 1e-300,1 --energy -1
+
+# average: the MPFR torus' stiffness was converted to double (unbounded runs)
+refused "average: MPFR beta 1e400, N = 3" "beyond what the torus resolves in MPFR" \
+  average --masses 1,1,1 --lengths 1,1,1 --beta 1e400 --digits 20
+refused "average: MPFR beta 1e400, N = 4" "beyond what the torus resolves in MPFR" \
+  average --masses 1,1,1,1 --lengths 1,1,1,1 --beta 1e400 --digits 20
+refused "average: MPFR g 1e400" "beyond what the torus resolves in MPFR" \
+  average --masses 1,1,1 --lengths 1,1,1 --beta 1 --g 1e400 --digits 20
+refused "average: MPFR middle link 1e400" "times the softest joint's" \
+  average --masses 1,1,1 --lengths 1,1e400,1 --beta 1 --digits 20
+# double overflow inside the N >= 3 engines (minutes, then four lines)
+refused "average: g 6e307, N = 3" "beyond double's range for the engines" \
+  average --masses 1,1,1 --lengths 1,1,1 --beta 1 --g 6e307
+refused "average: first link 6e307" "beyond double's range for the engines" \
+  average --masses 1,1,1 --lengths 6e307,1,1 --beta 1
+refused "average: last link 6e307" "link 3" \
+  average --masses 1,1,1 --lengths 1,1,6e307 --beta 1
+refused "table: g = DBL_MAX" "beyond double's range for the engines" \
+  table --chain 3 --beta 1 --g 1.7976931348623157e308 --output "$work/table.csv"
+[[ -e $work/table.csv ]] && { fail=$((fail + 1)); echo "FAIL table: a refused table left a file"; }
+# underflow: Var K_i = 5e-601 printed as 0 +- 0
+refused "average: Var K underflows, N = 1" "outside double's normal range" \
+  average --masses 2 --lengths 3 --g 1 --beta 1e200
+refused "average: Var K underflows, N = 5" "outside double's normal range" \
+  average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1e200
+finite "average: N = 2 at beta 1e200 in MPFR" average --masses 1,1 --lengths 1,1 --beta 1e200 --digits 20 --format csv
+# advice that is true: at 30 digits the refusal names MPFR's exponent range
+refused "average: MPFR exponent range" "MPFR's exponent range" \
+  average --masses 1,1 --lengths 1,1 --beta 1e200000000 --digits 30
+if grep -q "request 17" "$work/err"; then
+  fail=$((fail + 1))
+  echo "FAIL advice: a 30-digit run advised 17 digits"
+fi
+refused "average: a far stiffer last link" "request 17 or more digits" \
+  average --masses 1,1,1 --lengths 1,1,1e24 --beta 1
+finite "average: ... and the advice works" average --masses 1,1,1 --lengths 1,1,1e24 --beta 1 --digits 17 --format csv
+finite "simulate: replicas on one energy shell" \
+  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 2 --replicas 3 --perturb 1e-3
+spread=$(grep -oE '"replica_energy_spread": "?[0-9.e+-]+' "$work/out" | grep -oE '[0-9.e+-]+$')
+if ! awk -v s="${spread:-1}" 'BEGIN { exit !(s < 1e-13) }'; then
+  fail=$((fail + 1))
+  echo "FAIL simulate: replica energy spread ${spread:-missing} (same shell expected)"
+fi
+
+echo "$pass passed, $fail failed"
+[[ $fail -eq 0 ]]

@@ -1,0 +1,265 @@
+// tests/test_fail_closed.cpp -- the one domain module (src/domain.hpp) and the result checks:
+// every entry point refuses before any work what its engines cannot compute, a NaN or an
+// overflow is a refusal (never a pass), no non-finite or underflowed number is returned, and
+// advice to request more digits is given only where it works. One test per root cause found by
+// the hostile-input audit, by name.
+#include <catch2/catch.hpp>
+
+#include "domain.hpp"
+#include "pendavg/mpfr.hpp"
+#include "pendavg/pendavg.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace {
+
+using pendavg::AverageOptions;
+using pendavg::Averages;
+using pendavg::Chain;
+using pendavg::Estimate;
+using pendavg::mpfr_real;
+
+template <class F>
+std::string refusal(F&& f) {
+  try {
+    f();
+  } catch (const pendavg::invalid_input& e) {
+    return e.what();
+  }
+  return "";
+}
+
+template <class Real>
+bool all_finite(const Averages<Real>& a) {
+  using std::isfinite;
+  for (const auto* group : {&a.beta_kinetic, &a.cos_angle, &a.beta2_kinetic_variance})
+    for (const Estimate<Real>& e : *group)
+      if (!isfinite(e.value) || !isfinite(e.error)) return false;
+  return true;
+}
+
+AverageOptions digits(int d) {
+  AverageOptions o;
+  o.digits = d;
+  return o;
+}
+
+const std::string mpfr_advice = "request 17 or more digits (MPFR)";
+
+}  // namespace
+
+TEST_CASE("fail closed: limit with the lightest mass fraction below double's normal range",
+          "[fail_closed]") {
+  // masses 1e-300, 1e20: mu1 = 1e-320 is subnormal. It printed beta<K1> = 1.848981e-318 with an
+  // error (4.9e-324) that did not cover, and a NaN beta^2 Var K_1 with converged = true.
+  const Chain<double> chain({1e-300, 1e20}, {1, 0.5});
+  for (const std::string& message :
+       {refusal([&] { pendavg::high_temperature_limit(chain); }),
+        refusal([&] { pendavg::low_temperature_limit(chain); })}) {
+    CHECK_THAT(message, Catch::Contains("below double's normal range"));
+    CHECK_THAT(message, Catch::Contains(mpfr_advice));
+  }
+  // The advice works: both limits in MPFR are finite, and 17 and 40 digits agree.
+  const Chain<mpfr_real> wide = chain.cast<mpfr_real>();
+  const Averages<mpfr_real> h17 = pendavg::high_temperature_limit(wide, digits(17));
+  const Averages<mpfr_real> h40 = pendavg::high_temperature_limit(wide, digits(40));
+  const Averages<mpfr_real> l17 = pendavg::low_temperature_limit(wide, digits(17));
+  REQUIRE(all_finite(h17));
+  REQUIRE(all_finite(l17));
+  const mpfr_real k17 = h17.beta_kinetic[0].value, k40 = h40.beta_kinetic[0].value;
+  CHECK(k17 > 0);
+  CHECK(abs(k17 - k40) <= h17.beta_kinetic[0].error + h40.beta_kinetic[0].error);
+}
+
+TEST_CASE("fail closed: limit with M / m_min beyond the trace formula's double range",
+          "[fail_closed]") {
+  // masses 1, 1e154, 1: the beta -> infinity traces overflowed (NaN) and the beta -> 0 torus at
+  // g = 0 ran for minutes.
+  for (const std::vector<double>& masses :
+       {std::vector<double>{1, 1e154, 1}, std::vector<double>{0.5, 1e-300, 5.467694768196e306}}) {
+    const Chain<double> chain(masses, std::vector<double>(3, 1.0));
+    CHECK_FALSE(refusal([&] { pendavg::high_temperature_limit(chain); }).empty());
+    CHECK_FALSE(refusal([&] { pendavg::low_temperature_limit(chain); }).empty());
+  }
+  // Inside the range both limits still run.
+  const Chain<double> inside({1, 1e100, 1}, {1, 1, 1});
+  CHECK(all_finite(pendavg::low_temperature_limit(inside)));
+}
+
+TEST_CASE("fail closed: limit N = 2 with mu1 = 1e-400 is one refusal, not Boost's ellint_rf",
+          "[fail_closed]") {
+  const Chain<double> chain({1e-200, 1e200}, {1, 1});
+  const std::string message = refusal([&] { pendavg::high_temperature_limit(chain); });
+  CHECK_THAT(message, Catch::Contains("below double's normal range"));
+  CHECK(message.find("ellint") == std::string::npos);
+  CHECK(all_finite(pendavg::high_temperature_limit(chain.cast<mpfr_real>(), digits(20))));
+}
+
+TEST_CASE("fail closed: every joint's stiffness is checked in double, the last link's too",
+          "[fail_closed]") {
+  // g = 6e307 (N = 3) and a link of 6e307 ran for a minute and failed with four lines; the
+  // last link's stiffness was never checked.
+  const auto both = [](const Chain<double>& chain, double beta) {
+    const std::string checked = refusal([&] { pendavg::check_average(chain, beta, {}); });
+    const std::string run = refusal([&] { pendavg::average(chain, beta); });
+    CHECK(checked == run);
+    return checked;
+  };
+  CHECK_THAT(both(Chain<double>({1, 1, 1}, {1, 1, 1}, 6e307), 1.0),
+             Catch::Contains("beyond double's range for the engines"));
+  CHECK_THAT(both(Chain<double>({1, 1, 1}, {6e307, 1, 1}), 1.0),
+             Catch::Contains("link 1"));
+  CHECK_THAT(both(Chain<double>({1, 1, 1}, {1, 1, 6e307}), 1.0),
+             Catch::Contains("link 3"));
+  // transfer (N >= 5) forms alpha_j = beta g S_j l_j at the given beta
+  CHECK_THAT(both(Chain<double>(std::vector<double>(6, 1.0), std::vector<double>(6, 1.0)),
+                  7.7e306),
+             Catch::Contains("stiffnesses beta g S_j l_j sum to"));
+  // A single message line (the CLI prints it as its one error line).
+  CHECK(both(Chain<double>({1, 1, 1}, {1, 1, 6e307}), 1.0).find('\n') == std::string::npos);
+}
+
+TEST_CASE("fail closed: MPFR joints' stiffness is formed in MPFR (beta = 1e400)", "[fail_closed]") {
+  // beta = 1e400 was converted to double (inf), inf / inf gave NaN, and std::max(x, NaN) kept x:
+  // the torus then ran unbounded.
+  const pendavg::working_precision precision(20 + pendavg::guard_digits);
+  const mpfr_real huge("1e400");
+  const std::vector<mpfr_real> ones3(3, mpfr_real(1)), ones4(4, mpfr_real(1));
+  CHECK_FALSE(refusal([&] {
+                pendavg::check_average(Chain<mpfr_real>(ones3, ones3), huge, digits(20));
+              }).empty());
+  CHECK_FALSE(refusal([&] {
+                pendavg::check_average(Chain<mpfr_real>(ones4, ones4), huge, digits(20));
+              }).empty());
+  CHECK_FALSE(refusal([&] {
+                pendavg::check_average(Chain<mpfr_real>(ones3, ones3, huge), mpfr_real(1),
+                                       digits(20));
+              }).empty());
+  CHECK_FALSE(refusal([&] {
+                pendavg::check_average(
+                    Chain<mpfr_real>(ones3, {mpfr_real(1), huge, mpfr_real(1)}), mpfr_real(1),
+                    digits(20));
+              }).empty());
+}
+
+TEST_CASE("fail closed: a link far stiffer than the softest joint is refused with digits that work",
+          "[fail_closed]") {
+  // l_3 = 1e24 made the double torus refine forever (l_3 = 1e20 converges in 0.2 s).
+  const Chain<double> chain({1, 1, 1}, {1, 1, 1e24});
+  const std::string message = refusal([&] { pendavg::check_average(chain, 1.0, {}); });
+  CHECK_THAT(message, Catch::Contains("request 17 or more digits"));
+  const Averages<mpfr_real> a = pendavg::average(chain.cast<mpfr_real>(), mpfr_real(1), digits(17));
+  REQUIRE(all_finite(a));
+  CHECK(a.converged);
+  // The first link is the torus' reference and is not limited: l_1 = 1e24 runs in double.
+  CHECK(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1e24, 1, 1}), 1.0, {}); })
+            .empty());
+}
+
+TEST_CASE("fail closed: MPFR exponent overflow is named, without advice to request 17 digits",
+          "[fail_closed]") {
+  const pendavg::working_precision precision(30 + pendavg::guard_digits);
+  const Chain<mpfr_real> chain({mpfr_real(1), mpfr_real(1)}, {mpfr_real(1), mpfr_real(1)});
+  const std::string message =
+      refusal([&] { pendavg::check_average(chain, mpfr_real("1e200000000"), digits(30)); });
+  CHECK_THAT(message, Catch::Contains("MPFR's exponent range"));
+  CHECK(message.find("request 17") == std::string::npos);
+}
+
+TEST_CASE("fail closed: simulate refuses scales whose trajectory leaves double's range",
+          "[fail_closed][dynamics]") {
+  // lengths 1e-300, 1: the momenta projection made NaN, the time-step check read the NaN
+  // frequency as 0, and the run printed null averages with zero errors and exit 0.
+  pendavg::SimulationOptions nve;
+  nve.duration = 1;
+  for (const auto& [masses, lengths] :
+       {std::pair{std::vector<double>{1, 1}, std::vector<double>{1e-300, 1}},
+        std::pair{std::vector<double>{1, 1, 1}, std::vector<double>{1, 1e-300, 1}},
+        std::pair{std::vector<double>{1e-200, 1}, std::vector<double>{1, 1}},
+        std::pair{std::vector<double>{1, 1}, std::vector<double>{1, 1e200}}}) {
+    const Chain<double> chain(masses, lengths);
+    const auto start = pendavg::state_from_angles(chain, std::vector<double>(masses.size(), 1.0),
+                                                  std::vector<double>(masses.size(), 0.0));
+    for (int variant = 0; variant < 3; ++variant) {
+      pendavg::SimulationOptions o = nve;
+      if (variant == 1) o.integrator = pendavg::Integrator::rattle2;
+      if (variant == 2) {
+        o.thermostat = pendavg::Thermostat::langevin;
+        o.beta = 1.0;
+      }
+      CHECK_THAT(refusal([&] { pendavg::simulate(chain, start, o); }),
+                 Catch::Contains("choose units nearer 1"));
+    }
+  }
+}
+
+TEST_CASE("fail closed: the result check refuses NaN, infinity and subnormal values",
+          "[fail_closed]") {
+  Averages<double> a;
+  a.beta_kinetic = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
+  a.cos_angle = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
+  a.beta2_kinetic_variance = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
+  CHECK(refusal([&] { pendavg::domain::check_result(a, "average"); }).empty());
+  SECTION("NaN value") {
+    a.beta2_kinetic_variance[0].value = std::nan("");
+    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "average"); }),
+               Catch::Contains("non-finite beta^2 Var K_i"));
+  }
+  SECTION("infinite error") {
+    a.cos_angle[0].error = std::numeric_limits<double>::infinity();
+    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "limit"); }),
+               Catch::Contains("limit: "));
+  }
+  SECTION("subnormal value") {
+    a.beta_kinetic[0].value = 1e-318;
+    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "limit", "; advice"); }),
+               Catch::Contains("below double's normal range") && Catch::Contains("; advice"));
+  }
+  SECTION("NaN ratio") {
+    a.ratio = Estimate<double>{std::nan(""), 0, pendavg::ErrorKind::estimate};
+    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "average"); }),
+               Catch::Contains("<K1>/<K2>"));
+  }
+}
+
+TEST_CASE("fail closed: scales are logarithms, finite for every input of every number type",
+          "[fail_closed]") {
+  const pendavg::working_precision precision(30);
+  const mpfr_real tiny("1e-5000"), huge("1e5000");
+  CHECK(pendavg::domain::log2_magnitude(huge) == Approx(5000 * std::log2(10.0)).epsilon(1e-12));
+  CHECK(pendavg::domain::log2_magnitude(tiny) == Approx(-5000 * std::log2(10.0)).epsilon(1e-12));
+  CHECK(std::isnan(pendavg::domain::log2_magnitude(std::nan(""))));
+  const Chain<mpfr_real> chain({mpfr_real(1), tiny}, {huge, mpfr_real(1)}, huge);
+  const mpfr_real beta(1);
+  const pendavg::domain::ChainScales s = pendavg::domain::chain_scales(chain, &beta);
+  CHECK(std::isfinite(s.total_stiffness));
+  CHECK(s.lightest_fraction == Approx(-5000 * std::log2(10.0)).epsilon(1e-12));
+  // alpha_1 = beta g M l_1 ~ 1e10000 dominates the sum.
+  CHECK(s.total_stiffness == Approx(10000 * std::log2(10.0)).epsilon(1e-9));
+}
+
+TEST_CASE("fail closed: NVE replicas are brought back to the run's energy shell",
+          "[fail_closed][dynamics]") {
+  const Chain<double> chain({1, 1, 1}, {1, 0.5, 2});
+  const std::vector<double> rest{1.0, -0.5, 0.3}, moving{0.2, 0.1, -0.3};
+  const std::vector<double> zero(3, 0.0), rates{0.5, -1.0, 0.25};
+  for (const auto& [phi, phidot] : {std::pair{rest, zero}, std::pair{moving, rates}}) {
+    const double energy = pendavg::total_energy(chain, pendavg::state_from_angles(chain, phi, phidot));
+    std::vector<double> moved = phi;
+    for (std::size_t j = 0; j < moved.size(); ++j) moved[j] += 1e-3 * (j % 2 ? 1 : -1);
+    const auto s = pendavg::state_at_energy(chain, moved, phidot, energy);
+    const double scale = 1 * 1 * 3.5 * 3;  // sum m g sum l, an upper bound of the well depth
+    CHECK(std::abs(pendavg::total_energy(chain, s) - energy) <= 16 * 2.2e-16 * scale);
+    CHECK(pendavg::constraint_residual(chain, s) <= 1e-14);
+  }
+  // Below the bottom of the well there is no state at all: refused, not a wrong energy.
+  const std::vector<double> bottom(3, 0.0);
+  const double lowest = pendavg::total_energy(chain, pendavg::state_from_angles(chain, bottom, zero));
+  CHECK_THAT(refusal([&] {
+               pendavg::state_at_energy(chain, std::vector<double>{1e-3, 0, 0}, zero, lowest - 1);
+             }),
+             Catch::Contains("no state at the energy"));
+}
