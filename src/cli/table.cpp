@@ -867,12 +867,18 @@ void run_table(const TableRequest& request, const PointSpace& space,
     text += point.options.digits == min_digits ? table_row<double>(point, plan)
                                                : table_row<mpfr_real>(point, plan);
   };
+  const auto point_context = [&](std::size_t k) {
+    return "point (" + space.point(k, row_options).describe() + "): ";
+  };
+  // A point that fails once the sweep runs (the check passed it) does not cost the others: it
+  // becomes a '# failed:' line in its place, and the run ends with rows_failed (exit 3).
+  rows.failed_row = [&](std::size_t k, std::string_view reason) {
+    return failed_row_line(point_context(k), reason);
+  };
   run_sweep(rows, file ? &*file : nullptr, [&](const SweepOutcome& outcome) {
     if (outcome.failed) {
       file->discard();
-      rethrow_failure(outcome, [&](std::size_t k) {
-        return "table: point (" + space.point(k, row_options).describe() + "): ";
-      });
+      rethrow_failure(outcome, [&](std::size_t k) { return "table: " + point_context(k); });
     }
     if (outcome.written < row_count) {
       // Interrupted (SIGINT/SIGTERM): every finished row is kept; say so in the file and on
@@ -884,6 +890,9 @@ void run_table(const TableRequest& request, const PointSpace& space,
                    row_count);
     }
     file->commit();
+    if (outcome.failed_rows > 0)
+      throw rows_failed(failed_rows_message("table", outcome, "points", target.path,
+                                            point_context(outcome.first_failed_row)));
   });
 }
 
@@ -916,7 +925,8 @@ std::string table_command(const Options& options) {
     }
   };
   const int threads = hardware_threads();
-  if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
+  if (const std::size_t bad = first_failing_row(row_count, threads, check, "table", "points");
+      bad < row_count)
     check(bad, 0);  // throws the first bad point's error, on every rank
 
   run_table(request, space, row_options, target, table_header(request, methods, row_count),
