@@ -4,8 +4,9 @@
 // would move the cursor, clear the screen, recolour the terminal or break the line in a log
 // viewer: they are escaped (\xNN for a byte, \uNNNN for a character); a newline becomes a space
 // (messages joined from several lines read on). An echoed value can be any length (a 1 MB
-// number): a run of more than long_word characters without a space keeps its first
-// kept_characters and says how long it was, and the whole line is cut at max_characters.
+// number): a run of more than long_word characters without a space (longer than almost any
+// path) keeps its first kept_characters and says how long it was, and the whole line is cut at
+// max_characters.
 #pragma once
 
 #include <cstddef>
@@ -16,7 +17,7 @@
 namespace pendavg::cli {
 
 namespace one_line_limits {
-inline constexpr std::size_t long_word = 80;        ///< longer runs without a space are cut
+inline constexpr std::size_t long_word = 256;       ///< longer runs without a space are cut
 inline constexpr std::size_t kept_characters = 40;  ///< of a cut run
 inline constexpr std::size_t max_characters = 2000; ///< of the whole line
 }  // namespace one_line_limits
