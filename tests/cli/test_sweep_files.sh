@@ -70,33 +70,33 @@ faulty_run() {
 data_rows() { grep -v '^#' "$1" | tail -n +2; }
 
 # ---------------------------------------------------------------- 1. no sweep row lost
-# 600 good N = 3 rows; rows 5 and 599 (file lines 7 and 601) fail while they are computed.
+# 120 good N = 3 rows; rows 5 and 119 (file lines 7 and 121) fail while they are computed.
 "$python" - "$work/cases.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
     f.write("beta,g,m1,m2,m3,l1,l2,l3\n")
-    for i in range(600):
+    for i in range(120):
         f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,1,1,{1 + i % 5}\n")
 PY
 cases=(average --cases "$work/cases.csv")
 "$pendavg" "${cases[@]}" --output "$work/cases_reference.csv" 2>/dev/null
 "$pendavg" "${cases[@]}" >"$work/cases_reference_stdout.csv" 2>/dev/null
-faulty_run 5,599 "${cases[@]}" --output "$work/cases_failed.csv"
+faulty_run 5,119 "${cases[@]}" --output "$work/cases_failed.csv"
 check "failed rows: exit status 3 (was 2 and no file)" test "$rc" -eq 3
 check "failed rows: one error line" one_error_line
 check "failed rows: the line names the count and the first row's line and reason" \
-  grep -q "average: 2 of 600 rows failed .* the first: $work/cases.csv line 7: a failure injected" "$work/err"
+  grep -q "average: 2 of 120 rows failed .* the first: $work/cases.csv line 7: a failure injected" "$work/err"
 check "failed rows: the line says --resume computes them" grep -q -- "--resume '$work/cases_failed.csv'" "$work/err"
 check "failed rows: nothing on stdout" test ! -s "$work/out"
 check "failed rows: every other row kept, in place" \
   cmp -s <(grep -v '^# failed: ' "$work/cases_failed.csv" | grep -v '^[^#]*$' ) \
          <(grep '^#' "$work/cases_reference.csv")
-check "failed rows: the 598 finished rows equal the full run's" \
+check "failed rows: the 118 finished rows equal the full run's" \
   cmp -s <(data_rows "$work/cases_failed.csv") \
-         <(data_rows "$work/cases_reference.csv" | sed -e '6d' -e '600d')
+         <(data_rows "$work/cases_reference.csv" | sed -e '6d' -e '120d')
 check "failed rows: a '# failed:' line in each failed row's place, naming its line" \
   test "$(grep -n '^# failed: ' "$work/cases_failed.csv" | cut -d: -f1,3 | tr '\n' ' ')" = \
-       "10: $work/cases.csv line 7 604: $work/cases.csv line 601 "
+       "10: $work/cases.csv line 7 124: $work/cases.csv line 121 "
 check "failed rows: no temporary" no_temporaries
 run "${cases[@]}" --resume "$work/cases_failed.csv"
 check "failed rows resumed: exit 0" test "$rc" -eq 0
@@ -109,9 +109,9 @@ check "failed first row to stdout: the other rows" \
 check "failed first row to stdout: its line in place" \
   test "$(sed -n 2p "$work/out" | cut -c1-10)" = "# failed: "
 # Every row failing: still a complete file of '# failed:' lines, exit 3.
-faulty_run "$(seq -s, 0 599)" "${cases[@]}" --output "$work/cases_all_failed.csv"
-check "every row failed: exit 3, 600 '# failed:' lines" \
-  test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/cases_all_failed.csv")" -eq 600
+faulty_run "$(seq -s, 0 119)" "${cases[@]}" --output "$work/cases_all_failed.csv"
+check "every row failed: exit 3, 120 '# failed:' lines" \
+  test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/cases_all_failed.csv")" -eq 120
 # table likewise: a '# failed: point (...)' line, resumed = a full run.
 table=(table --beta log:0.1:10:20 --mu1 0.1,0.5 --digits 16)
 "$pendavg" "${table[@]}" --output "$work/table_reference.csv" 2>/dev/null
@@ -155,24 +155,28 @@ check "failed row and interruption resumed = a full run" \
 
 # ---------------------------------------------------------------- 2. --resume keeps whole rows only
 cp "$work/cases_reference.csv" "$work/damaged.csv"
-# Row 100 cut to 9 of its fields, row 200 with a field that is no number, the last row cut
+# Row 50 cut to 9 of its fields, row 80 with a field that is no number, the last row cut
 # mid-number and without its newline (a file cut short).
 "$python" - "$work/damaged.csv" <<'PY'
 import sys
 lines = open(sys.argv[1]).read().split("\n")
 header = sum(1 for l in lines if l.startswith("#")) + 1
-lines[header + 99] = ",".join(lines[header + 99].split(",")[:9])
-fields = lines[header + 199].split(",")
+lines[header + 49] = ",".join(lines[header + 49].split(",")[:9])
+fields = lines[header + 79].split(",")
 fields[12] = fields[12][:3] + "e"
-lines[header + 199] = ",".join(fields)
+lines[header + 79] = ",".join(fields)
 text = "\n".join(lines).rstrip("\n")
 open(sys.argv[1], "w").write(text[:-5])
 PY
-check "damaged rows: row 100 has 9 fields" \
-  test "$(data_rows "$work/damaged.csv" | sed -n 100p | tr ',' '\n' | wc -l)" -eq 9
-run "${cases[@]}" --resume "$work/damaged.csv"
+check "damaged rows: row 50 has 9 fields" \
+  test "$(data_rows "$work/damaged.csv" | sed -n 50p | tr ',' '\n' | wc -l)" -eq 9
+PENDAVG_SWEEP_REPORT=1 run "${cases[@]}" --resume "$work/damaged.csv"
 check "damaged rows resumed: exit 0" test "$rc" -eq 0
+check "damaged rows resumed: the 3 damaged rows computed, the others kept" \
+  grep -q '^pendavg: sweep: rows=120 computed=3 ' "$work/err"
 check "damaged rows resumed = a full run" cmp -s "$work/damaged.csv" "$work/cases_reference.csv"
+PENDAVG_SWEEP_REPORT=1 run "${table[@]}" --resume "$work/table_failed.csv"
+check "a whole file resumed: every row kept" grep -q '^pendavg: sweep: rows=40 computed=0 ' "$work/err"
 
 # ---------------------------------------------------------------- 3. a file size limit
 big_table=(table --beta log:0.1:10:2000 --mu1 0.1,0.5 --digits 16)
@@ -204,6 +208,11 @@ check "a rewritten 0600 file stays 0600" test "$(stat -c %a "$work/private.csv")
 chmod 640 "$work/private.csv"
 run "${table[@]}" --resume "$work/private.csv"
 check "a resumed 0640 file stays 0640" test "$(stat -c %a "$work/private.csv")" = 640
+if [ "$(id -u)" -eq 0 ]; then  # only root may give a file to another owner
+  chown 12345:12346 "$work/private.csv"
+  run "${table[@]}" --output "$work/private.csv"
+  check "a rewritten file keeps its owner and group" test "$(stat -c %u:%g "$work/private.csv")" = 12345:12346
+fi
 echo old >"$work/linked.csv"
 ln "$work/linked.csv" "$work/link2.csv"
 bad "an output with two hard links is refused" "${table[@]}" --output "$work/linked.csv"
@@ -216,12 +225,12 @@ bad "--timing-rows /dev/full fails before any row reaches stdout" \
   "${cases[@]}" --timing-rows /dev/full
 run "${cases[@]}" --timing-rows "$work/timing.csv"
 check "--timing-rows: a row,line,us line per row" \
-  test "$(head -1 "$work/timing.csv")" = "row,line,us" -a "$(wc -l <"$work/timing.csv")" -eq 601
+  test "$(head -1 "$work/timing.csv")" = "row,line,us" -a "$(wc -l <"$work/timing.csv")" -eq 121
 check "--timing-rows: rows in order, lines from the file" \
-  test "$(sed -n '2p;601p' "$work/timing.csv" | cut -d, -f1,2 | tr '\n' ' ')" = "0,2 599,601 "
+  test "$(sed -n '2p;121p' "$work/timing.csv" | cut -d, -f1,2 | tr '\n' ' ')" = "0,2 119,121 "
 faulty_run 7 "${cases[@]}" --timing-rows "$work/timing_failed.csv"
 check "--timing-rows with a failed row: the row is left out" \
-  test "$rc" -eq 3 -a "$(wc -l <"$work/timing_failed.csv")" -eq 600 -a \
+  test "$rc" -eq 3 -a "$(wc -l <"$work/timing_failed.csv")" -eq 120 -a \
        -z "$(cut -d, -f1 "$work/timing_failed.csv" | grep -x 7)"
 
 # ---------------------------------------------------------------- 7. endless input, FIFOs
