@@ -116,7 +116,10 @@ constexpr std::string_view average_usage =
     "hash of the file), digits, method, version and date. SIGINT/SIGTERM stop early: every\n"
     "finished row is written, then an '# interrupted: K of N rows computed' line; --resume\n"
     "FILE continues such a file (same cases, digits, method and version) and rewrites it as an\n"
-    "uninterrupted run does (a FILE that does not exist yet is simply written).\n"
+    "uninterrupted run does (a FILE that does not exist yet is simply written). A row that\n"
+    "fails while it is computed becomes a '# failed: FILE line L: reason' line in its place;\n"
+    "the others are kept and the run exits 3, naming the first; --resume computes it again.\n"
+    "A cases file written by pandas (df.to_csv(): its unnamed index column) is read.\n"
     "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
     "is the same for any number of ranks.\n"
     "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
@@ -996,7 +999,7 @@ std::string cases_header(const CasesFile& file, const std::string& path,
 void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& columns,
                         const std::string& header, const CasesOutput& where,
                         std::optional<ResumedRows>& resumed,
-                        std::optional<AtomicFile>& timing_file) {
+                        std::optional<AtomicFile>& timing_file, std::optional<SweepFile>& output) {
   std::string verdict;
   if (is_root()) {
     try {
@@ -1018,6 +1021,8 @@ void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& c
                           return key;
                         });
       }
+      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+      output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -1116,14 +1121,13 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   std::optional<ResumedRows> resumed;
   std::optional<AtomicFile> timing_file;  // --timing-rows, on rank 0
   std::string timing_text;                // its lines not yet written
-  open_cases_outputs(file, columns, header, where, resumed, timing_file);
+  std::optional<SweepFile> output;
+  open_cases_outputs(file, columns, header, where, resumed, timing_file, output);
 
   // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
   std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
-  std::optional<SweepFile> output;
   if (is_root()) {
-    output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
     output->on_timing = [&](std::size_t first, std::span<const double> us) {
       for (std::size_t k = 0; k < us.size(); ++k) row_us[first + k] = us[k] - timer_us;
       if (timing_file)

@@ -91,6 +91,9 @@ const std::string_view table_usage =
     "(parameters, method, digits, version; not the date), its rows are kept and the missing\n"
     "ones computed, and FILE is rewritten as an uninterrupted run writes it (a FILE that does\n"
     "not exist yet is simply written: a batch job can always pass --resume).\n"
+    "A point that fails while it is computed becomes a '# failed: point (...): reason' line in\n"
+    "its place; the sweep goes on and exits 3, naming the first; --resume computes it again\n"
+    "(and any row cut short).\n"
     "Under mpirun/srun (pendavg built with MPI) the rows are shared by all ranks (OpenMP threads\n"
     "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n"
     "\n"
@@ -830,6 +833,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
   const TablePlan& plan = request.plan;
   const std::size_t row_count = space.count();
   std::optional<ResumedRows> resumed;
+  std::optional<SweepFile> file;
   std::string verdict;
   if (is_root()) {
     try {
@@ -839,6 +843,8 @@ void run_table(const TableRequest& request, const PointSpace& space,
                         [&](std::size_t k) {
                           return row_key(space.point(k, row_options), plan.columns_particles);
                         });
+      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+      file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -847,8 +853,6 @@ void run_table(const TableRequest& request, const PointSpace& space,
   if (!verdict.empty()) throw usage_error(verdict);
   input_checked("table");
 
-  std::optional<SweepFile> file;
-  if (is_root()) file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
   SweepRows rows;
   rows.count = row_count;
   rows.threads = threads;

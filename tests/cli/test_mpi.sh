@@ -186,6 +186,19 @@ else
   pass
 fi
 
+# An output no rank can write (a FIFO nobody reads): refused on every rank before any row, rank 0
+# says so once (not a rank alone that stops the job after 10 s).
+mkfifo "$work/fifo"
+timeout 60 "${launcher[@]}" -n 2 "$pendavg" table --beta log:0.1:10:20 --output "$work/fifo" \
+  >"$work/out" 2>"$work/err"
+rc=$?
+if [ "$rc" -ne 2 ] || [ "$(grep -c '^pendavg: ' "$work/err")" -ne 1 ] ||
+   ! grep -q "^pendavg: error: table: cannot write '$work/fifo': it is a FIFO that no process reads$" "$work/err"; then
+  fail "a FIFO nobody reads under mpirun: exit $rc, not one error line by rank 0"
+else
+  pass
+fi
+
 # A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK=K: just before the sweep's first
 # collective step, as a failing output on rank 0 would be; K:sweep: once the sweep has begun)
 # must not leave the others waiting for it forever: that rank names itself and stops the job
