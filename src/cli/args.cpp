@@ -10,6 +10,7 @@
 #include <cmath>
 #include <optional>
 #include <system_error>
+#include <utility>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -329,7 +330,8 @@ namespace {
 
 /// The most a cases file may hold: half of this machine's memory (the whole file is kept while
 /// its rows are computed), and at most max_case_line_bytes on one line. A file beyond either is
-/// refused as it is read (`--cases /dev/zero` would otherwise read until memory ran out).
+/// refused as it is read (`--cases /dev/zero` would otherwise read until memory ran out), as is
+/// a NUL byte (no text file holds one).
 std::size_t max_cases_file_bytes() {
   const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
   if (pages <= 0 || page <= 0) return std::size_t(1) << 32;
@@ -368,8 +370,15 @@ std::string read_file(const std::string& path) {
       throw unreadable;  // e.g. a directory (EISDIR)
     }
     if (n == 0) break;
+    // A NUL byte: not a text file (/dev/urandom, a binary file named by mistake): refused at
+    // once rather than after reading up to the limit.
+    if (const void* nul = std::memchr(contents.data() + size, '\0', static_cast<std::size_t>(n)))
+      throw usage_error("cases file " + in_quotes(path) + " line " +
+                        std::to_string(1 + std::count(std::as_const(contents).data(),
+                                                      static_cast<const char*>(nul), '\n')) +
+                        " holds a NUL byte: not a text file");
     // The start of the last line so far: a line longer than max_case_line_bytes (no newline in
-    // 64 MB, as /dev/zero) is refused without reading on.
+    // 64 MB) is refused without reading on.
     if (const void* newline = memrchr(contents.data() + size, '\n', static_cast<std::size_t>(n)))
       line_start = static_cast<std::size_t>(static_cast<const char*>(newline) - contents.data()) + 1;
     size += static_cast<std::size_t>(n);

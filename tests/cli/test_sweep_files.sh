@@ -234,8 +234,15 @@ check "--timing-rows with a failed row: the row is left out" \
        -z "$(cut -d, -f1 "$work/timing_failed.csv" | grep -x 7)"
 
 # ---------------------------------------------------------------- 7. endless input, FIFOs
-bad "--cases /dev/zero is refused (a line longer than 64 MB)" average --cases /dev/zero
-check "/dev/zero: the line says why" grep -q "longer than 64 MB" "$work/err"
+bad "--cases /dev/zero is refused at once (a NUL byte)" average --cases /dev/zero
+check "/dev/zero: the line says why" grep -q "line 1 holds a NUL byte: not a text file" "$work/err"
+bad "--cases /dev/urandom is refused at once" average --cases /dev/urandom
+"$python" -c 'import sys; sys.stdout.write("beta,g,m1,l1\n" + "1" * (65 << 20))' >"$work/long_line.csv"
+bad "a cases line longer than 64 MB is refused" average --cases "$work/long_line.csv"
+check "long line: the line says why" grep -q "line 2 is longer than 64 MB" "$work/err"
+rm -f "$work/long_line.csv"
+bad "an endless line from a pipe is refused" average --cases <(yes 1,1,1,1 | tr -d '\n')
+check "endless line: the line says why" grep -q "line 1 is longer than 64 MB" "$work/err"
 mkfifo "$work/fifo"
 bad "--output to a FIFO nobody reads is refused" "${table[@]}" --output "$work/fifo"
 check "FIFO: the line says why" grep -q "FIFO that no process reads" "$work/err"
