@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cstring>
 #include <cmath>
 #include <optional>
 #include <system_error>
+#include <utility>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -270,7 +272,15 @@ struct Header {
 /// N and, for each header field, the index of its column in case_columns(N, state). Linear in
 /// the number of columns (a header may have 2 + 2 * 100000 of them).
 Header parse_header(std::string_view line, const std::string& where) {
-  const auto names = split_fields(line);
+  auto names = split_fields(line);
+  // As pandas writes them: a name may be quoted ("beta", with quoting=QUOTE_ALL or
+  // QUOTE_NONNUMERIC), and DataFrame.to_csv() writes its index first, under an empty name
+  // (",beta,g,..."): that column is the rows' numbers, not a parameter, and is left out.
+  for (std::string_view& name : names)
+    if (name.size() >= 2 && name.front() == '"' && name.back() == '"')
+      name = trimmed(name.substr(1, name.size() - 2));
+  const bool index_column = names.size() > 1 && names.front().empty();
+  if (index_column) names.erase(names.begin());
   std::vector<ColumnName> columns;
   columns.reserve(names.size());
   std::size_t particles = 0;
@@ -291,7 +301,8 @@ Header parse_header(std::string_view line, const std::string& where) {
   particles = std::max<std::size_t>(particles, 1);
   if (state.empty()) state = "beta";  // reported missing below
   Header header{particles, state, {}};
-  header.positions.reserve(columns.size());
+  header.positions.reserve(columns.size() + 1);
+  if (index_column) header.positions.push_back(CasesFile::index_column);
   std::vector<bool> seen(2 + 2 * particles, false);
   for (std::size_t k = 0; k < columns.size(); ++k) {
     const ColumnName& column = columns[k];
@@ -318,6 +329,16 @@ Header parse_header(std::string_view line, const std::string& where) {
 
 namespace {
 
+/// The most a cases file may hold: half of this machine's memory (the whole file is kept while
+/// its rows are computed), and at most max_case_line_bytes on one line. A file beyond either is
+/// refused as it is read (`--cases /dev/zero` would otherwise read until memory ran out), as is
+/// a NUL byte (no text file holds one).
+std::size_t max_cases_file_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  if (pages <= 0 || page <= 0) return std::size_t(1) << 32;
+  return static_cast<std::size_t>(pages) / 2 * static_cast<std::size_t>(page);
+}
+
 std::string read_file(const std::string& path) {
   // read(2) into a string sized from fstat (a cases file may hold millions of rows: no
   // character-by-character stream, no regrowth copies); grows for files that are not regular.
@@ -328,12 +349,20 @@ std::string read_file(const std::string& path) {
     int fd;
     ~Descriptor() { ::close(fd); }
   } const descriptor{fd};
+  const std::size_t most = max_cases_file_bytes();
+  const auto too_large = [&] {
+    return usage_error("cases file " + in_quotes(path) + " is larger than " +
+                       std::to_string(most >> 20) +
+                       " MB, half of this machine's memory (the whole file is kept while its "
+                       "rows are computed): split it");
+  };
   struct stat status {};
   std::size_t expected = 0;
   if (::fstat(fd, &status) == 0 && S_ISREG(status.st_mode))
     expected = static_cast<std::size_t>(status.st_size);
+  if (expected > most) throw too_large();
   std::string contents(expected + 1, '\0');  // one more byte: the end shows in one read
-  std::size_t size = 0;
+  std::size_t size = 0, line_start = 0;
   for (;;) {
     if (size == contents.size()) contents.resize(std::max<std::size_t>(65536, 2 * size));
     const ssize_t n = ::read(fd, contents.data() + size, contents.size() - size);
@@ -342,7 +371,25 @@ std::string read_file(const std::string& path) {
       throw unreadable;  // e.g. a directory (EISDIR)
     }
     if (n == 0) break;
+    // A NUL byte: not a text file (/dev/urandom, a binary file named by mistake): refused at
+    // once rather than after reading up to the limit.
+    if (const void* nul = std::memchr(contents.data() + size, '\0', static_cast<std::size_t>(n)))
+      throw usage_error("cases file " + in_quotes(path) + " line " +
+                        std::to_string(1 + std::count(std::as_const(contents).data(),
+                                                      static_cast<const char*>(nul), '\n')) +
+                        " holds a NUL byte: not a text file");
+    // The start of the last line so far: a line longer than max_case_line_bytes (no newline in
+    // 64 MB) is refused without reading on.
+    if (const void* newline = memrchr(contents.data() + size, '\n', static_cast<std::size_t>(n)))
+      line_start = static_cast<std::size_t>(static_cast<const char*>(newline) - contents.data()) + 1;
     size += static_cast<std::size_t>(n);
+    if (size - line_start > max_case_line_bytes)
+      throw usage_error("cases file " + in_quotes(path) + " line " +
+                        std::to_string(1 + std::count(contents.data(),
+                                                      contents.data() + line_start, '\n')) +
+                        " is longer than " + std::to_string(max_case_line_bytes >> 20) +
+                        " MB (not a cases file?)");
+    if (size > most) throw too_large();
   }
   contents.resize(size);
   return contents;
@@ -363,7 +410,10 @@ CasesFile read_cases_file(const std::string& path) {
   const std::string_view contents = file.text;
   bool header = false;  // set by the header line
   std::size_t line_number = 0;
-  for (std::size_t begin = 0; begin < contents.size();) {
+  // A UTF-8 byte order mark (pandas' encoding="utf-8-sig", Excel's "CSV UTF-8") is not part of
+  // the first column's name.
+  const std::size_t start = contents.starts_with("\xEF\xBB\xBF") ? 3 : 0;
+  for (std::size_t begin = start; begin < contents.size();) {
     const std::size_t newline = std::min(contents.find('\n', begin), contents.size());
     const std::string_view line = trimmed(contents.substr(begin, newline - begin));
     begin = newline + 1;
@@ -397,7 +447,14 @@ void case_fields(const CasesFile& file, const CaseRow& row, std::span<std::strin
       std::size_t first = begin, last = i;
       while (first < last && is_space(text[first])) ++first;
       while (last > first && is_space(text[last - 1])) --last;
-      fields[file.positions[count]] = std::string_view(text + first, last - first);
+      const std::string_view field(text + first, last - first);
+      if (file.positions[count] != CasesFile::index_column) {
+        fields[file.positions[count]] = field;
+      } else if (field.empty() || field.find_first_not_of("0123456789") != field.npos) {
+        // pandas' index: the row's number; anything else means the columns are not pandas'
+        throw usage_error("the first column (no name in the header: pandas' index) must be a "
+                          "row number, found " + in_quotes(field));
+      }
     }
     ++count;
     if (i == size) break;

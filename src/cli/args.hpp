@@ -99,7 +99,10 @@ struct CaseRow {
 struct CasesFile {
   std::size_t particles = 0;
   std::string state = "beta";  ///< the state column: beta, energy or excitation
-  std::vector<std::size_t> positions;  ///< for each field of a row (file order): its canonical column
+  /// For each field of a row (file order): its canonical column, or index_column.
+  std::vector<std::size_t> positions;
+  /// The position of a column left out: pandas' index (an unnamed first column of row numbers).
+  static constexpr std::size_t index_column = static_cast<std::size_t>(-1);
   std::vector<CaseRow> rows;
   std::string text;  ///< the whole file
   std::string_view row_text(const CaseRow& row) const {
@@ -107,10 +110,17 @@ struct CasesFile {
   }
 };
 
+/// The longest line of a cases file (a header of N = 100,000 is ~1.4 MB, a row of it at 77
+/// digits ~16 MB).
+inline constexpr std::size_t max_case_line_bytes = std::size_t(64) << 20;
+
 /// Reads a cases CSV. The header names the columns beta (or energy, or excitation: one of the
 /// three), g, m1..mN and l1..lN (N >= 1, decided by the header), each exactly once, in any
 /// order. Blank lines and lines starting with '#' are skipped. Rows are only located here:
-/// case_fields splits them (no number is parsed here).
+/// case_fields splits them (no number is parsed here). Files as pandas writes them are read: a
+/// UTF-8 byte order mark, quoted column names, and an unnamed first column of row numbers (the
+/// DataFrame's index), which is left out. Refused: a file larger than half of this machine's
+/// memory, or with a line longer than max_case_line_bytes.
 CasesFile read_cases_file(const std::string& path);
 
 /// Splits `row` into its fields, trimmed, into `fields` (size file.positions.size()) in the

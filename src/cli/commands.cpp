@@ -119,7 +119,10 @@ constexpr std::string_view average_usage =
     "hash of the file), digits, method, version and date. SIGINT/SIGTERM stop early: every\n"
     "finished row is written, then an '# interrupted: K of N rows computed' line; --resume\n"
     "FILE continues such a file (same cases, digits, method and version) and rewrites it as an\n"
-    "uninterrupted run does (a FILE that does not exist yet is simply written).\n"
+    "uninterrupted run does (a FILE that does not exist yet is simply written). A row that\n"
+    "fails while it is computed becomes a '# failed: FILE line L: reason' line in its place;\n"
+    "the others are kept and the run exits 3, naming the first; --resume computes it again.\n"
+    "A cases file written by pandas (df.to_csv(): its unnamed index column) is read.\n"
     "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
     "is the same for any number of ranks.\n"
     "--timing (with --cases) also prints one line on stderr: rows, the median, 90th percentile\n"
@@ -1008,12 +1011,18 @@ std::string cases_header(const CasesFile& file, const std::string& path,
 /// not match).
 void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& columns,
                         const std::string& header, const CasesOutput& where,
-                        std::optional<ResumedRows>& resumed) {
+                        std::optional<ResumedRows>& resumed,
+                        std::optional<AtomicFile>& timing_file, std::optional<SweepFile>& output) {
   std::string verdict;
   if (is_root()) {
     try {
       if (!where.path.empty()) probe_output(where.path, "average");
-      if (!where.timing_rows.empty()) probe_output(where.timing_rows, "average");
+      if (!where.timing_rows.empty()) {
+        // Opened, and its column line written, now: a target that cannot take it (a full disk,
+        // /dev/full) fails the run before any row went to stdout.
+        timing_file.emplace(where.timing_rows, "average");
+        timing_file->append("row,line,us\n");
+      }
       if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
         std::vector<std::string_view> fields(columns.size());
         resumed.emplace(where.resume, "average", header, file.rows.size(), columns.size(),
@@ -1025,6 +1034,8 @@ void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& c
                           return key;
                         });
       }
+      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+      output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -1034,18 +1045,23 @@ void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& c
   input_checked("average");
 }
 
-/// --timing-rows FILE: every computed row's time as CSV row,line,us (written atomically).
-void write_timing_rows(const std::string& target, const std::vector<CaseRow>& rows,
-                       const std::vector<double>& row_us) {
-  std::string rows_csv = "row,line,us\n";
+/// --timing-rows FILE: every computed row's time as CSV row,line,us, appended to `text` as the
+/// rows are written (rows first..first+us.size()-1; a kept or failed row has a negative time and
+/// is left out), and written to the file (atomically: committed at the end) in pieces of 64 kB.
+void add_timing_rows(std::string& text, std::size_t first, std::span<const double> us,
+                     const std::vector<CaseRow>& rows, AtomicFile& target, bool last = false) {
   char number[32];
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    if (row_us[i] < 0) continue;
-    const int length = std::snprintf(number, sizeof number, "%.3f", row_us[i]);
-    ((((rows_csv += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
+  for (std::size_t k = 0; k < us.size(); ++k) {
+    if (us[k] < 0) continue;
+    const std::size_t i = first + k;
+    const int length = std::snprintf(number, sizeof number, "%.3f", us[k]);
+    ((((text += std::to_string(i)) += ',') += std::to_string(rows[i].line)) += ',')
         .append(number, static_cast<std::size_t>(length)) += '\n';
   }
-  write_atomically(target, rows_csv, "average");
+  if (last || text.size() >= (64u << 10)) {
+    target.append(text);
+    text.clear();
+  }
 }
 
 /// Every row is checked first; then the rows are computed by the sweep engine (sweep.hpp: all
@@ -1109,22 +1125,28 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       throw usage_error(line_context(k) + bad.what());
     }
   };
-  if (const std::size_t bad = first_failing_row(rows.size(), threads, check); bad < rows.size())
+  if (const std::size_t bad = first_failing_row(rows.size(), threads, check, "average", "rows");
+      bad < rows.size())
     check(bad, 0);  // throws the first bad row's error, on every rank
 
   const std::string header =
       cases_header(file, path, settings, columns, output_names, !where.path.empty());
   std::optional<ResumedRows> resumed;
-  open_cases_outputs(file, columns, header, where, resumed);
+  std::optional<AtomicFile> timing_file;  // --timing-rows, on rank 0
+  std::string timing_text;                // its lines not yet written
+  std::optional<SweepFile> output;
+  open_cases_outputs(file, columns, header, where, resumed, timing_file, output);
 
   // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
   std::vector<double> row_us(where.timing && is_root() ? rows.size() : 0, -1.0);
-  std::optional<SweepFile> output;
   if (is_root()) {
-    output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
     output->on_timing = [&](std::size_t first, std::span<const double> us) {
       for (std::size_t k = 0; k < us.size(); ++k) row_us[first + k] = us[k] - timer_us;
+      if (timing_file)
+        add_timing_rows(timing_text, first,
+                        std::span<const double>(row_us).subspan(first, us.size()), rows,
+                        *timing_file);
     };
   }
   SweepRows sweep;
@@ -1148,6 +1170,11 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                                  checked ? checked->row_if_stored(k) : std::span<const double>{});
     text.resize(static_cast<std::size_t>(end - text.data()));
   };
+  // A row that fails once the sweep runs (the check above passed it) does not cost the others:
+  // it becomes a '# failed:' line in its place, and the run ends with rows_failed (exit 3).
+  sweep.failed_row = [&](std::size_t k, std::string_view reason) {
+    return failed_row_line(line_context(k), reason);
+  };
   run_sweep(sweep, output ? &*output : nullptr, [&](const SweepOutcome& outcome) {
     if (outcome.failed) {
       output->discard();
@@ -1161,8 +1188,14 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                    rows.size());
     }
     output->commit();
-    if (!where.timing_rows.empty()) write_timing_rows(where.timing_rows, rows, row_us);
+    if (timing_file) {
+      add_timing_rows(timing_text, 0, {}, rows, *timing_file, true);
+      timing_file->commit();
+    }
     if (where.timing) report_case_timing(row_us, file, timer_us, outcome.threads);
+    if (outcome.failed_rows > 0)
+      throw rows_failed(failed_rows_message("average", outcome, "rows", where.path,
+                                            line_context(outcome.first_failed_row)));
   });
   return {};
 }

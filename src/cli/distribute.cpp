@@ -1,6 +1,9 @@
 // src/cli/distribute.cpp -- what both builds share (see distribute.hpp): failure reports.
 #include "distribute.hpp"
 
+#include "one_line.hpp"
+#include "sweep.hpp"
+
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
 
@@ -16,8 +19,9 @@ constexpr int exit_bad_input = 2;
 constexpr int exit_internal_error = 1;
 constexpr int exit_interrupted = 130;  // 128 + SIGINT, as a shell reports it
 
-int report(std::string_view kind, std::string message, int exit_code) {
-  std::ranges::replace(message, '\n', ' ');  // one line, whatever the message
+int report(std::string_view kind, std::string_view text, int exit_code) {
+  // One line, whatever the message, with what it echoes made safe for a terminal and capped.
+  const std::string message = one_line(text);
   const FailureReach reach = failure_reach();
   if (reach == FailureReach::others_went_on) {  // this rank says it and stops the others
     std::fprintf(stderr, "pendavg: %.*s: %s (rank %d alone; stopping the job)\n",
@@ -40,6 +44,8 @@ int report(std::string_view kind, std::string message, int exit_code) {
 int report_failure(const std::exception_ptr& failure) {
   try {
     std::rethrow_exception(failure);
+  } catch (const rows_failed& failed) {
+    return report("error", failed.what(), exit_rows_failed);
   } catch (const invalid_input& bad) {
     return report("error", bad.what(), exit_bad_input);
   } catch (const interrupted& stopped) {

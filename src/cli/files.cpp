@@ -39,6 +39,26 @@ std::string writer_tag(long pid) {
   return tag + "." + std::to_string(pid) + ".";
 }
 
+/// The longest name in `directory` (NAME_MAX, 255 on Linux file systems).
+std::size_t longest_name(const std::filesystem::path& directory) {
+  const long most = pathconf(directory.c_str(), _PC_NAME_MAX);
+  return most > 0 ? static_cast<std::size_t>(most) : std::size_t(NAME_MAX);
+}
+
+/// The part of a temporary's name before ".tmp.<host>.<pid>.XXXXXX": the target's name, cut
+/// so that the whole name fits the directory's longest name (a target's name may be as long
+/// as that itself). A cut name can be shared by two targets; their temporaries still differ
+/// (pid and random part), and a stale one of either is garbage.
+std::string temporary_stem(const std::filesystem::path& target) {
+  const std::filesystem::path parent =
+      target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+  const std::string name = target.filename().string();
+  // ".tmp." + "<host>." (at most 65) + "<pid>." (at most 20) + "XXXXXX"
+  constexpr std::size_t suffix = 5 + 65 + 20 + 6;
+  const std::size_t most = longest_name(parent);
+  return name.size() + suffix <= most || most <= suffix ? name : name.substr(0, most - suffix);
+}
+
 /// Removes the temporaries of `target` that a process of this host left behind when it was
 /// killed (SIGKILL, a crash, a power cut: no handler runs): "<target>.tmp.<host>.<pid>.XXXXXX"
 /// whose pid no longer exists. Temporaries of other hosts (a shared file system) and of live
@@ -47,7 +67,7 @@ void remove_stale_temporaries(const std::string& target) {
   namespace fs = std::filesystem;
   const fs::path path = target;
   const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const std::string host_prefix = path.filename().string() + ".tmp." + writer_tag(0);
+  const std::string host_prefix = temporary_stem(path) + ".tmp." + writer_tag(0);
   const std::string prefix = host_prefix.substr(0, host_prefix.size() - 2);  // "<...>.<host>."
   DIR* dir = opendir(parent.c_str());
   if (dir == nullptr) return;
@@ -68,6 +88,25 @@ void remove_stale_temporaries(const std::string& target) {
       unlink((parent / std::string(name)).c_str());
   }
   closedir(dir);
+}
+
+/// Opens a target that is not a regular file (a device, a FIFO) for writing. A FIFO without a
+/// reader would block the open forever: it is opened without blocking (ENXIO when nobody reads
+/// it: refused), then made blocking again for the writes.
+int open_in_place(const std::string& path, std::string_view command) {
+  const int fd = open(path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    if (errno == ENXIO)
+      throw usage_error(cannot_write(command, path, "it is a FIFO that no process reads"));
+    throw usage_error(cannot_write(command, path, std::strerror(errno)));
+  }
+  const int flags = fcntl(fd, F_GETFL);
+  if (flags < 0 || fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+    const int error = errno;
+    close(fd);
+    throw usage_error(cannot_write(command, path, std::strerror(error)));
+  }
+  return fd;
 }
 
 }  // namespace
@@ -94,27 +133,51 @@ AtomicFile::AtomicFile(std::string path, std::string_view command)
   // The path as the kernel follows it first: /dev/stdout onto a pipe is a link to "pipe:[N]",
   // which names no file that readlink could follow.
   struct stat status {};
-  if (stat(path_.c_str(), &status) == 0) {
+  const bool exists = stat(path_.c_str(), &status) == 0;
+  if (exists) {
     if (S_ISDIR(status.st_mode)) throw usage_error(cannot_write(command_, path_, "is a directory"));
     if (!S_ISREG(status.st_mode)) {
       // A device, FIFO or socket: written in place (never replaced by a regular file).
       in_place_ = true;
       target_ = path_;
-      fd_ = open(path_.c_str(), O_WRONLY | O_CLOEXEC);
-      if (fd_ < 0) throw usage_error(cannot_write(command_, path_, std::strerror(errno)));
+      fd_ = open_in_place(path_, command_);
       return;
     }
+    // Replacing the file (a new inode renamed onto the name) would leave its other hard links
+    // with the old content, silently; writing it in place would lose the atomicity (a failed or
+    // interrupted run would leave every link with a partial file). Neither keeps work safe:
+    // refused, with what to do.
+    if (status.st_nlink > 1)
+      throw usage_error(cannot_write(
+          command_, path_,
+          "it has " + std::to_string(status.st_nlink) +
+              " hard links, which replacing it would leave with the old content; remove the "
+              "other links, or write another file"));
   }
   target_ = resolved_path(path_, command_);  // a regular file: replace it, not a link to it
   deferred_.emplace();
   remove_stale_temporaries(target_);
-  temporary_ = target_ + ".tmp." + writer_tag(static_cast<long>(getpid())) + "XXXXXX";
+  {
+    const std::filesystem::path target = target_;
+    temporary_ = (target.parent_path() / (temporary_stem(target) + ".tmp." +
+                                          writer_tag(static_cast<long>(getpid())) + "XXXXXX"))
+                     .string();
+  }
   fd_ = mkostemp(temporary_.data(), O_CLOEXEC);
   if (fd_ < 0) {
     const int error = errno;
     temporary_.clear();
     deferred_.reset();
     throw usage_error(cannot_write(command_, path_, std::strerror(error)));
+  }
+  if (exists) {
+    // A rewritten file keeps its permissions (0600 stays 0600), and its owner and group when
+    // this process may give them (root, or a group it is in; otherwise they become the
+    // writer's, as for any file it creates).
+    if (fchmod(fd_, status.st_mode & 07777) != 0) fail(errno);
+    if (fchown(fd_, status.st_uid, status.st_gid) != 0)
+      (void)!fchown(fd_, static_cast<uid_t>(-1), status.st_gid);
+    return;
   }
   const mode_t mask = umask(0);
   umask(mask);
@@ -182,7 +245,8 @@ void write_atomically(const std::string& path, const std::string& content,
 void probe_output(const std::string& path, std::string_view command) {
   struct stat status {};
   if (stat(path.c_str(), &status) == 0 && !S_ISDIR(status.st_mode) && !S_ISREG(status.st_mode)) {
-    // A device or FIFO: opening a FIFO would wait for its reader; ask for write permission.
+    // A device or FIFO: ask for write permission (a FIFO is not opened here: its reader would
+    // see the end of its input; the output's own open refuses one that nobody reads).
     if (access(path.c_str(), W_OK) != 0)
       throw usage_error(cannot_write(command, path, std::strerror(errno)));
     return;

@@ -2,12 +2,14 @@
 // started as one (distribute.hpp), runs one command, writes its output to stdout in one piece
 // (commands that stream, such as table, write it themselves), and maps failures to exit codes
 // (2 bad input, 1 internal error, 130 stopped by a signal before anything was finished), each
-// with exactly one line on stderr (distribute.hpp, report_failure). Under MPI only rank 0 prints.
+// with exactly one line on stderr (distribute.hpp, report_failure); a sweep that wrote its output
+// but has failed rows exits with 3 (sweep.hpp, rows_failed). Under MPI only rank 0 prints.
 // Before anything else it sets up how the process takes memory (memory.hpp).
 #include "commands.hpp"
 #include "distribute.hpp"
 #include "memory.hpp"
 
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <stdexcept>
@@ -17,6 +19,9 @@
 
 int main(int argc, char** argv) {
   pendavg::cli::prepare_process_memory();  // first: MPI and the command allocate after it
+  // A file size limit (ulimit -f) is then a write error as a full disk is (EFBIG): the command
+  // says so in one line and removes its temporary, where SIGXFSZ would kill it and leave both.
+  std::signal(SIGXFSZ, SIG_IGN);
   const pendavg::cli::ProcessGroup processes(argc, argv);
   const std::vector<std::string_view> args(argv + 1, argv + argc);
   try {

@@ -18,6 +18,7 @@
 #include <ctime>
 #include <deque>
 #include <exception>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -126,6 +127,8 @@ struct Finished {
   std::string text;
   std::vector<double> row_us;
   std::optional<RowFailure> failure;  ///< row first + count failed
+  std::size_t failed_rows = 0;        ///< rows among these written as failed rows
+  std::optional<RowFailure> first_failed;  ///< the first of them
 };
 
 /// A result message is the rows' text as it is (moved, not copied: a double sweep sends ~600
@@ -136,6 +139,8 @@ std::string pack_finished(Finished&& f) {
   p.put<std::uint8_t>(f.failure.has_value());
   if (f.failure)
     p.put<std::uint64_t>(f.failure->row).put<std::uint8_t>(f.failure->bad_input).put_text(f.failure->message);
+  p.put<std::uint64_t>(f.failed_rows).put<std::uint8_t>(f.first_failed.has_value());
+  if (f.first_failed) p.put<std::uint64_t>(f.first_failed->row).put_text(f.first_failed->message);
   p.put<std::uint64_t>(f.row_us.size());
   for (const double us : f.row_us) p.put<double>(us);
   const std::string rest = p.take();
@@ -164,6 +169,13 @@ Finished unpack_finished(std::string&& bytes) {
     failure.bad_input = u.get<std::uint8_t>() != 0;
     failure.message = std::string(u.get_text());
     f.failure = std::move(failure);
+  }
+  f.failed_rows = u.get<std::uint64_t>();
+  if (u.get<std::uint8_t>()) {
+    RowFailure first;
+    first.row = u.get<std::uint64_t>();
+    first.message = std::string(u.get_text());
+    f.first_failed = std::move(first);
   }
   f.row_us.resize(u.get<std::uint64_t>());
   for (double& us : f.row_us) us = u.get<double>();
@@ -315,7 +327,10 @@ class ComputeTeam {
         const Clock::time_point start = Clock::now();
         for (std::size_t i = range.first; i < range.first + range.count; ++i) {
           if (stopped()) break;
+          const std::size_t text_before = done.text.size();
+          std::optional<RowFailure> failure;
           try {
+            inject_row_fault(i);
             if (rows_.timing) {
               const double begin = thread_cpu_microseconds();
               rows_.compute(i, thread, done.text);
@@ -324,13 +339,24 @@ class ComputeTeam {
               rows_.compute(i, thread, done.text);
             }
           } catch (const invalid_input& bad) {
-            done.failure = RowFailure{i, true, bad.what()};
+            failure = RowFailure{i, true, bad.what()};
           } catch (const std::exception& error) {
-            done.failure = RowFailure{i, false, error.what()};
+            failure = RowFailure{i, false, error.what()};
           } catch (...) {
-            done.failure = RowFailure{i, false, "unknown exception"};
+            failure = RowFailure{i, false, "unknown exception"};
           }
-          if (done.failure) break;
+          if (failure && rows_.failed_row) {
+            // Recorded in its place (whatever the row wrote before it threw is dropped), and
+            // the sweep goes on.
+            done.text.resize(text_before);
+            done.text += rows_.failed_row(i, failure->message);
+            if (rows_.timing) done.row_us.push_back(-std::numeric_limits<double>::infinity());
+            if (!done.first_failed) done.first_failed = std::move(failure);
+            ++done.failed_rows;
+          } else if (failure) {
+            done.failure = std::move(failure);
+            break;
+          }
           ++done.count;
         }
         done.seconds = seconds_since(start);
@@ -707,6 +733,10 @@ class RootSweep {
     scheduler_.record(rows_done.count + (rows_done.failure ? 1 : 0), rows_done.seconds);
     if (rows_done.failure && (!failure_ || rows_done.failure->row < failure_->row))
       failure_ = rows_done.failure;
+    outcome_.failed_rows += rows_done.failed_rows;
+    if (rows_done.first_failed &&
+        (!first_failed_ || rows_done.first_failed->row < first_failed_->row))
+      first_failed_ = std::move(rows_done.first_failed);
     writer_.add(std::move(rows_done));
   }
 
@@ -857,6 +887,10 @@ class RootSweep {
       outcome_.failure = failure_->message;
       outcome_.bad_input = failure_->bad_input;
     }
+    if (first_failed_) {
+      outcome_.first_failed_row = first_failed_->row;
+      outcome_.first_failed_reason = first_failed_->message;
+    }
     progress_.report(outcome_.computed + output_.kept_count(), true);
     report_distribution(outcome_, peers_, messages_, thread_cpu_seconds() - start_cpu_,
                         cells_ != nullptr);
@@ -889,6 +923,7 @@ class RootSweep {
   PollInterval poll_;
   std::vector<Peer> peers_;
   std::optional<RowFailure> failure_;
+  std::optional<RowFailure> first_failed_;  ///< the first row written as a failed row
   bool closing_ = false;
   Clock::time_point deadline_{};
   std::size_t messages_ = 0;
@@ -1026,6 +1061,9 @@ SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::
 
 }  // namespace
 
+// Weak: the test build's definition (tests/cli/row_faults.cpp) replaces it at link time.
+[[gnu::weak]] void inject_row_fault(std::size_t) {}
+
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
   // For tests, PENDAVG_TEST_FAIL_ON_RANK=K[:sweep]: a failure on rank K alone (K = all: on
@@ -1078,12 +1116,26 @@ void rethrow_failure(const SweepOutcome& outcome,
 }
 
 std::size_t first_failing_row(std::size_t count, int threads,
-                              const std::function<void(std::size_t index, int thread)>& check) {
+                              const std::function<void(std::size_t index, int thread)>& check,
+                              const std::string& progress, const std::string& unit) {
   const auto size = static_cast<std::size_t>(ranks());
   const auto me = static_cast<std::size_t>(rank());
   const std::size_t begin = count / size * me + std::min(me, count % size);
   const std::size_t end = begin + count / size + (me < count % size ? 1 : 0);
   std::atomic<std::size_t> first{count};
+  // A long check (1e8 points take minutes) says how far it is, as the sweep does: rank 0's
+  // first thread prints its rank's rows checked every 2 s once it has run 2 s.
+  std::atomic<std::size_t> checked{0};
+  const Clock::time_point start = Clock::now();
+  double last_report = 0;
+  const auto report = [&] {
+    const double elapsed = seconds_since(start);
+    if (elapsed < 2 || elapsed - last_report < 2) return;
+    last_report = elapsed;
+    std::fprintf(stderr, "[%s] checking the %s: %zu/%zu%s\n", progress.c_str(), unit.c_str(),
+                 checked.load(std::memory_order_relaxed), end - begin,
+                 size > 1 ? " (rank 0's share)" : "");
+  };
 #if defined(_OPENMP)
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 64)
 #endif
@@ -1103,6 +1155,13 @@ std::size_t first_failing_row(std::size_t count, int threads,
       while (index < seen && !first.compare_exchange_weak(seen, index)) {
       }
     }
+    checked.fetch_add(1, std::memory_order_relaxed);
+#if defined(_OPENMP)
+    const bool reporter = omp_get_thread_num() == 0;
+#else
+    const bool reporter = true;
+#endif
+    if (reporter && me == 0 && !progress.empty()) report();
   }
   (void)threads;
   return static_cast<std::size_t>(min_over_ranks(first.load()));

@@ -35,6 +35,7 @@
 #include <cstddef>
 #include <functional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -53,6 +54,12 @@ struct SweepRows {
   std::function<void(std::size_t index, int thread, std::string& out)> compute;
   /// "[<progress>] k/count <unit>" on stderr every 2 s once a sweep has run 2 s (empty: none).
   std::string progress, unit = "rows";
+  /// A row that throws once the sweep runs (a failure the check before the sweep could not
+  /// see): when set, the row's text is this line (a '#' line naming the row and `reason`, so
+  /// that a CSV reader skips it and --resume computes the row again), the sweep goes on and the
+  /// outcome counts it (SweepOutcome::failed_rows); its time (SweepRows::timing) is -infinity.
+  /// Unset: the first failing row stops the sweep (SweepOutcome::failed).
+  std::function<std::string(std::size_t index, std::string_view reason)> failed_row;
 };
 
 /// Rank 0's side: where the rows go, in index order.
@@ -84,7 +91,26 @@ struct SweepOutcome {
   std::size_t failed_row = 0;
   std::string failure;
   bool bad_input = false;
+  /// Rows written as failed rows (SweepRows::failed_row), and the first of them by index.
+  std::size_t failed_rows = 0;
+  std::size_t first_failed_row = 0;
+  std::string first_failed_reason;
 };
+
+/// The sweep completed but some rows failed (each is a '#' line in the output): report_failure
+/// prints it as an error and exits with exit_rows_failed.
+class rows_failed : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+/// The exit status of a sweep that wrote every row it could but has failed rows: distinct from
+/// bad input (2), which computed nothing.
+inline constexpr int exit_rows_failed = 3;
+
+/// Test builds only: called before each row of a sweep is computed. This definition does
+/// nothing; the test build of the command (tests/cli/row_faults.cpp) replaces it with one that
+/// throws for chosen rows, a row that fails late (after the check before the sweep passed it).
+void inject_row_fault(std::size_t index);
 
 /// Runs the sweep on every rank (collective). `output` is used on rank 0 only (null elsewhere).
 /// `finish` runs on rank 0 after the last row was written, before anything is released: it
@@ -104,9 +130,11 @@ void rethrow_failure(const SweepOutcome& outcome,
 /// index for which it threw, on every rank, or `count` when none did. Run check(index, 0) again
 /// to get the error. Once stop_flag() is set
 /// (a signal while a StopOnSignal is alive) the remaining rows are skipped: the sweep that
-/// follows will start none of them.
+/// follows will start none of them. `progress` (not empty): "[<progress>] checking the <unit>:
+/// k/count" on stderr every 2 s once the check has run 2 s (rank 0's rows under MPI).
 std::size_t first_failing_row(std::size_t count, int threads,
-                              const std::function<void(std::size_t index, int thread)>& check);
+                              const std::function<void(std::size_t index, int thread)>& check,
+                              const std::string& progress = "", const std::string& unit = "rows");
 
 /// The start time of a run in UTC ("2026-01-02T03:04:05Z"); SOURCE_DATE_EPOCH (seconds since
 /// 1970) replaces the clock, for reproducible files.

@@ -2,7 +2,9 @@
 #include "sweep_file.hpp"
 
 #include "args.hpp"
+#include "one_line.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -17,8 +19,10 @@ constexpr std::size_t flush_bytes = 1u << 20;
 constexpr std::size_t direct_bytes = 1u << 16;  ///< longer pieces are written unbuffered
 constexpr std::string_view generated = ", generated ";
 
-/// Reads one line (without its newline) into `line`; false at the end of the file.
-bool read_line(std::FILE* file, std::string& line) {
+/// Reads one line (without its newline) into `line`; false at the end of the file. `ended`
+/// (when given) says whether the line had its newline (the last line of a file cut short has
+/// none).
+bool read_line(std::FILE* file, std::string& line, bool* ended = nullptr) {
   char* buffer = nullptr;
   std::size_t capacity = 0;
   const ssize_t length = ::getline(&buffer, &capacity, file);
@@ -29,8 +33,62 @@ bool read_line(std::FILE* file, std::string& line) {
   }
   line.assign(buffer, static_cast<std::size_t>(length));
   std::free(buffer);
-  if (!line.empty() && line.back() == '\n') line.pop_back();
+  const bool newline = !line.empty() && line.back() == '\n';
+  if (newline) line.pop_back();
+  if (ended) *ended = newline;
   return true;
+}
+
+/// A decimal number as the commands write them and read them: [+-]digits[.digits][e[+-]digits]
+/// (digits on at least one side of the point).
+bool is_number(std::string_view field) {
+  std::size_t i = 0;
+  const auto digits = [&] {
+    const std::size_t start = i;
+    while (i < field.size() && field[i] >= '0' && field[i] <= '9') ++i;
+    return i - start;
+  };
+  if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
+  std::size_t mantissa = digits();
+  if (i < field.size() && field[i] == '.') {
+    ++i;
+    mantissa += digits();
+  }
+  if (mantissa == 0) return false;
+  if (i < field.size() && (field[i] == 'e' || field[i] == 'E')) {
+    ++i;
+    if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  return i == field.size();
+}
+
+/// A word a row may hold (a method, an error kind, true or false): a letter, then letters,
+/// digits, '-', '_' or '.'.
+bool is_word(std::string_view field) {
+  const auto letter = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); };
+  if (field.empty() || !letter(field.front())) return false;
+  for (const char c : field)
+    if (!letter(c) && !(c >= '0' && c <= '9') && c != '-' && c != '_' && c != '.') return false;
+  return true;
+}
+
+/// A row of an earlier output is kept only when it is whole: it ended with its newline, it has
+/// as many fields as the column line, and each is empty, a number or a word. A row cut short
+/// (the process killed in the middle of a write, a full disk, a copy that stopped) or otherwise
+/// damaged is computed again instead.
+bool intact_row(std::string_view row, bool ended, std::size_t columns) {
+  if (!ended) return false;
+  std::size_t fields = 0;
+  for (std::size_t begin = 0;;) {
+    const std::size_t comma = std::min(row.find(',', begin), row.size());
+    const std::string_view field = row.substr(begin, comma - begin);
+    if (!field.empty() && !is_number(field) && !is_word(field)) return false;
+    ++fields;
+    if (comma == row.size()) break;
+    begin = comma + 1;
+  }
+  return fields == columns;
 }
 
 /// The first `fields` comma-separated fields of `row` (the whole row when it has fewer).
@@ -49,6 +107,23 @@ std::string shortened(std::string_view line) {
 }
 
 }  // namespace
+
+std::string failed_row_line(std::string_view context, std::string_view reason) {
+  return "# failed: " + one_line(std::string(context) + std::string(reason)) + "\n";
+}
+
+std::string failed_rows_message(std::string_view command, const SweepOutcome& outcome,
+                                std::string_view unit, const std::string& path,
+                                std::string_view first_context) {
+  std::string message = std::string(command) + ": " + std::to_string(outcome.failed_rows) +
+                        " of " + std::to_string(outcome.count) + " " + std::string(unit) +
+                        " failed while they were computed; ";
+  message += path.empty() ? "the output" : "'" + path + "'";
+  message += " has every other finished row and a '# failed:' line in place of each; the "
+             "first: " + std::string(first_context) + outcome.first_failed_reason;
+  if (!path.empty()) message += "; --resume '" + path + "' computes the failed rows again";
+  return message;
+}
 
 bool same_header_line(std::string_view expected, std::string_view found) {
   const std::size_t cut = expected.find(generated);
@@ -90,11 +165,18 @@ ResumedRows::ResumedRows(const std::string& path, std::string_view command,
                         "' differs from '" + shortened(want) + "' (same parameters, method, "
                         "digits, version and columns are needed)");
   }
-  // The rows, matched to indices in order.
+  // The rows, matched to indices in order; a damaged one is left to be computed again.
+  columns_ = expected.empty() ? 0 : 1 + static_cast<std::size_t>(std::ranges::count(
+                                            expected.back(), ','));
   std::size_t index = 0, row_number = 0;
-  while (read_line(file_, line)) {
+  bool ended = false;
+  while (read_line(file_, line, &ended)) {
     if (line.empty() || line.front() == '#') continue;
     ++row_number;
+    if (!intact_row(line, ended, columns_)) {
+      ++damaged_;
+      continue;
+    }
     const std::string_view found = leading_fields(line, key_fields);
     while (index < count && key(index) != found) ++index;
     if (index == count)
@@ -113,8 +195,9 @@ ResumedRows::~ResumedRows() {
 }
 
 const std::string& ResumedRows::next_row() {
-  while (read_line(file_, line_))
-    if (!line_.empty() && line_.front() != '#') {
+  bool ended = false;
+  while (read_line(file_, line_, &ended))
+    if (!line_.empty() && line_.front() != '#' && intact_row(line_, ended, columns_)) {
       line_ += '\n';
       return line_;
     }

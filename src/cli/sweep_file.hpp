@@ -8,7 +8,9 @@
 // line against this run's (everything but the date of its "# pendavg VERSION, generated DATE"
 // line: the parameters, method, digits and version must agree) and finds each earlier row's
 // index from its leading fields (its parameters), in order, so rows missing anywhere are
-// computed and the finished file is the one an uninterrupted run writes.
+// computed and the finished file is the one an uninterrupted run writes. A row is kept only when
+// it is whole (its newline, the column line's number of fields, each a number, a word or empty);
+// a damaged one, and a '# failed:' line (a row that failed), are computed again.
 #pragma once
 
 #include "files.hpp"
@@ -40,13 +42,16 @@ class ResumedRows {
 
   bool kept(std::size_t index) const { return kept_[index]; }
   std::size_t kept_count() const { return kept_count_; }
+  /// Rows of the file that were not whole (cut short, damaged): computed again.
+  std::size_t damaged_count() const { return damaged_; }
   /// The next kept row's line (with its newline); rows come back in file order.
   const std::string& next_row();
 
  private:
   std::string path_, command_;
   std::vector<bool> kept_;
-  std::size_t kept_count_ = 0;
+  std::size_t kept_count_ = 0, damaged_ = 0;
+  std::size_t columns_ = 0;  ///< fields of a row (the column line's)
   std::FILE* file_ = nullptr;
   std::string line_;
 };
@@ -82,6 +87,18 @@ class SweepFile : public SweepOutput {
 /// The header lines of a sweep as this run writes them, for ResumedRows: '#' lines and the
 /// column line. Lines containing ", generated " compare only up to it.
 bool same_header_line(std::string_view expected, std::string_view found);
+
+/// The line of a row that failed once the sweep ran (SweepRows::failed_row): "# failed: " and
+/// `context` (which row) and `reason`, as one line (control characters escaped, long values cut:
+/// one_line.hpp). A CSV reader that skips '#' lines skips it; --resume computes the row again.
+std::string failed_row_line(std::string_view context, std::string_view reason);
+
+/// The error of a sweep that completed with failed rows: how many of how many `unit`, where
+/// they are (`path`, or stdout when empty), the first one (`first_context`, its reason) and
+/// that --resume computes them again.
+std::string failed_rows_message(std::string_view command, const SweepOutcome& outcome,
+                                std::string_view unit, const std::string& path,
+                                std::string_view first_context);
 
 /// FNV-1a 64-bit hash of `text` as 16 hex digits (identifies an input file in a header).
 std::string fnv1a_hex(std::string_view text);

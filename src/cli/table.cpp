@@ -91,6 +91,9 @@ const std::string_view table_usage =
     "(parameters, method, digits, version; not the date), its rows are kept and the missing\n"
     "ones computed, and FILE is rewritten as an uninterrupted run writes it (a FILE that does\n"
     "not exist yet is simply written: a batch job can always pass --resume).\n"
+    "A point that fails while it is computed becomes a '# failed: point (...): reason' line in\n"
+    "its place; the sweep goes on and exits 3, naming the first; --resume computes it again\n"
+    "(and any row cut short).\n"
     "Under mpirun/srun (pendavg built with MPI) the rows are shared by all ranks (OpenMP threads\n"
     "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n"
     "\n"
@@ -830,6 +833,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
   const TablePlan& plan = request.plan;
   const std::size_t row_count = space.count();
   std::optional<ResumedRows> resumed;
+  std::optional<SweepFile> file;
   std::string verdict;
   if (is_root()) {
     try {
@@ -839,6 +843,8 @@ void run_table(const TableRequest& request, const PointSpace& space,
                         [&](std::size_t k) {
                           return row_key(space.point(k, row_options), plan.columns_particles);
                         });
+      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+      file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -847,8 +853,6 @@ void run_table(const TableRequest& request, const PointSpace& space,
   if (!verdict.empty()) throw usage_error(verdict);
   input_checked("table");
 
-  std::optional<SweepFile> file;
-  if (is_root()) file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
   SweepRows rows;
   rows.count = row_count;
   rows.threads = threads;
@@ -867,12 +871,18 @@ void run_table(const TableRequest& request, const PointSpace& space,
     text += point.options.digits == min_digits ? table_row<double>(point, plan)
                                                : table_row<mpfr_real>(point, plan);
   };
+  const auto point_context = [&](std::size_t k) {
+    return "point (" + space.point(k, row_options).describe() + "): ";
+  };
+  // A point that fails once the sweep runs (the check passed it) does not cost the others: it
+  // becomes a '# failed:' line in its place, and the run ends with rows_failed (exit 3).
+  rows.failed_row = [&](std::size_t k, std::string_view reason) {
+    return failed_row_line(point_context(k), reason);
+  };
   run_sweep(rows, file ? &*file : nullptr, [&](const SweepOutcome& outcome) {
     if (outcome.failed) {
       file->discard();
-      rethrow_failure(outcome, [&](std::size_t k) {
-        return "table: point (" + space.point(k, row_options).describe() + "): ";
-      });
+      rethrow_failure(outcome, [&](std::size_t k) { return "table: " + point_context(k); });
     }
     if (outcome.written < row_count) {
       // Interrupted (SIGINT/SIGTERM): every finished row is kept; say so in the file and on
@@ -884,6 +894,9 @@ void run_table(const TableRequest& request, const PointSpace& space,
                    row_count);
     }
     file->commit();
+    if (outcome.failed_rows > 0)
+      throw rows_failed(failed_rows_message("table", outcome, "points", target.path,
+                                            point_context(outcome.first_failed_row)));
   });
 }
 
@@ -916,7 +929,8 @@ std::string table_command(const Options& options) {
     }
   };
   const int threads = hardware_threads();
-  if (const std::size_t bad = first_failing_row(row_count, threads, check); bad < row_count)
+  if (const std::size_t bad = first_failing_row(row_count, threads, check, "table", "points");
+      bad < row_count)
     check(bad, 0);  // throws the first bad point's error, on every rank
 
   run_table(request, space, row_options, target, table_header(request, methods, row_count),

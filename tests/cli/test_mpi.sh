@@ -4,12 +4,14 @@
 # run, byte for byte apart from timing fields; a sweep killed under mpirun and resumed on
 # another number of ranks gives the uninterrupted file; bad input is reported once.
 #
-# Usage: test_mpi.sh PATH/TO/pendavg MPIEXEC
+# Usage: test_mpi.sh PATH/TO/pendavg MPIEXEC [PATH/TO/pendavg_row_faults]
+# (the test build whose rows listed in PENDAVG_TEST_FAILING_ROWS fail late: test_sweep_files.sh)
 # Prints "N passed, M failed" last and exits non-zero on any failure.
 set -u
 
 pendavg=${1:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
 mpiexec=${2:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
+faulty=${3:-}
 python=/usr/bin/python3
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
@@ -184,6 +186,19 @@ else
   pass
 fi
 
+# An output no rank can write (a FIFO nobody reads): refused on every rank before any row, rank 0
+# says so once (not a rank alone that stops the job after 10 s).
+mkfifo "$work/fifo"
+timeout 60 "${launcher[@]}" -n 2 "$pendavg" table --beta log:0.1:10:20 --output "$work/fifo" \
+  >"$work/out" 2>"$work/err"
+rc=$?
+if [ "$rc" -ne 2 ] || [ "$(grep -c '^pendavg: ' "$work/err")" -ne 1 ] ||
+   ! grep -q "^pendavg: error: table: cannot write '$work/fifo': it is a FIFO that no process reads$" "$work/err"; then
+  fail "a FIFO nobody reads under mpirun: exit $rc, not one error line by rank 0"
+else
+  pass
+fi
+
 # A failure on one rank alone (PENDAVG_TEST_FAIL_ON_RANK=K: just before the sweep's first
 # collective step, as a failing output on rank 0 would be; K:sweep: once the sweep has begun)
 # must not leave the others waiting for it forever: that rank names itself and stops the job
@@ -235,6 +250,35 @@ if [ "$rc" -eq 1 ] && [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
   pass
 else
   fail "the same failure on every rank: exit $rc, not one report by rank 0, or a file left"
+fi
+
+# Rows that fail while they are computed (the test build): each becomes a '# failed:' line, the
+# other rows are kept, the file is the serial run's on 1, 2 and 3 ranks and with rank 0's
+# messages, the job exits 3 and rank 0 alone says so in one line.
+if [ -n "$faulty" ]; then
+  export PENDAVG_TEST_FAILING_ROWS=7,1500,1999
+  failing_cases=(average --cases "$work/cases.csv" --output)
+  "$faulty" "${failing_cases[@]}" "$work/failed_serial.csv" >/dev/null 2>"$work/err"
+  rc=$?
+  if [ "$rc" -ne 3 ] || [ "$(grep -c '^# failed: ' "$work/failed_serial.csv")" -ne 3 ]; then
+    fail "failed rows, serial: exit $rc or not 3 '# failed:' lines"
+  fi
+  for run in 1 2 3 2:messages; do
+    shared=1
+    [ "$run" = 2:messages ] && shared=0
+    OMP_NUM_THREADS=1 PENDAVG_SWEEP_SHARED=$shared timeout 120 "${launcher[@]}" -n "${run%%:*}" \
+      "$faulty" "${failing_cases[@]}" "$work/failed_ranks.csv" >"$work/out" 2>"$work/err"
+    rc=$?
+    if [ "$rc" -eq 3 ] && [ ! -s "$work/out" ] &&
+       [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
+       grep -q '^pendavg: error: average: 3 of 2000 rows failed .* line 9: ' "$work/err" &&
+       cmp -s "$work/failed_ranks.csv" "$work/failed_serial.csv"; then
+      pass
+    else
+      fail "failed rows on $run ranks: exit $rc, not one error line by rank 0, or not the serial file"
+    fi
+  done
+  unset PENDAVG_TEST_FAILING_ROWS
 fi
 
 echo "$passed passed, $failed failed"

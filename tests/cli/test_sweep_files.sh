@@ -1,0 +1,327 @@
+#!/usr/bin/env bash
+# tests/cli/test_sweep_files.sh -- sweeps and their files never lose work (issues 26 and 28): a
+# row that fails while the sweep runs becomes a '# failed:' line and the others are kept (exit 3),
+# --resume keeps only whole rows, a full disk or a file size limit leaves one line and no
+# temporary, long names, modes, hard links, FIFOs, the --timing-rows file, bounded cases reads,
+# progress while a long sweep is checked, error lines safe for a terminal, and cases files as
+# pandas writes them.
+#
+# Usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults
+# pendavg_row_faults is the test build of the same command whose rows listed in
+# PENDAVG_TEST_FAILING_ROWS (indices from 0) throw when they are computed: a row that fails
+# late, after the check before the sweep passed it.
+# Prints "N passed, M failed" last and exits non-zero on any failure.
+set -u
+
+pendavg=${1:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
+faulty=${2:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
+python=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+passed=0
+failed=0
+export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare
+
+pass() { passed=$((passed + 1)); }
+fail() {
+  failed=$((failed + 1))
+  echo "FAIL: $1"
+  [ -s "$work/out" ] && head -c 2000 "$work/out" | sed 's/^/  stdout: /' | head -5
+  [ -s "$work/err" ] && head -c 2000 "$work/err" | sed 's/^/  stderr: /' | head -5
+}
+run() {
+  "$pendavg" "$@" >"$work/out" 2>"$work/err"
+  rc=$?
+}
+# one_error_line: stderr is one line "pendavg: error: ..." (after progress lines "[command] ...")
+one_error_line() {
+  [ "$(grep -vc '^\[[a-z]*\] ' "$work/err")" -eq 1 ] && tail -1 "$work/err" | grep -q '^pendavg: error: '
+}
+# bad NAME ARGS...: exit 2, one stderr line "pendavg: error: ...", empty stdout, within 20 s.
+bad() {
+  local name=$1
+  shift
+  timeout 20 "$pendavg" "$@" >"$work/out" 2>"$work/err"
+  rc=$?
+  if [ "$rc" -ne 2 ]; then
+    fail "$name: exit code $rc, expected 2"
+  elif [ -s "$work/out" ]; then
+    fail "$name: stdout not empty"
+  elif ! one_error_line; then
+    fail "$name: stderr is not one 'pendavg: error: ' line"
+  else
+    pass
+  fi
+}
+check() { # NAME COMMAND...: the command succeeds
+  local name=$1
+  shift
+  if "$@"; then pass; else fail "$name"; fi
+}
+no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+# faulty_run ROWS ARGS...: the test build with rows ROWS failing late
+faulty_run() {
+  local rows=$1
+  shift
+  PENDAVG_TEST_FAILING_ROWS=$rows "$faulty" "$@" >"$work/out" 2>"$work/err"
+  rc=$?
+}
+# data_rows FILE: the lines that are neither '#' lines nor the column line
+data_rows() { grep -v '^#' "$1" | tail -n +2; }
+
+# ---------------------------------------------------------------- 1. no sweep row lost
+# 120 good N = 3 rows; rows 5 and 119 (file lines 7 and 121) fail while they are computed.
+"$python" - "$work/cases.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,m3,l1,l2,l3\n")
+    for i in range(120):
+        f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,1,1,{1 + i % 5}\n")
+PY
+cases=(average --cases "$work/cases.csv")
+"$pendavg" "${cases[@]}" --output "$work/cases_reference.csv" 2>/dev/null
+"$pendavg" "${cases[@]}" >"$work/cases_reference_stdout.csv" 2>/dev/null
+faulty_run 5,119 "${cases[@]}" --output "$work/cases_failed.csv"
+check "failed rows: exit status 3 (was 2 and no file)" test "$rc" -eq 3
+check "failed rows: one error line" one_error_line
+check "failed rows: the line names the count and the first row's line and reason" \
+  grep -q "average: 2 of 120 rows failed .* the first: $work/cases.csv line 7: a failure injected" "$work/err"
+check "failed rows: the line says --resume computes them" grep -q -- "--resume '$work/cases_failed.csv'" "$work/err"
+check "failed rows: nothing on stdout" test ! -s "$work/out"
+check "failed rows: every other row kept, in place" \
+  cmp -s <(grep -v '^# failed: ' "$work/cases_failed.csv" | grep -v '^[^#]*$' ) \
+         <(grep '^#' "$work/cases_reference.csv")
+check "failed rows: the 118 finished rows equal the full run's" \
+  cmp -s <(data_rows "$work/cases_failed.csv") \
+         <(data_rows "$work/cases_reference.csv" | sed -e '6d' -e '120d')
+check "failed rows: a '# failed:' line in each failed row's place, naming its line" \
+  test "$(grep -n '^# failed: ' "$work/cases_failed.csv" | cut -d: -f1,3 | tr '\n' ' ')" = \
+       "10: $work/cases.csv line 7 124: $work/cases.csv line 121 "
+check "failed rows: no temporary" no_temporaries
+run "${cases[@]}" --resume "$work/cases_failed.csv"
+check "failed rows resumed: exit 0" test "$rc" -eq 0
+check "failed rows resumed = a full run" cmp -s "$work/cases_failed.csv" "$work/cases_reference.csv"
+# To stdout: the same rows and lines, exit 3.
+faulty_run 0 "${cases[@]}"
+check "failed first row to stdout: exit 3" test "$rc" -eq 3
+check "failed first row to stdout: the other rows" \
+  cmp -s <(grep -v '^# failed: ' "$work/out") <(sed 2d "$work/cases_reference_stdout.csv")
+check "failed first row to stdout: its line in place" \
+  test "$(sed -n 2p "$work/out" | cut -c1-10)" = "# failed: "
+# Every row failing: still a complete file of '# failed:' lines, exit 3.
+faulty_run "$(seq -s, 0 119)" "${cases[@]}" --output "$work/cases_all_failed.csv"
+check "every row failed: exit 3, 120 '# failed:' lines" \
+  test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/cases_all_failed.csv")" -eq 120
+# table likewise: a '# failed: point (...)' line, resumed = a full run.
+table=(table --beta log:0.1:10:20 --mu1 0.1,0.5 --digits 16)
+"$pendavg" "${table[@]}" --output "$work/table_reference.csv" 2>/dev/null
+faulty_run 3,39 "${table[@]}" --output "$work/table_failed.csv"
+check "table failed points: exit 3, one error line" test "$rc" -eq 3
+check "table failed points: one error line" one_error_line
+check "table failed points: the line" grep -q "table: 2 of 40 points failed .* the first: point (" "$work/err"
+check "table failed points: two '# failed: point' lines" \
+  test "$(grep -c '^# failed: point (' "$work/table_failed.csv")" -eq 2
+check "table failed points: the finished rows equal the full run's" \
+  cmp -s <(data_rows "$work/table_failed.csv") <(data_rows "$work/table_reference.csv" | sed -e '4d' -e '40d')
+run "${table[@]}" --resume "$work/table_failed.csv"
+check "table failed points resumed = a full run" cmp -s "$work/table_failed.csv" "$work/table_reference.csv"
+# A failed row and an interruption (SIGTERM once the progress line shows rows being computed:
+# 150 rows at 1000 digits, ~5 s): the file has both lines and --resume completes it.
+"$python" - "$work/cases_slow.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for i in range(150):
+        f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,{1 + i % 5}\n")
+PY
+slow=(average --cases "$work/cases_slow.csv" --digits 1000)
+PENDAVG_TEST_FAILING_ROWS=1 "$faulty" "${slow[@]}" --output "$work/slow_failed.csv" \
+  >"$work/out" 2>"$work/err" &
+pid=$!
+for ((k = 0; k < 300; ++k)); do
+  grep -q '^\[average\] [0-9]*/150 rows' "$work/err" && break
+  sleep 0.1
+done
+kill -TERM "$pid" 2>/dev/null
+wait "$pid"
+rc=$?
+check "failed row then SIGTERM: exit 3, the failed line and the interrupted line" \
+  test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/slow_failed.csv")" -eq 1 \
+       -a "$(grep -c '^# interrupted: ' "$work/slow_failed.csv")" -eq 1
+"$pendavg" "${slow[@]}" --output "$work/slow_reference.csv" 2>/dev/null
+run "${slow[@]}" --resume "$work/slow_failed.csv"
+check "failed row and interruption resumed = a full run" \
+  cmp -s "$work/slow_failed.csv" "$work/slow_reference.csv"
+
+# ---------------------------------------------------------------- 2. --resume keeps whole rows only
+cp "$work/cases_reference.csv" "$work/damaged.csv"
+# Row 50 cut to 9 of its fields, row 80 with a field that is no number, the last row cut
+# mid-number and without its newline (a file cut short).
+"$python" - "$work/damaged.csv" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().split("\n")
+header = sum(1 for l in lines if l.startswith("#")) + 1
+lines[header + 49] = ",".join(lines[header + 49].split(",")[:9])
+fields = lines[header + 79].split(",")
+fields[12] = fields[12][:3] + "e"
+lines[header + 79] = ",".join(fields)
+text = "\n".join(lines).rstrip("\n")
+open(sys.argv[1], "w").write(text[:-5])
+PY
+check "damaged rows: row 50 has 9 fields" \
+  test "$(data_rows "$work/damaged.csv" | sed -n 50p | tr ',' '\n' | wc -l)" -eq 9
+PENDAVG_SWEEP_REPORT=1 run "${cases[@]}" --resume "$work/damaged.csv"
+check "damaged rows resumed: exit 0" test "$rc" -eq 0
+check "damaged rows resumed: the 3 damaged rows computed, the others kept" \
+  grep -q '^pendavg: sweep: rows=120 computed=3 ' "$work/err"
+check "damaged rows resumed = a full run" cmp -s "$work/damaged.csv" "$work/cases_reference.csv"
+PENDAVG_SWEEP_REPORT=1 run "${table[@]}" --resume "$work/table_failed.csv"
+check "a whole file resumed: every row kept" grep -q '^pendavg: sweep: rows=40 computed=0 ' "$work/err"
+
+# ---------------------------------------------------------------- 3. a file size limit
+big_table=(table --beta log:0.1:10:2000 --mu1 0.1,0.5 --digits 16)
+(
+  ulimit -f 8  # 8 blocks of 512 bytes: the table is ~1 MB
+  exec "$pendavg" "${big_table[@]}" --output "$work/limited.csv" >"$work/out" 2>"$work/err"
+)
+rc=$?
+check "ulimit -f: exit 2 (not killed by SIGXFSZ)" test "$rc" -eq 2
+check "ulimit -f: one error line naming the limit" \
+  sh -c "[ \$(wc -l <'$work/err') -eq 1 ] && grep -q 'File too large' '$work/err'"
+check "ulimit -f: no file" test ! -e "$work/limited.csv"
+check "ulimit -f: no temporary" no_temporaries
+
+# ---------------------------------------------------------------- 4. long output names
+long_name=$(printf 'x%.0s' $(seq 1 251)).csv  # 255 characters, NAME_MAX
+run "${table[@]}" --output "$work/$long_name"
+check "a 255-character output name is written" cmp -s "$work/$long_name" "$work/table_reference.csv"
+run "${table[@]}" --resume "$work/$long_name"
+check "a 255-character output name is resumed" test "$rc" -eq 0
+check "long name: no temporary" no_temporaries
+rm -f "$work/$long_name"
+
+# ---------------------------------------------------------------- 5. modes and hard links
+echo old >"$work/private.csv"
+chmod 600 "$work/private.csv"
+run "${table[@]}" --output "$work/private.csv"
+check "a rewritten 0600 file stays 0600" test "$(stat -c %a "$work/private.csv")" = 600
+chmod 640 "$work/private.csv"
+run "${table[@]}" --resume "$work/private.csv"
+check "a resumed 0640 file stays 0640" test "$(stat -c %a "$work/private.csv")" = 640
+if [ "$(id -u)" -eq 0 ]; then  # only root may give a file to another owner
+  chown 12345:12346 "$work/private.csv"
+  run "${table[@]}" --output "$work/private.csv"
+  check "a rewritten file keeps its owner and group" test "$(stat -c %u:%g "$work/private.csv")" = 12345:12346
+fi
+echo old >"$work/linked.csv"
+ln "$work/linked.csv" "$work/link2.csv"
+bad "an output with two hard links is refused" "${table[@]}" --output "$work/linked.csv"
+check "hard links: the line says why" grep -q "2 hard links" "$work/err"
+check "hard links: both names keep their content" \
+  sh -c "[ \"\$(cat '$work/linked.csv')\" = old ] && [ \"\$(cat '$work/link2.csv')\" = old ]"
+
+# ---------------------------------------------------------------- 6. --timing-rows on a full disk
+bad "--timing-rows /dev/full fails before any row reaches stdout" \
+  "${cases[@]}" --timing-rows /dev/full
+run "${cases[@]}" --timing-rows "$work/timing.csv"
+check "--timing-rows: a row,line,us line per row" \
+  test "$(head -1 "$work/timing.csv")" = "row,line,us" -a "$(wc -l <"$work/timing.csv")" -eq 121
+check "--timing-rows: rows in order, lines from the file" \
+  test "$(sed -n '2p;121p' "$work/timing.csv" | cut -d, -f1,2 | tr '\n' ' ')" = "0,2 119,121 "
+faulty_run 7 "${cases[@]}" --timing-rows "$work/timing_failed.csv"
+check "--timing-rows with a failed row: the row is left out" \
+  test "$rc" -eq 3 -a "$(wc -l <"$work/timing_failed.csv")" -eq 120 -a \
+       -z "$(cut -d, -f1 "$work/timing_failed.csv" | grep -x 7)"
+
+# ---------------------------------------------------------------- 7. endless input, FIFOs
+bad "--cases /dev/zero is refused at once (a NUL byte)" average --cases /dev/zero
+check "/dev/zero: the line says why" grep -q "line 1 holds a NUL byte: not a text file" "$work/err"
+bad "--cases /dev/urandom is refused at once" average --cases /dev/urandom
+"$python" -c 'import sys; sys.stdout.write("beta,g,m1,l1\n" + "1" * (65 << 20))' >"$work/long_line.csv"
+bad "a cases line longer than 64 MB is refused" average --cases "$work/long_line.csv"
+check "long line: the line says why" grep -q "line 2 is longer than 64 MB" "$work/err"
+rm -f "$work/long_line.csv"
+bad "an endless line from a pipe is refused" average --cases <(yes 1,1,1,1 | tr -d '\n')
+check "endless line: the line says why" grep -q "line 1 is longer than 64 MB" "$work/err"
+mkfifo "$work/fifo"
+bad "--output to a FIFO nobody reads is refused" "${table[@]}" --output "$work/fifo"
+check "FIFO: the line says why" grep -q "FIFO that no process reads" "$work/err"
+cat "$work/fifo" >"$work/from_fifo.csv" &
+reader=$!
+for ((k = 0; k < 50; ++k)); do  # until the reader has the FIFO open
+  [ -n "$(find /proc/$reader/fd -lname "$work/fifo" 2>/dev/null | head -1)" ] && break
+  sleep 0.1
+done
+run "${table[@]}" --output "$work/fifo"
+wait "$reader"
+check "--output to a FIFO with a reader writes through it" \
+  cmp -s "$work/from_fifo.csv" "$work/table_reference.csv"
+
+# ---------------------------------------------------------------- 8. progress while checking
+# 1e8 points take minutes to check: a progress line comes within seconds; SIGINT then ends the
+# run (no row was computed).
+"$pendavg" table --beta lin:0.1:10:10000 --mu1 lin:0.01:0.99:10000 --output "$work/huge.csv" \
+  >"$work/out" 2>"$work/err" &
+pid=$!
+for ((k = 0; k < 300; ++k)); do
+  grep -q '^\[table\] checking the points: ' "$work/err" && break
+  sleep 0.2
+done
+kill -INT "$pid" 2>/dev/null
+wait "$pid"
+check "a long check prints progress" grep -q '^\[table\] checking the points: [0-9]*/100000000' "$work/err"
+
+# ---------------------------------------------------------------- 9. error lines safe for a terminal
+one=(average --masses 1,1 --lengths 1,1)
+bad "ESC and CR in an argument" "${one[@]}" --beta $'1\e[31m\r2'
+check "ESC and CR are escaped" grep -qF -- "--beta: malformed number '1\x1b[31m\x0d2'" "$work/err"
+check "no raw control character on stderr" sh -c "! LC_ALL=C grep -q '[[:cntrl:]]' '$work/err'"
+bad "U+2028, VT, DEL and a C1 control in an argument" "${one[@]}" --beta $'1\u2028\v\x7f\u0085'
+check "U+2028, VT, DEL, C1 escaped" grep -qF '1\u2028\x0b\x7f\u0085' "$work/err"
+bad "bytes that are not UTF-8" "${one[@]}" --beta $'1\xff\xc3'
+check "invalid UTF-8 escaped" grep -qF '1\xff\xc3' "$work/err"
+"$python" - "$work/long_field.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,l1\n" + "1" + "x" * 1000000 + ",1,1,1\n")
+PY
+bad "a 1 MB field of a cases file" average --cases "$work/long_field.csv"
+check "a 1 MB field makes a short error line" test "$(wc -c <"$work/err")" -lt 3000
+check "a 1 MB field is cut after 40 characters, its length said" \
+  grep -qF "'1xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx... (1000003 characters)" "$work/err"
+printf 'beta,g,m1,l1\n1,1,1\x1b]0;owned\x07,1\n' >"$work/control_field.csv"
+bad "control characters in a cases field" average --cases "$work/control_field.csv"
+check "cases field's control characters escaped" grep -qF '\x1b]0;owned\x07' "$work/err"
+
+# ---------------------------------------------------------------- 10. cases files as pandas writes them
+printf 'beta,g,m1,m2,l1,l2\n1,1,1,1,1,1\n2.5,9.81,0.3,1,2,0.5\n' >"$work/plain.csv"
+run average --cases "$work/plain.csv"
+cp "$work/out" "$work/plain_out.csv"
+# df.to_csv("f.csv"): the index first, under an empty name
+printf ',beta,g,m1,m2,l1,l2\n0,1,1,1,1,1,1\n1,2.5,9.81,0.3,1,2,0.5\n' >"$work/pandas_index.csv"
+run average --cases "$work/pandas_index.csv"
+check "pandas' index column is left out" cmp -s "$work/out" "$work/plain_out.csv"
+# df.to_csv("f.csv", encoding="utf-8-sig", quoting=csv.QUOTE_NONNUMERIC): a byte order mark,
+# quoted names
+printf '\xef\xbb\xbf"","beta","g","m1","m2","l1","l2"\n0,1,1,1,1,1,1\n1,2.5,9.81,0.3,1,2,0.5\n' \
+  >"$work/pandas_bom.csv"
+run average --cases "$work/pandas_bom.csv"
+check "a byte order mark, quoted names and the index" cmp -s "$work/out" "$work/plain_out.csv"
+printf '\xef\xbb\xbfbeta,g,m1,m2,l1,l2\n1,1,1,1,1,1\n2.5,9.81,0.3,1,2,0.5\n' >"$work/bom.csv"
+run average --cases "$work/bom.csv"
+check "a byte order mark alone" cmp -s "$work/out" "$work/plain_out.csv"
+printf ',beta,g,m1,l1\nfirst,1,1,1,1\n' >"$work/not_index.csv"
+bad "an unnamed first column that is not a row number" average --cases "$work/not_index.csv"
+check "not an index: the line names the row" grep -q "line 2: the first column" "$work/err"
+if "$python" -c 'import pandas' 2>/dev/null; then
+  "$python" - "$work/pandas_real.csv" <<'PY'
+import sys, pandas
+pandas.DataFrame({"beta": [1, 2.5], "g": [1, 9.81], "m1": [1, 0.3], "m2": [1, 1],
+                  "l1": [1, 2], "l2": [1, 0.5]}).to_csv(sys.argv[1])
+PY
+  run average --cases "$work/pandas_real.csv"
+  check "a file pandas wrote" test "$rc" -eq 0 -a "$(grep -c . "$work/out")" -eq 3
+fi
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
