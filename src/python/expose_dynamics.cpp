@@ -116,16 +116,16 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   run.burn_in = option_double(burn_in, "0", "--burn-in", Domain::nonnegative);
   if (!integrator.is_none())
     run.integrator = static_cast<Integrator>(
-        cli::parse_choice(choice_text(integrator), "integrator", integrator_names));
+        cli::parse_choice(choice_text(integrator, "integrator"), "integrator", integrator_names));
   const bool langevin =
-      cli::parse_choice(thermostat.is_none() ? "none" : choice_text(thermostat), "thermostat",
+      cli::parse_choice(thermostat.is_none() ? "none" : choice_text(thermostat, "thermostat"), "thermostat",
                         thermostat_names) == 1;
   run.thermostat = langevin ? Thermostat::langevin : Thermostat::none;
   if (langevin && beta.is_none()) throw cli::usage_error("simulate: missing required option --beta");
   if (!beta.is_none()) run.beta = number_double(beta, "--beta", Domain::positive);
   if (!friction.is_none()) run.friction = number_double(friction, "--friction", Domain::positive);
   if (!seed.is_none()) {
-    const std::uint64_t value = cli::parse_unsigned(number_text(seed), "--seed");
+    const std::uint64_t value = cli::parse_unsigned(number_text(seed, "--seed"), "--seed");
     // The CLI's message (its NVE --seed is for --replicas, which this function does not run).
     if (!langevin)
       throw cli::usage_error("simulate: --seed needs --thermostat langevin or --replicas R > 1");
@@ -139,11 +139,11 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   const bool with_exact =
       PyBool_Check(exact.ptr())
           ? exact.cast<bool>()
-          : cli::parse_choice(choice_text(exact), "--exact value", yes_no) == 0;
+          : cli::parse_choice(choice_text(exact, "exact"), "--exact value", yes_no) == 0;
   std::size_t trajectory_every = 0;
   if (!every.is_none())
     trajectory_every = static_cast<std::size_t>(
-        cli::parse_integer(number_text(every), "--every", 1, 1000000000));
+        cli::parse_integer(number_text(every, "--every"), "--every", 1, 1000000000));
 
   ChainState<double> initial = state_from_angles(chain, angles, rates);
   const double energy = total_energy(chain, initial);
@@ -188,6 +188,68 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     tau[i] = r.kinetic[i].autocorrelation_time;
     cosine[i] = r.cos_angle[i].value;
     cosine_error[i] = r.cos_angle[i].error;
+  }
+  // No NaN or infinity reaches Python silently (ValueError, one line): every average and
+  // energy is finite; an error bar (and what derives from it) may be NaN only when too few
+  // blocks finished to estimate it, which error_reason then says. A run stopped by Ctrl-C before
+  // its first sample has no average: KeyboardInterrupt.
+  if (r.interrupted && r.samples == 0) {
+    PyErr_SetString(PyExc_KeyboardInterrupt, "simulate: interrupted before the first sample");
+    throw py::error_already_set();
+  }
+  const bool unknown_errors =
+      std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); });
+  {
+    const auto refuse = [](const std::string& name, double x) {
+      throw invalid_input("simulate: the result is not finite (" + name + " = " +
+                          (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf") +
+                          "): the trajectory left the finite numbers (try a smaller dt)");
+    };
+    const auto value = [&](const std::string& name, double x) {
+      if (!std::isfinite(x)) refuse(name, x);
+    };
+    const auto bar = [&](const std::string& name, double x) {
+      if (!std::isfinite(x) && !(unknown_errors && std::isnan(x))) refuse(name, x);
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::string at = "[" + std::to_string(i) + "]";
+      value("K" + at, k[i]);
+      value("Kc" + at, kc[i]);
+      value("cos_phi" + at, cosine[i]);
+      bar("K_error" + at, k_error[i]);
+      bar("Kc_error" + at, kc_error[i]);
+      bar("cos_phi_error" + at, cosine_error[i]);
+      bar("K_autocorrelation_time" + at, tau[i]);
+    }
+    value("K_total", r.kinetic_total.value);
+    value("potential", r.potential.value);
+    bar("K_total_error", r.kinetic_total.error);
+    bar("potential_error", r.potential.error);
+    value("energy", energy);
+    value("final_energy", r.final_energy);
+    value("energy_drift", r.energy_drift);
+    value("energy_error_max", r.energy_error_max);
+    value("energy_error_rms", r.energy_error_rms);
+    bar("energy_trend", r.energy_trend);
+    value("constraint_residual", r.constraint_residual);
+    if (reference) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::string at = "[" + std::to_string(i) + "]";
+        value("exact_K" + at, reference->kinetic[i]);
+        value("exact_K_error" + at, reference->kinetic_error[i]);
+        value("exact_cos_phi" + at, reference->cos_angle[i]);
+        value("exact_cos_phi_error" + at, reference->cos_angle_error[i]);
+      }
+      value("exact_Kc", reference->kinetic_canonical);
+      value("exact_Kc_error", reference->kinetic_canonical_error);
+      if (!langevin) {
+        value("exact_excitation", reference->excitation);
+        for (std::size_t i = 0; i < n; ++i) {
+          value("exact_var_K[" + std::to_string(i) + "]", reference->variance[i]);
+          value("exact_var_K_error[" + std::to_string(i) + "]", reference->variance_error[i]);
+        }
+      }
+    }
   }
   py::dict out;
   out["ensemble"] = langevin ? "canonical" : "microcanonical";
@@ -239,8 +301,6 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     for (const char* name : {"exact_excitation", "exact_var_K", "exact_var_K_error"})
       out[name] = py::none();
   }
-  const bool unknown_errors =
-      std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); });
   out["error_reason"] =
       unknown_errors ? py::object(py::str(
                            "fewer than 16 averaging blocks finished (interrupted early, or time "
@@ -281,9 +341,9 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
   const double e = number_double(energy, "--energy", Domain::any);
   PoincareOptions run;
   run.orbits = static_cast<std::size_t>(cli::parse_integer(
-      orbits.is_none() ? "8" : number_text(orbits), "--orbits", 1, 10000));
+      orbits.is_none() ? "8" : number_text(orbits, "--orbits"), "--orbits", 1, 10000));
   run.points = static_cast<std::size_t>(cli::parse_integer(
-      points.is_none() ? "500" : number_text(points), "--points", 1, 100000000));
+      points.is_none() ? "500" : number_text(points, "--points"), "--points", 1, 100000000));
   run.time_step = option_double(dt, "1e-3", "--dt", Domain::positive);
   run.threads = hardware_threads();
   DynamicsObserver<double> observer;
@@ -306,6 +366,13 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
     p2.push_back(p.p2);
     when.push_back(p.time);
   }
+  for (std::size_t k = 0; k < count; ++k)
+    if (!std::isfinite(phi2[k]) || !std::isfinite(p2[k]) || !std::isfinite(when[k]))
+      throw invalid_input("poincare: the result is not finite (crossing " + std::to_string(k) +
+                          "): the trajectory left the finite numbers (try a smaller dt)");
+  if (!std::isfinite(section->energy_error_max))
+    throw invalid_input("poincare: the result is not finite (energy_error_max): the trajectory "
+                        "left the finite numbers (try a smaller dt)");
   py::dict out;
   out["orbit"] = orbit;
   out["phi2"] = array(phi2);
