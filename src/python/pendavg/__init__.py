@@ -94,6 +94,10 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                              the transfer operator's final resolution
       decimal                the CLI's strings (`pendavg average --format json`), `digits` digits
       mpf                    mpmath.mpf values (exact binary values of the MPFR results)
+      dims, coords           a grid's axis names and values (pendavg.sweep: the swept
+                             arguments; a broadcast call: axis0, axis1, ... with positions)
+    Conversions: to_dict(), to_dataframe() (pandas: a row per particle and grid point) and
+    to_xarray() (xarray: dims + ('particle',)).
 
     Arguments:
       masses   the N masses m_i > 0 (a list, tuple or 1-D array; a single number is N = 1).
@@ -669,7 +673,8 @@ def _averages_coords(self):
 def _averages_fields(self):
     """(per-particle fields, per-point fields) that this result has (no None)."""
     particle = {name: getattr(self, name) for name in _PER_PARTICLE_FIELDS}
-    point = {name: getattr(self, name) for name in _PER_POINT_FIELDS}
+    point = {name: getattr(self, name) for name in _PER_POINT_FIELDS
+             if name not in self.dims}  # a swept beta is the coordinate itself
     return ({k: v for k, v in particle.items() if v is not None},
             {k: v for k, v in point.items() if v is not None})
 
