@@ -150,7 +150,8 @@ def test_odd_number_types():
     """Fractions and numpy scalars are numbers; a bool, a complex or a numpy array where a
     single number belongs is a TypeError naming the argument."""
     by_float = pendavg.average([0.5, 0.5], [1, 1], 0.25)
-    for beta in (Fraction(1, 4), np.float32(0.25), np.float64(0.25), np.array(0.25), Decimal("0.25")):
+    for beta in (Fraction(1, 4), np.float32(0.25), np.float64(0.25), np.array(0.25),
+                 Decimal("0.25")):
         np.testing.assert_array_equal(pendavg.average([0.5, 0.5], [1, 1], beta).beta_K,
                                       by_float.beta_K)
     for beta in (True, 1j, np.complex128(1)):
@@ -294,8 +295,9 @@ def test_mpf_with_a_huge_exponent_is_quick_and_read_as_the_cli_reads_it():
     # exactness: below 10^-8500 the text is rounded, yet it reads back as the same binary number
     x = mpmath.mpf("1e-9000")
     exact = pendavg.average([0.5, 0.5], [1, 1], x, digits=40)
-    assert exact.decimal["beta_K"] == pendavg.average(
-        [0.5, 0.5], [1, 1], mpmath.nstr(x, 60, min_fixed=1, max_fixed=0), digits=40).decimal["beta_K"]
+    text = mpmath.nstr(x, 60, min_fixed=1, max_fixed=0)
+    assert exact.decimal["beta_K"] == \
+        pendavg.average([0.5, 0.5], [1, 1], text, digits=40).decimal["beta_K"]
     # beyond MPFR's exponent range: refused with one line naming the argument, no hang
     huge = mpmath.mpf((0, 1, -(2 ** 40), 1))
     start = time.monotonic()

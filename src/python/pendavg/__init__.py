@@ -30,9 +30,10 @@ also come as the CLI's decimal strings (`.decimal`) and as mpmath.mpf values (`.
 Errors. Bad input raises ValueError with the CLI's one-line message, which names the argument
 (e.g. "--beta: '0.0' must be > 0"; a long number text is shortened in it); an argument of the
 wrong type (None, a complex, a non-str method, a non-callable progress) raises TypeError naming
-it. A result with a NaN or an infinity is refused (ValueError) rather than returned. Calls release the GIL and are thread-safe at any mix of digits; array calls run on all
-cores. Ctrl-C stops an array call (KeyboardInterrupt) and ends simulate/poincare early with the
-averages so far (interrupted = True).
+it. A result with a NaN or an infinity is refused (ValueError) rather than returned. Calls
+release the GIL and are thread-safe at any mix of digits; array calls run on all cores. Ctrl-C
+stops an array call (KeyboardInterrupt) and ends simulate/poincare early with the averages so
+far (interrupted = True).
 
 Notebooks. Every result converts: .to_dict(), .to_dataframe() (pandas) and, for Averages,
 .to_xarray() (xarray); pandas and xarray are optional. sweep() results carry their axes:
