@@ -57,7 +57,7 @@ Chain<double> dynamics_chain(py::handle masses, py::handle lengths, py::handle g
 /// An angle: radians, or a str with a 'deg' suffix in degrees ('90deg'), as the CLI reads it.
 double angle(py::handle x, std::string_view what) {
   if (PyUnicode_Check(x.ptr())) {
-    const std::string text = x.cast<std::string>();
+    const std::string text = utf8_text(x, what);
     constexpr std::string_view suffix = "deg";
     if (text.size() > suffix.size() && text.ends_with(suffix))
       return cli::parse_real<double>(std::string_view(text).substr(0, text.size() - suffix.size()),

@@ -36,6 +36,24 @@ bool is_type(py::handle x, const char* module_prefix, const char* name) {
 
 std::string type_name(py::handle x) { return Py_TYPE(x.ptr())->tp_name; }
 
+}  // namespace
+
+std::string utf8_text(py::handle text, std::string_view what) {
+  Py_ssize_t size = 0;
+  const char* data = PyUnicode_AsUTF8AndSize(text.ptr(), &size);
+  if (!data) {  // a lone surrogate ('\ud800') has no UTF-8
+    if (!PyErr_ExceptionMatches(PyExc_UnicodeError)) throw py::error_already_set();
+    PyErr_Clear();
+    throw py::value_error(std::string(what) + ": the text is not valid Unicode (it holds a lone "
+                          "surrogate)");
+  }
+  if (std::memchr(data, '\0', static_cast<std::size_t>(size)))  // would end a C string early
+    throw py::value_error(std::string(what) + ": the text holds a NUL character");
+  return std::string(data, static_cast<std::size_t>(size));
+}
+
+namespace {
+
 /// "<what>: expected a number ..., got <type>" as a TypeError.
 [[noreturn]] void not_a_number(py::handle x, std::string_view what) {
   throw py::type_error(std::string(what) +
@@ -53,7 +71,7 @@ void set_mpz(mpz_t out, py::handle magnitude) {
 }
 
 /// Longest exact decimal written for a binary number (an mpf, a huge int): beyond it (|x| below
-/// about 1e-8500 or above 1e6000 for a 53-bit mantissa) the text is rounded, see binary_text.
+/// about 1e-8600 or above 1e20000 for a 53-bit mantissa) the text is rounded, see binary_text.
 constexpr double exact_text_limit = 20000;
 
 /// The decimal text of (-1)^negative man 2^exponent, bits = bit length of man > 0.
@@ -153,18 +171,17 @@ std::string mpf_text(py::handle x, std::string_view what) {
 /// over 4300 digits).
 std::string integer_text(py::handle x, std::string_view what) {
   const py::int_ value = py::reinterpret_borrow<py::int_>(x);
-  const size_t bit_length = _PyLong_NumBits(value.ptr());
-  if (bit_length == static_cast<size_t>(-1)) throw py::error_already_set();
+  const long bit_length = value.attr("bit_length")().cast<long>();  // (at most ~2^60 bits)
   if (bit_length <= 10000) return std::string(py::str(py::handle(value)));
-  const bool negative = _PyLong_Sign(value.ptr()) < 0;
+  const bool negative = PyObject_RichCompareBool(value.ptr(), py::int_(0).ptr(), Py_LT) == 1;
   const py::object magnitude = py::reinterpret_steal<py::object>(PyNumber_Absolute(value.ptr()));
-  return binary_text(negative, magnitude, py::int_(0), static_cast<long>(bit_length), what);
+  return binary_text(negative, magnitude, py::int_(0), bit_length, what);
 }
 
 }  // namespace
 
 std::string number_text(py::handle x, std::string_view what) {
-  if (PyUnicode_Check(x.ptr())) return x.cast<std::string>();
+  if (PyUnicode_Check(x.ptr())) return utf8_text(x, what);
   if (PyFloat_Check(x.ptr())) return float_repr(PyFloat_AS_DOUBLE(x.ptr()));
   if (PyBool_Check(x.ptr())) not_a_number(x, what);  // True is not a number here
   if (PyLong_Check(x.ptr())) return integer_text(x, what);
@@ -229,7 +246,7 @@ std::vector<py::object> entries(py::handle x) {
 std::string choice_text(py::handle x, std::string_view what) {
   if (!PyUnicode_Check(x.ptr()))
     throw py::type_error(std::string(what) + ": expected a str, got " + type_name(x));
-  return x.cast<std::string>();
+  return utf8_text(x, what);
 }
 
 AverageOptions average_options(py::handle digits, py::handle method, py::handle tol,
@@ -240,7 +257,8 @@ AverageOptions average_options(py::handle digits, py::handle method, py::handle 
   int overflow = 0;  // (an int beyond long is no default, and is refused by --digits below)
   const bool default_digits = PyLong_CheckExact(digits.ptr()) &&
                               PyLong_AsLongAndOverflow(digits.ptr(), &overflow) == 16 && !overflow;
-  const bool default_method = PyUnicode_Check(method.ptr()) && method.cast<std::string>() == "auto";
+  const bool default_method =
+      PyUnicode_Check(method.ptr()) && PyUnicode_CompareWithASCIIString(method.ptr(), "auto") == 0;
   if (default_digits && default_method && tol.is_none() && samples.is_none() && shifts.is_none() &&
       seed.is_none())
     return {};
@@ -282,13 +300,38 @@ std::string abbreviated(std::string_view message) {
       out += quoted;
       out += '\'';
     } else {
-      out += quoted.substr(0, head);
+      // cut between UTF-8 characters (a continuation byte is 10xxxxxx)
+      const auto continuation = [&](std::size_t i) {
+        return (static_cast<unsigned char>(quoted[i]) & 0xc0) == 0x80;
+      };
+      std::size_t head_end = head, tail_start = quoted.size() - tail;
+      while (head_end > 0 && continuation(head_end)) --head_end;
+      while (tail_start < quoted.size() && continuation(tail_start)) ++tail_start;
+      out += quoted.substr(0, head_end);
       out += "...";
-      out += quoted.substr(quoted.size() - tail);
-      out += "' (" + std::to_string(quoted.size()) + " characters)";
+      out += quoted.substr(tail_start);
+      const auto characters = std::count_if(quoted.begin(), quoted.end(), [](char c) {
+        return (static_cast<unsigned char>(c) & 0xc0) != 0x80;
+      });
+      out += "' (" + std::to_string(characters) + " characters)";
     }
     k = close + 1;
   }
+  // One line, whole: control characters of a quoted text (a newline, a NUL that would end the
+  // C string) are shown escaped.
+  std::string escaped;
+  for (const char c : out) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) {
+      constexpr char hex[] = "0123456789abcdef";
+      escaped += "\\x";
+      escaped += hex[u >> 4];
+      escaped += hex[u & 15];
+    } else {
+      escaped += c;
+    }
+  }
+  out = std::move(escaped);
   // A long text outside quotes (none of the messages has one today) is cut as well.
   if (out.size() > 1000) out = out.substr(0, 600) + " ... (" + std::to_string(out.size()) + " characters)";
   return out;

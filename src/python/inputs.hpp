@@ -49,6 +49,10 @@ AverageOptions average_options(py::handle digits, py::handle method, py::handle 
 /// --digits as the CLI reads it (an integer in 16..1000).
 int digits_option(py::handle digits);
 
+/// A str's UTF-8 text; a str that has none (a lone surrogate) or holds a NUL character is a
+/// ValueError naming `what`.
+std::string utf8_text(py::handle text, std::string_view what);
+
 /// A str argument that picks one of several names (method, integrator, ...); anything but a str
 /// is a TypeError naming `what`.
 std::string choice_text(py::handle x, std::string_view what);

@@ -37,7 +37,7 @@ GOOD = {
 
 MEGABYTE = "1" * 1_000_000
 NEVER = [float("nan"), float("inf"), -float("inf"), "abc", object(), 1 + 1j, b"1", MEGABYTE,
-         {"a": 1}]
+         {"a": 1}, "\ud800", "1\x002", "1\n2"]
 
 # Per argument: values that are valid there (skipped), and values that are bad only there.
 VALID_THERE = {
@@ -144,6 +144,26 @@ def test_a_megabyte_number_is_not_echoed_whole():
     with pytest.raises(ValueError, match=r"^--masses: malformed number '1x{39}\.\.\.x{16}' "
                                          r"\(1000001 characters\) \(expected"):
         pendavg.average(["1" + "x" * 1_000_000, 1], [1, 1], 1)
+
+
+def test_texts_that_cannot_be_read_are_one_line_value_errors():
+    """A lone surrogate was a RuntimeError (pybind11's failed cast); a NUL cut the message short
+    (it ended the C string); a newline made it two lines."""
+    with pytest.raises(ValueError, match=r"^--beta: the text is not valid Unicode"):
+        pendavg.average([0.5, 0.5], [1, 1], "\ud800")
+    with pytest.raises(ValueError, match=r"^--method: the text is not valid Unicode"):
+        pendavg.average([0.5, 0.5], [1, 1], 1, method="\ud800")
+    with pytest.raises(ValueError, match=r"^--g: the text holds a NUL character$"):
+        pendavg.average([0.5, 0.5], [1, 1], 1, g="1\x002")
+    with pytest.raises(ValueError, match=r"^--beta: malformed number '1\\x0a2' \(expected a finite "
+                                         r"decimal number\)$"):
+        pendavg.average([0.5, 0.5], [1, 1], "1\n2")
+
+
+def test_a_long_text_is_shortened_between_characters():
+    with pytest.raises(ValueError, match=r"^--beta: malformed number 'é{20}\.\.\.é{8}' \(100 "
+                                         r"characters\)"):
+        pendavg.average([0.5, 0.5], [1, 1], "é" * 100)  # 2 bytes each: 40 + 16 bytes shown
 
 
 def test_odd_number_types():

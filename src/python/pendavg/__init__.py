@@ -788,6 +788,17 @@ def _mass_text(mu1):
     return _core.number_text(mu1.item() if isinstance(mu1, _np.generic) else mu1, "--mu1")
 
 
+def _quoted(text):
+    """'text' as the C++ messages quote it: a text over 80 characters shortened to its first 40
+    and last 16 with its length, control characters escaped (one line, whole)."""
+    if len(text) > 80:
+        text, length = f"{text[:40]}...{text[-16:]}", f" ({len(text)} characters)"
+    else:
+        length = ""
+    text = "".join(f"\\x{ord(c):02x}" if ord(c) < 0x20 or ord(c) == 0x7f else c for c in text)
+    return f"'{text}'{length}"
+
+
 _MAX_DECIMAL_SCALE = 4000  # digits after the point of 1 - mu1, as `pendavg table` allows
 
 
@@ -795,8 +806,8 @@ def _one_minus(mu1):
     """1 - mu1 in exact decimal (as `pendavg table` forms m2), refused outside (0, 1) and
     beyond 4000 digits after the point with the CLI's messages."""
     text = _mass_text(mu1)
-    shown = text if len(text) <= 80 else f"{text[:40]}...{text[-16:]}' ({len(text)} characters"
-    malformed = f"--mu1: malformed number '{shown}' (expected a finite decimal number)"
+    shown = _quoted(text)
+    malformed = f"--mu1: malformed number {shown} (expected a finite decimal number)"
     try:
         value = _Decimal(text)
     except Exception:
@@ -804,14 +815,14 @@ def _one_minus(mu1):
     if not value.is_finite() or not _re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", text):
         raise ValueError(malformed)
     if not value > 0:
-        raise ValueError(f"--mu1: '{shown}' must be > 0")
+        raise ValueError(f"--mu1: {shown} must be > 0")
     # digits after the point, checked before any arithmetic (1 - 1e-100000000 is exact only
     # with 10^8 digits)
     scale = -value.as_tuple().exponent
     if scale > _MAX_DECIMAL_SCALE or value.adjusted() < -_MAX_DECIMAL_SCALE:
-        raise ValueError(f"--mu1: '{shown}' has too many digits for 1 - --mu1")
+        raise ValueError(f"--mu1: {shown} has too many digits for 1 - --mu1")
     if not value < 1:
-        raise ValueError(f"--mu1: '{shown}' must be < 1")
+        raise ValueError(f"--mu1: {shown} must be < 1")
     from decimal import localcontext
     with localcontext() as context:
         context.prec = 2 * _MAX_DECIMAL_SCALE + 10  # exact: at most 4000 digits after the point
