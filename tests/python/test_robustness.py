@@ -234,27 +234,36 @@ def test_a_coarse_trajectory_is_finite_or_refused(dt):
 
 # ---------------------------------------------------------------- the locale
 
+def usable_locale(name):
+    old = locale.setlocale(locale.LC_NUMERIC)
+    try:
+        locale.setlocale(locale.LC_NUMERIC, name)
+        return locale.localeconv()["decimal_point"] == ","
+    except locale.Error:
+        return False
+    finally:
+        locale.setlocale(locale.LC_NUMERIC, old)
+
+
 def comma_locale():
-    """A locale whose decimal point is ',' (created with localedef under ctest if missing)."""
+    """A locale whose decimal point is ',' (under ctest made with Debian's localedef if the
+    machine has none: system-wide, or else in a temporary directory named by LOCPATH)."""
     for name in ("de_DE.UTF-8", "de_DE.utf8", "fr_FR.UTF-8", "de_DE", "nl_NL.UTF-8"):
-        try:
-            old = locale.setlocale(locale.LC_NUMERIC)
-            locale.setlocale(locale.LC_NUMERIC, name)
-            locale.setlocale(locale.LC_NUMERIC, old)
+        if usable_locale(name):
             return name
-        except locale.Error:
-            continue
-    if STRICT:  # run.sh installs Debian's locales; the German one is made here
-        subprocess.run(["localedef", "-i", "de_DE", "-f", "UTF-8", "de_DE.UTF-8"],
-                       capture_output=True)
-        try:
-            old = locale.setlocale(locale.LC_NUMERIC)
-            locale.setlocale(locale.LC_NUMERIC, "de_DE.UTF-8")
-            locale.setlocale(locale.LC_NUMERIC, old)
-            return "de_DE.UTF-8"
-        except locale.Error:
-            pytest.fail("no comma-decimal locale, and localedef could not make de_DE.UTF-8")
-    pytest.skip("no comma-decimal locale on this machine")
+    if not STRICT:
+        pytest.skip("no comma-decimal locale on this machine")
+    made = subprocess.run(["localedef", "-i", "de_DE", "-f", "UTF-8", "de_DE.UTF-8"],
+                          capture_output=True)
+    if made.returncode != 0 or not usable_locale("de_DE.UTF-8"):  # not root: a private one
+        import tempfile
+        directory = tempfile.mkdtemp(prefix="pendavg-locale-")
+        subprocess.run(["localedef", "-i", "de_DE", "-f", "UTF-8",
+                        os.path.join(directory, "de_DE.UTF-8")], capture_output=True)
+        os.environ["LOCPATH"] = directory  # glibc's setlocale reads it on every call
+    if not usable_locale("de_DE.UTF-8"):
+        pytest.fail("no comma-decimal locale, and localedef could not make de_DE.UTF-8")
+    return "de_DE.UTF-8"
 
 
 def test_decimal_strings_do_not_follow_the_locale():

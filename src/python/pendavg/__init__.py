@@ -22,7 +22,10 @@ a trajectory), poincare (the double pendulum's Poincare section).
 Numbers. Every number argument may be a float, an int, a str holding a decimal ('0.1',
 '1e-300'), a decimal.Decimal or an mpmath.mpf. It is read as the `pendavg` command reads the same
 text: a float as its repr (the shortest decimal that gives it back, i.e. what you typed, so 0.1
-means 1/10 also at 50 digits), a str exactly as written, an mpf by its exact binary value. With
+means 1/10 also at 50 digits), a str exactly as written, an int exactly, an mpf by its exact
+binary value (for |x| beyond about 1e-8600..1e20000 its text is rounded so that it reads back
+as the same binary number whenever the working precision holds its bits; a binary exponent
+outside MPFR's range is refused). No conversion builds a huge integer: every one is quick. With
 digits = 16 (the default) everything runs in double and the results are the C++ library's doubles,
 bit for bit; with digits = 17..1000 it runs in MPFR at digits + 12 guard digits, and the results
 also come as the CLI's decimal strings (`.decimal`) and as mpmath.mpf values (`.mpf`).
@@ -71,7 +74,9 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
     exp(-beta H). Returns an Averages with, per particle i (index 0 is the paper's particle 1):
 
       beta_K, beta_K_error   beta<K_i> (dimensionless) and its absolute error (also `error`)
-      K, K_error             <K_i> = beta<K_i> / beta, in energy units
+      K, K_error             <K_i> = beta<K_i> / beta, in energy units (+-inf where it lies
+                             beyond double's range, beta < ~1e-300; .decimal holds it; so
+                             for var_K at beta < ~1e-150)
       ratio, ratio_error     <K_1>/<K_2> (None for N = 1)
       cos_phi, cos_phi_error <cos phi_i>
       var_K, var_K_error     Var K_i = <K_i^2> - <K_i>^2; var_K_beta2 = beta^2 Var K_i
