@@ -136,9 +136,12 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   } catch (const invalid_input& bad) {
     throw cli::usage_error(bad.what());
   }
+  if (!PyBool_Check(exact.ptr()) && !PyUnicode_Check(exact.ptr()))
+    throw py::type_error("exact: expected True, False, 'yes' or 'no', got " +
+                         std::string(Py_TYPE(exact.ptr())->tp_name));
   const bool with_exact =
       PyBool_Check(exact.ptr())
-          ? exact.cast<bool>()
+          ? exact.ptr() == Py_True
           : cli::parse_choice(choice_text(exact, "exact"), "--exact value", yes_no) == 0;
   std::size_t trajectory_every = 0;
   if (!every.is_none())

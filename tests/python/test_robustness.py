@@ -324,9 +324,8 @@ def test_mpf_with_a_huge_exponent_is_quick_and_read_as_the_cli_reads_it():
     # exactness: below 10^-8500 the text is rounded, yet it reads back as the same binary number
     x = mpmath.mpf("1e-9000")
     exact = pendavg.average([0.5, 0.5], [1, 1], x, digits=40)
-    text = mpmath.nstr(x, 60, min_fixed=1, max_fixed=0)
-    assert exact.decimal["beta_K"] == \
-        pendavg.average([0.5, 0.5], [1, 1], text, digits=40).decimal["beta_K"]
+    text = mpmath.nstr(x, 60, min_fixed=1, max_fixed=0)  # 60 digits: x itself at 40 + 12
+    assert exact.decimal == pendavg.average([0.5, 0.5], [1, 1], text, digits=40).decimal  # K too
     # beyond MPFR's exponent range: refused with one line naming the argument, no hang
     huge = mpmath.mpf((0, 1, -(2 ** 40), 1))
     start = time.monotonic()
@@ -338,6 +337,32 @@ def test_mpf_with_a_huge_exponent_is_quick_and_read_as_the_cli_reads_it():
     with pytest.raises(ValueError, match=r"^--beta: '1000.*' \(11669 characters\) is out of the "
                                          r"range of double"):
         pendavg.average([0.5, 0.5], [1, 1], mpmath.mpf("1e-5000"))
+
+
+def test_number_texts_read_back_as_the_same_binary_number():
+    """The text of an mpf or an int, read by mpmath's own parser (an independent reader) at the
+    number's bit count, is the number itself: exactly (Fraction) while it is short, and after
+    rounding at the number's precision beyond 1e-8600 / 1e20000."""
+    mpmath = optional_module("mpmath")
+    text_of = pendavg._pendavg.number_text
+    cases = [mpmath.mpf(0.1), mpmath.mpf(-0.1), mpmath.mpf("1e-5000"), mpmath.mpf("3e300"),
+             mpmath.mpf(2) ** -1074, mpmath.mpf(1) / 3]
+    for x in cases:  # exact: the text is the binary value
+        sign, man, exponent, bits = x._mpf_
+        value = Fraction((-1) ** sign * man) * Fraction(2) ** exponent
+        assert Fraction(Decimal(text_of(x, "x"))) == value, x
+    with mpmath.workprec(300):
+        cases = [mpmath.mpf("1e-100000000"), -mpmath.mpf("7e-9000"), mpmath.mpf("2.5e30000"),
+                 mpmath.mpf(1) / 3 * mpmath.mpf(10) ** -50000]
+    for x in cases:  # rounded text, same binary number
+        bits = x._mpf_[3]
+        start = time.monotonic()
+        text = text_of(x, "x")
+        assert time.monotonic() - start < 1 and len(text) < 2000
+        with mpmath.workprec(bits):
+            assert mpmath.mpf(text) == x, x
+    for n in (10 ** 5000 + 7, -(2 ** 100), -(10 ** 19000) - 1):  # ints: exactly, past str()'s limit
+        assert Fraction(Decimal(text_of(n, "x"))) == n
 
 
 def test_mpf_exact_binary_value_at_every_digits():
