@@ -27,6 +27,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace pendavg::python {
@@ -393,15 +394,44 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
   return out;
 }
 
+/// The CLI's messages without its advice to use --digits > 16 (a number beyond double's range):
+/// simulate and poincare run in double only, as `pendavg simulate` says (set_digits_advice).
+template <class Function>
+auto without_digits_advice(Function function) {
+  return [function](auto... arguments) {
+    try {
+      return function(arguments...);
+    } catch (const invalid_input& bad) {
+      constexpr std::string_view advice = " (use --digits > 16)";
+      const std::string_view message = bad.what();
+      if (!message.ends_with(advice)) throw;
+      throw invalid_input(std::string(message.substr(0, message.size() - advice.size())));
+    }
+  };
+}
+
 }  // namespace
 
 void expose_dynamics(py::module_& m) {
   using namespace pybind11::literals;
-  m.def("simulate", &simulate, "masses"_a, "lengths"_a, "g"_a, "theta"_a, "phi"_a, "phidot"_a,
+  m.def("simulate",
+        [](py::handle masses, py::handle lengths, py::handle g, py::handle theta, py::handle phi,
+           py::handle phidot, py::handle time, py::handle dt, py::handle burn_in,
+           py::handle integrator, py::handle thermostat, py::handle beta, py::handle friction,
+           py::handle seed, py::handle exact, py::handle every, const py::object& progress) {
+          return without_digits_advice(&simulate)(masses, lengths, g, theta, phi, phidot, time,
+                                                  dt, burn_in, integrator, thermostat, beta,
+                                                  friction, seed, exact, every, progress);
+        }, "masses"_a, "lengths"_a, "g"_a, "theta"_a, "phi"_a, "phidot"_a,
         "time"_a, "dt"_a, "burn_in"_a, "integrator"_a, "thermostat"_a, "beta"_a, "friction"_a,
         "seed"_a, "exact"_a, "every"_a, "progress"_a,
         "A trajectory's time averages as a dict (see pendavg.simulate).");
-  m.def("poincare", &poincare, "masses"_a, "lengths"_a, "g"_a, "energy"_a, "orbits"_a, "points"_a,
+  m.def("poincare",
+        [](py::handle masses, py::handle lengths, py::handle g, py::handle energy,
+           py::handle orbits, py::handle points, py::handle dt, const py::object& progress) {
+          return without_digits_advice(&poincare)(masses, lengths, g, energy, orbits, points, dt,
+                                                  progress);
+        }, "masses"_a, "lengths"_a, "g"_a, "energy"_a, "orbits"_a, "points"_a,
         "dt"_a, "progress"_a, "The double pendulum's Poincare section as a dict (see pendavg.poincare).");
   m.def("dynamics_instruction_set", &dynamics_instruction_set,
         "'x86-64-v3' or 'base': the instruction set of the dynamics kernels on this CPU.");

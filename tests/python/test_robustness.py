@@ -20,7 +20,7 @@ import pytest
 
 import pendavg
 
-from test_pendavg import STRICT, cli_json, optional_module
+from test_pendavg import STRICT, cli, cli_json, optional_module
 
 # ---------------------------------------------------------------- bad arguments, every function
 
@@ -164,6 +164,22 @@ def test_a_long_text_is_shortened_between_characters():
     with pytest.raises(ValueError, match=r"^--beta: malformed number 'é{20}\.\.\.é{8}' \(100 "
                                          r"characters\)"):
         pendavg.average([0.5, 0.5], [1, 1], "é" * 100)  # 2 bytes each: 40 + 16 bytes shown
+
+
+@pytest.mark.parametrize("call, args", [
+    (lambda: pendavg.poincare([1, 1], [1, 1], "1e999"),
+     "poincare --masses 1,1 --lengths 1,1 --energy 1e999"),
+    (lambda: pendavg.simulate([1, 1], [1, 1], theta=1, time=1, dt="1e-999"),
+     "simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --dt 1e-999"),
+], ids=["poincare", "simulate"])
+def test_double_only_functions_do_not_advise_digits(call, args):
+    """simulate and poincare take no digits: a number beyond double's range is refused with the
+    CLI's message for them, without its '(use --digits > 16)'."""
+    done = cli(*args.split())
+    assert done.returncode == 2 and "use --digits" not in done.stderr
+    with pytest.raises(ValueError) as caught:
+        call()
+    assert "pendavg: error: " + str(caught.value) == done.stderr.strip()
 
 
 def test_odd_number_types():
