@@ -61,13 +61,12 @@ namespace {
                        type_name(x));
 }
 
-/// A non-negative Python int as a GMP integer, through its hex digits (power-of-two bases have
-/// no digit limit, unlike str(int), and cost linear time).
-void set_mpz(mpz_t out, py::handle magnitude) {
+/// The hex digits of a non-negative Python int, for GMP (power-of-two bases have no digit
+/// limit, unlike str(int), and cost linear time).
+std::string hex_digits(py::handle magnitude) {
   const py::object hex = py::reinterpret_steal<py::object>(PyNumber_ToBase(magnitude.ptr(), 16));
   if (!hex) throw py::error_already_set();
-  const std::string text = hex.cast<std::string>();  // '0x...'
-  mpz_set_str(out, text.c_str() + 2, 16);
+  return hex.cast<std::string>().substr(2);  // without '0x'
 }
 
 /// Longest exact decimal written for a binary number (an mpf, a huge int): beyond it (|x| below
@@ -105,9 +104,9 @@ std::string binary_text(bool negative, py::handle man, py::handle exponent_objec
   const long double exact_digits =
       exponent >= 0 ? (static_cast<long double>(bits) + exponent) * log10_2
                     : bits * log10_2 + static_cast<long double>(-exponent) * log10_5;
+  const std::string hex = hex_digits(man);  // (Python work first: nothing to free if it fails)
   mpz_t z;
-  mpz_init(z);
-  set_mpz(z, man);
+  mpz_init_set_str(z, hex.c_str(), 16);
   const auto release = [](char* text) {
     void (*free_function)(void*, size_t) = nullptr;
     mp_get_memory_functions(nullptr, nullptr, &free_function);
