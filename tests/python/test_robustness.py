@@ -283,7 +283,8 @@ def comma_locale():
 
 
 def test_decimal_strings_do_not_follow_the_locale():
-    """Under a locale with a decimal comma (LC_NUMERIC), the MPFR strings were '3,43...e-01'."""
+    """Under a locale with a decimal comma (LC_NUMERIC), the MPFR strings were '3,43...e-01' and
+    the library's messages said '~5,56'."""
     name = comma_locale()
     calls = [
         lambda: pendavg.average(["0.5", "0.5"], [1, 1], "1", digits=20).decimal,
@@ -293,12 +294,25 @@ def test_decimal_strings_do_not_follow_the_locale():
         lambda: pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20).decimal,
         lambda: pendavg.microcanonical([1, 1], [1, 1], "0", digits=20).decimal,
     ]
+    refusals = [  # the library's messages quote numbers too ("~5.56", "-3.000000")
+        lambda: pendavg.simulate([1, 1], [1, 1], theta=3, time=200, dt=20, exact=False),
+        lambda: pendavg.poincare([1, 1], [1, 1], -3.5),
+    ]
+
+    def message(call):
+        with pytest.raises(ValueError) as caught:
+            call()
+        return str(caught.value)
+
     expected = [call() for call in calls]
+    expected_messages = [message(call) for call in refusals]
+    assert "~5.56" in expected_messages[0] and "= -3.000000" in expected_messages[1]
     old = locale.setlocale(locale.LC_NUMERIC)
     try:
         locale.setlocale(locale.LC_NUMERIC, name)
         assert locale.localeconv()["decimal_point"] == ","
         got = [call() for call in calls]
+        assert [message(call) for call in refusals] == expected_messages
     finally:
         locale.setlocale(locale.LC_NUMERIC, old)
 
