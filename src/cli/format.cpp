@@ -10,7 +10,9 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <string>
 #include <type_traits>
 
 namespace pendavg::cli {
@@ -19,9 +21,29 @@ template <class Real>
 char* write_decimal(char* out, const Real& x, int digits) {
   const std::size_t room = decimal_max_length(digits);
   if constexpr (is_mpfr_v<Real>) {
-    // Same layout as the double branch (d.ddde-XX), correctly rounded by MPFR.
-    const int length = mpfr_snprintf(out, room, "%.*Re", digits - 1, x.backend().data());
-    return out + std::min<std::size_t>(static_cast<std::size_t>(length), room - 1);
+    // Same layout as the double branch (d.ddde-XX), correctly rounded by MPFR. mpfr_snprintf
+    // writes the radix character of the C locale's LC_NUMERIC (',' under de_DE, set e.g. by a
+    // Python program that embeds the library, maybe several bytes): the characters between the
+    // leading digit and the next digit are replaced by '.', so the text never depends on the
+    // locale (as std::to_chars in the other branches).
+    thread_local std::string buffer;
+    buffer.resize(room + 8);  // a radix character of up to 8 bytes
+    char* text = buffer.data();
+    const std::size_t size = buffer.size();
+    const int written = mpfr_snprintf(text, size, "%.*Re", digits - 1, x.backend().data());
+    std::size_t length = std::min<std::size_t>(static_cast<std::size_t>(std::max(written, 0)), size - 1);
+    const std::size_t lead = text[0] == '-' ? 1 : 0;  // the leading digit's position
+    if (length > lead + 1 && text[lead] >= '0' && text[lead] <= '9' &&
+        !(text[lead + 1] >= '0' && text[lead + 1] <= '9') && text[lead + 1] != 'e') {
+      std::size_t next = lead + 1;
+      while (next < length && !(text[next] >= '0' && text[next] <= '9')) ++next;
+      text[lead + 1] = '.';
+      std::memmove(text + lead + 2, text + next, length - next);
+      length -= next - (lead + 2);
+    }
+    length = std::min(length, room - 1);
+    std::memcpy(out, text, length);
+    return out + length;
   } else {
     if constexpr (std::is_same_v<Real, double>) {
       if (char* end = detail::scientific_fast(out, x, digits)) return end;

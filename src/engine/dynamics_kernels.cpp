@@ -1070,7 +1070,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
   const Real g1 = chain.potential_coefficient(0), g2 = chain.potential_coefficient(1);
   if (!(energy > -(g1 + g2)))
     throw invalid_input("poincare: the energy must exceed the minimum -(gamma_1 + gamma_2) = " +
-                        std::to_string(static_cast<double>(-(g1 + g2))));
+                        fixed_decimal(static_cast<double>(-(g1 + g2))));
   if (!(options.time_step > 0) || !std::isfinite(options.time_step))
     throw invalid_input("poincare: the time step must be positive and finite");
   if (options.orbits == 0 || options.points == 0)

@@ -24,8 +24,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -404,6 +406,81 @@ const char* kind_of(const std::vector<Estimate<double>>& estimates, ErrorKind fa
   return error_kind_name(estimates.empty() ? fallback : estimates.front().kind);
 }
 
+/// "index (i, j)" of flat index k in `shape` (C order).
+std::string index_text(std::size_t k, const std::vector<py::ssize_t>& shape) {
+  std::vector<std::size_t> index(shape.size());
+  for (std::size_t d = shape.size(); d-- > 0;) {
+    index[d] = k % static_cast<std::size_t>(shape[d]);
+    k /= static_cast<std::size_t>(shape[d]);
+  }
+  std::string out = "index (";
+  for (std::size_t d = 0; d < index.size(); ++d)
+    out += (d ? ", " : "") + std::to_string(index[d]);
+  return out + (index.size() == 1 ? ",)" : ")");
+}
+
+// ---------------------------------------------------------------- results are finite
+
+/// Refuses a result with a non-finite number before it reaches Python (ValueError, one line): a
+/// NaN or an infinity in a value, or in an error (an interrupted run may keep an infinite
+/// error: the bound of a level that was never checked). The library's values are checked in
+/// double; an MPFR run's exact values too (their doubles may overflow to +-inf when the value
+/// lies beyond double's range: K and var_K of beta < 1e-154 or so). <K_i> and Var K_i may
+/// overflow double in the same way (finite library values divided by a tiny beta) and are
+/// refused only when NaN.
+void require_finite(const AveragesResult& r, const char* command) {
+  for (std::size_t k = 0; k < r.points.size(); ++k) {
+    const AveragePoint& p = r.points[k];
+    const Averages<double>& a = p.values;
+    const auto refuse = [&](const std::string& name, std::size_t i, double x, bool per_particle) {
+      std::string where = r.single() ? "" : " at " + index_text(k, r.shape);
+      const std::string field = per_particle ? name + "[" + std::to_string(i) + "]" : name;
+      throw invalid_input(std::string(command) + ": the result is not finite (" + field + " = " +
+                          (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf") + where +
+                          "): the method cannot evaluate this chain");
+    };
+    const auto value = [&](const char* name, std::size_t i, double x, bool per_particle = true) {
+      if (!std::isfinite(x)) refuse(name, i, x, per_particle);
+    };
+    const auto error = [&](const char* name, std::size_t i, double x, bool per_particle = true) {
+      const bool unknown_bound = a.interrupted && x == std::numeric_limits<double>::infinity();
+      if (!std::isfinite(x) && !unknown_bound) refuse(name, i, x, per_particle);
+    };
+    const auto estimates = [&](const char* name, const char* error_name,
+                               const std::vector<Estimate<double>>& v) {
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        value(name, i, v[i].value);
+        error(error_name, i, v[i].error);
+      }
+    };
+    estimates("beta_K", "beta_K_error", a.beta_kinetic);
+    estimates("cos_phi", "cos_phi_error", a.cos_angle);
+    estimates("var_K_beta2", "var_K_beta2_error", a.beta2_kinetic_variance);
+    estimates("beta_Kc", "beta_Kc_error", a.beta_kinetic_canonical);
+    for (std::size_t i = 0; i < a.diagonal_approximation.size(); ++i)
+      value("diagonal_approx", i, a.diagonal_approximation[i]);
+    if (a.ratio) {
+      value("ratio", 0, a.ratio->value, false);
+      error("ratio_error", 0, a.ratio->error, false);
+    }
+    value("equipartition_residual", 0, a.equipartition_residual, false);
+    const auto not_nan = [&](const char* name, const std::vector<double>& v) {
+      for (std::size_t i = 0; i < v.size(); ++i)
+        if (std::isnan(v[i])) refuse(name, i, v[i], true);
+    };
+    not_nan("K", p.kinetic);
+    not_nan("K_error", p.kinetic_error);
+    not_nan("var_K", p.variance);
+    not_nan("var_K_error", p.variance_error);
+    for (std::size_t f = 0; f < p.exact.size(); ++f)
+      for (std::size_t i = 0; i < p.exact[f].size(); ++i)
+        if (!p.exact[f][i].finite &&
+            !(a.interrupted && std::string_view(exact_fields[f]).ends_with("error") &&
+              p.exact[f][i].rounded > 0))
+          refuse(exact_fields[f], i, p.exact[f][i].rounded, f < 12);
+  }
+}
+
 // ---------------------------------------------------------------- pendavg.average
 
 /// The chain of one double point, checked in the CLI's order: masses, lengths, g, counts.
@@ -419,9 +496,9 @@ Chain<double> double_chain(const std::vector<py::object>& masses,
   return Chain<double>(std::move(m), std::move(l), gravity);
 }
 
-std::vector<std::string> texts(const std::vector<py::object>& values) {
+std::vector<std::string> texts(const std::vector<py::object>& values, std::string_view what) {
   std::vector<std::string> out;
-  for (const py::object& x : values) out.push_back(number_text(x));
+  for (const py::object& x : values) out.push_back(number_text(x, what));
   return out;
 }
 
@@ -454,23 +531,12 @@ py::object average_point(py::handle masses, py::handle lengths, py::handle beta,
     run_call([&] { compute_double(point, chain, b, run, workspace); }, long_run, observation,
              progress);
   } else {
-    const PointTexts in{texts(m), texts(l), number_text(g), number_text(beta)};
+    const PointTexts in{texts(m, "--masses"), texts(l, "--lengths"), number_text(g, "--g"),
+                        number_text(beta, "--beta")};
     run_call([&] { compute_mpfr(point, in, run); }, long_run, observation, progress);
   }
+  require_finite(result, "average");
   return py::cast(std::move(result));
-}
-
-/// "index (i, j)" of flat index k in `shape` (C order).
-std::string index_text(std::size_t k, const std::vector<py::ssize_t>& shape) {
-  std::vector<std::size_t> index(shape.size());
-  for (std::size_t d = shape.size(); d-- > 0;) {
-    index[d] = k % static_cast<std::size_t>(shape[d]);
-    k /= static_cast<std::size_t>(shape[d]);
-  }
-  std::string out = "index (";
-  for (std::size_t d = 0; d < index.size(); ++d)
-    out += (d ? ", " : "") + std::to_string(index[d]);
-  return out + (index.size() == 1 ? ",)" : ")");
 }
 
 /// One column of a grid (beta, g, a mass or a length over all points): float64 values, or the
@@ -584,11 +650,11 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
   } else {
     std::vector<PointTexts> in(count);
     for (std::size_t k = 0; k < count; ++k) {
-      for (std::size_t i = 0; i < n; ++i) in[k].masses.push_back(number_text(cols[2 + i].at(k)));
+      for (std::size_t i = 0; i < n; ++i) in[k].masses.push_back(number_text(cols[2 + i].at(k), "--masses"));
       for (std::size_t i = 0; i < n; ++i)
-        in[k].lengths.push_back(number_text(cols[2 + n + i].at(k)));
-      in[k].g = number_text(cols[1].at(k));
-      in[k].beta = number_text(cols[0].at(k));
+        in[k].lengths.push_back(number_text(cols[2 + n + i].at(k), "--lengths"));
+      in[k].g = number_text(cols[1].at(k), "--g");
+      in[k].beta = number_text(cols[0].at(k), "--beta");
     }
     std::optional<std::pair<std::size_t, std::string>> bad_point;
     {
@@ -611,6 +677,7 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
       failed(failure);
     }
   }
+  require_finite(result, "average");
   return result;
 }
 
@@ -668,10 +735,12 @@ py::tuple limit(py::handle masses, py::handle lengths, py::handle g, py::handle 
         },
         long_run, observation, progress);
   } else {
-    const PointTexts in{texts(m), texts(l), number_text(g), ""};
+    const PointTexts in{texts(m, "--masses"), texts(l, "--lengths"), number_text(g, "--g"), ""};
     run_call([&] { limit_mpfr(high.points.front(), low.points.front(), in, settings); }, long_run,
              observation, progress);
   }
+  require_finite(high, "limit (beta -> 0)");
+  require_finite(low, "limit (beta -> infinity)");
   return py::make_tuple(std::move(high), std::move(low));
 }
 
@@ -681,7 +750,7 @@ py::tuple limit(py::handle masses, py::handle lengths, py::handle g, py::handle 
 
 void expose_average(py::module_& m) {
   using namespace pybind11::literals;
-  py::class_<AveragesResult> c(m, "Averages", R"(Thermal averages of a chain: the result of pendavg.average and pendavg.limit.
+  py::class_<AveragesResult> c(m, "Averages", py::dynamic_attr(), R"(Thermal averages of a chain: the result of pendavg.average and pendavg.limit.
 
 One point: per-particle fields are arrays of shape (N,), per-point fields are Python
 scalars. A grid (array arguments): per-particle fields have shape S + (N,), per-point

@@ -27,6 +27,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace pendavg::python {
@@ -57,7 +58,7 @@ Chain<double> dynamics_chain(py::handle masses, py::handle lengths, py::handle g
 /// An angle: radians, or a str with a 'deg' suffix in degrees ('90deg'), as the CLI reads it.
 double angle(py::handle x, std::string_view what) {
   if (PyUnicode_Check(x.ptr())) {
-    const std::string text = x.cast<std::string>();
+    const std::string text = utf8_text(x, what);
     constexpr std::string_view suffix = "deg";
     if (text.size() > suffix.size() && text.ends_with(suffix))
       return cli::parse_real<double>(std::string_view(text).substr(0, text.size() - suffix.size()),
@@ -116,16 +117,16 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   run.burn_in = option_double(burn_in, "0", "--burn-in", Domain::nonnegative);
   if (!integrator.is_none())
     run.integrator = static_cast<Integrator>(
-        cli::parse_choice(choice_text(integrator), "integrator", integrator_names));
+        cli::parse_choice(choice_text(integrator, "integrator"), "integrator", integrator_names));
   const bool langevin =
-      cli::parse_choice(thermostat.is_none() ? "none" : choice_text(thermostat), "thermostat",
+      cli::parse_choice(thermostat.is_none() ? "none" : choice_text(thermostat, "thermostat"), "thermostat",
                         thermostat_names) == 1;
   run.thermostat = langevin ? Thermostat::langevin : Thermostat::none;
   if (langevin && beta.is_none()) throw cli::usage_error("simulate: missing required option --beta");
   if (!beta.is_none()) run.beta = number_double(beta, "--beta", Domain::positive);
   if (!friction.is_none()) run.friction = number_double(friction, "--friction", Domain::positive);
   if (!seed.is_none()) {
-    const std::uint64_t value = cli::parse_unsigned(number_text(seed), "--seed");
+    const std::uint64_t value = cli::parse_unsigned(number_text(seed, "--seed"), "--seed");
     // The CLI's message (its NVE --seed is for --replicas, which this function does not run).
     if (!langevin)
       throw cli::usage_error("simulate: --seed needs --thermostat langevin or --replicas R > 1");
@@ -136,14 +137,17 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   } catch (const invalid_input& bad) {
     throw cli::usage_error(bad.what());
   }
+  if (!PyBool_Check(exact.ptr()) && !PyUnicode_Check(exact.ptr()))
+    throw py::type_error("exact: expected True, False, 'yes' or 'no', got " +
+                         std::string(Py_TYPE(exact.ptr())->tp_name));
   const bool with_exact =
       PyBool_Check(exact.ptr())
-          ? exact.cast<bool>()
-          : cli::parse_choice(choice_text(exact), "--exact value", yes_no) == 0;
+          ? exact.ptr() == Py_True
+          : cli::parse_choice(choice_text(exact, "exact"), "--exact value", yes_no) == 0;
   std::size_t trajectory_every = 0;
   if (!every.is_none())
     trajectory_every = static_cast<std::size_t>(
-        cli::parse_integer(number_text(every), "--every", 1, 1000000000));
+        cli::parse_integer(number_text(every, "--every"), "--every", 1, 1000000000));
 
   ChainState<double> initial = state_from_angles(chain, angles, rates);
   const double energy = total_energy(chain, initial);
@@ -188,6 +192,68 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     tau[i] = r.kinetic[i].autocorrelation_time;
     cosine[i] = r.cos_angle[i].value;
     cosine_error[i] = r.cos_angle[i].error;
+  }
+  // No NaN or infinity reaches Python silently (ValueError, one line): every average and
+  // energy is finite; an error bar (and what derives from it) may be NaN only when too few
+  // blocks finished to estimate it, which error_reason then says. A run stopped by Ctrl-C before
+  // its first sample has no average: KeyboardInterrupt.
+  if (r.interrupted && r.samples == 0) {
+    PyErr_SetString(PyExc_KeyboardInterrupt, "simulate: interrupted before the first sample");
+    throw py::error_already_set();
+  }
+  const bool unknown_errors =
+      std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); });
+  {
+    const auto refuse = [](const std::string& name, double x) {
+      throw invalid_input("simulate: the result is not finite (" + name + " = " +
+                          (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf") +
+                          "): the trajectory left the finite numbers (try a smaller dt)");
+    };
+    const auto value = [&](const std::string& name, double x) {
+      if (!std::isfinite(x)) refuse(name, x);
+    };
+    const auto bar = [&](const std::string& name, double x) {
+      if (!std::isfinite(x) && !(unknown_errors && std::isnan(x))) refuse(name, x);
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::string at = "[" + std::to_string(i) + "]";
+      value("K" + at, k[i]);
+      value("Kc" + at, kc[i]);
+      value("cos_phi" + at, cosine[i]);
+      bar("K_error" + at, k_error[i]);
+      bar("Kc_error" + at, kc_error[i]);
+      bar("cos_phi_error" + at, cosine_error[i]);
+      bar("K_autocorrelation_time" + at, tau[i]);
+    }
+    value("K_total", r.kinetic_total.value);
+    value("potential", r.potential.value);
+    bar("K_total_error", r.kinetic_total.error);
+    bar("potential_error", r.potential.error);
+    value("energy", energy);
+    value("final_energy", r.final_energy);
+    value("energy_drift", r.energy_drift);
+    value("energy_error_max", r.energy_error_max);
+    value("energy_error_rms", r.energy_error_rms);
+    bar("energy_trend", r.energy_trend);
+    value("constraint_residual", r.constraint_residual);
+    if (reference) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::string at = "[" + std::to_string(i) + "]";
+        value("exact_K" + at, reference->kinetic[i]);
+        value("exact_K_error" + at, reference->kinetic_error[i]);
+        value("exact_cos_phi" + at, reference->cos_angle[i]);
+        value("exact_cos_phi_error" + at, reference->cos_angle_error[i]);
+      }
+      value("exact_Kc", reference->kinetic_canonical);
+      value("exact_Kc_error", reference->kinetic_canonical_error);
+      if (!langevin) {
+        value("exact_excitation", reference->excitation);
+        for (std::size_t i = 0; i < n; ++i) {
+          value("exact_var_K[" + std::to_string(i) + "]", reference->variance[i]);
+          value("exact_var_K_error[" + std::to_string(i) + "]", reference->variance_error[i]);
+        }
+      }
+    }
   }
   py::dict out;
   out["ensemble"] = langevin ? "canonical" : "microcanonical";
@@ -239,8 +305,6 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
     for (const char* name : {"exact_excitation", "exact_var_K", "exact_var_K_error"})
       out[name] = py::none();
   }
-  const bool unknown_errors =
-      std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); });
   out["error_reason"] =
       unknown_errors ? py::object(py::str(
                            "fewer than 16 averaging blocks finished (interrupted early, or time "
@@ -281,9 +345,9 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
   const double e = number_double(energy, "--energy", Domain::any);
   PoincareOptions run;
   run.orbits = static_cast<std::size_t>(cli::parse_integer(
-      orbits.is_none() ? "8" : number_text(orbits), "--orbits", 1, 10000));
+      orbits.is_none() ? "8" : number_text(orbits, "--orbits"), "--orbits", 1, 10000));
   run.points = static_cast<std::size_t>(cli::parse_integer(
-      points.is_none() ? "500" : number_text(points), "--points", 1, 100000000));
+      points.is_none() ? "500" : number_text(points, "--points"), "--points", 1, 100000000));
   run.time_step = option_double(dt, "1e-3", "--dt", Domain::positive);
   run.threads = hardware_threads();
   DynamicsObserver<double> observer;
@@ -306,6 +370,13 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
     p2.push_back(p.p2);
     when.push_back(p.time);
   }
+  for (std::size_t k = 0; k < count; ++k)
+    if (!std::isfinite(phi2[k]) || !std::isfinite(p2[k]) || !std::isfinite(when[k]))
+      throw invalid_input("poincare: the result is not finite (crossing " + std::to_string(k) +
+                          "): the trajectory left the finite numbers (try a smaller dt)");
+  if (!std::isfinite(section->energy_error_max))
+    throw invalid_input("poincare: the result is not finite (energy_error_max): the trajectory "
+                        "left the finite numbers (try a smaller dt)");
   py::dict out;
   out["orbit"] = orbit;
   out["phi2"] = array(phi2);
@@ -323,15 +394,44 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
   return out;
 }
 
+/// The CLI's messages without its advice to use --digits > 16 (a number beyond double's range):
+/// simulate and poincare run in double only, as `pendavg simulate` says (set_digits_advice).
+template <class Function>
+auto without_digits_advice(Function function) {
+  return [function](auto... arguments) {
+    try {
+      return function(arguments...);
+    } catch (const invalid_input& bad) {
+      constexpr std::string_view advice = " (use --digits > 16)";
+      const std::string_view message = bad.what();
+      if (!message.ends_with(advice)) throw;
+      throw invalid_input(std::string(message.substr(0, message.size() - advice.size())));
+    }
+  };
+}
+
 }  // namespace
 
 void expose_dynamics(py::module_& m) {
   using namespace pybind11::literals;
-  m.def("simulate", &simulate, "masses"_a, "lengths"_a, "g"_a, "theta"_a, "phi"_a, "phidot"_a,
+  m.def("simulate",
+        [](py::handle masses, py::handle lengths, py::handle g, py::handle theta, py::handle phi,
+           py::handle phidot, py::handle time, py::handle dt, py::handle burn_in,
+           py::handle integrator, py::handle thermostat, py::handle beta, py::handle friction,
+           py::handle seed, py::handle exact, py::handle every, const py::object& progress) {
+          return without_digits_advice(&simulate)(masses, lengths, g, theta, phi, phidot, time,
+                                                  dt, burn_in, integrator, thermostat, beta,
+                                                  friction, seed, exact, every, progress);
+        }, "masses"_a, "lengths"_a, "g"_a, "theta"_a, "phi"_a, "phidot"_a,
         "time"_a, "dt"_a, "burn_in"_a, "integrator"_a, "thermostat"_a, "beta"_a, "friction"_a,
         "seed"_a, "exact"_a, "every"_a, "progress"_a,
         "A trajectory's time averages as a dict (see pendavg.simulate).");
-  m.def("poincare", &poincare, "masses"_a, "lengths"_a, "g"_a, "energy"_a, "orbits"_a, "points"_a,
+  m.def("poincare",
+        [](py::handle masses, py::handle lengths, py::handle g, py::handle energy,
+           py::handle orbits, py::handle points, py::handle dt, const py::object& progress) {
+          return without_digits_advice(&poincare)(masses, lengths, g, energy, orbits, points, dt,
+                                                  progress);
+        }, "masses"_a, "lengths"_a, "g"_a, "energy"_a, "orbits"_a, "points"_a,
         "dt"_a, "progress"_a, "The double pendulum's Poincare section as a dict (see pendavg.poincare).");
   m.def("dynamics_instruction_set", &dynamics_instruction_set,
         "'x86-64-v3' or 'base': the instruction set of the dynamics kernels on this CPU.");

@@ -1,6 +1,6 @@
 // src/python/expose_microcanonical.cpp -- pendavg.microcanonical: exact fixed-energy averages
 // <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E, Var K_i and the density of states
-// (pendavg/microcanonical.hpp; MATH.md Sec. 7), as `pendavg average --energy E | --excitation D
+// (pendavg/microcanonical.hpp), as `pendavg average --energy E | --excitation D
 // [--digits D]` computes them (src/cli/commands.cpp, microcanonical_one): the options read by the
 // CLI's reader and turned into MicrocanonicalOptions by the library
 // (microcanonical_options(AverageOptions, N)); in double the chain from the same doubles, with
@@ -24,6 +24,7 @@
 #include <pybind11/stl.h>
 
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -168,6 +169,41 @@ py::dict decimal_strings(const MicrocanonicalRecord& r, bool by_excitation,
   return d;
 }
 
+/// Refuses a result with a NaN or an infinity (ValueError, one line) before it reaches Python;
+/// an MPFR run's exact values are checked as well.
+void require_finite(const MicrocanonicalRecord& record) {
+  const MicrocanonicalAverages<double>& r = record.values;
+  const auto check = [](const std::string& name, double x) {
+    if (!std::isfinite(x))
+      throw invalid_input("microcanonical: the result is not finite (" + name + " = " +
+                          (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf") +
+                          "): the rule cannot evaluate this chain at this energy");
+  };
+  const auto estimates = [&](const char* name, const std::vector<Estimate<double>>& v) {
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      check(std::string(name) + "[" + std::to_string(i) + "]", v[i].value);
+      check(std::string(name) + "_error[" + std::to_string(i) + "]", v[i].error);
+    }
+  };
+  const auto estimate = [&](const char* name, const Estimate<double>& e) {
+    check(name, e.value);
+    check(std::string(name) + "_error", e.error);
+  };
+  check("energy", r.energy);
+  check("excitation", r.excitation);
+  estimates("K", r.kinetic);
+  estimates("cos_phi", r.cos_angle);
+  estimates("var_K", r.kinetic_variance);
+  estimate("Kc", r.kinetic_canonical);
+  estimate("K_total", r.kinetic_total);
+  estimate("density_of_states", r.density_of_states);
+  check("proposal_beta", r.proposal_beta);
+  check("effective_sample_fraction", r.effective_sample_fraction);
+  for (std::size_t f = 0; f < record.exact.size(); ++f)
+    for (const ExactNumber& x : record.exact[f])
+      if (!x.finite) check(exact_fields[f], x.rounded);
+}
+
 py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy, py::handle g,
                         py::handle digits, py::handle method, py::handle tol, py::handle samples,
                         py::handle shifts, py::handle seed, py::handle excitation) {
@@ -181,7 +217,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
   const std::string what = by_excitation ? "--excitation" : "--energy";
   if (energy.is_none() == excitation.is_none())  // as the CLI refuses --energy with --excitation
     throw cli::usage_error("microcanonical: give one of energy and excitation");
-  const std::string state_text = number_text(by_excitation ? excitation : energy);
+  const std::string state_text = number_text(by_excitation ? excitation : energy, what);
   MicrocanonicalRecord record;
   record.digits = settings.digits;
   if (settings.digits == min_digits) {
@@ -203,9 +239,9 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
     record.text = cli::microcanonical_text(record.values, settings.digits);
   } else {
     std::vector<std::string> mass_texts, length_texts;
-    for (const py::object& x : m) mass_texts.push_back(number_text(x));
-    for (const py::object& x : l) length_texts.push_back(number_text(x));
-    const std::string g_text = number_text(g);
+    for (const py::object& x : m) mass_texts.push_back(number_text(x, "--masses"));
+    for (const py::object& x : l) length_texts.push_back(number_text(x, "--lengths"));
+    const std::string g_text = number_text(g, "--g");
     // Parsed and computed under the working precision, without the GIL (as `pendavg average
     // --digits D` holds one for the whole call).
     py::gil_scoped_release release;
@@ -228,6 +264,7 @@ py::dict microcanonical(py::handle masses, py::handle lengths, py::handle energy
     record.seconds = watch.seconds();
     keep_mpfr(record, r);
   }
+  require_finite(record);
   const MicrocanonicalAverages<double>& r = record.values;
   py::dict out;
   out["N"] = record.particles;

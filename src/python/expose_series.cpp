@@ -42,11 +42,11 @@ py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::hand
                 py::handle digits, py::handle terms, const py::object& progress) {
   const int d = digits_option(digits);
   const auto term_count = static_cast<std::size_t>(
-      cli::parse_integer(number_text(terms), "--terms", 0, static_cast<long>(max_series_terms)));
+      cli::parse_integer(number_text(terms, "--terms"), "--terms", 0, static_cast<long>(max_series_terms)));
   std::vector<std::string> mass_texts, length_texts;
-  for (const py::object& x : entries(masses)) mass_texts.push_back(number_text(x));
-  for (const py::object& x : entries(lengths)) length_texts.push_back(number_text(x));
-  const std::string g_text = number_text(g), beta_text = number_text(beta);
+  for (const py::object& x : entries(masses)) mass_texts.push_back(number_text(x, "--masses"));
+  for (const py::object& x : entries(lengths)) length_texts.push_back(number_text(x, "--lengths"));
+  const std::string g_text = number_text(g, "--g"), beta_text = number_text(beta, "--beta");
   SeriesTable table;
   // The Bessel table reports its progress and stops on Ctrl-C (RunControl; no row exists before
   // it is complete, so a stop raises KeyboardInterrupt).
@@ -85,6 +85,13 @@ py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::hand
     table.certified = !rows.empty() && rows.back().bound <= abs(rows.back().beta_kinetic1) *
                                                                  pow(mpfr_real(10), -d);
   }, stop, fraction, progress);
+  // No NaN or infinity reaches Python (ValueError, one line).
+  for (std::size_t f = 0; f < series_fields.size(); ++f)
+    for (std::size_t k = 0; k < table.exact[f].size(); ++k)
+      if (!table.exact[f][k].finite)
+        throw invalid_input(std::string("series: the result is not finite (") + series_fields[f] +
+                            " of term " + std::to_string(k) + "): the series cannot be evaluated "
+                            "for this chain");
   py::dict out;
   out["N"] = table.particles;
   out["digits"] = d;

@@ -20,11 +20,14 @@ namespace pendavg::python {
 
 namespace py = pybind11;
 
-/// The decimal text of a Python number: a str as given; an int (or numpy integer) by str(); a
+/// The decimal text of a Python number: a str as given; an int (or numpy integer) exactly; a
 /// float by repr() (the shortest decimal that round-trips it: what was typed, so 0.1 is 1/10 at
-/// any digits); a decimal.Decimal by str(); an mpmath.mpf exactly (its binary value as
-/// M*5^k e-k); anything else by repr(float(x)).
-std::string number_text(py::handle x);
+/// any digits); a decimal.Decimal by str(); an mpmath.mpf by its binary value (exactly as
+/// M*5^k e-k while that is at most 20000 digits, else rounded so that it reads back as the same
+/// binary number; a binary exponent outside MPFR's range is refused); any other real number by
+/// repr(float(x)). Never builds a huge integer, so every conversion is quick. Anything else
+/// (None, a str-less object, a complex) is a TypeError naming `what` (e.g. "--beta").
+std::string number_text(py::handle x, std::string_view what);
 
 /// A number in double, checked as the CLI's parse_real<double> checks its text (the same
 /// message names it, e.g. "--beta: '0.0' must be > 0").
@@ -46,8 +49,18 @@ AverageOptions average_options(py::handle digits, py::handle method, py::handle 
 /// --digits as the CLI reads it (an integer in 16..1000).
 int digits_option(py::handle digits);
 
-/// A str argument that picks one of several names (method, integrator, ...): str(x).
-std::string choice_text(py::handle x);
+/// A str's UTF-8 text; a str that has none (a lone surrogate) or holds a NUL character is a
+/// ValueError naming `what`.
+std::string utf8_text(py::handle text, std::string_view what);
+
+/// A str argument that picks one of several names (method, integrator, ...); anything but a str
+/// is a TypeError naming `what`.
+std::string choice_text(py::handle x, std::string_view what);
+
+/// A message with every quoted text longer than 80 characters shortened to its first 40 and
+/// last 16 characters and its length: a 1 MB number string is not echoed whole into an
+/// exception (the CLI's messages quote the text they refuse).
+std::string abbreviated(std::string_view message);
 
 /// OpenMP threads available to one call (the CLI's hardware_threads()).
 int hardware_threads();

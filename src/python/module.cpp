@@ -1,12 +1,19 @@
 // src/python/module.cpp -- the extension module pendavg._pendavg. Bad input is a
-// pendavg::invalid_input (a std::invalid_argument), which pybind11 raises as ValueError with the
-// library's or the CLI's one-line message; pendavg::interrupted (a run stopped on Ctrl-C before
-// it finished anything) is KeyboardInterrupt; any other C++ exception becomes a Python
-// exception too (RuntimeError, MemoryError), never a crash.
+// pendavg::invalid_input (a std::invalid_argument), raised as ValueError with the library's or
+// the CLI's one-line message (a long quoted text in it shortened: abbreviated); a Python
+// argument of the wrong type is a TypeError naming the argument (inputs.hpp);
+// pendavg::interrupted (a run stopped on Ctrl-C before it finished anything) is
+// KeyboardInterrupt; any other C++ exception becomes a Python exception too (RuntimeError,
+// MemoryError), never a crash.
 #include "bindings.hpp"
+#include "inputs.hpp"
 
+#include "pendavg/mpfr.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/version.hpp"
+
+#include <stdexcept>
+#include <string>
 
 PYBIND11_MODULE(_pendavg, m) {
   m.doc() = "pendavg's C++ core; use the package pendavg (its __init__ documents the API).";
@@ -17,7 +24,31 @@ PYBIND11_MODULE(_pendavg, m) {
       if (error) std::rethrow_exception(error);
     } catch (const pendavg::interrupted& stopped) {
       PyErr_SetString(PyExc_KeyboardInterrupt, stopped.what());
+    } catch (const std::invalid_argument& bad) {  // pendavg::invalid_input, cli::usage_error
+      PyErr_SetString(PyExc_ValueError, pendavg::python::abbreviated(bad.what()).c_str());
     }
+  });
+  // The decimal text a number is read as (pendavg.sweep forms m2 = 1 - mu1 from it).
+  m.def("number_text", [](pybind11::handle x, const std::string& what) {
+    return pendavg::python::number_text(x, what);
+  });
+  // A number checked as the CLI checks it at `digits` (pendavg.sweep checks every value of an
+  // axis under the axis's own name before the grid runs).
+  m.def("check_number", [](pybind11::handle x, const std::string& what, const std::string& domain,
+                           pybind11::handle digits) {
+    using pendavg::cli::Domain;
+    const int d = pendavg::python::digits_option(digits);
+    const Domain kind = domain == "positive"      ? Domain::positive
+                        : domain == "nonnegative" ? Domain::nonnegative
+                                                  : Domain::any;
+    if (d == pendavg::min_digits) {
+      pendavg::python::number_double(x, what, kind);
+      return;
+    }
+    const std::string text = pendavg::python::number_text(x, what);
+    pybind11::gil_scoped_release release;
+    const pendavg::working_precision precision(d + pendavg::guard_digits);
+    pendavg::cli::parse_real<pendavg::mpfr_real>(text, what, kind);
   });
   pendavg::python::expose_average(m);
   pendavg::python::expose_series(m);

@@ -22,16 +22,29 @@ a trajectory), poincare (the double pendulum's Poincare section).
 Numbers. Every number argument may be a float, an int, a str holding a decimal ('0.1',
 '1e-300'), a decimal.Decimal or an mpmath.mpf. It is read as the `pendavg` command reads the same
 text: a float as its repr (the shortest decimal that gives it back, i.e. what you typed, so 0.1
-means 1/10 also at 50 digits), a str exactly as written, an mpf by its exact binary value. With
+means 1/10 also at 50 digits), a str exactly as written, an int exactly, an mpf by its exact
+binary value (for |x| beyond about 1e-8600..1e20000 its text is rounded so that it reads back
+as the same binary number whenever the working precision holds its bits; a binary exponent
+outside MPFR's range is refused). No conversion builds a huge integer: every one is quick. With
 digits = 16 (the default) everything runs in double and the results are the C++ library's doubles,
 bit for bit; with digits = 17..1000 it runs in MPFR at digits + 12 guard digits, and the results
 also come as the CLI's decimal strings (`.decimal`) and as mpmath.mpf values (`.mpf`).
 
-Errors. Bad input raises ValueError with the CLI's one-line message (e.g. "--beta: '0.0' must
-be > 0"). Calls release the GIL and are thread-safe at any mix of digits; array calls run on all
-cores. Ctrl-C stops an array call (KeyboardInterrupt) and ends simulate/poincare early with the
-averages so far (interrupted = True).
+Errors. Bad input raises ValueError with the CLI's one-line message, which names the argument
+(e.g. "--beta: '0.0' must be > 0"; a long number text is shortened in it); an argument of the
+wrong type (None, a complex, a non-str method, a non-callable progress) raises TypeError naming
+it. A result with a NaN or an infinity is refused (ValueError) rather than returned. Calls
+release the GIL and are thread-safe at any mix of digits; array calls run on all cores. Ctrl-C
+stops an array call (KeyboardInterrupt) and ends simulate/poincare early with the averages so
+far (interrupted = True).
+
+Notebooks. Every result converts: .to_dict(), .to_dataframe() (pandas) and, for Averages,
+.to_xarray() (xarray); pandas and xarray are optional. sweep() results carry their axes:
+.dims (the swept arguments, in order) and .coords (their values).
+
+Decimal strings (.decimal) do not depend on the locale: the radix character is always '.'.
 """
+import re as _re
 import sys as _sys
 import time as _time
 from collections import namedtuple as _namedtuple
@@ -61,7 +74,9 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
     exp(-beta H). Returns an Averages with, per particle i (index 0 is the paper's particle 1):
 
       beta_K, beta_K_error   beta<K_i> (dimensionless) and its absolute error (also `error`)
-      K, K_error             <K_i> = beta<K_i> / beta, in energy units
+      K, K_error             <K_i> = beta<K_i> / beta, in energy units (+-inf where it lies
+                             beyond double's range, beta < ~1e-300; .decimal holds it; so
+                             for var_K at beta < ~1e-150)
       ratio, ratio_error     <K_1>/<K_2> (None for N = 1)
       cos_phi, cos_phi_error <cos phi_i>
       var_K, var_K_error     Var K_i = <K_i^2> - <K_i>^2; var_K_beta2 = beta^2 Var K_i
@@ -85,6 +100,10 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                              the transfer operator's final resolution
       decimal                the CLI's strings (`pendavg average --format json`), `digits` digits
       mpf                    mpmath.mpf values (exact binary values of the MPFR results)
+      dims, coords           a grid's axis names and values (pendavg.sweep: the swept
+                             arguments; a broadcast call: axis0, axis1, ... with positions)
+    Conversions: to_dict(), to_dataframe() (pandas: a row per particle and grid point) and
+    to_xarray() (xarray: dims + ('particle',)).
 
     Arguments:
       masses   the N masses m_i > 0 (a list, tuple or 1-D array; a single number is N = 1).
@@ -119,7 +138,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
         pendavg.average([0.5, 0.5], [1, l2[None, :]], beta[:, None])   # shape (len(beta), len(l2), 2)
     (pendavg.sweep does the same from 1-D axes). A bad point raises ValueError naming its index.
     """
-    callback = _TextProgress("average") if progress is True else progress
+    callback = _progress_callback(progress, "average")
     result = _core.average_point(masses, lengths, beta, g, digits, method, tol, samples, shifts,
                                  seed, callback)
     if result is not None:
@@ -130,8 +149,15 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
     m, l = _entries(masses), _entries(lengths)
     if len(m) != len(l):
         raise ValueError(f"{len(m)} masses but {len(l)} lengths")
-    columns = [_as_array(x) for x in [beta, g, *m, *l]]
-    shape = _np.broadcast_shapes(*(c.shape for c in columns))
+    names = ["beta", "g"] + [f"masses[{i}]" for i in range(len(m))] + \
+            [f"lengths[{i}]" for i in range(len(l))]
+    columns = [_as_array(x, name) for x, name in zip([beta, g, *m, *l], names)]
+    try:
+        shape = _np.broadcast_shapes(*(c.shape for c in columns))
+    except ValueError:
+        shapes = ", ".join(f"{name} {c.shape}" for name, c in zip(names, columns) if c.ndim)
+        raise ValueError(f"average: the array arguments do not broadcast together ({shapes})") \
+            from None
     flat = [_np.ascontiguousarray(_np.broadcast_to(c, shape)).reshape(-1) for c in columns]
     return _core.average_grid(list(shape), len(m), flat, digits, method, tol, samples, shifts, seed,
                               callback)
@@ -160,34 +186,60 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
                 pendavg.average.
       method    'auto' (default: 'integral'), 'integral' or 'series', as for pendavg.average.
       progress  None, True or a callable f(fraction of points done), as for pendavg.average.
+    The result also carries its axes: r.dims, the swept arguments in axis order (e.g. ('beta',
+    'l2')), and r.coords, {name: the values swept (float64, or object if not floats)};
+    r.to_dataframe() and r.to_xarray() label their rows and axes with them.
     """
+    names = ["beta", "mu1", "l1", "l2", "g"]
     axes = [beta, mu1, l1, l2, g]
+    domains = {"beta": "positive", "l1": "positive", "l2": "positive", "g": "nonnegative"}
     arrays = [i for i, a in enumerate(axes) if _is_array(a)]
-    shaped = []
+    shaped, coords = [], {}
     for i, a in enumerate(axes):
         if i not in arrays:
             shaped.append(a)
             continue
-        a = _np.asarray(a) if not isinstance(a, (list, tuple)) else _np.asarray(a, dtype=object)
+        # lists keep their Python numbers (str, int, Decimal, mpf: each read as typed)
+        a = _np.asarray(a, dtype=object) if isinstance(a, (list, tuple, range)) else \
+            _as_array(a, names[i])
         if a.ndim != 1:
-            raise ValueError(f"sweep: {['beta', 'mu1', 'l1', 'l2', 'g'][i]} must be a number or a "
-                             "1-D array")
+            raise ValueError(f"sweep: {names[i]} must be a number or a 1-D array")
+        coords[names[i]] = _coordinate(a)
         view = [1] * len(arrays)
         view[arrays.index(i)] = a.shape[0]
         shaped.append(a.reshape(view))
+    # every value checked under its own name (a bad l1 is "--l1: ...", not "--lengths: ...")
+    for name, axis in zip(names, axes):
+        if name in domains:
+            for value in (axis if _is_array(axis) else [axis]):
+                _core.check_number(value, "--" + name, domains[name], digits)
     mu = shaped[1]
     if _is_array(mu):
-        m1 = _np.vectorize(_mass_text, otypes=[object])(mu)
-        m2 = _np.vectorize(_one_minus, otypes=[object])(mu)
+        m1 = _np.vectorize(_mass_text, otypes=[object])(mu) if mu.size else mu.astype(object)
+        m2 = _np.vectorize(_one_minus, otypes=[object])(mu) if mu.size else mu.astype(object)
     else:
         m1, m2 = _mass_text(mu), _one_minus(mu)
-    return average([m1, m2], [shaped[2], shaped[3]], shaped[0], shaped[4], digits=digits,
-                   method=method, progress=progress)
+    result = average([m1, m2], [shaped[2], shaped[3]], shaped[0], shaped[4], digits=digits,
+                     method=method, progress=progress)
+    result._dims, result._coords = tuple(coords), coords
+    return result
 
 
-Limits = _namedtuple("Limits", ["high_temperature", "low_temperature"])
-Limits.__doc__ = """The beta -> 0 and beta -> infinity limits of a chain (pendavg.limit): two Averages
-(beta_K, var_K_beta2 = beta^2 Var K_i, ratio, cos_phi with their errors; no K or var_K)."""
+class Limits(_namedtuple("Limits", ["high_temperature", "low_temperature"])):
+    """The beta -> 0 and beta -> infinity limits of a chain (pendavg.limit): two Averages
+    (beta_K, var_K_beta2 = beta^2 Var K_i, ratio, cos_phi with their errors; no K or var_K)."""
+
+    __slots__ = ()
+
+    def to_dict(self):
+        """{'high_temperature': dict, 'low_temperature': dict} (Averages.to_dict)."""
+        return {name: getattr(self, name).to_dict() for name in self._fields}
+
+    def to_dataframe(self):
+        """Both limits as one pandas DataFrame, indexed by (limit, particle). Needs pandas."""
+        pandas = _optional("pandas", "to_dataframe")
+        return pandas.concat({name: getattr(self, name).to_dataframe() for name in self._fields},
+                             names=["limit"])
 
 
 def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
@@ -211,7 +263,7 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
     Ctrl-C stops the torus run of N >= 3 after a finished level. Returns
     Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
     """
-    callback = _TextProgress("limit") if progress is True else progress
+    callback = _progress_callback(progress, "limit")
     high, low = _core.limit(masses, lengths, g, digits, callback)
     if high.interrupted:
         print("[limit] interrupted: the last finished torus level is reported", file=_sys.stderr,
@@ -227,9 +279,40 @@ class _Record:
     def __init__(self, fields):
         self.__dict__.update(fields)
 
+    _rows = None  # the array that indexes the rows of to_dataframe (None: one per particle)
+
     def as_dict(self):
         """The fields as a dict."""
         return dict(self.__dict__)
+
+    def to_dict(self):
+        """The fields as a dict (numbers, numpy arrays, strings; as_dict)."""
+        return self.as_dict()
+
+    def to_dataframe(self):
+        """The result as a pandas DataFrame: one row per particle (per term of a series, per
+        crossing of a Poincare section); the arrays of that length are columns, and each
+        single number or string is a column repeated on every row. Needs pandas."""
+        pandas = _optional("pandas", "to_dataframe")
+        if self._rows is None:
+            rows, index = self.N, pandas.RangeIndex(1, self.N + 1, name="particle")
+        else:
+            rows, index = len(getattr(self, self._rows)), None
+        columns = {}
+        for name, value in self.__dict__.items():
+            if name.startswith("_") or isinstance(value, dict):
+                continue
+            if isinstance(value, _np.ndarray):
+                if value.ndim == 1 and len(value) == rows:
+                    columns[name] = value
+            elif value is None or isinstance(value, (int, float, str, bool, _np.generic)):
+                columns[name] = [value] * rows
+        frame = pandas.DataFrame(columns, index=index)
+        if self._rows == "n":
+            return frame.set_index("n")
+        if self._rows is not None:
+            frame.index.name = self._rows_name
+        return frame
 
     def __repr__(self):
         shown = ", ".join(f"{k}={_short(v)}" for k, v in self.__dict__.items()
@@ -247,6 +330,8 @@ class SeriesResult(_Record):
     strings of each column (`pendavg series --format json`), mpf: exact mpmath values; terms,
     digits, N, error_kind ('bound').
     """
+
+    _rows = "n"
 
     @property
     def mpf(self):
@@ -317,7 +402,7 @@ def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
     Ctrl-C raises KeyboardInterrupt (no row exists before the table is complete). Returns a
     SeriesResult with the rows as arrays.
     """
-    callback = _TextProgress("series") if progress is True else progress
+    callback = _progress_callback(progress, "series")
     return SeriesResult(_core.series(masses, lengths, beta, g, digits, terms, callback))
 
 
@@ -329,7 +414,7 @@ def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto"
     motion is ergodic. Energies use the paper's U = -sum_j g S_j l_j cos phi_j (S_j the mass at
     and below link j), so the hanging chain at rest has E_min = -sum_j g S_j l_j; E > E_min.
     Per angle configuration the momenta are uniform on the shell H = E; the angle integrals
-    run over the reduced torus (MATH.md Sec. 7). The same call as `pendavg average --energy E
+    run over the reduced torus. The same call as `pendavg average --energy E
     | --excitation D [--digits D]`, with the CLI's checks, messages and strings.
 
     Arguments:
@@ -395,6 +480,8 @@ class PoincareSection(_Record):
     steps, interrupted, seconds.
     """
 
+    _rows, _rows_name = "phi2", "crossing"
+
 
 def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time, dt=None,
              burn_in=None, integrator=None, thermostat=None, beta=None, friction=None, seed=None,
@@ -438,7 +525,7 @@ def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time,
     double.
     Returns a SimulationResult.
     """
-    callback = _TextProgress("simulate") if progress is True else progress
+    callback = _progress_callback(progress, "simulate")
     out = SimulationResult(_core.simulate(masses, lengths, g, theta, phi, phidot, time, dt, burn_in,
                                           integrator, thermostat, beta, friction, seed, exact,
                                           every, callback))
@@ -467,7 +554,7 @@ def poincare(masses, lengths, energy, g=1.0, *, orbits=None, points=None, dt=Non
       progress  None, True or a callable f(fraction), as for pendavg.simulate.
     Ctrl-C ends the run with the points so far (interrupted = True). Returns a PoincareSection.
     """
-    callback = _TextProgress("poincare") if progress is True else progress
+    callback = _progress_callback(progress, "poincare")
     out = PoincareSection(_core.poincare(masses, lengths, g, energy, orbits, points, dt, callback))
     if out.interrupted:
         print("[poincare] interrupted: points so far", file=_sys.stderr, flush=True)
@@ -558,17 +645,123 @@ def _averages_as_dict(self):
              "var_K_beta2", "var_K_beta2_error", "beta_Kc", "diagonal_approx",
              "equipartition_residual", "error_kind", "error_kinds", "work_unit", "evaluations",
              "converged", "interrupted", "seconds", "run"]
-    return {name: getattr(self, name) for name in names}
+    out = {name: getattr(self, name) for name in names}
+    if self.shape != ():
+        out["dims"], out["coords"] = self.dims, self.coords
+    return out
 
 
+_PER_PARTICLE_FIELDS = ("beta_K", "beta_K_error", "K", "K_error", "cos_phi", "cos_phi_error",
+                        "var_K", "var_K_error", "var_K_beta2", "var_K_beta2_error", "beta_Kc",
+                        "diagonal_approx")
+_PER_POINT_FIELDS = ("beta", "ratio", "ratio_error", "equipartition_residual", "method",
+                     "error_kind", "work_unit", "evaluations", "converged", "interrupted",
+                     "seconds")
+
+
+def _averages_dims(self):
+    """Names of the result's axes (before the particle axis): the swept arguments of
+    pendavg.sweep, ('axis0', 'axis1', ...) for a broadcast pendavg.average, () for one point."""
+    dims = self.__dict__.get("_dims")
+    return dims if dims is not None else tuple(f"axis{k}" for k in range(len(self.shape)))
+
+
+def _averages_coords(self):
+    """{dim: the values along that axis}: pendavg.sweep's swept values (float64 where they are
+    numbers); positions 0, 1, ... along the axes of a broadcast pendavg.average; {} for one
+    point."""
+    coords = self.__dict__.get("_coords")
+    if coords is not None:
+        return dict(coords)
+    return {dim: _np.arange(n) for dim, n in zip(self.dims, self.shape)}
+
+
+def _averages_fields(self):
+    """(per-particle fields, per-point fields) that this result has (no None)."""
+    particle = {name: getattr(self, name) for name in _PER_PARTICLE_FIELDS}
+    point = {name: getattr(self, name) for name in _PER_POINT_FIELDS
+             if name not in self.dims}  # a swept beta is the coordinate itself
+    return ({k: v for k, v in particle.items() if v is not None},
+            {k: v for k, v in point.items() if v is not None})
+
+
+def _averages_to_dataframe(self):
+    """A pandas DataFrame with one row per particle (and grid point): index (particle,) for one
+    point, (*dims, particle) for a grid, labelled with .coords; per-particle fields are columns,
+    per-point fields (beta, ratio, method, ...) are repeated over the particles. Needs pandas."""
+    pandas = _optional("pandas", "to_dataframe")
+    particle, point = _averages_fields(self)
+    n = self.N
+    columns = {name: _np.asarray(v).reshape(-1) for name, v in particle.items()}
+    for name, v in point.items():
+        columns[name] = _np.repeat(_np.asarray(v).reshape(-1), n)
+    particles = _np.arange(1, n + 1)
+    if self.shape == ():
+        index = pandas.Index(particles, name="particle")
+    else:
+        coords = self.coords
+        index = pandas.MultiIndex.from_product([*(coords[d] for d in self.dims), particles],
+                                               names=[*self.dims, "particle"])
+    return pandas.DataFrame(columns, index=index)
+
+
+def _averages_to_xarray(self):
+    """An xarray.Dataset with dims (*dims, 'particle'), labelled with .coords and particle =
+    1..N; per-point fields have the grid dims only; digits, N and (if any) error kinds per
+    observable as attributes. Needs xarray."""
+    xarray = _optional("xarray", "to_xarray")
+    particle, point = _averages_fields(self)
+    dims = self.dims
+    data = {name: ((*dims, "particle"), _np.asarray(v)) for name, v in particle.items()}
+    data.update({name: (dims, _np.asarray(v)) for name, v in point.items()})
+    coords = {"particle": _np.arange(1, self.N + 1), **self.coords}
+    return xarray.Dataset(data, coords=coords, attrs={"N": self.N, "digits": self.digits})
+
+
+Averages.dims = property(_averages_dims)
+Averages.coords = property(_averages_coords)
+Averages.to_dataframe = _averages_to_dataframe
+Averages.to_xarray = _averages_to_xarray
 Averages.mpf = property(_averages_mpf)
 Averages.error = property(lambda self: self.beta_K_error,
                           doc="Absolute error of beta_K (the CLI's `error`).")
 Averages.as_dict = _averages_as_dict
+Averages.to_dict = _averages_as_dict
 Averages.__repr__ = _averages_repr
 
 
 # ---------------------------------------------------------------- helpers
+
+def _optional(module, method):
+    """Imports an optional module, or ImportError with one clear line."""
+    import importlib
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise ImportError(f"pendavg: {method}() needs {module}, which is not installed "
+                          f"(pip install {module}, or Debian's python3-{module})") from None
+
+
+def _progress_callback(progress, command):
+    """progress as the C++ core takes it: None, a text reporter for True, or the callable."""
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        return _TextProgress(command)
+    if not callable(progress):
+        raise TypeError(f"progress: expected None, True or a callable f(fraction), got "
+                        f"{type(progress).__name__}")
+    return progress
+
+
+def _coordinate(values):
+    """Axis values for .coords: float64 when every value is a number, else as given."""
+    try:
+        return _np.asarray([float(_core.number_text(v, "coordinate")) for v in values.tolist()],
+                           dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        return values
+
 
 def _is_array(x):
     return isinstance(x, (list, tuple, range)) or (isinstance(x, _np.ndarray) and x.ndim > 0)
@@ -580,51 +773,64 @@ def _entries(x):
     return list(x)
 
 
-def _as_array(x):
-    if isinstance(x, (list, tuple)):
-        return _np.asarray(x, dtype=object) if any(isinstance(v, str) for v in x) else _np.asarray(x)
-    return _np.asarray(x, dtype=object) if isinstance(x, str) else _np.asarray(x)
-
-
-def _decimal_text(x):
-    """The decimal a number is read as (see the module docstring)."""
-    if isinstance(x, str):
-        return x
-    if isinstance(x, float):
-        return repr(x)
-    if isinstance(x, (int, _np.integer)):
-        return str(int(x))
-    if isinstance(x, _Decimal):
-        return str(x)
-    if type(x).__module__.startswith("mpmath") and type(x).__name__ == "mpf":
-        sign, man, exponent, _ = x._mpf_  # the exact binary value, as the C++ reader takes it
-        if man or not exponent:
-            scaled = str(man << exponent) if exponent >= 0 else f"{man * 5 ** -exponent}e{exponent}"
-            return ("-" if sign else "") + scaled
-    return repr(float(x))
+def _as_array(x, name):
+    """x as a numpy array (object dtype for str entries), or ValueError naming the argument."""
+    try:
+        if isinstance(x, (list, tuple, range)):
+            if any(isinstance(v, str) for v in x):
+                return _np.asarray(x, dtype=object)
+            try:
+                return _np.asarray(x)
+            except OverflowError:  # ints beyond int64: kept as Python ints
+                return _np.asarray(x, dtype=object)
+        return _np.asarray(x, dtype=object) if isinstance(x, str) else _np.asarray(x)
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"{name}: not a rectangular array of numbers ({error})") from None
 
 
 def _mass_text(mu1):
-    return _decimal_text(mu1.item() if isinstance(mu1, _np.generic) else mu1)
+    """The decimal mu1 is read as (see the module docstring), by the C++ reader's own rule."""
+    return _core.number_text(mu1.item() if isinstance(mu1, _np.generic) else mu1, "--mu1")
+
+
+def _quoted(text):
+    """'text' as the C++ messages quote it: a text over 80 characters shortened to its first 40
+    and last 16 with its length, control characters escaped (one line, whole)."""
+    if len(text) > 80:
+        text, length = f"{text[:40]}...{text[-16:]}", f" ({len(text)} characters)"
+    else:
+        length = ""
+    text = "".join(f"\\x{ord(c):02x}" if ord(c) < 0x20 or ord(c) == 0x7f else c for c in text)
+    return f"'{text}'{length}"
+
+
+_MAX_DECIMAL_SCALE = 4000  # digits after the point of 1 - mu1, as `pendavg table` allows
 
 
 def _one_minus(mu1):
-    """1 - mu1 in exact decimal (as `pendavg table` forms m2), refused outside (0, 1) with the
-    CLI's message."""
+    """1 - mu1 in exact decimal (as `pendavg table` forms m2), refused outside (0, 1) and
+    beyond 4000 digits after the point with the CLI's messages."""
     text = _mass_text(mu1)
+    shown = _quoted(text)
+    malformed = f"--mu1: malformed number {shown} (expected a finite decimal number)"
     try:
         value = _Decimal(text)
     except Exception:
-        raise ValueError(f"--mu1: malformed number '{text}' (expected a finite decimal number)")
-    if not value.is_finite():
-        raise ValueError(f"--mu1: malformed number '{text}' (expected a finite decimal number)")
+        raise ValueError(malformed) from None
+    if not value.is_finite() or not _re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", text):
+        raise ValueError(malformed)
     if not value > 0:
-        raise ValueError(f"--mu1: '{text}' must be > 0")
+        raise ValueError(f"--mu1: {shown} must be > 0")
+    # digits after the point, checked before any arithmetic (1 - 1e-100000000 is exact only
+    # with 10^8 digits)
+    scale = -value.as_tuple().exponent
+    if scale > _MAX_DECIMAL_SCALE or value.adjusted() < -_MAX_DECIMAL_SCALE:
+        raise ValueError(f"--mu1: {shown} has too many digits for 1 - --mu1")
     if not value < 1:
-        raise ValueError(f"--mu1: '{text}' must be < 1")
+        raise ValueError(f"--mu1: {shown} must be < 1")
     from decimal import localcontext
     with localcontext() as context:
-        context.prec = 5000
+        context.prec = 2 * _MAX_DECIMAL_SCALE + 10  # exact: at most 4000 digits after the point
         return format(1 - value, "f")
 
 

@@ -1,0 +1,176 @@
+# Type stubs of the package pendavg (the documented API of __init__.py; see its docstrings).
+from collections.abc import Callable, Sequence
+from decimal import Decimal
+from typing import Any, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from ._pendavg import Averages as Averages
+
+__version__: str
+__all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
+           "Averages", "Limits", "SeriesResult", "MicrocanonicalResult", "SimulationResult",
+           "PoincareSection", "dynamics_instruction_set"]
+
+# A number: read as the `pendavg` command reads the same text (float: its repr; str: as
+# written; Decimal; mpmath.mpf: its binary value; int: exactly).
+_Number = float | int | str | Decimal | Any
+# A number, or (for broadcasting) an array or a sequence of them.
+_Numbers = _Number | npt.ArrayLike | Sequence[Any]
+_Progress = bool | Callable[[float], object] | None
+
+def dynamics_instruction_set() -> str: ...
+def average(masses: _Numbers, lengths: _Numbers, beta: _Numbers, g: _Numbers = ...,
+            digits: int = ..., method: str = ..., tol: _Number | None = ...,
+            samples: int | None = ..., shifts: int | None = ..., seed: int | None = ...,
+            progress: _Progress = ...) -> Averages: ...
+def sweep(beta: _Numbers, mu1: _Numbers = ..., l1: _Numbers = ..., l2: _Numbers = ...,
+          g: _Numbers = ..., digits: int = ..., method: str = ...,
+          progress: _Progress = ...) -> Averages: ...
+
+class Limits(NamedTuple):
+    high_temperature: Averages
+    low_temperature: Averages
+    def to_dict(self) -> dict[str, dict[str, Any]]: ...
+    def to_dataframe(self) -> Any: ...
+
+def limit(masses: _Numbers, lengths: _Numbers | None = ..., g: _Number = ..., digits: int = ...,
+          progress: _Progress = ...) -> Limits: ...
+
+class _Record:
+    def __init__(self, fields: dict[str, Any]) -> None: ...
+    def as_dict(self) -> dict[str, Any]: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def to_dataframe(self) -> Any: ...
+
+class SeriesResult(_Record):
+    n: npt.NDArray[np.int64]
+    R_n: npt.NDArray[np.float64]
+    term: npt.NDArray[np.float64]
+    numerator: npt.NDArray[np.float64]
+    denominator: npt.NDArray[np.float64]
+    value: npt.NDArray[np.float64]
+    bound: npt.NDArray[np.float64]
+    decimal: dict[str, list[str]]
+    exact: dict[str, list[Any]]
+    certified: bool
+    terms: int
+    digits: int
+    N: int
+    error_kind: str
+    @property
+    def mpf(self) -> dict[str, list[Any]]: ...
+
+class MicrocanonicalResult(_Record):
+    N: int
+    digits: int
+    energy: float
+    excitation: float
+    K: npt.NDArray[np.float64]
+    K_error: npt.NDArray[np.float64]
+    Kc: float
+    Kc_error: float
+    K_total: float
+    K_total_error: float
+    cos_phi: npt.NDArray[np.float64]
+    cos_phi_error: npt.NDArray[np.float64]
+    var_K: npt.NDArray[np.float64]
+    var_K_error: npt.NDArray[np.float64]
+    density_of_states: float
+    density_of_states_error: float
+    method: str
+    error_kind: str
+    evaluations: int
+    work_unit: str
+    converged: bool
+    proposal_beta: float
+    effective_sample_fraction: float
+    seconds: float
+    decimal: dict[str, Any]
+    exact: dict[str, list[Any]] | None
+    @property
+    def mpf(self) -> dict[str, Any]: ...
+
+def series(masses: _Numbers, lengths: _Numbers, beta: _Number, g: _Number = ..., digits: int = ...,
+           terms: int = ..., progress: _Progress = ...) -> SeriesResult: ...
+def microcanonical(masses: _Numbers, lengths: _Numbers, energy: _Number | None = ...,
+                   g: _Number = ..., digits: int = ..., method: str = ...,
+                   tol: _Number | None = ..., samples: int | None = ..., shifts: int | None = ...,
+                   seed: int | None = ...,
+                   excitation: _Number | None = ...) -> MicrocanonicalResult: ...
+
+class SimulationResult(_Record):
+    ensemble: str
+    integrator: str
+    method: str
+    N: int
+    dt: float
+    time: float
+    energy: float
+    K: npt.NDArray[np.float64]
+    K_error: npt.NDArray[np.float64]
+    Kc: npt.NDArray[np.float64]
+    Kc_error: npt.NDArray[np.float64]
+    K_autocorrelation_time: npt.NDArray[np.float64]
+    cos_phi: npt.NDArray[np.float64]
+    cos_phi_error: npt.NDArray[np.float64]
+    K_total: float
+    K_total_error: float
+    potential: float
+    potential_error: float
+    error_kind: str
+    exact_K: npt.NDArray[np.float64] | None
+    exact_K_error: npt.NDArray[np.float64] | None
+    exact_Kc: float | None
+    exact_Kc_error: float | None
+    exact_cos_phi: npt.NDArray[np.float64] | None
+    exact_cos_phi_error: npt.NDArray[np.float64] | None
+    K_deviation_sigmas: npt.NDArray[np.float64] | None
+    exact_method: str | None
+    exact_error_kind: str | None
+    exact_excitation: float | None
+    exact_var_K: npt.NDArray[np.float64] | None
+    exact_var_K_error: npt.NDArray[np.float64] | None
+    error_reason: str | None
+    beta: float | None
+    friction: float | None
+    energy_drift: float
+    energy_error_max: float
+    energy_error_rms: float
+    energy_trend: float
+    final_energy: float
+    constraint_residual: float
+    steps: int
+    samples: int
+    newton_solves: int
+    unconverged_stages: int
+    interrupted: bool
+    seconds: float
+    trajectory: dict[str, npt.NDArray[np.float64]] | None
+
+class PoincareSection(_Record):
+    orbit: npt.NDArray[np.int64]
+    phi2: npt.NDArray[np.float64]
+    p2: npt.NDArray[np.float64]
+    time: npt.NDArray[np.float64]
+    start_phi2: npt.NDArray[np.float64]
+    start_p2: npt.NDArray[np.float64]
+    energy: float
+    energy_error_max: float
+    orbits: int
+    dt: float
+    steps: int
+    interrupted: bool
+    seconds: float
+
+def simulate(masses: _Numbers, lengths: _Numbers, g: _Number = ..., *, theta: _Number | None = ...,
+             phi: _Numbers | None = ..., phidot: _Numbers | None = ..., time: _Number,
+             dt: _Number | None = ..., burn_in: _Number | None = ..., integrator: str | None = ...,
+             thermostat: str | None = ..., beta: _Number | None = ...,
+             friction: _Number | None = ...,
+             seed: int | None = ..., exact: bool | str = ..., every: int | None = ...,
+             progress: _Progress = ...) -> SimulationResult: ...
+def poincare(masses: _Numbers, lengths: _Numbers, energy: _Number, g: _Number = ..., *,
+             orbits: int | None = ..., points: int | None = ..., dt: _Number | None = ...,
+             progress: _Progress = ...) -> PoincareSection: ...
