@@ -131,6 +131,47 @@ void check_dynamics_scales(const Chain<Real>& chain, const char* command) {
   if (chain.gravity() > 0 && !inside(s.gravity)) refuse("g =", s.gravity);
 }
 
+/// Refuses a time step beyond the integrators' stability limit, before any work. The fastest
+/// motion is estimated per particle as a transverse oscillation between its two links:
+/// omega_i^2 = (T_i / l_i + T_{i+1} / l_{i+1}) / m_i with the links' tensions T_j up to the weight
+/// below, g S_j, plus the centrifugal share of the kinetic energy available, 2 K / l_j. The
+/// compositions (Yoshida, Suzuki, Kahan-Li) and BAOAB are linearly stable for h omega below ~1.5;
+/// h omega > 1 is refused.
+template <class Real>
+void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
+                            const char* command) {
+  using Wide = long double;
+  const std::size_t n = chain.size();
+  Wide omega2 = 0;
+  const Wide g = static_cast<Wide>(chain.gravity());
+  // Fail closed: a NaN energy (std::max(NaN, 0) is NaN, std::max(0, NaN) is 0) must not read
+  // as a motionless chain whose every time step is stable.
+  if (std::isnan(kinetic))
+    throw invalid_input(std::string(command) + ": the initial energy is not a number for this "
+                        "input; choose units nearer 1");
+  const Wide k = kinetic > 0 ? kinetic : Wide(0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Wide li = static_cast<Wide>(chain.length(i));
+    Wide stiffness = (g * static_cast<Wide>(chain.tail_mass(i)) + 2 * k / li) / li;
+    if (i + 1 < n) {
+      const Wide lj = static_cast<Wide>(chain.length(i + 1));
+      stiffness += (g * static_cast<Wide>(chain.tail_mass(i + 1)) + 2 * k / lj) / lj;
+    }
+    const Wide own = stiffness / static_cast<Wide>(chain.mass(i));
+    if (!(own <= omega2)) omega2 = own;  // a NaN stays, and is refused below
+  }
+  const Wide omega = std::sqrt(omega2);
+  if (!std::isfinite(omega))
+    throw invalid_input(std::string(command) + ": the fastest motion's angular frequency "
+                        "overflows (masses, lengths, g and the energy far apart); choose units "
+                        "nearer 1");
+  if (!(static_cast<Wide>(time_step) * omega <= 1))
+    throw invalid_input(std::string(command) + ": a time step of " + short_decimal(time_step) +
+                        " is beyond the integrator's stability limit (the fastest motion has "
+                        "angular frequency ~" + short_decimal(omega) + "); use --dt " +
+                        short_decimal(Wide(0.05) / omega) + " or smaller");
+}
+
 std::string more_digits_advice(const Chain<double>& chain, const double* beta,
                                const AverageOptions& options) {
   // The series is never the method to advise (it refuses light particles beyond its term cap;
@@ -222,7 +263,8 @@ void check_result(const Averages<Real>& a, const char* command, const std::strin
   template void check_dynamics_scales<Real>(const Chain<Real>&, const char*);               \
   template void check_result<Real>(const Averages<Real>&, const char*, const std::string&); \
   template void check_finite_estimate<Real>(const Estimate<Real>&, const char*, const char*); \
-  template void check_finite_value<Real>(const Real&, const char*, const char*);
+  template void check_finite_value<Real>(const Real&, const char*, const char*);            \
+  template void check_stable_time_step<Real>(const Chain<Real>&, double, long double, const char*);
 PENDAVG_INSTANTIATE_DOMAIN(double)
 PENDAVG_INSTANTIATE_DOMAIN(long double)
 PENDAVG_INSTANTIATE_DOMAIN(mpfr_real)

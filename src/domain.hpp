@@ -73,6 +73,14 @@ void check_trace_formula_mass_range(const Chain<Real>& chain, const char* comman
 template <class Real>
 void check_dynamics_scales(const Chain<Real>& chain, const char* command);
 
+/// The dynamics' time step against the fastest motion (omega_i^2 = (T_i / l_i + T_{i+1} /
+/// l_{i+1}) / m_i, the tensions up to g S_j plus the centrifugal share of `kinetic`): h omega > 1
+/// is beyond the integrators' stability limit and refused, with the step that would do; a NaN
+/// energy or frequency is refused too (it read as 0 once).
+template <class Real>
+void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
+                            const char* command);
+
 /// "; request 17 or more digits (MPFR)" when the same chain and beta pass the MPFR checks of
 /// `options.method` at 17 digits (so the advice is given only when it is true), else "".
 std::string more_digits_advice(const Chain<double>& chain, const double* beta,

@@ -327,6 +327,14 @@ struct SimulationResult {
   bool interrupted = false;
 };
 
+/// Checks, without a step, what simulate(chain, initial, options) checks before its first one:
+/// the options, the chain's scales (masses, lengths and g within 1e-100..1e100) and the time
+/// step against the fastest motion at the start's energy. Throws invalid_input. Cheap: a front
+/// end calls it before anything slow (the exact values of the run's ensemble).
+template <class Real>
+void check_simulation(const Chain<Real>& chain, const ChainState<Real>& initial,
+                      const SimulationOptions& options);
+
 /// Integrates from `initial` (the momenta are projected first) and returns the averages.
 /// Throws invalid_input for a non-positive time step or duration, or bad Langevin parameters.
 template <class Real>

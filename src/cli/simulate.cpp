@@ -582,15 +582,17 @@ struct SimulateOutcome {
   double seconds = 0;                      ///< the trajectories' wall time
 };
 
-/// Step 2, run: the exact values first (a request they cannot serve, e.g. the chain at rest at
-/// the bottom with no accessible states, is refused before any integration, and a run stopped
-/// by a signal still prints them), then one trajectory or the replicas. Only rank 0 returns an
-/// outcome.
+/// Step 2, run: the run's own checks (check_simulation), then the exact values (a request they
+/// cannot serve, e.g. the chain at rest at the bottom with no accessible states, is refused
+/// before any integration, and a run stopped by a signal still prints them), then one trajectory
+/// or the replicas. Only rank 0 returns an outcome.
 std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
                                               const SimulateRequest& request,
                                               TrajectoryFile& trajectory) {
   SimulateOutcome out;
   const ChainState<double> initial = state_from_angles(chain, request.phi, request.phidot);
+  // Everything the run refuses is refused first, before the exact values (seconds for N >= 4).
+  check_simulation(chain, initial, request.run);
   out.energy = total_energy(chain, initial);
   if (request.exact)
     out.reference =

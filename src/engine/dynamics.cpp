@@ -7,6 +7,7 @@
 #include "domain.hpp"
 #include "engine/text.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <cstdlib>
@@ -239,6 +240,28 @@ ChainState<Real> state_at_energy(const Chain<Real>& chain, const std::vector<Rea
                       "along its energy shell); start elsewhere or use a smaller --perturb");
 }
 
+template <class Real>
+void check_simulation(const Chain<Real>& chain, const ChainState<Real>& initial,
+                      const SimulationOptions& options) {
+  check_simulation_options(options);
+  domain::check_dynamics_scales(chain, "simulate");
+  const std::size_t n = chain.size();
+  if (initial.position.size() != 2 * n || initial.momentum.size() != 2 * n)
+    throw invalid_input("simulate: the state does not match the chain");
+  // The kinetic energy the motion can reach, as simulate() bounds it: E - U_min with
+  // U_min >= -g (sum m)(sum l); for Langevin at least 20 N / beta.
+  long double mass_sum = 0, length_sum = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    mass_sum += static_cast<long double>(chain.mass(i));
+    length_sum += static_cast<long double>(chain.length(i));
+  }
+  long double kinetic = static_cast<long double>(total_energy(chain, initial)) +
+                        static_cast<long double>(chain.gravity()) * mass_sum * length_sum;
+  if (options.thermostat == Thermostat::langevin && options.beta)
+    kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / *options.beta);
+  domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate");
+}
+
 /// The result check of simulate() (domain.hpp): every time average, energy and residual finite.
 /// A statistical error is NaN only where it is documented as unknown (fewer than 16 blocks);
 /// an infinite or negative one is refused.
@@ -303,6 +326,8 @@ PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& ene
   template ChainObservables<Real> observables<Real>(const Chain<Real>&, const ChainState<Real>&); \
   template Real potential_energy<Real>(const Chain<Real>&, const ChainState<Real>&);            \
   template Real total_energy<Real>(const Chain<Real>&, const ChainState<Real>&);                \
+  template void check_simulation<Real>(const Chain<Real>&, const ChainState<Real>&,             \
+                                      const SimulationOptions&);                                \
   template ChainState<Real> state_at_energy<Real>(const Chain<Real>&, const std::vector<Real>&, \
                                                   const std::vector<Real>&, const Real&);        \
   template Real constraint_residual<Real>(const Chain<Real>&, const ChainState<Real>&);         \

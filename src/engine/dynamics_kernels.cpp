@@ -10,6 +10,8 @@
 // on any CPU; only the functions of this file's own namespace use AVX2 and FMA (checked by
 // tests/consumer/isa.sh).
 #include "engine/dynamics_kernels.hpp"
+
+#include "domain.hpp"
 #include "engine/parallel.hpp"
 #include "engine/text.hpp"
 
@@ -835,47 +837,6 @@ void baoab_step_kernel(const Chain<Real>& chain, ChainState<Real>& state, const 
 
 // ---------------------------------------------------------------- runs
 
-/// Refuses a time step beyond the integrators' stability limit, before any work. The fastest
-/// motion is estimated per particle as a transverse oscillation between its two links:
-/// omega_i^2 = (T_i / l_i + T_{i+1} / l_{i+1}) / m_i with the links' tensions T_j up to the weight
-/// below, g S_j, plus the centrifugal share of the kinetic energy available, 2 K / l_j. The
-/// compositions (Yoshida, Suzuki, Kahan-Li) and BAOAB are linearly stable for h omega below ~1.5;
-/// h omega > 1 is refused.
-template <class Real>
-void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
-                            const char* command) {
-  using Wide = long double;
-  const std::size_t n = chain.size();
-  Wide omega2 = 0;
-  const Wide g = static_cast<Wide>(chain.gravity());
-  // Fail closed: a NaN energy (std::max(NaN, 0) is NaN, std::max(0, NaN) is 0) must not read
-  // as a motionless chain whose every time step is stable.
-  if (std::isnan(kinetic))
-    throw invalid_input(std::string(command) + ": the initial energy is not a number for this "
-                        "input; choose units nearer 1");
-  const Wide k = kinetic > 0 ? kinetic : Wide(0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Wide li = static_cast<Wide>(chain.length(i));
-    Wide stiffness = (g * static_cast<Wide>(chain.tail_mass(i)) + 2 * k / li) / li;
-    if (i + 1 < n) {
-      const Wide lj = static_cast<Wide>(chain.length(i + 1));
-      stiffness += (g * static_cast<Wide>(chain.tail_mass(i + 1)) + 2 * k / lj) / lj;
-    }
-    const Wide own = stiffness / static_cast<Wide>(chain.mass(i));
-    if (!(own <= omega2)) omega2 = own;  // a NaN stays, and is refused below
-  }
-  const Wide omega = std::sqrt(omega2);
-  if (!std::isfinite(omega))
-    throw invalid_input(std::string(command) + ": the fastest motion's angular frequency "
-                        "overflows (masses, lengths, g and the energy far apart); choose units "
-                        "nearer 1");
-  if (!(static_cast<Wide>(time_step) * omega <= 1))
-    throw invalid_input(std::string(command) + ": a time step of " + short_decimal(time_step) +
-                        " is beyond the integrator's stability limit (the fastest motion has "
-                        "angular frequency ~" + short_decimal(omega) + "); use --dt " +
-                        short_decimal(Wide(0.05) / omega) + " or smaller");
-}
-
 template <class Real>
 SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real> state,
                                 const SimulationOptions& options,
@@ -924,7 +885,7 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
     if (langevin)
       kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(*options.beta));
-    check_stable_time_step(chain, options.time_step, kinetic, "simulate");
+    domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate");
   }
 
   auto advance = [&]() {
@@ -1123,7 +1084,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
                                       static_cast<long double>(length_sum) * static_cast<long double>(length_sum)) +
                         ") overflow double; choose units nearer 1");
   // Then the time step (its frequency estimate needs finite scales).
-  check_stable_time_step(chain, options.time_step,
+  domain::check_stable_time_step(chain, options.time_step,
                          static_cast<long double>(energy) + static_cast<long double>(scale),
                          "poincare");
 
