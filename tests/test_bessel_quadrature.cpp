@@ -218,3 +218,29 @@ TEST_CASE("Clenshaw-Curtis levels from n0 = 12 integrate exactly and nest", "[qu
     check_nested(rule, L);
   }
 }
+
+TEST_CASE("MPFR Miller tables (classic form, large arguments) agree with Boost.Math at 80 digits",
+          "[bessel]") {
+  // scaled_bessel_i_table's MPFR Miller run (division-free) at 50 digits against Boost's
+  // cyl_bessel_i at 80, within the table's own rounding bound (scaled_bessel_table_error_ulps,
+  // relative to entry 0) plus a few roundings of the common normalisation.
+  for (const double a : {1e-3, 0.5, 30.0, 500.0, 1000.0}) {
+    const std::size_t count = 300;
+    std::vector<mpfr_real> table;
+    mpfr_real u;
+    {
+      pendavg::working_precision guard(50);
+      table = pendavg::scaled_bessel_i_table(mpfr_real(a), count);
+      u = pendavg::unit_roundoff<mpfr_real>();
+    }
+    pendavg::working_precision guard(80);
+    const mpfr_real scale = exp(-mpfr_real(a));
+    for (const std::size_t m : {0u, 1u, 2u, 17u, 60u, 150u, 299u}) {
+      if (a < 1 && m > 60) continue;  // below 1e-300: Boost's policy would flush to zero
+      const mpfr_real reference = boost::math::cyl_bessel_i(static_cast<int>(m), mpfr_real(a)) * scale;
+      const double ulps = pendavg::scaled_bessel_table_error_ulps<mpfr_real>(a, count, m) + 16;
+      INFO("a = " << a << " m = " << m);
+      CHECK(abs(mpfr_real(table[m]) - reference) <= ulps * u * reference);
+    }
+  }
+}

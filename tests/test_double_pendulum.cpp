@@ -482,3 +482,53 @@ TEST_CASE("N = 2 cost model in MPFR: sums while the Graf orders are cheap, panel
   CHECK(closer.nodes.two_panels);
   CHECK_FALSE(closer.nodes.base12);
 }
+
+TEST_CASE("MPFR sums at large beta: rows cut by the moments agree with the nodes and with more digits",
+          "[double_pendulum][mpfr]") {
+  // Where mu1 is not small the Fourier moments of q^s decay like r^k, r = (1 - sqrt mu1)/(1 +
+  // sqrt mu1), long before the Graf coefficients at large beta (~sqrt(a1 a2 / (a1 + a2)) rows):
+  // the exact sums stop there (moment_sum_terms; e.g. 134 -> 64 rows for mu1 = 0.5, beta = 1000
+  // at 38 digits). Against an independent evaluation (the nodes) at the same digits and the sums
+  // at 40 more digits: every observable within the reported errors, each below 10^-digits.
+  struct Case {
+    double m1, beta;
+  };
+  for (const Case c : {Case{0.5, 1000}, Case{0.9, 3000}, Case{0.3, 1e4}, Case{0.999, 2000}}) {
+    for (const int digits : {38, 77}) {
+      auto run = [&](int d, pendavg::IntegralEvaluation evaluation) {
+        const pendavg::precision_guard<mpfr_real> precision(140);
+        const Chain<mpfr_real> chain({mpfr_real(c.m1), mpfr_real(1 - c.m1)},
+                                     {mpfr_real(1), mpfr_real(1)}, mpfr_real(1));
+        return pendavg::reduced_integral_average(chain, mpfr_real(c.beta), d,
+                                                 pendavg::IntegralOptions{evaluation});
+      };
+      const auto sums = run(digits, pendavg::IntegralEvaluation::graf_sums);
+      const auto nodes = run(digits, pendavg::IntegralEvaluation::quadrature);
+      const auto ref = run(digits + 40, pendavg::IntegralEvaluation::graf_sums);
+      REQUIRE(sums.converged);
+      REQUIRE(nodes.converged);
+      REQUIRE(ref.converged);
+      const pendavg::precision_guard<mpfr_real> precision(140);
+      const mpfr_real tolerance = pow(mpfr_real(10), -digits);
+      for (std::size_t j = 0; j < 2; ++j) {
+        INFO("m1 = " << c.m1 << " beta = " << c.beta << " digits " << digits << " component " << j);
+        const std::array<const pendavg::Estimate<mpfr_real>*, 3> observables_sums = {
+            &sums.beta_kinetic[j], &sums.cos_angle[j], &sums.beta2_kinetic_variance[j]};
+        const std::array<const pendavg::Estimate<mpfr_real>*, 3> observables_nodes = {
+            &nodes.beta_kinetic[j], &nodes.cos_angle[j], &nodes.beta2_kinetic_variance[j]};
+        const std::array<const pendavg::Estimate<mpfr_real>*, 3> observables_ref = {
+            &ref.beta_kinetic[j], &ref.cos_angle[j], &ref.beta2_kinetic_variance[j]};
+        for (std::size_t o = 0; o < 3; ++o) {
+          const auto& s = *observables_sums[o];
+          const auto& n = *observables_nodes[o];
+          const auto& e = *observables_ref[o];
+          INFO("observable " << o);
+          CHECK(abs(s.value - e.value) <= s.error + e.error);
+          CHECK(abs(s.value - n.value) <= s.error + n.error);
+          CHECK(abs(s.value - e.value) <= tolerance * abs(e.value));
+        }
+        CHECK(sums.beta_kinetic[j].error <= tolerance * abs(sums.beta_kinetic[j].value));
+      }
+    }
+  }
+}

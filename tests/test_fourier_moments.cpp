@@ -465,3 +465,32 @@ TEST_CASE("digamma minus log: closed forms, recurrence and series against mpfr_d
     }
   }
 }
+
+TEST_CASE("the moments' decay bound behind the N = 2 sums' row cut: |Q_k(s)| <= (k+1) r^k Q_0(s)",
+          "[moments]") {
+  // engine/double_pendulum.cpp (moment_sum_terms) stops the exact sums' rows where this bound,
+  // r = (1 - sqrt mu1)/(1 + sqrt mu1), makes the tail negligible; for s = -1/2 the sharper
+  // Q_k / Q_{k-1} <= r holds as well (its Fourier coefficients are positive sums).
+  pendavg::working_precision guard(40);
+  for (const double m1 : {1e-6, 1e-2, 0.3, 0.5, 0.9, 0.999}) {
+    const mpfr_real mu1 = m1, mu2 = 1 - mu1;
+    const std::size_t K = 300;
+    const auto m = q_power_moments(mu1, mu2, K);
+    const mpfr_real root = sqrt(mu1);
+    const mpfr_real r = (1 - root) / (1 + root);
+    for (std::size_t row = 0; row < 3; ++row) {
+      const mpfr_real q0 = abs(m.Q[row][0]);
+      mpfr_real r_k = 1;
+      for (std::size_t k = 0; k < K; ++k) {
+        INFO("mu1 = " << m1 << " row " << row << " k = " << k);
+        // The computed Q_k carry relative_error * max |Q| of rounding: compare beyond it.
+        CHECK(abs(m.Q[row][k]) <= (k + 1) * r_k * q0 + 2 * m.relative_error * q0);
+        if (row == 1 && k > 0) {
+          CHECK(m.Q[1][k] > 0);
+          CHECK(m.Q[1][k] <= r * m.Q[1][k - 1] + 2 * m.relative_error * q0);
+        }
+        r_k *= r;
+      }
+    }
+  }
+}

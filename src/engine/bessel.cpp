@@ -336,6 +336,34 @@ Real miller_ratios(const Real& a, std::size_t count, std::vector<Real>& r) {
   // The products r_1 ... r_m for m >= count enter only the normalisation; accumulate the
   // tail sum S_m = r_m (1 + S_{m+1}) on the way down. In-place operations: no temporaries.
   Real tail = 0;
+  if constexpr (is_mpfr_v<Real>) {
+    // The same steps with MPFR's own calls: 2m as a value of the working precision (Boost's
+    // `+= unsigned long` goes through mpfr_add_ui, whose mixed precisions miss MPFR's
+    // same-precision fast path and took ~1000 instructions a step at 50 digits; mpfr_fma for the
+    // tail's (tail + 1) r_m costs more than an addition and a product). Half the instructions
+    // per step; the
+    // long runs of large arguments (a = 1000: ~500 steps) made this half the cost of the
+    // N = 2 sums at 38 digits.
+    Real two_m = static_cast<unsigned long>(2 * start);  // exact: 2m < 2^64 fits any precision
+    const Real two = 2, one = 1;
+    for (std::size_t m = start; m >= 1; --m) {
+      mpfr_mul(denominator.backend().data(), next.backend().data(), a.backend().data(),
+               MPFR_RNDN);
+      mpfr_add(denominator.backend().data(), denominator.backend().data(),
+               two_m.backend().data(), MPFR_RNDN);
+      mpfr_div(cur.backend().data(), a.backend().data(), denominator.backend().data(),
+               MPFR_RNDN);
+      if (m < count) r[m] = cur;
+      mpfr_add(tail.backend().data(), tail.backend().data(), one.backend().data(), MPFR_RNDN);
+      mpfr_mul(tail.backend().data(), tail.backend().data(), cur.backend().data(), MPFR_RNDN);
+      mpfr_swap(next.backend().data(), cur.backend().data());
+      mpfr_sub(two_m.backend().data(), two_m.backend().data(), two.backend().data(),
+               MPFR_RNDN);  // exact
+    }
+    tail *= 2;
+    tail += 1;
+    return 1 / tail;
+  }
   for (std::size_t m = start; m >= 1; --m) {
     denominator = next;
     denominator *= a;
@@ -389,6 +417,45 @@ std::vector<Real> scaled_bessel_i_table(const Real& a, std::size_t count) {
       out[m + 1] -= step;
     }
     return out;
+  }
+  if constexpr (is_mpfr_v<Real>) {
+    // Miller's algorithm in its classic form, from the same start: v_{m-1} = v_{m+1} + (2m/a) v_m
+    // with v_{start+1} = 0, v_start = 1, then e^{-a} I_m = v_m / (v_0 + 2 sum_{m>=1} v_m). All
+    // terms are positive; MPFR's exponent range holds the unnormalised v (they grow like
+    // I_0(a) / I_start(a)). No division per step (the ratio form's r_m = a / (2m + a r_{m+1}) costs
+    // one, ~900 instructions at 50 digits, three times the rest of a step): the long runs of
+    // large arguments (a = 1000: ~500 steps at 38 digits) dominated the N = 2 sums. A rounding
+    // at step j scales the v_i below j alike (a common factor, cancelled by the normalisation)
+    // and adds a component of the other solution, which decays downwards; so entry m relative
+    // to entry 0 carries ~3 roundings per step between them, within the ratio form's bound
+    // (scaled_bessel_table_error_ulps: 4m + 2).
+    // (a = 0, g = 0: the ratio form below, exact there.)
+    const std::size_t start = a > 0 ? miller_start<Real>(static_cast<double>(a), count) : 0;
+    const Real inv_a = a > 0 ? Real(1 / a) : Real(0);
+    Real v_next = 0, v = 1, v_prev, coefficient, sum = 0;
+    for (std::size_t m = start; m >= 1; --m) {
+      if (m < count) out[m] = v;
+      mpfr_add(sum.backend().data(), sum.backend().data(), v.backend().data(), MPFR_RNDN);
+      mpfr_mul_ui(coefficient.backend().data(), inv_a.backend().data(),
+                  static_cast<unsigned long>(2 * m), MPFR_RNDN);  // 2m / a
+      mpfr_mul(v_prev.backend().data(), coefficient.backend().data(), v.backend().data(),
+               MPFR_RNDN);
+      mpfr_add(v_prev.backend().data(), v_prev.backend().data(), v_next.backend().data(),
+               MPFR_RNDN);
+      mpfr_swap(v_next.backend().data(), v.backend().data());   // v_next <- v_m
+      mpfr_swap(v.backend().data(), v_prev.backend().data());   // v <- v_{m-1}
+    }
+    // v = v_0: normalisation 1 / (v_0 + 2 sum_{m>=1} v_m).
+    sum *= 2;
+    sum += v;
+    // Beyond MPFR's exponent range (only for arguments far outside any pendulum's, e.g. a <
+    // 1e-(10^7)): the ratio form below, which stays within [0, 1].
+    if (a > 0 && mpfr_number_p(sum.backend().data()) && sum > 0) {
+      const Real scale = 1 / sum;
+      out[0] = v;
+      for (std::size_t m = 0; m < count; ++m) out[m] *= scale;
+      return out;
+    }
   }
   std::vector<Real> r;
   out[0] = miller_ratios(a, count, r);

@@ -668,6 +668,35 @@ inline double graf_orders_needed(double a1, double a2, double L) {
   return std::min(std::max(m, 1.0), 1e9);
 }
 
+/// Rows K of the exact sums beyond which the Fourier moments alone make the tail negligible:
+/// with r = e^{-2d} = (1 - sqrt mu1)/(1 + sqrt mu1) (detail/fourier_moments.hpp), the moments of
+/// every row s = 1/2, -1/2, -3/2 obey |Q_k(s)| <= (k + 1) r^k Q_0(s). (q^s = C^s |1 - r e^{i
+/// theta}|^{2s}, theta = 2t, has Fourier coefficients sum_l b_{l+k} b_l r^{2l+k} with b_j =
+/// (-s)_j / j!: for s = -1/2 all positive with ratio Q_k / Q_{k-1} <= r, since b_{j+1} < b_j; for
+/// s = -3/2 the ratio is <= r (k + 1/2)/k, and prod_{j<=k} (1 + 1/(2j)) <= sqrt(e k) <= k + 1;
+/// Q_k(1/2) = -mu1 Q_k(-3/2) / (4k^2 - 1) and Q_0(1/2) = mu1 Q_0(-3/2).) The Graf coefficients
+/// are at most twice their first (c_k <= 2 c_0: eps_{2k} = 4 against 2, and e^{-a} I_m(a)
+/// decreases in m; likewise c1, c2, whose I_m' = (I_{m-1} + I_{m+1})/2 <= I_{m-1}). So the
+/// rows k >= K add at most 2 c_0 Q_0 sum_{k>=K} (k + 1) r^k <= 2 c_0 Q_0 (K + 1) r^K / (1 - r)^2,
+/// below e^{-L} c_0 |Q_0| <= e^{-L} times the sum's L1 norm: the cut Graf tail the error bound
+/// of graf_moment_integrals already counts. Returns 0 (no cut) when that needs over 10^6 rows.
+inline std::size_t moment_sum_terms(double mu1, double L) {
+  if (!(mu1 > 0 && mu1 < 1) || !(L > 0)) return 0;
+  const double root = std::sqrt(mu1);
+  // r rounded up (a relative 1e-12 above double's few roundings).
+  const double r = (1 - root) / (1 + root) * (1 + 1e-12);
+  const double log_r = std::log(r);
+  if (!(log_r < 0)) return 0;
+  const double log_scale = std::log(2.0) - 2 * std::log1p(-r);  // 2 / (1 - r)^2
+  // (K + 1) r^K 2 / (1 - r)^2 <= e^{-L}: start from K = (L + log_scale) / -ln r, then step up.
+  double K = std::ceil((L + log_scale) / -log_r);
+  for (int step = 0; step < 64 && K <= 1e6; ++step) {
+    if (std::log(K + 1) + K * log_r + log_scale <= -L) return static_cast<std::size_t>(K);
+    K += std::ceil(std::log(K + 1) / -log_r) + 1;
+  }
+  return 0;
+}
+
 /// Graf coefficients for the folded weight, trimmed to the terms above exp(-L) of each scale.
 /// The trim needs two negligible rows beyond the kept ones; a table that turns out too short is
 /// rebuilt longer. MPFR sizes its tables from graf_orders_needed plus a margin of 12, so that
@@ -676,14 +705,20 @@ inline double graf_orders_needed(double a1, double a2, double L) {
 /// shorter tables keep the forward recurrence for large a (count^2 <= 2a), which costs less
 /// than the occasional rebuild of ~20-50 entries.
 /// `terms_estimate`: graf_terms_estimate(a1, a2, L) when the caller has it (hardware types).
+/// `moment_terms`: for the exact sums, the number of rows beyond which the Fourier moments of
+/// q^s make the sum's tail negligible whatever the Graf coefficients (moment_sum_terms); the
+/// rows stop there even where the coefficients themselves have not decayed (0: no such cut).
 template <class Real>
 GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L,
-                               double terms_estimate = -1.0) {
+                               double terms_estimate = -1.0, std::size_t moment_terms = 0) {
   const double a1_d = to_double_saturated(a1), a2_d = to_double_saturated(a2);
   if (!is_mpfr_v<Real> && terms_estimate < 0) terms_estimate = graf_terms_estimate(a1_d, a2_d, L);
   std::size_t count = is_mpfr_v<Real>
                           ? 12 + static_cast<std::size_t>(graf_orders_needed(a1_d, a2_d, L))
                           : 8 + static_cast<std::size_t>(terms_estimate);
+  // Rows k = 0 .. moment_terms - 1 need the orders 0 .. 2 moment_terms - 1 and the tables one
+  // order more (c1, c2); kmax = count / 2 >= moment_terms.
+  if (moment_terms > 0) count = std::min(count, 2 * moment_terms + 2);
   // In place (MPFR: no temporaries), in the order of eps * I1 * I2 (eps a power of two).
   auto add_magnitude = [](Real& sum, const Real& x) {
     if (x < 0) {
@@ -740,7 +775,9 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L,
       if (t0 > limit0 || t1 > limit1 || t2 > limit2) break;
       keep = k;
     }
-    if (keep + 2 <= kmax) {  // the tail really was negligible: done
+    // The tail really was negligible (or lies beyond the moments' cut): done.
+    if (moment_terms > 0 && keep >= moment_terms) keep = moment_terms;
+    if (keep + 2 <= kmax || (moment_terms > 0 && keep == moment_terms)) {
       g.error_ulps.resize(keep);
       for (std::size_t k = 0; k < keep; ++k) {
         g.error_ulps[k] =
@@ -1052,8 +1089,13 @@ bool run_exact_sums(const DoublePendulumParameters<Real>& p, const IntegralPlan<
   using Sums = typename IntegralPlan<Real>::Sums;
   const auto sums_in = [&]<class Work>() {
     const DoublePendulumParameters<Work> pw{Work(p.mu1), Work(p.mu2), Work(p.a1), Work(p.a2)};
+    // MPFR: the rows also stop where the moments of q^s have decayed (moment_sum_terms), e.g.
+    // at large beta, whose Graf coefficients stay large for ~sqrt(a1 a2 / (a1 + a2)) rows. The
+    // double engines keep their rows (and their bits).
+    const std::size_t moment_terms =
+        is_mpfr_v<Real> ? moment_sum_terms(to_double_saturated(p.mu1), plan.L_graf) : 0;
     const auto rw = graf_moment_integrals(
-        pw, graf_weights(pw.a1, pw.a2, plan.L_graf, plan.graf_terms), plan.L_graf);
+        pw, graf_weights(pw.a1, pw.a2, plan.L_graf, plan.graf_terms, moment_terms), plan.L_graf);
     for (std::size_t k = 0; k < integral_count; ++k) {
       r.value[k] = Real(rw.value[k]);
       r.error[k] = Real(rw.error[k]) + unit_roundoff<Real>() * abs(r.value[k]);

@@ -8,7 +8,10 @@
 //        I0(R(t)) e^{-(a1+a2)} in cos(2kt) with coefficients from one Miller table of
 //        e^{-a} I_m(a) per argument, and the Fourier moments of q(t)^s = (mu1 + mu2 sin^2 t)^s
 //        follow from K(k), E(k) by a three-term recurrence. No nodes; O(terms) work. The
-//        double engine runs these sums in long double. Used when the terms are few and the
+//        double engine runs these sums in long double. In MPFR the rows also stop where the
+//        moments alone make the tail negligible (|Q_k| <= (k + 1) r^k Q_0, r = e^{-2d}: at large
+//        beta the coefficients stay large for ~sqrt(a1 a2 / (a1 + a2)) rows, the moments of a
+//        mu1 not small decay long before). Used when the terms are few and the
 //        recurrence and cancellation leave the requested accuracy (checked, not assumed);
 //      - otherwise nested Clenshaw-Curtis quadrature with nodes placed by a sinh map at t = 0,
 //        where q nearly vanishes (distance asinh(sqrt(mu1/mu2)) from the real axis) and the
