@@ -279,7 +279,8 @@ constexpr double relative_link_ratio = 4;
 ///   delta in (-pi, pi]:   delta = t - (a/2) sin 2t, t equispaced (periodic trapezoid);
 ///   delta in [-D, D] (both angles in windows, D = L_j + L_{j+1} < pi):
 ///                         delta = D (t - (a/pi) sin(pi t)), t the midpoints of [-1, 1];
-/// 1 - a = clamp(3 w, 0.02, 1): the node density at 0 is 1/(1 - a) times the mean.
+/// 1 - a = clamp(3 w, 0.02, 1): the node density at 0 is 1/(1 - a) times the mean. Narrower
+/// kinks (w < sinh_rule_width) take sinh-mapped panels instead (sinh_relative_rule).
 /// Weights are for the measure d delta / (2 pi).
 template <class Real>
 struct RelativeRule {
