@@ -483,6 +483,145 @@ TEST_CASE("transfer hard cases: tiny masses, extreme lengths, beta -> 0, large b
   }
 }
 
+namespace {
+
+/// Unit masses and lengths (g = 1) with one particle of mass `light` at `position` (0-based).
+Chain<double> light_chain(std::size_t n, std::size_t position, double light) {
+  std::vector<double> masses(n, 1.0);
+  masses[position] = light;
+  return Chain<double>(masses, std::vector<double>(n, 1.0), 1.0);
+}
+
+/// Every quantity of `a` covers its true error (the difference from `ref`), and, per observable
+/// where the largest true error is above `rounding`, the largest reported error is at most
+/// `pessimism` times the largest true error. Both on the scales of the tolerance (beta<K_i>
+/// relative to itself, beta^2 Var K_i relative to beta^2 <K_i^2>, <cos phi_i> absolute), so that
+/// the light particle's beta<K> (~1e-8) counts as much as the others.
+void check_light(const Averages<double>& a, const Averages<double>& ref, const std::string& what,
+                 double pessimism, double rounding) {
+  for (std::size_t q = 0; q < 3; ++q) {
+    const Observable& o = observables[q];
+    double largest_true = 0, largest_reported = 0;
+    for (std::size_t i = 0; i < (a.*o.field).size(); ++i) {
+      const Estimate<double>& x = (a.*o.field)[i];
+      const Estimate<double>& r = (ref.*o.field)[i];
+      const double k = ref.beta_kinetic[i].value;
+      const double scale = q == 0 ? std::abs(k)
+                           : q == 1 ? std::abs(ref.beta2_kinetic_variance[i].value) + k * k
+                                    : 1.0;
+      const double true_error = std::abs(x.value - r.value);
+      INFO(what << ", particle " << i + 1 << ", " << o.name << " " << x.value << " +- " << x.error
+                << " vs " << r.value << " +- " << r.error);
+      CHECK(true_error <= x.error + r.error);
+      largest_true = std::max(largest_true, std::max(0.0, true_error - r.error) / scale);
+      largest_reported = std::max(largest_reported, x.error / scale);
+    }
+    INFO(what << ", " << o.name << ": largest relative reported error " << largest_reported
+              << ", true " << largest_true);
+    if (largest_true > rounding) CHECK(largest_reported <= pessimism * largest_true);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("transfer: a very light particle (1e-8) at the root, inside and at the tail agrees "
+          "with the torus; its errors cover and are within 10x",
+          "[transfer]") {
+  // The torus maps its relative-angle nodes to the light particle's kink (CircleRule, NodeMap)
+  // and evaluates the traces without cancellation (trace_formula.hpp): an independent check.
+  for (std::size_t position = 0; position < 3; ++position) {
+    const Chain<double> chain = light_chain(3, position, 1e-8);
+    const auto ref = torus_reference(chain, 1.0, 1e-13);
+    REQUIRE(ref.converged);
+    const std::string what = "1e-8 at particle " + std::to_string(position + 1);
+    const auto a = chain_transfer_average(chain, 1.0, with_tolerance(1e-11));
+    CHECK(a.converged);
+    check_light(a, ref, what + ", tol 1e-11", 1e300, 0);
+    // At a loose tolerance the true errors stand above the rounding: the estimate is tight.
+    const auto loose = chain_transfer_average(chain, 1.0, with_tolerance(1e-5));
+    CHECK(loose.converged);
+    check_light(loose, ref, what + ", tol 1e-5", 10, 1e-12);
+  }
+}
+
+TEST_CASE("transfer: a particle of mass 1e-12 at the tail approaches the double pendulum; "
+          "at the root and inside of N = 5 it converges, beta 1e-3 and 1e3",
+          "[transfer]") {
+  // As m_3 -> 0 the last particle drops out of the weight (sqrt(det A) ~ sqrt(m_3 (1 + u_3)),
+  // u_3 <= m_3/m_2): particles 1 and 2 are the double pendulum up to O(m_3), and the light one
+  // moves freely across its link: beta<K_3> = 1/2 + O(m_3), beta^2 Var K_3 = 1/2 + O(m_3).
+  const auto a = chain_transfer_average(light_chain(3, 2, 1e-12), 1.0, with_tolerance(1e-12));
+  CHECK(a.converged);
+  const auto pair = pendavg::reduced_integral_average(Chain<double>({1.0, 1.0}, {1.0, 1.0}, 1.0),
+                                                      1.0);
+  for (std::size_t i = 0; i < 2; ++i) {
+    INFO("particle " << i + 1);
+    CHECK(std::abs(a.beta_kinetic[i].value - pair.beta_kinetic[i].value) <=
+          a.beta_kinetic[i].error + pair.beta_kinetic[i].error + 1e-11);
+    CHECK(std::abs(a.beta2_kinetic_variance[i].value - pair.beta2_kinetic_variance[i].value) <=
+          a.beta2_kinetic_variance[i].error + pair.beta2_kinetic_variance[i].error + 1e-11);
+    CHECK(std::abs(a.cos_angle[i].value - pair.cos_angle[i].value) <=
+          a.cos_angle[i].error + pair.cos_angle[i].error + 1e-11);
+  }
+  CHECK(std::abs(a.beta_kinetic[2].value - 0.5) <= a.beta_kinetic[2].error + 1e-11);
+  CHECK(std::abs(a.beta2_kinetic_variance[2].value - 0.5) <=
+        a.beta2_kinetic_variance[2].error + 1e-11);
+  // Root and interior, N = 5, beta 1e-3 and 1e3: converged, the light particle's beta<K> (tr X_j
+  // ~ m_j / (m_j + S sin^2 delta) over the kink: 1e-11 .. 1e-5 here) known to the tolerance
+  // relative to itself, and the equipartition sum within the bars.
+  for (const std::size_t position : {std::size_t(0), std::size_t(2)}) {
+    for (const double beta : {1e-3, 1e3}) {
+      const auto b = chain_transfer_average(light_chain(5, position, 1e-12), beta,
+                                            with_tolerance(1e-10));
+      INFO("particle " << position + 1 << ", beta " << beta << ": beta<K> "
+                       << b.beta_kinetic[position].value << " +- "
+                       << b.beta_kinetic[position].error);
+      CHECK(b.converged);
+      CHECK(b.beta_kinetic[position].value > 0);
+      CHECK(b.beta_kinetic[position].error <= 1e-10 * b.beta_kinetic[position].value);
+      double sum = 0, bars = 0;
+      for (const auto& k : b.beta_kinetic) {
+        sum += k.value;
+        bars += k.error;
+      }
+      CHECK(std::abs(sum - 2.5) <= bars + 1e-14);
+    }
+  }
+}
+
+TEST_CASE("transfer: a very light particle (1e-12) at the root and inside agrees with the torus",
+          "[transfer][.slow]") {
+  for (const std::size_t position : {std::size_t(0), std::size_t(1)}) {
+    const Chain<double> chain = light_chain(3, position, 1e-12);
+    const auto ref = torus_reference(chain, 1.0, 1e-13);
+    REQUIRE(ref.converged);
+    const std::string what = "1e-12 at particle " + std::to_string(position + 1);
+    const auto a = chain_transfer_average(chain, 1.0, with_tolerance(1e-11));
+    CHECK(a.converged);
+    check_light(a, ref, what + ", tol 1e-11", 1e300, 0);
+    const auto loose = chain_transfer_average(chain, 1.0, with_tolerance(1e-5));
+    CHECK(loose.converged);
+    check_light(loose, ref, what + ", tol 1e-5", 10, 1e-12);
+  }
+}
+
+TEST_CASE("transfer: a very light particle in N = 16, 64 agrees with qmc", "[transfer][.slow]") {
+  for (const std::size_t n : {std::size_t(16), std::size_t(64)}) {
+    for (const std::size_t position : {std::size_t(0), n / 2, n - 1}) {
+      const Chain<double> chain = light_chain(n, position, 1e-8);
+      pendavg::QmcOptions q;
+      q.points = std::size_t(1) << 14;
+      q.threads = 2;
+      const auto ref = pendavg::qmc_average(chain, 1.0, q);
+      const auto a = chain_transfer_average(chain, 1.0, with_tolerance(1e-10, 2));
+      CHECK(a.converged);
+      const auto [covered, total] = check_against(
+          a, ref, "N = " + std::to_string(n) + ", 1e-8 at " + std::to_string(position + 1), 2);
+      CHECK(covered >= 0.95 * total);
+    }
+  }
+}
+
 TEST_CASE("transfer N = 1024: finite, the identity, and the tail particle", "[transfer]") {
   const auto chain = uniform_chain(1024);
   const auto r = chain_transfer_level(chain, 1.0, 24, pendavg::transfer_pivot_nodes(chain, 1e-5), 2);

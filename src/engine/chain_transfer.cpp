@@ -109,11 +109,18 @@ AngleRule<Real> angle_rule(const Real& alpha, const Real& truncation, std::size_
 }
 
 /// The pivot rule of one particle: Chebyshev-Lobatto nodes t_c = cos(pi c / (m - 1)) in
-/// t = v_scale log(u + eps) + v_shift over u in [0, u_max]; particle 1 has the single node u = 0.
+/// t = v_scale log((u + eps) / (1 + saturation u)) + v_shift over u in [0, u_max]; particle 1 has
+/// the single node u = 0. saturation is 0 (the coordinate log(u + eps)) or 1 where u_max is large
+/// (pivot_saturates): the messages divided by their envelopes are analytic in y = 1/(1 + u) near
+/// y = 0 (u' enters the next step only through u'' = r (1 - c^2 / (1 + u'))) and their
+/// singularities lie on u in [-1, -m_j/S_j], so in w = (u + eps)/(1 + u) (eps <= m_j/S_j, < 1)
+/// they lie on w <= 0: log w has the same strip of analyticity |Im| < pi as log(u + eps), over a
+/// range log(1/eps) that no longer grows with u_max. After a very light particle u_max =
+/// m_j/m_{j-1} reaches 1e12, and log(u + eps) would span ~30 units (~100 Chebyshev nodes).
 template <class Real>
 struct PivotRule {
   std::size_t m = 1;
-  Real eps{1}, v_scale{0}, v_shift{0};
+  Real eps{1}, v_scale{0}, v_shift{0}, saturation{0};
   std::vector<Real> u, root_factor, inv_one_plus_u;  ///< u_c, sqrt(m_j (1 + u_c)), 1/(1 + u_c)
   std::vector<Real> to_coefficients;  ///< [k * m + c]: Chebyshev coefficient k from node values
   /// Messages interpolated divided by their envelopes (message_envelopes): only where u spans a
@@ -126,14 +133,15 @@ struct PivotRule {
 
 constexpr double envelope_range = 4;
 
-/// The envelopes of the four messages at x = u + 1: sqrt(x), 1/sqrt(x), x^(-3/2), x^(-3/2) (the
-/// last particle's messages sqrt(m (1 + u)), ... exactly). M0 ~ sqrt(1 + kappa s^2 + u (1 + kappa))
-/// grows like sqrt(u) at large u and its u-derivatives fall like u^-1/2, u^-3/2: over u in
-/// [0, m_j/m_{j-1}] (up to 1e4 for a heavy particle after a light one) they span orders of
-/// magnitude. Chebyshev interpolation has uniform absolute accuracy, so the messages are
-/// interpolated divided by their envelopes (analytic in v = log(u + eps) off the same cut: the
-/// convergence rate is unchanged), which keeps their relative accuracy where they are small and
-/// are multiplied by large factors (Q^2 ~ (m_{j+1}/m_j)^2 u'^2).
+/// The envelopes of the four messages (M0, N1, N2, N3; see chain_transfer_level) at x = u + 1:
+/// sqrt(x), 1/sqrt(x), x^(-3/2), 1/sqrt(x). M0 ~ sqrt(1 + kappa s^2 + u (1 + kappa)) grows like
+/// sqrt(u) at large u, and rho = d_u log(W / sqrt(m (1 + u))) falls like u^-2 (the next pivot
+/// depends on u through 1/(1 + u)), so N1 = W (1+u) rho ~ u^-1/2, N2 = W (1+u)^2 rho^2 ~ u^-3/2,
+/// N3 = W (1+u)^2 d_u rho ~ u^-1/2. Over u in [0, m_j/m_{j-1}] (up to 1e12 after a very light
+/// particle) they span orders of magnitude. Chebyshev interpolation has uniform absolute
+/// accuracy, so the messages are interpolated divided by their envelopes (analytic in the pivot
+/// coordinate off the same cut: the convergence rate is unchanged), which keeps their relative
+/// accuracy where they are small and are multiplied by large factors.
 template <class Real>
 inline void message_envelopes(const Real& x, Real* out) {
   using std::sqrt;
@@ -141,22 +149,49 @@ inline void message_envelopes(const Real& x, Real* out) {
   out[0] = r;
   out[1] = ir;
   out[2] = ir * ir * ir;
-  out[3] = out[2];
+  out[3] = ir;
+}
+
+/// Whether the pivot rule of a particle with u in [0, u_max] takes the saturating coordinate
+/// (PivotRule): exactly where its messages are enveloped.
+template <class Real>
+bool pivot_saturates(const Real& u_max) {
+  return u_max > Real(envelope_range);
+}
+
+/// The offset eps of the pivot coordinate: m_j/S_j, at most 1/2 when saturating (w = (u + eps) /
+/// (1 + u) must grow with u; a smaller eps keeps the cut u <= -m_j/S_j on w <= 0).
+template <class Real>
+Real pivot_offset_eps(const Real& eps, const Real& u_max) {
+  return pivot_saturates(u_max) ? std::min(eps, Real(0.5)) : eps;
+}
+
+/// The coordinate range [lo, hi] of a pivot rule (see PivotRule).
+template <class Real>
+void pivot_coordinate_range(const Real& eps, const Real& u_max, Real& lo, Real& hi) {
+  using std::log;
+  lo = log(eps);
+  hi = pivot_saturates(u_max) ? log((u_max + eps) / (1 + u_max)) : log(u_max + eps);
 }
 
 template <class Real>
-PivotRule<Real> pivot_rule(const Real& mass, const Real& eps, const Real& u_max, std::size_t m) {
+PivotRule<Real> pivot_rule(const Real& mass, const Real& tail_eps, const Real& u_max,
+                           std::size_t m) {
   using std::cos;
   using std::expm1;
   using std::log;
   using std::sqrt;
   PivotRule<Real> rule;
   rule.m = m;
+  const bool saturating = pivot_saturates(u_max);
+  const Real eps = pivot_offset_eps(tail_eps, u_max);
   rule.eps = eps;
+  rule.saturation = saturating ? Real(1) : Real(0);
   if (m == 1) {
     rule.u.assign(1, Real(0));
   } else {
-    const Real lo = log(eps), hi = log(u_max + eps);
+    Real lo, hi;
+    pivot_coordinate_range(eps, u_max, lo, hi);
     rule.v_scale = 2 / (hi - lo);
     rule.v_shift = -(hi + lo) / (hi - lo);
     rule.u.resize(m);
@@ -165,7 +200,13 @@ PivotRule<Real> pivot_rule(const Real& mass, const Real& eps, const Real& u_max,
     const Real mm1 = Real(static_cast<double>(m - 1));
     for (std::size_t c = 0; c < m; ++c) {
       const Real t = cos(pi * Real(static_cast<double>(c)) / mm1);
-      rule.u[c] = eps * expm1((t + 1) / rule.v_scale);  // u + eps = eps e^{(t + 1)(hi - lo)/2}
+      const Real above = (t + 1) / rule.v_scale;  // the coordinate minus lo
+      if (saturating) {
+        // w = e^v, u = (w - eps) / (1 - w) = eps expm1(v - lo) / -expm1(v), v = lo + above < 0
+        rule.u[c] = eps * expm1(above) / -expm1(lo + above);
+      } else {
+        rule.u[c] = eps * expm1(above);  // u + eps = eps e^{(t + 1)(hi - lo)/2}
+      }
     }
     rule.u.front() = u_max;
     rule.u.back() = 0;
@@ -238,12 +279,112 @@ constexpr double relative_link_ratio = 4;
 ///   delta in (-pi, pi]:   delta = t - (a/2) sin 2t, t equispaced (periodic trapezoid);
 ///   delta in [-D, D] (both angles in windows, D = L_j + L_{j+1} < pi):
 ///                         delta = D (t - (a/pi) sin(pi t)), t the midpoints of [-1, 1];
-/// 1 - a = clamp(3 w, 0.02, 1): the node density at 0 is 1/(1 - a) times the mean.
+/// 1 - a = clamp(3 w, 0.02, 1): the node density at 0 is 1/(1 - a) times the mean. Narrower
+/// kinks (w < sinh_rule_width) take sinh-mapped panels instead (sinh_relative_rule).
 /// Weights are for the measure d delta / (2 pi).
 template <class Real>
 struct RelativeRule {
   std::vector<Real> delta, weight, sin2, cos2;
 };
+
+/// Gauss-Legendre nodes and weights on [-1, 1] (q small): Newton on P_q from the usual guess.
+template <class Real>
+void gauss_legendre(std::size_t q, std::vector<Real>& x, std::vector<Real>& w) {
+  using std::abs;
+  using std::cos;
+  const Real pi = pi_value<Real>();
+  const Real qq = Real(static_cast<double>(q));
+  x.assign(q, Real(0));
+  w.assign(q, Real(0));
+  for (std::size_t i = 0; i < (q + 1) / 2; ++i) {
+    Real z = cos(pi * (Real(static_cast<double>(i)) + Real(0.75)) / (qq + Real(0.5)));
+    Real derivative = 1;
+    for (int iteration = 0; iteration < 100; ++iteration) {
+      Real p_prev = 1, p = z;
+      for (std::size_t k = 1; k < q; ++k) {
+        const Real kk = Real(static_cast<double>(k));
+        const Real p_next = ((2 * kk + 1) * z * p - kk * p_prev) / (kk + 1);
+        p_prev = p;
+        p = p_next;
+      }
+      derivative = qq * (z * p - p_prev) / (z * z - 1);
+      const Real step = p / derivative;
+      z -= step;
+      if (abs(step) <= 4 * std::numeric_limits<Real>::epsilon()) break;
+    }
+    if (2 * i + 1 == q) z = 0;
+    const Real weight = 2 / ((1 - z * z) * derivative * derivative);
+    x[i] = -z;
+    x[q - 1 - i] = z;
+    w[i] = w[q - 1 - i] = weight;
+  }
+}
+
+/// Below this kink width the relative-angle rule is made of sinh-mapped panels (sinh_relative_rule):
+/// the entire map's clustering is capped (1 - a >= 0.02), and a kink much narrower than that
+/// would take ~1/width angle nodes (a particle of mass 1e-8 before unit masses: width 7e-5).
+constexpr double sinh_rule_width = 1e-2;
+
+/// The relative-angle rule of a link whose kink is narrow (width w = sqrt(m_j / S_{j+1}) <
+/// sinh_rule_width): the integrand's singularities lie near the imaginary axis at delta = +-i s
+/// (s >= w: the zeros of 1 + u' and the cuts of the next messages, u' = r (u + sin^2 delta) /
+/// (1 + u) in [-1, -m_{j+1}/S_{j+1}], at sin^2 delta = -(u + kappa (1 + u)/r)), and the same at
+/// pi. On each side of 0 (and of pi) the offset e = |delta| or pi - |delta| runs over
+/// e = w sinh(s), s in [0, asinh(E / w)] (E = pi/2, or the window span D): every singularity
+/// above the axis lies at Im s = pi/2, whatever its distance w..1, so Gauss-Legendre panels of
+/// length <= 1.2 in s converge like (5.4)^(-2q) with q nodes each, and the count grows only like
+/// log(1/w). Panels are also at most E/6 long in delta, where the Boltzmann factor and the next
+/// messages vary (the scale of the window). q = max(4, n/4) follows the angle ladder (about the
+/// trapezoid's rate per level). sin^2 and cos^2 are formed from the offset e, accurately near pi.
+template <class Real>
+RelativeRule<Real> sinh_relative_rule(const Real& span, const Real& width, std::size_t n) {
+  using std::asinh;
+  using std::cos;
+  using std::cosh;
+  using std::sin;
+  using std::sinh;
+  const Real pi = pi_value<Real>();
+  const bool periodic = span >= pi;
+  const Real extent = periodic ? pi / 2 : span;  // of each half-cluster, in delta
+  const Real cap = extent / 6;
+  const Real s_end = asinh(extent / width);
+  constexpr double panel_length = 1.2;
+  const std::size_t q = std::max<std::size_t>(4, (n + 3) / 4);
+  std::vector<Real> x, w;
+  gauss_legendre(q, x, w);
+  // Offsets e >= 0 and their weights (measure d delta / (2 pi)) of one half-cluster.
+  std::vector<Real> offset, offset_weight;
+  Real s0 = 0;
+  while (s0 < s_end) {
+    Real s1 = std::min(s_end, Real(s0 + Real(panel_length)));
+    if (width * (sinh(s1) - sinh(s0)) > cap) s1 = std::min(s_end, Real(asinh(sinh(s0) + cap / width)));
+    const Real mid = (s0 + s1) / 2, half = (s1 - s0) / 2;
+    for (std::size_t i = 0; i < q; ++i) {
+      const Real s = mid + half * x[i];
+      offset.push_back(width * sinh(s));
+      offset_weight.push_back(half * w[i] * width * cosh(s) / (2 * pi));
+    }
+    s0 = s1;
+  }
+  RelativeRule<Real> rule;
+  const auto push = [&](const Real& delta, const Real& e, const Real& weight) {
+    const Real se = sin(e), ce = cos(e);
+    rule.delta.push_back(delta);
+    rule.weight.push_back(weight);
+    rule.sin2.push_back(se * se);
+    rule.cos2.push_back(ce * ce);
+  };
+  for (std::size_t i = 0; i < offset.size(); ++i) {
+    const Real& e = offset[i];
+    push(e, e, offset_weight[i]);
+    push(-e, e, offset_weight[i]);
+    if (periodic) {
+      push(pi - e, e, offset_weight[i]);
+      push(e - pi, e, offset_weight[i]);
+    }
+  }
+  return rule;
+}
 
 template <class Real>
 RelativeRule<Real> relative_rule(const AngleRule<Real>& from, const AngleRule<Real>& to,
@@ -251,6 +392,9 @@ RelativeRule<Real> relative_rule(const AngleRule<Real>& from, const AngleRule<Re
   using std::cos;
   using std::sin;
   const Real pi = pi_value<Real>();
+  if (width < Real(sinh_rule_width) && 20 * width < from.half_width + to.half_width) {
+    return sinh_relative_rule(Real(from.half_width + to.half_width), width, n);
+  }
   const Real nn = Real(static_cast<double>(n));
   const Real a = 1 - std::min(Real(1), std::max(Real(0.02), 3 * width));
   const Real span = from.half_width + to.half_width;
@@ -308,30 +452,90 @@ constexpr double parallel_work_threshold = 1e6;
 /// terms it is made of (NodeSums); the variance takes four times this (see flatten).
 constexpr double rounding_ulps = 64;
 
+/// The sums of one link at one node (phi_j, u_j) over the next angle, from the next messages at
+/// (phi_{j+1}, u'), each weighted by its quadrature weight: the messages of particle j (A0..A3)
+/// and the pairings of its node quantities (C, B). The messages are carried with the derivative
+/// of the factor sqrt(m (1 + u)) split off (M0 = E[W], N1 = E[W (1+u) rho], N2 = E[W (1+u)^2
+/// rho^2], N3 = E[W (1+u)^2 d_u rho], rho = d_u log(W / sqrt(m (1 + u))), pathwise), so that
+///   tr X_j = a0 + 2 Q d_{u'} log W_{j+1} = p + 2 q1 (1+u') rho',
+///   p = a0 + Q/(1+u') = (1 + T)/(1+u') + u/(1+u),   q1 = Q/(1+u'),
+///   T = r u c^2/(1+u)^2,   Q = -u' + T   (r = m_{j+1}/m_j, c = cos delta),
+/// is a sum of terms of the size of tr X_j itself: a very light particle has tr X_j ~ m_j log
+/// m_j, and the direct form a0 + 2 Q S cancels 1 against ~-1 (Q ~ -u' ~ -1/m_j) and loses all
+/// digits at m_j ~ 1e-12. Likewise
+///   (tr X_j)^2 = p^2 + 4 p q1 (1+u') rho' + 4 q1^2 (1+u')^2 rho'^2,
+///   d^2 log det A / d(log m_j)^2 = h + 2 dq1 (1+u') rho' + 2 q1^2 (1+u')^2 d_{u'} rho',
+///   h = u/(1+u)^2 + [(-Q)(1 + T) - 2 u T (1+u')/(1+u)] / (1+u')^2,   dq1 = dQ/(1+u'),
+///   dQ = d Q / d log m_j = -Q - 2 u T/(1+u),
+/// and the recursion (J = d u'/d u = r c^2/(1+u)^2 = T/u):
+///   M0 = f A0,  N1 = f (1+u) A1,  N2 = f (1+u)^2 A2,  N3 = f ((1+u)^2 A3 - 2 (1+u) A1),
+///   A0 = E[V0],  A1 = E[J (V0/2 + N1') y'],  A2 = E[J^2 (V0/4 + N1' + N2') y'^2],
+///   A3 = E[J^2 (N3' - V0/2) y'^2],   y' = 1/(1+u'),   f = sqrt(m_j (1 + u)).
+/// The a-suffixed sums take the absolute values of terms whose sign varies (the rounding scale).
+template <class Real>
+struct LinkSums {
+  Real A0{0}, A1{0}, A2{0}, A3{0};
+  Real C1{0}, C2{0}, C3{0}, C3a{0}, B1{0}, B1p{0}, B2{0}, B3{0}, B3a{0}, B4{0};
+  /// One next node: r = m_{j+1}/m_j, (u, ip = 1/(1+u)) the node's pivot, s2, c2 = sin^2, cos^2
+  /// of the relative angle, up = u', and the weighted next messages V0, N1, N2, N3 at it.
+  inline void add(const Real& r, const Real& u, const Real& ip, const Real& s2, const Real& c2,
+                  const Real& up, const Real& V0, const Real& N1, const Real& N2,
+                  const Real& N3) {
+    using std::abs;
+    const Real yp = 1 / (1 + up), yp2 = yp * yp;
+    const Real J = r * c2 * ip * ip, T = u * J;
+    const Real minus_Q = r * (u * u + s2 * (1 + 2 * u)) * ip * ip;
+    const Real q1 = -minus_Q * yp;
+    const Real p = (1 + T) * yp + u * ip;
+    const Real dq1 = (minus_Q - 2 * u * T * ip) * yp;
+    const Real h = u * ip * ip + minus_Q * (1 + T) * yp2 - 2 * u * T * ip * yp;
+    A0 += V0;
+    A1 += J * (V0 / 2 + N1) * yp;
+    A2 += J * J * (V0 / 4 + N1 + N2) * yp2;
+    A3 += J * J * (N3 - V0 / 2) * yp2;
+    const Real pV0 = p * V0, qN1 = q1 * N1;
+    C1 += pV0;
+    C2 += p * pV0;
+    C3 += h * V0;
+    C3a += abs(h * V0);
+    B1 += qN1;
+    B1p += p * qN1;
+    B2 += q1 * q1 * N2;
+    B3 += dq1 * N1;
+    B3a += abs(dq1 * N1);
+    B4 += q1 * q1 * N3;
+  }
+  /// The messages of particle j at the node: out[q * stride] (M0, N1, N2, N3).
+  inline void messages(const Real& f, const Real& u, Real* out, std::size_t stride) const {
+    const Real x = 1 + u;
+    out[0] = f * A0;
+    out[stride] = f * x * A1;
+    out[2 * stride] = f * x * x * A2;
+    out[3 * stride] = f * (x * x * A3 - 2 * x * A1);
+  }
+};
+
 /// The node sums of one particle over its (phi, u) nodes, with the forward weight fw = F_j f_c
-/// and the link sums A0 = sum w V0, B1 = sum w Q V1, B2 = sum w Q^2 V2, B3 = sum w dQ V1,
-/// B4 = sum w Q^2 V3 (see chain_transfer_level): Z, Z <cos phi>, Z <tr X>, Z <(tr X)^2>,
+/// and the link sums (LinkSums): Z, Z <cos phi>, Z <tr X>, Z <(tr X)^2>,
 /// Z <d^2 log det A / d(log m)^2>, then the same sums over the absolute values of their terms
-/// (tr X = a0 + 2 Q S cancels for a light particle: its rounding is u times these).
+/// (their rounding is u times these).
 constexpr std::size_t node_sum_count = 9;
 
 template <class Real>
 struct NodeSums {
   Real v[node_sum_count] = {};
-  void add(const Real& fw, const Real& u, const Real& ip, const Real& cos_phi, const Real& A0,
-           const Real& B1, const Real& B2, const Real& B3, const Real& B4) {
+  void add(const Real& fw, const Real& cos_phi, const LinkSums<Real>& L) {
     using std::abs;
-    const Real a0 = 1 + u * ip;  // 1 + u/(1 + u)
-    const Real w = fw * A0, afw = abs(fw);
+    const Real w = fw * L.A0, afw = abs(fw);
     v[0] += w;
     v[1] += w * cos_phi;
-    v[2] += fw * (a0 * A0 + 2 * B1);
-    v[3] += fw * (a0 * a0 * A0 + 4 * a0 * B1 + 4 * B2);
-    v[4] += fw * (u * ip * ip * A0 + 2 * B3 + 2 * B4);
+    v[2] += fw * (L.C1 + 2 * L.B1);
+    v[3] += fw * (L.C2 + 4 * L.B1p + 4 * L.B2);
+    v[4] += fw * (L.C3 + 2 * L.B3 + 2 * L.B4);
     v[5] += abs(w * cos_phi);
-    v[6] += afw * (a0 * abs(A0) + 2 * abs(B1));
-    v[7] += afw * (a0 * a0 * abs(A0) + 4 * a0 * abs(B1) + 4 * abs(B2));
-    v[8] += afw * (u * ip * ip * abs(A0) + 2 * abs(B3) + 2 * abs(B4));
+    v[6] += afw * (abs(L.C1) + 2 * abs(L.B1));
+    v[7] += afw * (abs(L.C2) + 4 * abs(L.B1p) + 4 * abs(L.B2));
+    v[8] += afw * (L.C3a + 2 * L.B3a + 2 * abs(L.B4));
   }
   void store(Real* out, const Real& multiplicity) const {
     for (std::size_t q = 0; q < node_sum_count; ++q) out[q] = multiplicity * v[q];
@@ -351,7 +555,9 @@ template <class Real>
 Real next_pivot_coordinate(const PivotRule<Real>& to, const Real& ratio, const Real& u,
                            const Real& s2, Real& u_next) {
   u_next = ratio * (u + s2) / (1 + u);
-  const Real x = to.v_scale * interpolation_log(Real(u_next + to.eps)) + to.v_shift;
+  const Real x =
+      to.v_scale * interpolation_log(Real((u_next + to.eps) / (1 + to.saturation * u_next))) +
+      to.v_shift;
   return std::min(Real(1), std::max(Real(-1), x));
 }
 
@@ -360,8 +566,7 @@ Real next_pivot_coordinate(const PivotRule<Real>& to, const Real& ratio, const R
 /// enveloped). Shared by relative_forward and relative_backward.
 template <class Real>
 void next_pivot_basis(const PivotRule<Real>& pn, const Real& ratio, const Real& u,
-                      const Real& sin2, Real* tk, Real (&e)[4]) {
-  Real u_next;
+                      const Real& sin2, Real* tk, Real (&e)[4], Real& u_next) {
   chebyshev_values(next_pivot_coordinate(pn, ratio, u, sin2, u_next), pn.m, tk);
   e[0] = e[1] = e[2] = e[3] = 1;
   if (pn.enveloped) message_envelopes(Real(u_next + 1), e);
@@ -380,8 +585,8 @@ void relative_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
   std::vector<Real> basis(nd * mj * mn), tk(mn);
   for (std::size_t k = 0; k < nd; ++k) {
     for (std::size_t c = 0; c < mj; ++c) {
-      Real e[4];
-      next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e);
+      Real e[4], u_next;
+      next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e, u_next);
       for (std::size_t cp = 0; cp < mn; ++cp) {
         Real acc = 0;
         for (std::size_t q = 0; q < mn; ++q) acc += tk[q] * pn.to_coefficients[q * mn + cp];
@@ -441,8 +646,8 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
                        const std::vector<Real>& forward, std::vector<Real>& current, Real* sums,
                        int team) {
   const std::size_t n = from.angle.size(), nd = rel.delta.size(), mj = pj.m, mn = pn.m;
-  // values[((k * mj + c) * 4 + q) * n + b] = E_b M_q(phi_b, u'(u_c, delta_k))
-  std::vector<Real> values(nd * mj * 4 * n);
+  // values[((k * mj + c) * 4 + q) * n + b] = E_b M_q(phi_b, u'(u_c, delta_k)), and u' itself
+  std::vector<Real> values(nd * mj * 4 * n), next_u(nd * mj);
   const bool parallel = team > 1 && double(n) * double(n) * double(nd) * double(mj) >=
                                         parallel_work_threshold;
   ParallelErrors errors;  // an exception may not leave the parallel regions
@@ -455,7 +660,7 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
       std::vector<Real> tk(mn);
       for (std::size_t c = 0; c < mj; ++c) {
         Real e[4];
-        next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e);
+        next_pivot_basis(pn, ratio, pj.u[c], rel.sin2[k], tk.data(), e, next_u[k * mj + c]);
         for (std::size_t q = 0; q < 4; ++q) {
           Real* out = &values[((k * mj + c) * 4 + q) * n];
           for (std::size_t b = 0; b < n; ++b) {
@@ -479,12 +684,13 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
   for (std::ptrdiff_t oa = 0; oa < static_cast<std::ptrdiff_t>(orbit.size()); ++oa) {
     errors.capture([&] {
       const std::size_t a = orbit[static_cast<std::size_t>(oa)];
-      std::vector<Real> interp(n), acc(8 * mj, Real(0));
+      std::vector<Real> interp(n);
+      std::vector<LinkSums<Real>> link(mj);
       for (std::size_t k = 0; k < nd; ++k) {
         for (std::size_t b = 0; b < n; ++b) {
           interp[b] = trig_interpolation_weight(to, b, Real(from.angle[a] + rel.delta[k]));
         }
-        const Real s2 = rel.sin2[k], c2 = rel.cos2[k], w = rel.weight[k];
+        const Real w = rel.weight[k];
         for (std::size_t c = 0; c < mj; ++c) {
           Real v[4];
           for (std::size_t q = 0; q < 4; ++q) {
@@ -493,33 +699,17 @@ void relative_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
             for (std::size_t b = 0; b < n; ++b) x += interp[b] * vals[b];
             v[q] = w * x;
           }
-          const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip, ip3 = ip2 * ip;
-          const Real J = ratio * c2 * ip2;
-          const Real Q = -ratio * (u * u + s2 * (1 + 2 * u)) * ip2;
-          const Real dQ = -Q - 2 * ratio * u * u * c2 * ip3;
-          Real* A = &acc[8 * c];
-          A[0] += v[0];
-          A[1] += J * v[1];
-          A[2] += J * J * v[2];
-          A[3] += J * J * v[3];
-          A[4] += Q * v[1];
-          A[5] += Q * Q * v[2];
-          A[6] += dQ * v[1];
-          A[7] += Q * Q * v[3];
+          link[c].add(ratio, pj.u[c], pj.inv_one_plus_u[c], rel.sin2[k], rel.cos2[k],
+                      next_u[k * mj + c], v[0], v[1], v[2], v[3]);
         }
       }
       NodeSums<Real> row;
       for (std::size_t c = 0; c < mj; ++c) {
-        const Real* A = &acc[8 * c];
-        const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], ip2 = ip * ip;
-        const Real f = pj.root_factor[c], g = ip / 2;
+        const Real f = pj.root_factor[c];
         for (const std::size_t r : {a, from.mirror[a]}) {
-          current[(0 * n + r) * mj + c] = f * A[0];
-          current[(1 * n + r) * mj + c] = f * (g * A[0] + A[1]);
-          current[(2 * n + r) * mj + c] = f * (g * g * A[0] + 2 * g * A[1] + A[2]);
-          current[(3 * n + r) * mj + c] = f * (-ip2 / 2 * A[0] - 2 * ip * A[1] + A[3]);
+          link[c].messages(f, pj.u[c], &current[(0 * n + r) * mj + c], n * mj);
         }
-        row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A[0], A[4], A[5], A[6], A[7]);
+        row.add(forward[a * mj + c] * f, from.cos_angle[a], link[c]);
       }
       const std::size_t o = static_cast<std::size_t>(oa);
       row.store(&row_sums[node_sum_count * o], multiplicity[o]);
@@ -662,7 +852,9 @@ double product_forward(const AngleRule<Real>& from, const AngleRule<Real>& to,
           for (std::size_t c = 0; c < mj; ++c) {
             const std::size_t q = a * mj + c;
             const Real up = ratio * (source_u[q] + sa) * source_ip[q];
-            const Real x = pn.v_scale * interpolation_log(Real(up + pn.eps)) + pn.v_shift;
+            const Real x =
+                pn.v_scale * interpolation_log(Real((up + pn.eps) / (1 + pn.saturation * up))) +
+                pn.v_shift;
             t[q] = std::min(Real(1), std::max(Real(-1), x));
           }
         }
@@ -739,7 +931,7 @@ std::vector<std::vector<Real>> forward_sweep(const Chain<Real>& chain,
     std::vector<Real> next(n * pn.m, Real(0));
     if (rules.is_relative[j]) {
       relative_forward(from, to, pj, pn, rules.relative[j], ratio, forward[j], next, team);
-      kernel_evaluations += double(n) * double(pj.m) * double(n);
+      kernel_evaluations += double(n) * double(pj.m) * double(rules.relative[j].delta.size());
     } else {
       kernel_evaluations += product_forward(from, to, pj, pn, ratio, forward[j], next, team);
     }
@@ -767,24 +959,26 @@ void store_node_quantities(TransferLevel<Real>& out, std::size_t j, const Real* 
       (sums[7] + 2 * (sums[6] + sums[8])) / (4 * z) + 2 * abs(k) * sums[6] / (2 * z);
 }
 
-/// The messages of the last particle as node values, message[(q * n + a) * m + c], q = 0..3,
-/// and its NodeSums (no next link).
+/// The messages of the last particle as node values, message[(q * n + a) * m + c], q = 0..3
+/// (M0 = sqrt(m (1 + u)); N1 = N2 = N3 = 0: nothing follows), and its NodeSums (no next link:
+/// tr X_N = 1 + u/(1 + u), d^2 log det A / d(log m)^2 = u/(1 + u)^2).
 template <class Real>
 std::vector<Real> last_particle_messages(const AngleRule<Real>& angle, const PivotRule<Real>& pj,
                                          const std::vector<Real>& forward, Real* sums) {
   const std::size_t n = angle.angle.size(), mj = pj.m;
-  std::vector<Real> message(4 * n * mj);
+  std::vector<Real> message(4 * n * mj, Real(0));
   NodeSums<Real> last;
   for (std::size_t a = 0; a < n; ++a) {
     for (std::size_t c = 0; c < mj; ++c) {
-      const Real ip = pj.inv_one_plus_u[c], f = pj.root_factor[c];
-      message[(0 * n + a) * mj + c] = f;                 // W
-      message[(1 * n + a) * mj + c] = f * ip / 2;        // W d_u log W
-      message[(2 * n + a) * mj + c] = f * ip * ip / 4;   // W (d_u log W)^2
-      message[(3 * n + a) * mj + c] = -f * ip * ip / 2;  // W d_u^2 log W
-      // No next link: tr X_N = 1 + u/(1 + u), d^2 log det A = u/(1 + u)^2 (Q = 0).
-      last.add(forward[a * mj + c] * f, pj.u[c], ip, angle.cos_angle[a], Real(1), Real(0),
-               Real(0), Real(0), Real(0));
+      const Real u = pj.u[c], ip = pj.inv_one_plus_u[c], f = pj.root_factor[c];
+      message[(0 * n + a) * mj + c] = f;
+      LinkSums<Real> L;
+      const Real a0 = 1 + u * ip;
+      L.A0 = 1;
+      L.C1 = a0;
+      L.C2 = a0 * a0;
+      L.C3 = L.C3a = u * ip * ip;
+      last.add(forward[a * mj + c] * f, angle.cos_angle[a], L);
     }
   }
   last.store(sums, Real(1));
@@ -852,7 +1046,7 @@ inline void message_values(const std::vector<Real>& coef, std::size_t mn, std::s
         v0[l] *= r;
         v1[l] *= ir;
         v2[l] *= ir3;
-        v3[l] *= ir3;
+        v3[l] *= ir;
       }
     }
     for (std::size_t l = 0; l < lanes; ++l) {
@@ -917,48 +1111,27 @@ double product_backward(const AngleRule<Real>& from, const AngleRule<Real>& to,
           const Real u = pj.u[c], ip = pj.inv_one_plus_u[c];
           for (std::size_t b = 0; b < n; ++b) {
             const Real up = ratio * (u + s2[b]) * ip;
-            const Real x = pn.v_scale * interpolation_log(Real(up + pn.eps)) + pn.v_shift;
+            const Real x =
+                pn.v_scale * interpolation_log(Real((up + pn.eps) / (1 + pn.saturation * up))) +
+                pn.v_shift;
             t[b] = std::min(Real(1), std::max(Real(-1), x));
-          }
-          if (pn.enveloped) {
-            for (std::size_t b = 0; b < n; ++b) u_next[b] = ratio * (u + s2[b]) * ip;
+            u_next[b] = up;
           }
           message_values(coef, mn, np, t.data(), u_next.data(), pn.enveloped, v.data());
-          // The step's derivatives: J = d u'/d u, Q = d u'/d log m_j (at fixed r_j), dQ its
-          // log m_j derivative (see the header comment).
-          Real A0 = 0, A1 = 0, A2 = 0, A3 = 0, B1 = 0, B2 = 0, B3 = 0, B4 = 0;
-          const Real ip2 = ip * ip, ip3 = ip2 * ip;
+          LinkSums<Real> L;
           for (std::size_t b = 0; b < n; ++b) {
             const Real w = to.weight_boltzmann[b];
-            const Real J = ratio * c2[b] * ip2;
-            const Real Q = -ratio * (u * u + s2[b] * (1 + 2 * u)) * ip2;
-            const Real dQ = -Q - 2 * ratio * u * u * c2[b] * ip3;
-            const Real v0 = w * v[b], v1 = w * v[np + b], v2 = w * v[2 * np + b],
-                       v3 = w * v[3 * np + b];
-            A0 += v0;
-            A1 += J * v1;
-            A2 += J * J * v2;
-            A3 += J * J * v3;
-            B1 += Q * v1;
-            B2 += Q * Q * v2;
-            B3 += dQ * v1;
-            B4 += Q * Q * v3;
+            L.add(ratio, u, ip, s2[b], c2[b], u_next[b], w * v[b], w * v[np + b],
+                  w * v[2 * np + b], w * v[3 * np + b]);
           }
           const Real f = pj.root_factor[c];
-          const Real g = ip / 2;  // d_u log sqrt(1 + u)
-          const Real m0 = f * A0;
-          const Real m1 = f * (g * A0 + A1);
-          const Real m2 = f * (g * g * A0 + 2 * g * A1 + A2);
-          const Real m3 = f * (-ip2 / 2 * A0 - 2 * ip * A1 + A3);  // d_u J = -2 J / (1 + u)
-          for (const std::size_t row_index : {a, from.mirror[a]}) {
-            current[(0 * n + row_index) * mj + c] = m0;
-            current[(1 * n + row_index) * mj + c] = m1;
-            current[(2 * n + row_index) * mj + c] = m2;
-            current[(3 * n + row_index) * mj + c] = m3;
+          L.messages(f, u, &current[(0 * n + a) * mj + c], n * mj);
+          if (from.mirror[a] != a) {
+            for (std::size_t q = 0; q < 4; ++q) {
+              current[(q * n + from.mirror[a]) * mj + c] = current[(q * n + a) * mj + c];
+            }
           }
-          // Node quantities of particle j: tr X = a0 + 2 Q S, S = d_{u'} log W_{j+1};
-          // d^2 log det A / d(log m)^2 = u/(1+u)^2 + 2 dQ S + 2 Q^2 d_{u'} S.
-          row.add(forward[a * mj + c] * f, u, ip, from.cos_angle[a], A0, B1, B2, B3, B4);
+          row.add(forward[a * mj + c] * f, from.cos_angle[a], L);
         }
         const std::size_t o = static_cast<std::size_t>(oa);
         row.store(&row_sums[node_sum_count * o], multiplicity[o]);
@@ -1010,7 +1183,7 @@ TransferLevel<Real> backward_sweep(const Chain<Real>& chain, const LevelRules<Re
     if (rules.is_relative[j]) {
       relative_backward(from, to, pj, pn, rules.relative[j], ratio, coef, np, forward[j], current,
                         sums, team);
-      kernel_evaluations += double(n) * double(mj) * double(n);
+      kernel_evaluations += double(n) * double(mj) * double(rules.relative[j].delta.size());
     } else {
       kernel_evaluations +=
           product_backward(from, to, pj, pn, ratio, coef, np, forward[j], current, sums, team);
@@ -1084,15 +1257,21 @@ constexpr std::size_t local_window_fraction = 16;
 /// The ladder of angle resolutions: about x1.25 per level, multiples of 8.
 std::size_t next_angle_nodes(std::size_t n) { return std::max(n + 8, (n * 5 / 4 + 7) / 8 * 8); }
 
-/// The predicted Chebyshev rate log rho of the slowest pivot range: interpolation in
-/// v = log(u + eps_j) over a range of half-width h_j = log(1 + S_j / m_{j-1}) / 2 with the
-/// singularities on Im v = +-pi converges like rho_j^-m, rho_j = pi/h_j + sqrt(1 + (pi/h_j)^2)
-/// (Bernstein ellipse). 0 for N = 1 (no pivots).
+/// The predicted Chebyshev rate log rho of the slowest pivot range: interpolation in the pivot
+/// coordinate v (PivotRule) over a range of half-width h_j (log(1 + S_j / m_{j-1}) / 2 for
+/// log(u + eps_j); at most log(S_j / m_j) / 2 when saturating) with the singularities on
+/// Im v = +-pi converges like rho_j^-m, rho_j = pi/h_j + sqrt(1 + (pi/h_j)^2) (Bernstein
+/// ellipse). 0 for N = 1 (no pivots).
 template <class Real>
 double pivot_rate(const Chain<Real>& chain) {
   double rate = 0;
   for (std::size_t j = 1; j < chain.size(); ++j) {
-    const double h = std::log1p(static_cast<double>(chain.tail_mass(j) / chain.mass(j - 1))) / 2;
+    const double u_max = static_cast<double>(chain.mass(j) / chain.mass(j - 1));
+    const double eps =
+        pivot_offset_eps(static_cast<double>(chain.mass(j) / chain.tail_mass(j)), u_max);
+    double lo, hi;
+    pivot_coordinate_range(eps, u_max, lo, hi);
+    const double h = (hi - lo) / 2;
     const double x = 3.14159265358979323846 / h;
     const double r = std::log(x + std::sqrt(1 + x * x));
     rate = j == 1 ? r : std::min(rate, r);

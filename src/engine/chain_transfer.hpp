@@ -30,7 +30,13 @@
 //     tr X_i^2   = tr X_i - d^2 log det A / d (log m_i)^2,
 //     Q_i        = d u_{i+1} / d log m_i = -(m_{i+1}/m_i) (u_i^2 + s_i^2 (1 + 2 u_i)) / (1 + u_i)^2,
 // (s_i = sin(phi_{i+1} - phi_i)), so <tr X_i>, <(tr X_i)^2> and <tr X_i^2> are pairings of F_i
-// with M0..M3 at i + 1. A forward and a backward sweep give every particle's averages.
+// with the messages at i + 1. A forward and a backward sweep give every particle's averages.
+// The messages are carried with the u-derivative of the factor sqrt(m (1 + u)) split off (M1..M3
+// become N1 = E[W (1+u) rho], N2 = E[W (1+u)^2 rho^2], N3 = E[W (1+u)^2 d_u rho], rho the
+// u-derivative of log W less that factor's): for a very light particle Q_i ~ -u_{i+1} ~ -1/m_i
+// and the form above cancels 1 against ~-1 to leave tr X_i ~ m_i log(1/m_i) (all digits lost at
+// m_i ~ 1e-12); split, tr X_i = p + 2 (Q_i/(1 + u_{i+1})) (1 + u_{i+1}) rho_{i+1} with p > 0 a sum
+// of positive terms (chain_transfer.cpp, LinkSums).
 //
 // Discretization. phi_j: n nodes per angle, the periodic trapezoid rule (the Gaussian rule on
 // the circle) when alpha_j is moderate, else the trapezoid on the window |phi_j| <= L_j outside
@@ -38,15 +44,23 @@
 // constant times that factor: the conditional factor sqrt(D_j) of phi_j varies by at most
 // sqrt((1 + m_j/m_{j-1}) S_j/m_j)). u_j in [0, m_j / m_{j-1}]: m Chebyshev-Lobatto nodes in
 // v = log(u + eps_j), eps_j = m_j / S_j. The messages are analytic in u off the cut
-// u <= -eps_j, which the log maps to the lines Im v = +-pi, so Chebyshev interpolation in v
-// converges geometrically with a rate that degrades only like log(S_j / m_{j-1}). The forward
-// measures are only ever paired with the (smooth) messages, so their nodal weights are the
-// transposed interpolation. Links j -> j+1 after which a heavy mass follows
-// ((m_{j+1} + 2 m_{j+2}) / m_j > 4) couple phi_j and phi_{j+1} through a kink of width
-// ~ kappa^-1/2 along delta = phi_{j+1} - phi_j = 0 (and pi): there the integral runs over delta
-// on nodes clustered at 0 and pi by an entire map, and the next messages times
-// exp(alpha_{j+1} cos phi_{j+1}) are interpolated trigonometrically at phi_j + delta.
-// Cost: O(n^2 m^2) per link and sweep (O(n^3 m) for a relative-angle link), O(N) in all.
+// [-1, -eps_j], which the log maps to the lines Im v = +-pi, so Chebyshev interpolation in v
+// converges geometrically with a rate that degrades only like log(S_j / m_{j-1}). Where
+// m_j / m_{j-1} > 4 (up to 1e12 after a very light particle) the coordinate is instead
+// v = log((u + eps_j) / (1 + u)): the messages over their envelopes are analytic in 1/(1 + u) at
+// u = infinity, the cut still maps to Im v = +-pi, and the range log(S_j / m_j) no longer grows
+// with m_j / m_{j-1}. The forward measures are only ever paired with the (smooth) messages, so
+// their nodal weights are the transposed interpolation. Links j -> j+1 after which a heavy mass
+// follows ((m_{j+1} + 2 m_{j+2}) / m_j > 4) couple phi_j and phi_{j+1} through a kink of width
+// w = (m_j / S_{j+1})^1/2 along delta = phi_{j+1} - phi_j = 0 (and pi): there the integral runs
+// over delta on nodes clustered at 0 and pi, and the next messages times
+// exp(alpha_{j+1} cos phi_{j+1}) are interpolated trigonometrically at phi_j + delta. The nodes:
+// an entire map of the trapezoid for w >= 1e-2; below, Gauss-Legendre panels in s with
+// |delta| (or pi - |delta|) = w sinh(s), which see every singularity of the kink (at imaginary
+// distances w..1) at Im s = pi/2, so their count grows like log(1/w): a particle of mass 1e-12
+// among unit masses costs ~4x the nodes of an ordinary link, not ~1e6 x.
+// Cost: O(n^2 m^2) per link and sweep (O(n^2 n_delta m) for a relative-angle link, n_delta = n
+// or ~ 8 n log10(1/w) / 4 for the panels), O(N) in all.
 // Large beta needs nothing special: the windows shrink like alpha_j^-1/2 with the Boltzmann
 // peaks, so the same n resolves any beta up to the double range of alpha_j.
 //
@@ -73,9 +87,13 @@
 // exact. N = 3, 4: torus_average is exact to 1e-13 in milliseconds to a fraction of a second,
 // robust for light particles, and is the independent check; the transfer operator's rounding
 // budget stops it near 1e-13. The microcanonical weight (E - U)_+^{N/2-1} is not a product over the links: use
-// microcanonical.hpp. Very light particles (m_j / m_{j+1} <~ 1e-3) next to heavy ones take
-// many angle nodes and lose relative accuracy to rounding; converged = false then says so, and
-// qmc stays the independent check.
+// microcanonical.hpp. A very light particle (m_j down to 1e-12 of its neighbours, at the root,
+// inside or at the tail) converges in about the work of an ordinary chain (tests/test_transfer.cpp,
+// bench_large_n light); its beta<K_j> ~ m_j log(1/m_j) keeps ~1e-12 relative accuracy, but the
+// pairings still cancel by up to S_{j+1}/m_{j+1} (the tail's inertia over the next particle's,
+// squared for the variance): at N = 64 a light root's Var K carries ~1e-10 relative rounding,
+// which the budget reports (converged = false at a tighter tolerance). Two adjacent light
+// particles widen the next pivot range again (log(S_j / m_j) with m_j light): slow, not wrong.
 //
 // Precision: generic over Real (double and long double instantiated). Thread-parallel over the
 // angle nodes of each link (options.threads; a link is split only when its work is large enough

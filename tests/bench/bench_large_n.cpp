@@ -20,6 +20,12 @@
 //       (reference: a run 1e4 times tighter, at most 1e-12), how many of the 3N quantities'
 //       reported errors (plus the reference's) miss their true errors, and the worst
 //       true / reported ratio.
+//   bench_large_n light N BETA MASS [TOL [REPS]]
+//       One very light particle (mass MASS among unit masses, unit lengths, g = 1) at the root,
+//       in the middle and at the tail: chain_transfer_average at TOL (default 1e-10), one
+//       thread: thread CPU seconds (median of REPS, default 1), converged, levels, final angle
+//       and pivot nodes, the light particle's beta<K> and error, and the largest reported
+//       relative error of beta<K_i> over the chain.
 //   bench_large_n small
 //       Which method for N <= 5: torus trapezoid and transfer at the same tolerance (1e-13; 1e-10
 //       for N = 5) on unit and unequal chains at beta = 0.1, 1, 10: thread CPU seconds (one run),
@@ -260,6 +266,29 @@ int aims(std::size_t n, double beta, double tol, int threads, int reps) {
   return 0;
 }
 
+int light_particle(std::size_t n, double beta, double light, double tol, int reps) {
+  std::printf("N,beta,mass,position,tol,seconds,converged,levels,angle_nodes,pivot_nodes,"
+              "light_beta_K,light_error,largest_relative_error_K\n");
+  for (const std::size_t position : {std::size_t(0), n / 2, n - 1}) {
+    std::vector<double> masses(n, 1.0);
+    masses[position] = light;
+    const Chain<double> chain(masses, std::vector<double>(n, 1.0), 1.0);
+    pendavg::TransferOptions o;
+    o.tolerance = tol;
+    Averages<double> a;
+    const double s = median_of(reps, thread_seconds,
+                               [&] { a = pendavg::chain_transfer_average(chain, beta, o); });
+    double relative = 0;
+    for (const auto& k : a.beta_kinetic) relative = worse(relative, k.error / std::abs(k.value));
+    std::printf("%zu,%g,%g,%zu,%g,%.3f,%d,%zu,%zu,%zu,%.15e,%.1e,%.1e\n", n, beta, light,
+                position + 1, tol, s, a.converged ? 1 : 0, a.transfer->levels,
+                a.transfer->angle_nodes, a.transfer->pivot_nodes,
+                a.beta_kinetic[position].value, a.beta_kinetic[position].error, relative);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 int small_chains() {
   const std::vector<std::pair<std::vector<double>, const char*>> chains = {
       {{1, 1, 1}, "1,1,1"},         {{1, 1, 1, 1}, "1,1,1,1"},    {{0.3, 1, 3}, "0.3,1,3"},
@@ -308,10 +337,16 @@ int main(int argc, char** argv) {
     return aims(std::strtoul(argv[2], nullptr, 10), std::atof(argv[3]), std::atof(argv[4]),
                 std::atoi(argv[5]), argc > 6 ? std::atoi(argv[6]) : 3);
   }
+  if (mode == "light" && argc >= 5) {
+    return light_particle(std::strtoul(argv[2], nullptr, 10), std::atof(argv[3]),
+                          std::atof(argv[4]), argc > 5 ? std::atof(argv[5]) : 1e-10,
+                          argc > 6 ? std::atoi(argv[6]) : 1);
+  }
   if (mode == "small") return small_chains();
   std::fprintf(stderr,
                "usage: bench_large_n wp N BETA MAX_LOG2_POINTS [REPS]\n"
                "       bench_large_n aims N BETA TOL THREADS [REPS [header]]\n"
+               "       bench_large_n light N BETA MASS [TOL [REPS]]\n"
                "       bench_large_n small\n");
   return 2;
 }
