@@ -263,3 +263,64 @@ TEST_CASE("fail closed: NVE replicas are brought back to the run's energy shell"
              }),
              Catch::Contains("no state at the energy"));
 }
+
+TEST_CASE("fail closed: microcanonical guards where double lost digits beyond its error",
+          "[fail_closed][microcanonical]") {
+  // N = 2 with m1/M = 1e-10: <K_1>_E was off by 3x its error (1e-20: 1e5x, 1e-40: 2%).
+  CHECK_THAT(refusal([] {
+               pendavg::microcanonical_average(Chain<double>({1e-10, 1}, {1, 1}), 0.0);
+             }),
+             Catch::Contains("below the double engine's accurate range (1e-8)"));
+  // At the edge, 1e-8, the error still covers a 30-digit run.
+  const Chain<double> edge({1e-8, 1}, {1, 1});
+  const auto a = pendavg::microcanonical_average(edge, 0.0);
+  pendavg::MicrocanonicalOptions o30;
+  o30.digits = 30;
+  const pendavg::working_precision precision(30 + pendavg::guard_digits);
+  const auto b = pendavg::microcanonical_average(edge.cast<mpfr_real>(), mpfr_real(0), o30);
+  CHECK(std::abs(a.kinetic[0].value - static_cast<double>(b.kinetic[0].value)) <=
+        a.kinetic[0].error);
+  // Links 1e81 apart: the density of states was off by 5x its error.
+  CHECK_THAT(refusal([] {
+               pendavg::microcanonical_average(Chain<double>({1.12, 0.638}, {1.02, 2e81}, 0.412),
+                                               -0.6101);
+             }),
+             Catch::Contains("more than 1e30 times the shortest"));
+  // Var K_i ~ D^2 = 1e-600 underflowed to 0 +- 0 at the excitation 1e-300.
+  CHECK_THAT(refusal([] {
+               pendavg::microcanonical_average_excitation(Chain<double>({1, 1}, {1, 1}), 1e-300);
+             }),
+             Catch::Contains("underflows double"));
+}
+
+TEST_CASE("fail closed: a tolerance finer than double resolves is refused", "[fail_closed]") {
+  // torus-gauss refined for minutes at --tol 1e-300 (its levels do not nest)
+  AverageOptions o;
+  o.method = pendavg::AverageMethod::torus_gauss;
+  o.tolerance = 1e-300;
+  CHECK_THAT(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); }),
+             Catch::Contains("tol must be in [1e-15, 1)"));
+  o.tolerance = 1e-15;
+  CHECK(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); })
+            .empty());
+}
+
+TEST_CASE("fail closed: transfer refuses two adjacent light particles it cannot resolve",
+          "[fail_closed][transfer]") {
+  // Four unit masses before a tail of 1e10 (every m_i / S_(i+1) = 1e-10) ran unbounded; one light
+  // particle anywhere converges in seconds (tests/test_transfer.cpp).
+  CHECK_THAT(refusal([] {
+               pendavg::check_average(Chain<double>({1, 1, 1, 1, 1e10}, std::vector<double>(5, 1.0)),
+                                      1.0, {});
+             }),
+             Catch::Contains("not two adjacent ones"));
+  CHECK_THAT(refusal([] {
+               pendavg::check_average(
+                   Chain<double>({1, 1e-8, 1e-8, 1, 1}, std::vector<double>(5, 1.0)), 1.0, {});
+             }),
+             Catch::Contains("not two adjacent ones"));
+  CHECK(refusal([] {
+          pendavg::check_average(Chain<double>({1, 1e-8, 1, 1, 1}, std::vector<double>(5, 1.0)),
+                                 1.0, {});
+        }).empty());
+}

@@ -203,17 +203,7 @@ Chain<Real> make_chain(std::vector<Real> masses, std::vector<Real> lengths, Real
   if (masses.size() != lengths.size())
     throw usage_error(std::to_string(masses.size()) + " masses but " +
                       std::to_string(lengths.size()) + " lengths");
-  const std::size_t particles = masses.size();
-  try {
-    return Chain<Real>(std::move(masses), std::move(lengths), std::move(g));
-  } catch (const invalid_input& e) {
-    // A double below its normal range: for N = 2 every method runs in MPFR (the integral, the
-    // series, both limits, the microcanonical integral), so the advice is true there only.
-    if (std::is_same_v<Real, double> && particles == 2 && command_takes_digits() &&
-        std::string_view(e.what()).find("below the normal range") != std::string_view::npos)
-      throw invalid_input(std::string(e.what()) + "; request 17 or more digits (MPFR)");
-    throw;
-  }
+  return Chain<Real>(std::move(masses), std::move(lengths), std::move(g));
 }
 
 /// The chain of --masses, --lengths (all 1 when optional and absent) and --g (default 1).
@@ -410,6 +400,7 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   resolve_average_method(chain.size(), run);  // every option checked before any work
   const Real beta = parse_real<Real>(beta_text, "--beta", Domain::positive);
   check_average(chain, beta, run);  // and the method's domain
+  check_printed_quotients(beta);
   input_checked("average");
   if (ranks() > 1) {
     // Under MPI one qmc point shares its shifts between the ranks (the same bits for any
@@ -931,6 +922,7 @@ void check_case(const CasesFile& file, const CaseRow& row, const std::vector<std
   const Chain<Real> chain =
       case_chain<Real>(scratch.fields, columns, file.particles, scratch.masses, scratch.lengths);
   check_average(chain, beta, options);
+  check_printed_quotients(beta);
   if constexpr (std::is_same_v<Real, double>) {
     if (!numbers.empty()) {
       numbers[0] = beta;

@@ -65,9 +65,7 @@ char* write_quotient(char* out, const Real& value, const Real& error,
     if (value != 0 && !std::isnormal(qd))
       throw invalid_input("<K_i> = beta<K_i>/beta or Var K_i = beta^2 Var K_i/beta^2 is " +
                           short_decimal(static_cast<long double>(q)) +
-                          ", outside double's normal range (2.2e-308..1.8e308) at this beta; "
-                          "a run with 17 or more digits (MPFR) keeps it where its method runs "
-                          "in MPFR");
+                          ", outside double's normal range (2.2e-308..1.8e308) at this beta");
     const auto plain = [](double x) { return x == 0 || std::isnormal(x); };
     if (plain(qd) && plain(ed)) {
       out = write_decimal(out, qd, digits);

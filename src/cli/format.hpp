@@ -48,6 +48,21 @@ using quotient_t = std::conditional_t<std::is_same_v<Real, double>, long double,
 /// divisor plus the printing's rounding, error_digits digits); returns the end. For a double run
 /// both quotients are rounded to double when they are normal doubles (or 0), so that nearly
 /// every row takes the fast double printer; every front end prints quotients through here.
+/// A double run prints <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i / beta^2 beside the
+/// beta-scaled values: refused before any work (invalid_input) where beta^2 is not a normal
+/// double (beta outside 1.5e-154..1.3e154), since Var K_i would then overflow or underflow.
+/// Nothing to check in MPFR.
+template <class Real>
+void check_printed_quotients(const Real& beta) {
+  if constexpr (std::is_same_v<Real, double>) {
+    if (!(beta >= 1.5e-154 && beta <= 1.3e154))
+      throw invalid_input("at beta outside 1.5e-154..1.3e154 a double run's Var K_i = beta^2 "
+                          "Var K_i / beta^2 leaves double's range");
+  } else {
+    (void)beta;
+  }
+}
+
 template <class Real>
 char* write_quotient(char* out, const Real& value, const Real& error,
                      const quotient_t<Real>& divisor, int digits, char separator);

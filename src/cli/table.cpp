@@ -457,6 +457,7 @@ void check_point(const Point& point) {
   }
   const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
   check_average(chain, beta, point.options);
+  check_printed_quotients(beta);
 }
 
 /// The leading fields of a row (N, digits, beta, g, masses, lengths, padded to `width`): what

@@ -432,6 +432,27 @@ def judge(case, r, args):
             if not r.stdout.strip() and not case.outputs:
                 c.add("malformed-output", "exit 0 with nothing on stdout")
         return c, doc
+    # exit 3: a sweep that finished with failed rows (README, sweeps): one stderr line, every
+    # finished row kept in the output with a '# failed:' line in place of each failed one, and
+    # no non-finite number in the rows that were kept.
+    if r.rc == 3 and case.outputs:
+        if len(err_lines) != 1 or not err_lines[0].startswith("pendavg: "):
+            c.add("refusal-stderr-lines", "exit 3 with %d stderr lines" % len(err_lines))
+        if r.stdout:
+            c.add("refusal-stdout", "exit 3 with %d bytes on stdout" % len(r.stdout))
+        if r.leftover:
+            c.add("refusal-left-file", "exit 3 left: %s" % ", ".join(r.leftover))
+        for name in case.outputs:
+            text = r.files.get(name)
+            if text is None:
+                c.add("missing-output", "exit 3 without its output %s" % name)
+                continue
+            if "# failed:" not in text:
+                c.add("malformed-output", "exit 3 but %s has no '# failed:' line" % name)
+            rows = "\n".join(l for l in text.splitlines() if not l.startswith("#"))
+            if rows.strip():
+                c.csv_text(rows + "\n", name)
+        return c, None
     # a refusal (or an error)
     msg = err_lines[-1] if err_lines else ""
     if r.rc == 1:

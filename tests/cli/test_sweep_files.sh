@@ -126,12 +126,13 @@ check "table failed points: the finished rows equal the full run's" \
 run "${table[@]}" --resume "$work/table_failed.csv"
 check "table failed points resumed = a full run" cmp -s "$work/table_failed.csv" "$work/table_reference.csv"
 # A failed row and an interruption (SIGTERM once the progress line shows rows being computed:
-# 150 rows at 1000 digits, ~5 s): the file has both lines and --resume completes it.
+# 400 rows at 1000 digits, several seconds, so that the run is still going when the first
+# progress line shows at 2 s): the file has both lines and --resume completes it.
 "$python" - "$work/cases_slow.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
     f.write("beta,g,m1,m2,l1,l2\n")
-    for i in range(150):
+    for i in range(400):
         f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,{1 + i % 5}\n")
 PY
 slow=(average --cases "$work/cases_slow.csv" --digits 1000)
@@ -139,7 +140,7 @@ PENDAVG_TEST_FAILING_ROWS=1 "$faulty" "${slow[@]}" --output "$work/slow_failed.c
   >"$work/out" 2>"$work/err" &
 pid=$!
 for ((k = 0; k < 300; ++k)); do
-  grep -q '^\[average\] [0-9]*/150 rows' "$work/err" && break
+  grep -q '^\[average\] [0-9]*/400 rows' "$work/err" && break
   sleep 0.1
 done
 kill -TERM "$pid" 2>/dev/null
