@@ -3,7 +3,7 @@
 # tests/consumer/pip_install.sh SOURCE_DIR VERSION -- `pip install .` as the README documents it,
 # offline on Debian 12: a clean copy of the committed tree (git archive HEAD), a fresh venv of
 # Debian's python3 (which has numpy) with the system site packages, pip install
-# --no-build-isolation --no-index; then the package imports without PYTHONPATH, from the venv,
+# --no-build-isolation .; then the package imports without PYTHONPATH, from the venv,
 # with CMake's project version as importlib.metadata.version and `pip show`; it computes; the
 # venv holds the Python package only (no headers, library or CLI); pip uninstall removes it.
 # PENDAVG_PIP_PYTHON picks another interpreter. Rebuilds the module: label slow.
@@ -20,7 +20,9 @@ cd "$work"
 "$python" -m venv --system-site-packages v
 # ccache, when the caller uses it, serves the objects of an earlier build of the same sources.
 export CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2}
-(cd src && ../v/bin/pip install --no-build-isolation --no-index .) >"$work/pip.log" 2>&1 ||
+# Exactly the README's command; pip need not ask an index (numpy comes from the system).
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+(cd src && ../v/bin/pip install --no-build-isolation .) >"$work/pip.log" 2>&1 ||
   { tail -40 "$work/pip.log" >&2; fail "pip install --no-build-isolation ."; }
 
 unset PYTHONPATH
