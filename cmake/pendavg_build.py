@@ -16,7 +16,8 @@ it requires nothing).
 
 Settings: CMAKE_ARGS (extra configure arguments, as scikit-build-core reads them),
 CMAKE_BUILD_PARALLEL_LEVEL (build jobs; default: the CPU count), CMAKE_CXX_COMPILER_LAUNCHER
-(e.g. ccache) are taken from the environment.
+(e.g. ccache) are taken from the environment, and PENDAVG_PIP_BUILD_DIR: a build directory to use
+and keep (default: a temporary one), for incremental rebuilds.
 """
 
 import base64
@@ -153,7 +154,8 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
     name = f"{_project()['name']}-{_version()}-{_tag()}.whl"
     with tempfile.TemporaryDirectory(prefix="pendavg-wheel-") as work:
         staging = Path(work) / "staging"
-        files = _build_package(Path(work) / "build", staging)
+        build_dir = os.environ.get("PENDAVG_PIP_BUILD_DIR") or Path(work) / "build"
+        files = _build_package(Path(build_dir).absolute(), staging)
         dist_info = _write_dist_info(Path(work) / "meta")
         records = []
         with zipfile.ZipFile(Path(wheel_directory) / name, "w", zipfile.ZIP_DEFLATED) as wheel:

@@ -18,8 +18,11 @@ mkdir "$work/src"
 git -C "$source" archive HEAD | tar -x -C "$work/src"
 cd "$work"
 "$python" -m venv --system-site-packages v
-# ccache, when the caller uses it, serves the objects of an earlier build of the same sources.
+# The build directory is src/build, laid out as a normal build beside its sources, so that a
+# compiler cache (CMAKE_CXX_COMPILER_LAUNCHER=ccache, base_dir above both trees) serves the
+# objects of an earlier build of the same sources.
 export CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2}
+export PENDAVG_PIP_BUILD_DIR="$work/src/build"
 # Exactly the README's command; pip need not ask an index (numpy comes from the system).
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 (cd src && ../v/bin/pip install --no-build-isolation .) >"$work/pip.log" 2>&1 ||

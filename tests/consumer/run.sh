@@ -36,7 +36,9 @@ cmake --build "$work/build" -j 2 >"$work/build.log" 2>&1 || { tail -30 "$work/bu
 # Against a shared libpendavg the consumers load it (from the prefix, by their run path).
 if [ -n "$(find "$prefix" -name 'libpendavg.so*' | head -1)" ]; then
   for program in consumer_double consumer_mpfr readme_example; do
-    ldd "$work/build/$program" | grep -q "libpendavg\.so.* => $prefix/" ||
+    # (ldd's output first: with pipefail, grep -q ending the pipe early would fail it)
+    libraries=$(ldd "$work/build/$program")
+    grep -q "libpendavg\.so.* => $prefix/" <<<"$libraries" ||
       fail "$program does not load libpendavg.so from the prefix"
   done
 fi
