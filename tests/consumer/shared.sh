@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tests/consumer/shared.sh SOURCE_DIR -- the package test against a shared libpendavg
+# tests/consumer/shared.sh SOURCE_DIR [PYTHON] -- the package test against a shared libpendavg
 # (BUILD_SHARED_LIBS=ON): a fresh library-only build in a temporary directory, then run.sh. The
 # library exports its API only (hidden visibility, pendavg/export.hpp): every exported name of
 # namespace pendavg is declared in a public header, and the consumers run against the library.
@@ -7,8 +7,10 @@ set -euo pipefail
 source=$(realpath "$1")
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
+# The Python module for PYTHON (the calling build's interpreter, which has numpy), when given.
 cmake -S "$source" -B "$work/build" -DCMAKE_BUILD_TYPE=Release -DBUILD_SHARED_LIBS=ON \
-  -DPENDAVG_BUILD_TESTS=OFF -DPENDAVG_BUILD_BENCHMARKS=OFF >"$work/configure.log"
+  -DPENDAVG_BUILD_TESTS=OFF -DPENDAVG_BUILD_BENCHMARKS=OFF \
+  ${2:+-DPython_EXECUTABLE:FILEPATH=$2} >"$work/configure.log"
 cmake --build "$work/build" -j "$(nproc)" >"$work/build.log" 2>&1 || { tail -30 "$work/build.log"; exit 1; }
 ls "$work/build"/libpendavg.so.* >/dev/null || { echo "FAIL: no libpendavg.so" >&2; exit 1; }
 
