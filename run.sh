@@ -12,7 +12,7 @@ PACKAGES_BUILD=(g++ cmake make pkg-config libgsl-dev libboost-dev libmpfr-dev li
                 libflint-arb-dev
                 pybind11-dev python3-dev python3-numpy python3-pytest python3-mpmath python3-matplotlib
                 python3-pandas python3-xarray mypy locales
-                libopenmpi-dev openmpi-bin)
+                libopenmpi-dev openmpi-bin python3-venv python3-pip groff-base man-db git)
 PACKAGES_MAIN=(python3 python3-numpy python3-matplotlib)
 
 log() { printf '[run.sh] %s\n' "$*" >&2; }
@@ -34,14 +34,16 @@ install_missing() {
 build() {
   install_missing "${PACKAGES_BUILD[@]}"
   log "configuring ($BUILD_DIR, Release)"
-  cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  # The Python module and its tests run with Debian's python3, which has numpy and pytest
+  # (another python3 may come first on PATH); `pip install .` builds for the pip's interpreter.
+  cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE:FILEPATH=/usr/bin/python3 >/dev/null
   log "building with $JOBS jobs"
   cmake --build "$BUILD_DIR" -j "$JOBS"
 }
 
 python_hint() {  # how to import the Python module of this build
   local python
-  python=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$BUILD_DIR/CMakeCache.txt")
+  python=$(sed -n 's/^_\{0,1\}Python_EXECUTABLE:[A-Z]*=//p' "$BUILD_DIR/CMakeCache.txt" | head -1)
   log "Python module: PYTHONPATH=$PWD/$BUILD_DIR/python ${python:-python3} -c 'import pendavg'"
 }
 

@@ -754,15 +754,18 @@ Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOpti
   }));
 }
 
-#define PENDAVG_INSTANTIATE_AVERAGE(Real)                                                      \
-  template class AverageWorkspace<Real>;                                                        \
-  template void check_average<Real>(const Chain<Real>&, const Real&, const AverageOptions&);    \
-  template Averages<Real> average<Real>(const Chain<Real>&, const Real&, const AverageOptions&); \
-  template Averages<Real> average<Real>(const Chain<Real>&, const Real&, const AverageOptions&, \
-                                        AverageWorkspace<Real>&);                               \
-  template Averages<Real> high_temperature_limit<Real>(const Chain<Real>&,                      \
-                                                       const AverageOptions&);                  \
-  template Averages<Real> low_temperature_limit<Real>(const Chain<Real>&, const AverageOptions&);
+#define PENDAVG_INSTANTIATE_AVERAGE(Real)                                                     \
+  template class PENDAVG_EXPORT AverageWorkspace<Real>;                                       \
+  template PENDAVG_EXPORT void check_average<Real>(const Chain<Real>&, const Real&,           \
+                                                   const AverageOptions&);                    \
+  template PENDAVG_EXPORT Averages<Real> average<Real>(const Chain<Real>&, const Real&,       \
+                                                       const AverageOptions&);                \
+  template PENDAVG_EXPORT Averages<Real> average<Real>(                                       \
+      const Chain<Real>&, const Real&, const AverageOptions&, AverageWorkspace<Real>&);       \
+  template PENDAVG_EXPORT Averages<Real> high_temperature_limit<Real>(const Chain<Real>&,     \
+                                                                      const AverageOptions&); \
+  template PENDAVG_EXPORT Averages<Real> low_temperature_limit<Real>(const Chain<Real>&,      \
+                                                                     const AverageOptions&);
 PENDAVG_INSTANTIATE_AVERAGE(double)
 PENDAVG_INSTANTIATE_AVERAGE(mpfr_real)
 #undef PENDAVG_INSTANTIATE_AVERAGE

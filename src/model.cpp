@@ -128,14 +128,14 @@ const char* work_unit_name(WorkUnit unit) {
   return "unknown";
 }
 
-template class Chain<double>;
-template class Chain<long double>;
-template class Chain<mpfr_real>;
-template void check_beta<double>(const double&);
-template void check_beta<long double>(const long double&);
-template void check_beta<mpfr_real>(const mpfr_real&);
-template void check_digits<double>(int);
-template void check_digits<long double>(int);
-template void check_digits<mpfr_real>(int);
+template class PENDAVG_EXPORT Chain<double>;
+template class PENDAVG_EXPORT Chain<long double>;
+template class PENDAVG_EXPORT Chain<mpfr_real>;
+template PENDAVG_EXPORT void check_beta<double>(const double&);
+template PENDAVG_EXPORT void check_beta<long double>(const long double&);
+template PENDAVG_EXPORT void check_beta<mpfr_real>(const mpfr_real&);
+template PENDAVG_EXPORT void check_digits<double>(int);
+template PENDAVG_EXPORT void check_digits<long double>(int);
+template PENDAVG_EXPORT void check_digits<mpfr_real>(int);
 
 }  // namespace pendavg

@@ -27,7 +27,9 @@ import tempfile
 from datetime import datetime, timezone
 
 PENDAVG, TABLES = sys.argv[1], sys.argv[2]
-VERSION = subprocess.run([PENDAVG, "--version"], capture_output=True, text=True, check=True).stdout.strip()
+# The first line of --version, "pendavg X.Y.Z" (the other lines name the build).
+VERSION = subprocess.run([PENDAVG, "--version"], capture_output=True, text=True,
+                         check=True).stdout.splitlines()[0].removeprefix("pendavg ")
 TODAY = datetime.now(timezone.utc).strftime("%Y-%m-%d")
 
 

@@ -33,6 +33,7 @@
 // methods use `threads` OpenMP threads inside one call with results independent of their number.
 #pragma once
 
+#include "pendavg/export.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
 
@@ -49,10 +50,10 @@ enum class AverageMethod { automatic, integral, series, torus_trapezoid, torus_g
 
 /// "auto", "integral", "series", "torus-trapezoid", "torus-gauss", "qmc", "transfer" (the CLI's
 /// names).
-const char* average_method_name(AverageMethod method);
+PENDAVG_EXPORT const char* average_method_name(AverageMethod method);
 
 /// Parses one of average_method_name's names; throws invalid_input for anything else.
-AverageMethod parse_average_method(const char* name);
+PENDAVG_EXPORT AverageMethod parse_average_method(const char* name);
 
 /// The defaults of AverageOptions' unset optionals, and the automatic rule's torus limit.
 inline constexpr double default_torus_tolerance = 1e-13;
@@ -70,7 +71,7 @@ inline constexpr std::size_t transfer_max_particles = 16384;
 /// all_gather() hands every part the packed sums of all parts, in part order, so that each shift
 /// is combined in shift order as in an undivided run: the result is bit-identical for every P
 /// (each shift is summed by one thread, in point order). Every part must make the same calls.
-class ShiftPartition {
+class PENDAVG_EXPORT ShiftPartition {
  public:
   virtual ~ShiftPartition() = default;
   virtual int part() const = 0;   ///< 0..parts()-1
@@ -111,21 +112,22 @@ struct AverageOptions {
 enum class AverageOption { tolerance, samples, shifts, seed };
 
 /// "tol", "samples", "shifts", "seed": the names in messages (and the CLI's options).
-const char* average_option_name(AverageOption option);
+PENDAVG_EXPORT const char* average_option_name(AverageOption option);
 
 /// Whether `method` (a resolved method, not automatic) uses `option` in a run at `digits`:
 /// the tolerance the torus rules (double only: with more digits it is 10^-digits) and transfer,
 /// samples, shifts and seed qmc. Front ends that spread one set of options over rows of
 /// different methods (pendavg table) ask this instead of knowing the methods.
-bool method_uses_option(AverageMethod method, AverageOption option, int digits);
+PENDAVG_EXPORT bool method_uses_option(AverageMethod method, AverageOption option, int digits);
 
 /// Whether `method` (resolved, not automatic) runs at `digits` > 16 (MPFR): every method but
 /// transfer and qmc, which are double only.
-bool method_supports_digits(AverageMethod method, int digits);
+PENDAVG_EXPORT bool method_supports_digits(AverageMethod method, int digits);
 
 /// Which method average() runs for N particles under `options`, after checking every option
 /// against it (invalid_input otherwise, naming the option and the method). Pure; cheap.
-AverageMethod resolve_average_method(std::size_t particles, const AverageOptions& options);
+PENDAVG_EXPORT AverageMethod resolve_average_method(std::size_t particles,
+                                                    const AverageOptions& options);
 
 namespace detail {
 template <class Real>
@@ -134,7 +136,7 @@ struct AverageWorkspaceData;
 
 /// Buffers of average(), reused from call to call. Not thread-safe: one per thread.
 template <class Real>
-class AverageWorkspace {
+class PENDAVG_EXPORT AverageWorkspace {
  public:
   AverageWorkspace();
   ~AverageWorkspace();
@@ -155,27 +157,31 @@ class AverageWorkspace {
 /// and qmc methods). Throws the invalid_input average() would throw. Cheap (no quadrature).
 /// For mpfr_real, call it under a working_precision of at least digits + guard_digits.
 template <class Real>
-void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options);
+PENDAVG_EXPORT void check_average(const Chain<Real>& chain, const Real& beta,
+                                  const AverageOptions& options);
 
 /// The canonical averages of `chain` at inverse temperature `beta` (finite, > 0).
 /// Throws invalid_input for bad input or options.
 template <class Real>
-Averages<Real> average(const Chain<Real>& chain, const Real& beta,
-                       const AverageOptions& options = {});
+PENDAVG_EXPORT Averages<Real> average(const Chain<Real>& chain, const Real& beta,
+                                      const AverageOptions& options = {});
 template <class Real>
-Averages<Real> average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options,
-                       AverageWorkspace<Real>& workspace);
+PENDAVG_EXPORT Averages<Real> average(const Chain<Real>& chain, const Real& beta,
+                                      const AverageOptions& options,
+                                      AverageWorkspace<Real>& workspace);
 
 /// beta -> 0 (MATH.md Sec. 2): N = 2 the paper's elliptic K/E formula (eq. aveK1-beta0, kind
 /// bound); any N the average of the same chain at g = 0 (tensor trapezoid for N <= 5, to
 /// `tolerance` or 10^-digits; transfer beyond, double only). <cos phi_i> -> 0 exactly.
 /// `options.method` must be automatic; the torus or transfer options apply as for average().
 template <class Real>
-Averages<Real> high_temperature_limit(const Chain<Real>& chain, const AverageOptions& options = {});
+PENDAVG_EXPORT Averages<Real> high_temperature_limit(const Chain<Real>& chain,
+                                                     const AverageOptions& options = {});
 
 /// beta -> infinity: beta<K_i> -> 1/2, <cos phi_i> -> 1, beta^2 Var K_i -> tr(X_i(0)^2) / 2 in
 /// closed form (kind bound). Only `digits` (and method automatic) may be set.
 template <class Real>
-Averages<Real> low_temperature_limit(const Chain<Real>& chain, const AverageOptions& options = {});
+PENDAVG_EXPORT Averages<Real> low_temperature_limit(const Chain<Real>& chain,
+                                                    const AverageOptions& options = {});
 
 }  // namespace pendavg

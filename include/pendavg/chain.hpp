@@ -6,6 +6,8 @@
 // algorithms explicitly. A chain is validated on construction; an invalid one cannot exist.
 #pragma once
 
+#include "pendavg/export.hpp"
+
 #include <cstddef>
 #include <stdexcept>
 #include <string>
@@ -15,13 +17,13 @@ namespace pendavg {
 
 /// Thrown for invalid physical input (non-positive or non-finite masses, lengths, beta, ...).
 /// The message is one line, suitable for a CLI error.
-class invalid_input : public std::invalid_argument {
+class PENDAVG_EXPORT invalid_input : public std::invalid_argument {
  public:
   using std::invalid_argument::invalid_argument;
 };
 
 template <class Real>
-class Chain {
+class PENDAVG_EXPORT Chain {
  public:
   /// Validates: equal, non-zero counts; every mass and length finite and > 0; g finite and >= 0.
   Chain(std::vector<Real> masses, std::vector<Real> lengths, Real g = Real(1));
@@ -65,11 +67,11 @@ inline constexpr int guard_digits = 12;
 
 /// Validates an inverse temperature: finite and > 0. Throws invalid_input otherwise.
 template <class Real>
-void check_beta(const Real& beta);
+PENDAVG_EXPORT void check_beta(const Real& beta);
 
 /// Validates a requested number of significant digits: exactly 16 for double (its one
 /// precision), min_digits..max_digits for MPFR. Throws invalid_input otherwise.
 template <class Real>
-void check_digits(int digits);
+PENDAVG_EXPORT void check_digits(int digits);
 
 }  // namespace pendavg

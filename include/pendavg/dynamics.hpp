@@ -71,6 +71,7 @@
 // library does no I/O: progress, trajectories and interruption go through DynamicsObserver.
 #pragma once
 
+#include "pendavg/export.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
 
@@ -99,13 +100,15 @@ struct ChainState {
 /// The state with angles phi (from the downward vertical) and angular velocities phidot.
 /// Throws invalid_input on a count mismatch or a non-finite entry.
 template <class Real>
-ChainState<Real> state_from_angles(const Chain<Real>& chain, const std::vector<Real>& phi,
-                                   const std::vector<Real>& phidot);
+PENDAVG_EXPORT ChainState<Real> state_from_angles(const Chain<Real>& chain,
+                                                  const std::vector<Real>& phi,
+                                                  const std::vector<Real>& phidot);
 
 /// The state with angles phi and canonical momenta p_phi = A(phi) phidot (paper eq. a-ij).
 template <class Real>
-ChainState<Real> state_from_canonical(const Chain<Real>& chain, const std::vector<Real>& phi,
-                                      const std::vector<Real>& p_phi);
+PENDAVG_EXPORT ChainState<Real> state_from_canonical(const Chain<Real>& chain,
+                                                     const std::vector<Real>& phi,
+                                                     const std::vector<Real>& p_phi);
 
 /// Generalized coordinates and per-particle energies of a state (O(N)).
 template <class Real>
@@ -117,15 +120,16 @@ struct ChainObservables {
 };
 
 template <class Real>
-ChainObservables<Real> observables(const Chain<Real>& chain, const ChainState<Real>& state);
+PENDAVG_EXPORT ChainObservables<Real> observables(const Chain<Real>& chain,
+                                                  const ChainState<Real>& state);
 
 /// U = -sum_j gamma_j cos phi_j = sum_k m_k g y_k.
 template <class Real>
-Real potential_energy(const Chain<Real>& chain, const ChainState<Real>& state);
+PENDAVG_EXPORT Real potential_energy(const Chain<Real>& chain, const ChainState<Real>& state);
 
 /// H = sum_k |p_k|^2 / 2 m_k + U.
 template <class Real>
-Real total_energy(const Chain<Real>& chain, const ChainState<Real>& state);
+PENDAVG_EXPORT Real total_energy(const Chain<Real>& chain, const ChainState<Real>& state);
 
 /// A state at total energy `energy` near the angles phi and rates phidot: the rates scaled by
 /// sqrt((E - U) / K) when the chain moves and E > U(phi) (K is quadratic in phidot at fixed
@@ -138,16 +142,17 @@ ChainState<Real> state_at_energy(const Chain<Real>& chain, const std::vector<Rea
 
 /// max_i | |x_i - x_{i-1}| - l_i | / l_i.
 template <class Real>
-Real constraint_residual(const Chain<Real>& chain, const ChainState<Real>& state);
+PENDAVG_EXPORT Real constraint_residual(const Chain<Real>& chain, const ChainState<Real>& state);
 
 /// max_i |r_i . (v_i - v_{i-1})| / (l_i * max_k |v_k - v_{k-1}|): the velocity constraints.
 template <class Real>
-Real velocity_constraint_residual(const Chain<Real>& chain, const ChainState<Real>& state);
+PENDAVG_EXPORT Real velocity_constraint_residual(const Chain<Real>& chain,
+                                                 const ChainState<Real>& state);
 
 /// Buffers of the constraint solves, sized once for N particles (Pinocchio's Data), and the
 /// counters of the work done. Not thread-safe: one workspace per thread.
 template <class Real>
-class DynamicsWorkspace {
+class PENDAVG_EXPORT DynamicsWorkspace {
  public:
   explicit DynamicsWorkspace(const Chain<Real>& chain);
   std::size_t size() const { return n_; }
@@ -215,31 +220,32 @@ class DynamicsWorkspace {
 
 /// One RATTLE step of length h (h may be negative: the map is time reversible).
 template <class Real>
-void rattle_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
-                 DynamicsWorkspace<Real>& ws);
+PENDAVG_EXPORT void rattle_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
+                                DynamicsWorkspace<Real>& ws);
 
 /// One step of a symmetric composition of RATTLE with the integrator's weights w_j:
 /// RATTLE(w_s h) o ... o RATTLE(w_1 h), the intermediate velocity stages skipped (exact).
 template <class Real>
-void composition_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
-                      Integrator integrator, DynamicsWorkspace<Real>& ws);
+PENDAVG_EXPORT void composition_step(const Chain<Real>& chain, ChainState<Real>& state,
+                                     const Real& h, Integrator integrator,
+                                     DynamicsWorkspace<Real>& ws);
 
 /// One step of Yoshida's fourth-order composition of RATTLE.
 template <class Real>
-void yoshida4_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
-                   DynamicsWorkspace<Real>& ws);
+PENDAVG_EXPORT void yoshida4_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
+                                  DynamicsWorkspace<Real>& ws);
 
 /// Returns the momenta to the cotangent space at the current positions (the velocity stage
 /// without a kick): p <- p - M G^T (G M^{-1} G^T)^{-1} G M^{-1} p.
 template <class Real>
-void project_momenta(const Chain<Real>& chain, ChainState<Real>& state,
-                     DynamicsWorkspace<Real>& ws);
+PENDAVG_EXPORT void project_momenta(const Chain<Real>& chain, ChainState<Real>& state,
+                                    DynamicsWorkspace<Real>& ws);
 
 /// One constrained BAOAB Langevin step at inverse temperature beta with friction gamma.
 template <class Real>
-void baoab_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
-                const Real& beta, const Real& friction, std::mt19937_64& rng,
-                DynamicsWorkspace<Real>& ws);
+PENDAVG_EXPORT void baoab_step(const Chain<Real>& chain, ChainState<Real>& state, const Real& h,
+                               const Real& beta, const Real& friction, std::mt19937_64& rng,
+                               DynamicsWorkspace<Real>& ws);
 
 // ---------------------------------------------------------------- runs with time averages
 
@@ -282,7 +288,7 @@ inline constexpr double max_simulation_steps = 1e13;
 
 /// Checks `options` as simulate() does before any step (time step, duration and steps, the
 /// settings of the thermostat); throws invalid_input with a one-line message. Cheap.
-void check_simulation_options(const SimulationOptions& options);
+PENDAVG_EXPORT void check_simulation_options(const SimulationOptions& options);
 
 /// Callbacks of a run (the library does no I/O). All optional.
 template <class Real>
@@ -338,14 +344,14 @@ void check_simulation(const Chain<Real>& chain, const ChainState<Real>& initial,
 /// Integrates from `initial` (the momenta are projected first) and returns the averages.
 /// Throws invalid_input for a non-positive time step or duration, or bad Langevin parameters.
 template <class Real>
-SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> initial,
-                                const SimulationOptions& options,
-                                const DynamicsObserver<Real>& observer = {});
+PENDAVG_EXPORT SimulationResult<Real> simulate(const Chain<Real>& chain, ChainState<Real> initial,
+                                               const SimulationOptions& options,
+                                               const DynamicsObserver<Real>& observer = {});
 
 /// "x86-64-v3" (AVX2 + FMA) or "base": the instruction set the dynamics kernels run with on this
 /// CPU, chosen at the first call (PENDAVG_DYNAMICS_ISA=base in the environment forces the
 /// baseline). Results agree to rounding (fused multiply-adds).
-const char* dynamics_instruction_set();
+PENDAVG_EXPORT const char* dynamics_instruction_set();
 
 // ---------------------------------------------------------------- Poincare section (N = 2)
 
@@ -379,8 +385,8 @@ struct PoincareSection {
 /// started on the section phi_1 = 0 at p_2 = 0 over the allowed phi_2 >= 0 and at phi_2 = 0
 /// over the allowed p_2, and the points where they cross phi_1 = 0 with phidot_1 > 0.
 template <class Real>
-PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& energy,
-                                       const PoincareOptions& options,
-                                       const DynamicsObserver<Real>& observer = {});
+PENDAVG_EXPORT PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& energy,
+                                                      const PoincareOptions& options,
+                                                      const DynamicsObserver<Real>& observer = {});
 
 }  // namespace pendavg

@@ -116,6 +116,7 @@
 // F_{-1/2} = infinity (<K> = 0, the infinite-period orbit). The library does no I/O.
 #pragma once
 
+#include "pendavg/export.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
@@ -183,13 +184,13 @@ struct MicrocanonicalAverages {
 /// The microcanonical averages at energy E. Throws invalid_input for a non-finite E,
 /// E <= E_min = -sum_j gamma_j (no accessible states) or bad options.
 template <class Real>
-MicrocanonicalAverages<Real> microcanonical_average(const Chain<Real>& chain, const Real& energy,
-                                                     const MicrocanonicalOptions& options = {});
+PENDAVG_EXPORT MicrocanonicalAverages<Real> microcanonical_average(
+    const Chain<Real>& chain, const Real& energy, const MicrocanonicalOptions& options = {});
 
 /// The same at the excitation D = E - E_min (> 0, finite): the way to state an energy near the
 /// bottom of the well without losing digits (see the header comment).
 template <class Real>
-MicrocanonicalAverages<Real> microcanonical_average_excitation(
+PENDAVG_EXPORT MicrocanonicalAverages<Real> microcanonical_average_excitation(
     const Chain<Real>& chain, const Real& excitation, const MicrocanonicalOptions& options = {});
 
 /// Checks, without computing, everything microcanonical_average(chain, energy, options) checks
@@ -197,40 +198,42 @@ MicrocanonicalAverages<Real> microcanonical_average_excitation(
 /// range); throws the invalid_input it would throw. Cheap: a sweep checks every row with it
 /// before the first. For mpfr_real with options.digits = 0, call it under the working precision.
 template <class Real>
-void check_microcanonical(const Chain<Real>& chain, const Real& energy,
-                          const MicrocanonicalOptions& options = {});
+PENDAVG_EXPORT void check_microcanonical(const Chain<Real>& chain, const Real& energy,
+                                         const MicrocanonicalOptions& options = {});
 
 /// The same for microcanonical_average_excitation.
 template <class Real>
-void check_microcanonical_excitation(const Chain<Real>& chain, const Real& excitation,
-                                     const MicrocanonicalOptions& options = {});
+PENDAVG_EXPORT void check_microcanonical_excitation(const Chain<Real>& chain,
+                                                    const Real& excitation,
+                                                    const MicrocanonicalOptions& options = {});
 
 /// E_min = -sum_j g S_j l_j of the chain's stored parameters (double-double sum, rounded once).
 template <class Real>
-Real minimum_energy(const Chain<Real>& chain);
+PENDAVG_EXPORT Real minimum_energy(const Chain<Real>& chain);
 
 /// D = E - E_min, formed in double-double (relative error ~u however close E is to E_min).
 template <class Real>
-Real excitation_energy(const Chain<Real>& chain, const Real& energy);
+PENDAVG_EXPORT Real excitation_energy(const Chain<Real>& chain, const Real& energy);
 
 /// The rule `rule` runs for N = `particles`: automatic is integral for N <= 4 and qmc beyond;
 /// any other rule is itself.
-MicrocanonicalOptions::Rule resolve_microcanonical_rule(std::size_t particles,
-                                                        MicrocanonicalOptions::Rule rule);
+PENDAVG_EXPORT MicrocanonicalOptions::Rule resolve_microcanonical_rule(
+    std::size_t particles, MicrocanonicalOptions::Rule rule);
 
 /// "integral", "torus-trapezoid" or "qmc": the name of the rule `rule` resolves to for N =
 /// `particles` (the names average_method_name gives the same methods).
-const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule, std::size_t particles);
+PENDAVG_EXPORT const char* microcanonical_rule_name(MicrocanonicalOptions::Rule rule,
+                                                    std::size_t particles);
 
 /// Whether the microcanonical rule `rule` (resolved, not automatic) uses `option` in a run at
 /// `digits`: the tolerance the integral and torus rules in double, samples, shifts and seed qmc.
-bool microcanonical_rule_uses_option(MicrocanonicalOptions::Rule rule, AverageOption option,
-                                     int digits);
+PENDAVG_EXPORT bool microcanonical_rule_uses_option(MicrocanonicalOptions::Rule rule,
+                                                    AverageOption option, int digits);
 
 /// The default relative tolerance of the deterministic rules (integral, torus) in double for N
 /// particles, used when MicrocanonicalOptions::tolerance is unset: 1e-13 for N <= 2, 1e-11 for
 /// N = 3, 1e-9 beyond (their cost grows like (nodes per angle)^(N-1)).
-double default_microcanonical_tolerance(std::size_t particles);
+PENDAVG_EXPORT double default_microcanonical_tolerance(std::size_t particles);
 
 /// The microcanonical run that average()'s options select for N particles, so that one set of
 /// options (AverageOptions: method, digits, tolerance, samples, shifts, seed, threads) serves
@@ -240,11 +243,12 @@ double default_microcanonical_tolerance(std::size_t particles);
 /// integral (N <= 4) and torus_trapezoid (N <= 2: it converges only algebraically). Throws
 /// invalid_input naming an option the chosen rule does not use, or a method the microcanonical
 /// engine does not have. Pure; cheap.
-MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std::size_t particles);
+PENDAVG_EXPORT MicrocanonicalOptions microcanonical_options(const AverageOptions& options,
+                                                            std::size_t particles);
 
 /// Solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E for beta (qmc
 /// proposal), in the excitation form N/(2 beta) + sum_j gamma_j (1 - I1/I0) = E - E_min.
 template <class Real>
-Real matched_beta(const Chain<Real>& chain, const Real& energy);
+PENDAVG_EXPORT Real matched_beta(const Chain<Real>& chain, const Real& energy);
 
 }  // namespace pendavg

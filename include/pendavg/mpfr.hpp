@@ -22,6 +22,7 @@
 // would wait for each other.
 #pragma once
 
+#include "pendavg/export.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/dynamics.hpp"
 #include "pendavg/microcanonical.hpp"
@@ -37,7 +38,7 @@ using mpfr_real = boost::multiprecision::mpfr_float;
 
 /// RAII: this thread computes at `digits10` decimal digits while the object lives (see the
 /// header comment). Nested objects of the same precision cost nothing.
-class working_precision {
+class PENDAVG_EXPORT working_precision {
  public:
   explicit working_precision(int digits10);
   ~working_precision();
@@ -47,32 +48,37 @@ class working_precision {
 
 /// The decimal digits of new mpfr_real values on this thread (the working precision, when one is
 /// held).
-int current_mpfr_digits();
+PENDAVG_EXPORT int current_mpfr_digits();
 
 // Explicit instantiations for mpfr_real live in the library (src/).
-extern template class Chain<mpfr_real>;
-extern template Averages<mpfr_real> average<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&,
-                                                         const AverageOptions&);
-extern template Averages<mpfr_real> average<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&,
-                                                         const AverageOptions&,
-                                                         AverageWorkspace<mpfr_real>&);
-extern template class AverageWorkspace<mpfr_real>;
-extern template void check_average<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&,
-                                              const AverageOptions&);
-extern template Averages<mpfr_real> high_temperature_limit<mpfr_real>(const Chain<mpfr_real>&,
-                                                                        const AverageOptions&);
-extern template Averages<mpfr_real> low_temperature_limit<mpfr_real>(const Chain<mpfr_real>&,
-                                                                       const AverageOptions&);
-extern template void check_beta<mpfr_real>(const mpfr_real&);
-extern template void check_digits<mpfr_real>(int);
-extern template std::vector<SeriesRow<mpfr_real>> series_convergence<mpfr_real>(
+extern template class PENDAVG_EXPORT Chain<mpfr_real>;
+extern template PENDAVG_EXPORT Averages<mpfr_real> average<mpfr_real>(const Chain<mpfr_real>&,
+                                                                      const mpfr_real&,
+                                                                      const AverageOptions&);
+extern template PENDAVG_EXPORT Averages<mpfr_real> average<mpfr_real>(const Chain<mpfr_real>&,
+                                                                      const mpfr_real&,
+                                                                      const AverageOptions&,
+                                                                      AverageWorkspace<mpfr_real>&);
+extern template class PENDAVG_EXPORT AverageWorkspace<mpfr_real>;
+extern template PENDAVG_EXPORT void check_average<mpfr_real>(const Chain<mpfr_real>&,
+                                                             const mpfr_real&,
+                                                             const AverageOptions&);
+extern template PENDAVG_EXPORT Averages<mpfr_real> high_temperature_limit<mpfr_real>(
+    const Chain<mpfr_real>&, const AverageOptions&);
+extern template PENDAVG_EXPORT Averages<mpfr_real> low_temperature_limit<mpfr_real>(
+    const Chain<mpfr_real>&, const AverageOptions&);
+extern template PENDAVG_EXPORT void check_beta<mpfr_real>(const mpfr_real&);
+extern template PENDAVG_EXPORT void check_digits<mpfr_real>(int);
+extern template PENDAVG_EXPORT std::vector<SeriesRow<mpfr_real>> series_convergence<mpfr_real>(
     const Chain<mpfr_real>&, const mpfr_real&, int, std::size_t, const RunControl&);
-extern template class TraceWorkspace<mpfr_real>;
-extern template MicrocanonicalAverages<mpfr_real> microcanonical_average<mpfr_real>(
+extern template class PENDAVG_EXPORT TraceWorkspace<mpfr_real>;
+extern template PENDAVG_EXPORT MicrocanonicalAverages<mpfr_real> microcanonical_average<mpfr_real>(
     const Chain<mpfr_real>&, const mpfr_real&, const MicrocanonicalOptions&);
-extern template MicrocanonicalAverages<mpfr_real> microcanonical_average_excitation<mpfr_real>(
-    const Chain<mpfr_real>&, const mpfr_real&, const MicrocanonicalOptions&);
-extern template mpfr_real minimum_energy<mpfr_real>(const Chain<mpfr_real>&);
-extern template mpfr_real excitation_energy<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&);
+extern template PENDAVG_EXPORT MicrocanonicalAverages<mpfr_real>
+microcanonical_average_excitation<mpfr_real>(const Chain<mpfr_real>&, const mpfr_real&,
+                                             const MicrocanonicalOptions&);
+extern template PENDAVG_EXPORT mpfr_real minimum_energy<mpfr_real>(const Chain<mpfr_real>&);
+extern template PENDAVG_EXPORT mpfr_real excitation_energy<mpfr_real>(const Chain<mpfr_real>&,
+                                                                      const mpfr_real&);
 
 }  // namespace pendavg

@@ -15,6 +15,8 @@
 // still-valid estimate (converged = false), never a silent wrong value.
 #pragma once
 
+#include "pendavg/export.hpp"
+
 #include <atomic>
 #include <cstddef>
 #include <functional>
@@ -39,7 +41,7 @@ struct RunControl {
 };
 
 /// A run stopped through RunControl::stop before it finished anything it could report.
-struct interrupted : std::runtime_error {
+struct PENDAVG_EXPORT interrupted : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
@@ -61,13 +63,13 @@ enum class Method {
 };
 
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).
-const char* method_name(Method m);
+PENDAVG_EXPORT const char* method_name(Method m);
 
 /// What an error promises (see the header comment).
 enum class ErrorKind { bound, estimate, statistical };
 
 /// "bound", "estimate" or "statistical".
-const char* error_kind_name(ErrorKind kind);
+PENDAVG_EXPORT const char* error_kind_name(ErrorKind kind);
 
 /// What `evaluations` counts.
 enum class WorkUnit {
@@ -78,7 +80,7 @@ enum class WorkUnit {
 };
 
 /// "terms", "nodes", "samples" or "steps".
-const char* work_unit_name(WorkUnit unit);
+PENDAVG_EXPORT const char* work_unit_name(WorkUnit unit);
 
 /// One number with its absolute error and what that error promises.
 template <class Real>

@@ -11,6 +11,8 @@
 // For the value itself with all observables, call average() with AverageMethod::series.
 #pragma once
 
+#include "pendavg/export.hpp"
+#include "pendavg/result.hpp"
 #include "pendavg/chain.hpp"
 
 #include <cstddef>
@@ -40,8 +42,9 @@ inline constexpr std::size_t max_series_terms = 200000;
 /// only; throws invalid_input otherwise. `control` reports the Bessel table's progress and may
 /// stop it (throws `interrupted`: no row exists before the table is complete).
 template <class Real>
-std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain, const Real& beta,
-                                                int digits = 16, std::size_t terms = 0,
-                                                const RunControl& control = {});
+PENDAVG_EXPORT std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain,
+                                                               const Real& beta, int digits = 16,
+                                                               std::size_t terms = 0,
+                                                               const RunControl& control = {});
 
 }  // namespace pendavg

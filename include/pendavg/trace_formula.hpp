@@ -52,6 +52,7 @@
 // instantiate Chain<long double> before a caller can build such a chain.
 #pragma once
 
+#include "pendavg/export.hpp"
 #include "pendavg/chain.hpp"
 
 #include <cstddef>
@@ -70,7 +71,7 @@ struct NodeTraces {
 /// Every buffer node_traces needs, sized once for chains of N particles (Pinocchio's Data).
 /// Not thread-safe: use one workspace per thread.
 template <class Real>
-class TraceWorkspace {
+class PENDAVG_EXPORT TraceWorkspace {
  public:
   explicit TraceWorkspace(std::size_t n);
   explicit TraceWorkspace(const Chain<Real>& chain) : TraceWorkspace(chain.size()) {}
@@ -101,27 +102,30 @@ class TraceWorkspace {
 /// Returns a reference into `ws`, valid until its next use. Throws invalid_input if the
 /// workspace was sized for another N.
 template <class Real>
-const NodeTraces<Real>& node_traces(const Chain<Real>& chain, const Real* phi,
-                                    TraceWorkspace<Real>& ws);
+PENDAVG_EXPORT const NodeTraces<Real>& node_traces(const Chain<Real>& chain, const Real* phi,
+                                                   TraceWorkspace<Real>& ws);
 
 /// The same from the N - 1 relative angles delta_i = phi_{i+1} - phi_i (A depends on nothing
 /// else). Use it when the quadrature runs over relative angles (MATH.md Sec. 2).
 template <class Real>
-const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain, const Real* delta,
-                                             TraceWorkspace<Real>& ws);
+PENDAVG_EXPORT const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain,
+                                                            const Real* delta,
+                                                            TraceWorkspace<Real>& ws);
 
 /// The same from sin delta_i and cos delta_i (N - 1 each). The traces need only these, and a
 /// quadrature can form them more accurately than from a rounded angle: at delta = pi - eps the
 /// angle's rounding (u pi) is a relative error u pi / eps in sin delta, which a light particle
 /// (traces varying on sin^2 delta ~ m_i / S_{i+1}) turns into ~1e-12 relative in its average.
 template <class Real>
-const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& chain, const Real* sin_delta,
-                                           const Real* cos_delta, TraceWorkspace<Real>& ws);
+PENDAVG_EXPORT const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& chain,
+                                                          const Real* sin_delta,
+                                                          const Real* cos_delta,
+                                                          TraceWorkspace<Real>& ws);
 
 /// The paper's diagonal approximation, eq. ke-linear-tave-1 (MATH.md Sec. 8):
 ///     beta <K_i>  ~  (m_i / 2) sum_{j <= i} 1 / S_j.
 /// It is exact in no limit; report it next to an exact value, never instead of it.
 template <class Real>
-std::vector<Real> diagonal_approximation(const Chain<Real>& chain);
+PENDAVG_EXPORT std::vector<Real> diagonal_approximation(const Chain<Real>& chain);
 
 }  // namespace pendavg

@@ -15,6 +15,7 @@
 #include "sweep.hpp"
 #include "sweep_file.hpp"
 #include "table.hpp"
+#include "version_info.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -1520,7 +1521,7 @@ std::string run(std::span<const std::string_view> args) {
   if (name == "--help" || name == "-h" || (name == "help" && rest.empty()))
     return std::string(general_usage);
   if (name == "help") return std::string(find_command(rest.front()).usage);
-  if (name == "--version") return std::string(version()) + "\n";
+  if (name == "--version") return version_text();
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
   set_digits_advice(std::ranges::find(command.options, "digits") != command.options.end());

@@ -318,38 +318,41 @@ PoincareSection<Real> poincare_section(const Chain<Real>& chain, const Real& ene
 
 #undef PENDAVG_DISPATCH
 
-#define PENDAVG_DYNAMICS_INSTANTIATE(Real)                                                      \
-  template ChainState<Real> state_from_angles<Real>(const Chain<Real>&, const std::vector<Real>&, \
-                                                    const std::vector<Real>&);                   \
-  template ChainState<Real> state_from_canonical<Real>(                                         \
+#define PENDAVG_DYNAMICS_INSTANTIATE(Real)                                                       \
+  template PENDAVG_EXPORT ChainState<Real> state_from_angles<Real>(                              \
       const Chain<Real>&, const std::vector<Real>&, const std::vector<Real>&);                   \
-  template ChainObservables<Real> observables<Real>(const Chain<Real>&, const ChainState<Real>&); \
-  template Real potential_energy<Real>(const Chain<Real>&, const ChainState<Real>&);            \
-  template Real total_energy<Real>(const Chain<Real>&, const ChainState<Real>&);                \
-  template void check_simulation<Real>(const Chain<Real>&, const ChainState<Real>&,             \
-                                      const SimulationOptions&);                                \
-  template ChainState<Real> state_at_energy<Real>(const Chain<Real>&, const std::vector<Real>&, \
-                                                  const std::vector<Real>&, const Real&);        \
-  template Real constraint_residual<Real>(const Chain<Real>&, const ChainState<Real>&);         \
-  template Real velocity_constraint_residual<Real>(const Chain<Real>&, const ChainState<Real>&); \
-  template class DynamicsWorkspace<Real>;                                                       \
-  template void rattle_step<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,           \
-                                  DynamicsWorkspace<Real>&);                                    \
-  template void yoshida4_step<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,         \
-                                    DynamicsWorkspace<Real>&);                                  \
-  template void composition_step<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,     \
-                                       Integrator, DynamicsWorkspace<Real>&);                    \
-  template void project_momenta<Real>(const Chain<Real>&, ChainState<Real>&,                    \
-                                      DynamicsWorkspace<Real>&);                                \
-  template void baoab_step<Real>(const Chain<Real>&, ChainState<Real>&, const Real&,            \
-                                 const Real&, const Real&, std::mt19937_64&,                    \
-                                 DynamicsWorkspace<Real>&);                                     \
-  template SimulationResult<Real> simulate<Real>(const Chain<Real>&, ChainState<Real>,          \
-                                                 const SimulationOptions&,                      \
-                                                 const DynamicsObserver<Real>&);                \
-  template PoincareSection<Real> poincare_section<Real>(const Chain<Real>&, const Real&,        \
-                                                        const PoincareOptions&,                 \
-                                                        const DynamicsObserver<Real>&);
+  template PENDAVG_EXPORT ChainState<Real> state_from_canonical<Real>(                           \
+      const Chain<Real>&, const std::vector<Real>&, const std::vector<Real>&);                   \
+  template PENDAVG_EXPORT ChainObservables<Real> observables<Real>(const Chain<Real>&,           \
+                                                                   const ChainState<Real>&);     \
+  template PENDAVG_EXPORT Real potential_energy<Real>(const Chain<Real>&,                        \
+                                                      const ChainState<Real>&);                  \
+  template PENDAVG_EXPORT Real total_energy<Real>(const Chain<Real>&, const ChainState<Real>&);  \
+  template PENDAVG_EXPORT void check_simulation<Real>(const Chain<Real>&, const ChainState<Real>&, \
+                                                      const SimulationOptions&);                 \
+  template PENDAVG_EXPORT ChainState<Real> state_at_energy<Real>(                                \
+      const Chain<Real>&, const std::vector<Real>&, const std::vector<Real>&, const Real&);     \
+  template PENDAVG_EXPORT Real constraint_residual<Real>(const Chain<Real>&,                     \
+                                                         const ChainState<Real>&);               \
+  template PENDAVG_EXPORT Real velocity_constraint_residual<Real>(const Chain<Real>&,            \
+                                                                  const ChainState<Real>&);      \
+  template class PENDAVG_EXPORT DynamicsWorkspace<Real>;                                         \
+  template PENDAVG_EXPORT void rattle_step<Real>(const Chain<Real>&, ChainState<Real>&,          \
+                                                 const Real&, DynamicsWorkspace<Real>&);         \
+  template PENDAVG_EXPORT void yoshida4_step<Real>(const Chain<Real>&, ChainState<Real>&,        \
+                                                   const Real&, DynamicsWorkspace<Real>&);       \
+  template PENDAVG_EXPORT void composition_step<Real>(                                           \
+      const Chain<Real>&, ChainState<Real>&, const Real&, Integrator, DynamicsWorkspace<Real>&); \
+  template PENDAVG_EXPORT void project_momenta<Real>(const Chain<Real>&, ChainState<Real>&,      \
+                                                     DynamicsWorkspace<Real>&);                  \
+  template PENDAVG_EXPORT void baoab_step<Real>(const Chain<Real>&, ChainState<Real>&,           \
+                                                const Real&, const Real&, const Real&,           \
+                                                std::mt19937_64&, DynamicsWorkspace<Real>&);     \
+  template PENDAVG_EXPORT SimulationResult<Real> simulate<Real>(                                 \
+      const Chain<Real>&, ChainState<Real>, const SimulationOptions&,                            \
+      const DynamicsObserver<Real>&);                                                            \
+  template PENDAVG_EXPORT PoincareSection<Real> poincare_section<Real>(                          \
+      const Chain<Real>&, const Real&, const PoincareOptions&, const DynamicsObserver<Real>&);
 
 PENDAVG_DYNAMICS_INSTANTIATE(double)
 PENDAVG_DYNAMICS_INSTANTIATE(long double)

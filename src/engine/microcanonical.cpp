@@ -995,18 +995,18 @@ MicrocanonicalOptions microcanonical_options(const AverageOptions& options, std:
   return out;
 }
 
-#define PENDAVG_MICROCANONICAL_INSTANTIATE(Real)                                              \
-  template MicrocanonicalAverages<Real> microcanonical_average<Real>(                         \
-      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
-  template MicrocanonicalAverages<Real> microcanonical_average_excitation<Real>(              \
-      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                          \
-  template void check_microcanonical<Real>(const Chain<Real>&, const Real&,                   \
-                                            const MicrocanonicalOptions&);                     \
-  template void check_microcanonical_excitation<Real>(const Chain<Real>&, const Real&,        \
-                                                       const MicrocanonicalOptions&);          \
-  template Real minimum_energy<Real>(const Chain<Real>&);                                     \
-  template Real excitation_energy<Real>(const Chain<Real>&, const Real&);                     \
-  template Real matched_beta<Real>(const Chain<Real>&, const Real&);
+#define PENDAVG_MICROCANONICAL_INSTANTIATE(Real)                                                \
+  template PENDAVG_EXPORT MicrocanonicalAverages<Real> microcanonical_average<Real>(            \
+      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                           \
+  template PENDAVG_EXPORT MicrocanonicalAverages<Real> microcanonical_average_excitation<Real>( \
+      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                           \
+  template PENDAVG_EXPORT void check_microcanonical<Real>(const Chain<Real>&, const Real&,      \
+                                                          const MicrocanonicalOptions&);        \
+  template PENDAVG_EXPORT void check_microcanonical_excitation<Real>(                           \
+      const Chain<Real>&, const Real&, const MicrocanonicalOptions&);                           \
+  template PENDAVG_EXPORT Real minimum_energy<Real>(const Chain<Real>&);                        \
+  template PENDAVG_EXPORT Real excitation_energy<Real>(const Chain<Real>&, const Real&);        \
+  template PENDAVG_EXPORT Real matched_beta<Real>(const Chain<Real>&, const Real&);
 PENDAVG_MICROCANONICAL_INSTANTIATE(double)
 PENDAVG_MICROCANONICAL_INSTANTIATE(long double)
 PENDAVG_MICROCANONICAL_INSTANTIATE(mpfr_real)

@@ -358,10 +358,9 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
   return out;
 }
 
-#define PENDAVG_INSTANTIATE(Real)                                                             \
-  template std::vector<SeriesRow<Real>> series_convergence<Real>(const Chain<Real>&, const Real&, \
-                                                                 int, std::size_t,            \
-                                                                 const RunControl&);          \
+#define PENDAVG_INSTANTIATE(Real)                                                \
+  template PENDAVG_EXPORT std::vector<SeriesRow<Real>> series_convergence<Real>( \
+      const Chain<Real>&, const Real&, int, std::size_t, const RunControl&);     \
   template Averages<Real> series_average<Real>(const Chain<Real>&, const Real&, int, std::size_t);
 PENDAVG_INSTANTIATE(double)
 PENDAVG_INSTANTIATE(mpfr_real)

@@ -155,17 +155,15 @@ std::vector<Real> diagonal_approximation(const Chain<Real>& chain) {
   return beta_kinetic;
 }
 
-#define PENDAVG_INSTANTIATE_TRACE_FORMULA(Real)                                              \
-  template class TraceWorkspace<Real>;                                                       \
-  template const NodeTraces<Real>& node_traces<Real>(const Chain<Real>&, const Real*,        \
-                                                     TraceWorkspace<Real>&);                 \
-  template const NodeTraces<Real>& node_traces_relative<Real>(const Chain<Real>&,            \
-                                                              const Real*,                   \
-                                                              TraceWorkspace<Real>&);        \
-  template const NodeTraces<Real>& node_traces_sincos<Real>(const Chain<Real>&, const Real*, \
-                                                            const Real*,                     \
-                                                            TraceWorkspace<Real>&);          \
-  template std::vector<Real> diagonal_approximation<Real>(const Chain<Real>&);
+#define PENDAVG_INSTANTIATE_TRACE_FORMULA(Real)                               \
+  template class PENDAVG_EXPORT TraceWorkspace<Real>;                         \
+  template PENDAVG_EXPORT const NodeTraces<Real>& node_traces<Real>(          \
+      const Chain<Real>&, const Real*, TraceWorkspace<Real>&);                \
+  template PENDAVG_EXPORT const NodeTraces<Real>& node_traces_relative<Real>( \
+      const Chain<Real>&, const Real*, TraceWorkspace<Real>&);                \
+  template PENDAVG_EXPORT const NodeTraces<Real>& node_traces_sincos<Real>(   \
+      const Chain<Real>&, const Real*, const Real*, TraceWorkspace<Real>&);   \
+  template PENDAVG_EXPORT std::vector<Real> diagonal_approximation<Real>(const Chain<Real>&);
 
 PENDAVG_INSTANTIATE_TRACE_FORMULA(double)
 PENDAVG_INSTANTIATE_TRACE_FORMULA(long double)

@@ -11,7 +11,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import pyplot, read_table, save_png, table_dirs  # noqa: E402
+from figure_io import pyplot, read_table, save_figure, table_dirs  # noqa: E402
 
 plt = pyplot()
 TABLES, FIGURES = table_dirs(sys.argv)
@@ -41,7 +41,7 @@ for ax, n in zip(axes, ("16", "7")):
     ax.axhline(float(rows[0]["exact_Kc"]), color="tab:orange", ls="--", lw=1.2,
                label=r"exact $\langle K_i^{(c)}\rangle_E = \langle K\rangle_E / N$")
     ax.set_xlabel("particle $i$ (1 = next to the pivot)")
-    ax.set_ylabel(r"time-averaged kinetic energy ($m g \ell$ units)")
+    ax.set_ylabel(r"time-averaged kinetic energy ($m g l$ units)")
     ax.set_title(f"N = {n}, unit masses and lengths, g = 1, " + r"$\varphi_i(0) = \pi/2$, $T = 10^4$",
                  fontsize=10)
     ax.set_xticks(i)
@@ -50,7 +50,7 @@ axes[0].legend(fontsize=8, loc="upper left")
 fig.suptitle("Paper Figs. 3-4: non-uniform $\\langle K_i\\rangle$, uniform $\\langle K_i^{(c)}\\rangle$ "
              "(RATTLE + Yoshida-6, dt = 1e-3) against the exact fixed-energy values")
 fig.tight_layout(rect=(0, 0, 1, 0.94))
-save_png(fig, FIGURES, "fig3_4_kinetic_vs_i.png")
+save_figure(fig, FIGURES, "fig3_4_kinetic_vs_i.png")
 
 # ---------------------------------------------------------------- Fig. 9
 points = read("poincare.csv")
@@ -75,8 +75,8 @@ for ax, above in zip(axes, energies):
     ax.set_xlabel(r"$\varphi_2$ (rad)")
     ax.set_title(f"$E - E_{{min}}$ = {above}  (E = {energy:g})", fontsize=10)
     ax.grid(True, alpha=0.3)
-axes[0].set_ylabel(r"$p_2$ (canonical momentum, $m \ell^2$/time units)")
+axes[0].set_ylabel(r"$p_2$ (canonical momentum, $m l^2$/time units)")
 fig.suptitle(r"Paper Fig. 9: Poincare sections $\varphi_1 = 0$, $\dot\varphi_1 > 0$ of the unit double "
              "pendulum (16 orbits x 300 crossings; grey: energy boundary)")
 fig.tight_layout(rect=(0, 0, 1, 0.93))
-save_png(fig, FIGURES, "fig9_poincare.png")
+save_figure(fig, FIGURES, "fig9_poincare.png")

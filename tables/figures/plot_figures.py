@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """Figures of pendavg's tables (paper Figs. 5-8 and the chains), from the CSVs in TABLES_DIR.
 
-usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each atomically
+usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.pdf and *.png (300 dpi), each atomically
 """
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import pyplot, read_table, save_png, table_dirs  # noqa: E402
+from figure_io import BETA, L2, MU1, RATIO, pyplot, read_table, save_figure, table_dirs  # noqa: E402
 
 plt = pyplot()
 TABLES, FIGURES = table_dirs(sys.argv)
@@ -19,7 +19,7 @@ def read(name):
 
 def save(fig, name):
     """Writes the figure atomically to FIGURES/name."""
-    save_png(fig, FIGURES, name)
+    save_figure(fig, FIGURES, name)
 
 
 def f(rows, key):
@@ -47,7 +47,7 @@ l2_rows = read("l2_sweep.csv")
 cos_rows = read("cos_phi.csv")
 limits = {r["mu1"]: r for r in read("high_temperature_limit.csv")}
 chains = read("chains.csv")
-MU1 = ["0.05", "0.5", "0.95"]
+MU1_VALUES = ["0.05", "0.5", "0.95"]  # the panels of Figs. 6 and 7
 
 # Fig. 5: beta<K_i> vs beta, mu1 = 0.5, l = 1, 1, with the beta -> 0 limits.
 rows = select(beta_rows, m1=0.5, l2=1)
@@ -62,9 +62,9 @@ ax.axhline(0.5, ls=":", lw=1, color="gray", label=r"$\beta\to\infty$: 1/2")
 trajectory_symbols(ax, "beta_K", "beta_K_error",
                    r"Langevin trajectory $\beta\overline{{K_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
-ax.set_xlabel(r"inverse temperature $\beta$  ($1/(m g \ell)$ units, $g = 1$)")
-ax.set_ylabel(r"$\beta\langle K_i\rangle$ (dimensionless)")
-ax.set_title(r"Double pendulum, $m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 5: exact curves, trajectory symbols)",
+ax.set_xlabel(BETA)
+ax.set_ylabel(r"$\beta\langle K_i\rangle$")
+ax.set_title(r"Double pendulum, $\mu_1 = 1/2$, $l_1 = l_2 = 1$, $g = 1$ (paper Fig. 5: exact curves, trajectory symbols)",
              fontsize=9)
 ax.set_ylim(0.3, 0.7)
 ax.legend(fontsize=8, loc="center right")
@@ -74,25 +74,25 @@ save(fig, "fig5_beta_K.png")
 # Fig. 6: <K1>/<K2> vs l2, three panels mu1, colors beta.
 fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=False)
 colors = plt.cm.coolwarm([0.0, 0.33, 0.67, 1.0])
-for ax, mu in zip(axes, MU1):
+for ax, mu in zip(axes, MU1_VALUES):
     for beta, color in zip(("1", "2", "5", "10"), colors):
         rows = select(l2_rows, m1=mu, beta=beta)
-        ax.plot(f(rows, "l2"), f(rows, "ratio"), color=color, label=rf"$\beta$ = {beta}")
+        ax.plot(f(rows, "l2"), f(rows, "ratio"), color=color, label=f"{BETA} = {beta}")
     ax.set_xscale("log")
-    ax.set_xlabel(r"$\ell_2$  ($\ell_1 = 1$)")
-    ax.set_title(rf"$\mu_1$ = {mu}")
+    ax.set_xlabel(L2)
+    ax.set_title(f"{MU1} = {mu}")
     ax.grid(True, which="both", alpha=0.3)
-axes[0].set_ylabel(r"$\langle K_1\rangle / \langle K_2\rangle$")
+axes[0].set_ylabel(RATIO)
 axes[-1].legend(fontsize=8)
-fig.suptitle(r"$\ell_2$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 6, exact; $g = 1$)")
+fig.suptitle(f"{L2} dependence of {RATIO} (paper Fig. 6, exact; $l_1 = 1$, $g = 1$)")
 save(fig, "fig6_ratio_vs_l2.png")
 
 # Fig. 7: <K1>/<K2> vs beta, panels mu1, colors l2.
 fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
-for ax, mu in zip(axes, MU1):
+for ax, mu in zip(axes, MU1_VALUES):
     for l2, color in zip(("0.5", "1", "2"), ("tab:green", "tab:blue", "tab:purple")):
         rows = select(beta_rows, m1=mu, l2=l2)
-        ax.plot(f(rows, "beta"), f(rows, "ratio"), color=color, label=rf"$\ell_2$ = {l2}")
+        ax.plot(f(rows, "beta"), f(rows, "ratio"), color=color, label=f"{L2} = {l2}")
     lim = limits[mu] if mu in limits else None
     if lim:
         ax.axhline(float(lim["ratio"]), ls="--", lw=1, color="gray", label=r"$\beta\to0$ limit")
@@ -108,15 +108,15 @@ for ax, mu in zip(axes, MU1):
                         (float(b["beta_K_error"]) / float(b["beta_K"])) ** 2) ** 0.5
                for q, a, b in zip(ratio, one, two)]
         ax.errorbar(f(one, "beta"), ratio, yerr=bar, fmt="o", ms=5, mfc="none", color="tab:blue",
-                    capsize=3, label=r"Langevin, $\ell_2 = 1$ ($\pm2\sigma$)")
+                    capsize=3, label=r"Langevin, $l_2 = 1$ ($\pm2\sigma$)")
     ax.set_xscale("log")
-    ax.set_xlabel(r"$\beta$  ($\ell_1 = 1$, $g = 1$)")
-    ax.set_title(rf"$\mu_1$ = {mu}")
+    ax.set_xlabel(BETA)
+    ax.set_title(f"{MU1} = {mu}")
     ax.grid(True, which="both", alpha=0.3)
-axes[0].set_ylabel(r"$\langle K_1\rangle / \langle K_2\rangle$")
+axes[0].set_ylabel(RATIO)
 axes[0].legend(fontsize=8)
 axes[1].legend(fontsize=8)
-fig.suptitle(r"$\beta$ dependence of $\langle K_1\rangle/\langle K_2\rangle$ (paper Fig. 7: exact curves, trajectory symbols)")
+fig.suptitle(f"{BETA} dependence of {RATIO} (paper Fig. 7: exact curves, trajectory symbols; $l_1 = 1$, $g = 1$)")
 save(fig, "fig7_ratio_vs_beta.png")
 
 # Fig. 8: <cos phi_i> vs beta, mu1 = 0.5, l = 1, 1.
@@ -126,9 +126,9 @@ ax.plot(f(cos_rows, "beta"), f(cos_rows, "cos_phi2"), color="tab:red", label=r"$
 trajectory_symbols(ax, "cos_phi", "cos_phi_error",
                    r"Langevin trajectory $\overline{{\cos\varphi_{i}}}$ ($\pm2\sigma$)")
 ax.set_xscale("log")
-ax.set_xlabel(r"$\beta$  ($g = 1$)")
+ax.set_xlabel(BETA)
 ax.set_ylabel(r"$\langle\cos\varphi_i\rangle$")
-ax.set_title(r"$m_1 = m_2 = 1/2$, $\ell_1 = \ell_2 = 1$ (paper Fig. 8: exact curves, trajectory symbols)",
+ax.set_title(r"$\mu_1 = 1/2$, $l_1 = l_2 = 1$, $g = 1$ (paper Fig. 8: exact curves, trajectory symbols)",
              fontsize=9)
 ax.legend(fontsize=8)
 ax.grid(True, which="both", alpha=0.3)
@@ -146,7 +146,7 @@ for ax, beta in zip(axes, ("0.1", "1", "10")):
         ax.plot(i, f(rows, "diagonal_approx"), ls="--", lw=1, color=color)
     ax.axhline(0.5, ls=":", color="gray", lw=1)
     ax.set_xlabel("particle index $i$ (1 = next to the pivot)")
-    ax.set_title(rf"$\beta$ = {beta}")
+    ax.set_title(f"{BETA} = {beta}")
     ax.grid(True, alpha=0.3)
 axes[0].set_ylabel(r"$\beta\langle K_i\rangle$")
 axes[0].plot([], [], "k--", lw=1, label="diagonal approx. (dashed)")

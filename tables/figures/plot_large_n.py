@@ -9,13 +9,13 @@
                               N = 8..1024 at beta = 0.1, 1, 10 with error bars, and the reported
                               errors themselves (log scale) below
 
-usage: plot_large_n.py TABLES_DIR      writes TABLES_DIR/figures/*.png, each atomically
+usage: plot_large_n.py TABLES_DIR      writes TABLES_DIR/figures/*.pdf and *.png (300 dpi), each atomically
 """
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import pyplot, read_table, save_png, table_dirs  # noqa: E402
+from figure_io import BETA, pyplot, read_table, save_figure, table_dirs  # noqa: E402
 
 plt = pyplot()
 from matplotlib.lines import Line2D  # noqa: E402
@@ -66,7 +66,7 @@ def work_precision():
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_ylim(1e-17, 1)
-        ax.set_title(f"N = {n}, beta = {beta:g} (unit chain)", fontsize=10)
+        ax.set_title(f"N = {n}, {BETA} = {beta:g} (unit chain)", fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
         ax.set_xlabel("seconds (one thread, CPU)")
         ax.set_ylabel(r"largest true error of $\beta\langle K_i\rangle$")
@@ -103,7 +103,7 @@ def work_precision():
     fig.suptitle("Large N: the transfer operator against randomized lattice QMC (true errors vs a finer "
                  "transfer level)")
     fig.tight_layout()
-    save_png(fig, FIGURES, "large_n_work_precision.png")
+    save_figure(fig, FIGURES, "large_n_work_precision.png")
 
 
 def profiles():
@@ -124,7 +124,7 @@ def profiles():
                          elinewidth=1, label=f"N = {n}")
             bottom.plot(x, f(mine, "error_K"), color=color, lw=1, marker="." if n <= 32 else None)
         top.axhline(0.5, ls=":", color="gray", lw=1)
-        top.set_title(rf"$\beta$ = {beta:g}")
+        top.set_title(f"{BETA} = {beta:g}")
         top.grid(True, alpha=0.3)
         bottom.set_yscale("log")
         bottom.grid(True, which="major", alpha=0.3)
@@ -135,7 +135,7 @@ def profiles():
     fig.suptitle("Unit chains (m_i = l_i = 1, g = 1): where along the chain the kinetic energy piles up "
                  "(transfer method)")
     fig.tight_layout()
-    save_png(fig, FIGURES, "chain_profiles.png")
+    save_figure(fig, FIGURES, "chain_profiles.png")
 
 
 if exists("large_n_work_precision.csv"):

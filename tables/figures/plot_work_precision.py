@@ -2,14 +2,14 @@
 """Work-precision figure from TABLES_DIR/work_precision.csv: seconds (x) vs true error (y), log-log,
 one panel per case, one line per method; the method's reported error is the lighter open marker.
 
-usage: plot_work_precision.py TABLES_DIR      writes TABLES_DIR/figures/work_precision.png atomically
+usage: plot_work_precision.py TABLES_DIR      writes TABLES_DIR/figures/work_precision.pdf and .png (300 dpi) atomically
 """
 import csv
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from figure_io import pyplot, save_png, table_dirs  # noqa: E402
+from figure_io import pyplot, save_figure, table_dirs  # noqa: E402
 
 plt = pyplot()
 from matplotlib.lines import Line2D  # noqa: E402
@@ -60,4 +60,4 @@ fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=9, frameon=Fals
 fig.suptitle("pendavg work precision: speed against error (true error vs 100-digit / 30-digit reference)")
 fig.tight_layout(rect=(0, 0.07, 1, 0.97))
 
-save_png(fig, FIGURES, NAME)
+save_figure(fig, FIGURES, NAME)

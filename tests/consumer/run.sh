@@ -17,12 +17,35 @@ cmake --install "$build" --prefix "$prefix" >"$work/install.log" || fail "cmake 
 cli="$prefix/bin/pendavg"
 [ -x "$cli" ] || fail "the installed prefix has no bin/pendavg"
 
-# 1. find_package(pendavg 0.2) + target_link_libraries(... pendavg::pendavg)
+# The README's C++ example, verbatim: the ```cpp block after the marker line in README.md.
+readme="$here/../../README.md"
+awk '/<!-- readme-cpp-example/ { marked = 1; next }
+     marked && /^```cpp$/ { inside = 1; next }
+     inside && /^```$/ { exit }
+     inside { print }' "$readme" >"$work/readme_example.cpp"
+grep -q 'int main' "$work/readme_example.cpp" || fail "no marked C++ example (<!-- readme-cpp-example -->) in README.md"
+
+# 1. find_package(pendavg 0.2) + target_link_libraries(... pendavg::pendavg), with the compiler's
+# default language standard (the consumer project sets none)
 cmake -S "$here" -B "$work/build" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release \
+  -DPENDAVG_README_EXAMPLE="$work/readme_example.cpp" \
   >"$work/configure.log" 2>&1 || { cat "$work/configure.log" >&2; fail "configure against the prefix"; }
 cmake --build "$work/build" -j 2 >"$work/build.log" 2>&1 || { tail -30 "$work/build.log" >&2; fail "build the consumer"; }
 "$work/build/consumer_double" >"$work/double.txt" || fail "consumer_double"
 "$work/build/consumer_mpfr" >"$work/mpfr.txt" || fail "consumer_mpfr"
+# Against a shared libpendavg the consumers load it (from the prefix, by their run path).
+if [ -n "$(find "$prefix" -name 'libpendavg.so*' | head -1)" ]; then
+  for program in consumer_double consumer_mpfr readme_example; do
+    # (ldd's output first: with pipefail, grep -q ending the pipe early would fail it)
+    libraries=$(ldd "$work/build/$program")
+    grep -q "libpendavg\.so.* => $prefix/" <<<"$libraries" ||
+      fail "$program does not load libpendavg.so from the prefix"
+  done
+fi
+# The example prints one "value +- error (method, kind)" line per particle of its double pendulum.
+"$work/build/readme_example" >"$work/readme.txt" || fail "the README's C++ example runs"
+[ "$(grep -cE '^0\.[0-9]+ \+- [0-9.e-]+ \([a-z_]+, (bound|estimate|statistical)\)$' "$work/readme.txt")" = 2 ] ||
+  { cat "$work/readme.txt" >&2; fail "the README's C++ example printed something else"; }
 
 # 2. pkg-config --cflags --libs pendavg
 pc_dir=$(dirname "$(find "$prefix" -name pendavg.pc | head -1)")
@@ -76,7 +99,7 @@ PY
 init=$(find "$prefix" -path '*-packages/pendavg/__init__.py' | head -1)
 if grep -q '^PENDAVG_BUILD_PYTHON:BOOL=ON' "$build/CMakeCache.txt"; then
   [ -n "$init" ] || fail "cmake --install put no Python package pendavg under $prefix"
-  python=$(sed -n 's/^Python_EXECUTABLE:FILEPATH=//p' "$build/CMakeCache.txt")
+  python=$(sed -n 's/^_\{0,1\}Python_EXECUTABLE:[A-Z]*=//p' "$build/CMakeCache.txt" | head -1)
   PYTHONPATH=$(dirname "$(dirname "$init")") "$python" - "$cli" "$prefix" <<'PY' || fail "the installed Python package"
 import json, subprocess, sys
 import pendavg
