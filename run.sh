@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # pendavg's entry script (see README.md).
 #   ./run.sh main   install what is missing, build in Release, regenerate tables/ (reports, figures)
 #   ./run.sh test   install what is missing, build in Release, run the default test suite

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The one entry point for canonical averages (include/pendavg/average.hpp): validate the options
 // against the method they select, set the working precision, hand over to an engine, and add
 // what every method reports (beta<K_i^(c)>, the diagonal approximation, the equipartition

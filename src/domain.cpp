@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The domain module (domain.hpp): scales as logarithms, guards that fail closed, the result check.
 #include "domain.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/domain.hpp -- the one domain module: what every entry point (average in every method, the
 // limits, the microcanonical averages, the series, simulate, poincare; and through them the
 // sweeps' pre-check and the Python module) checks before any work, and what it checks of every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The chain model, its validation, and the method names.
 #include "pendavg/chain.hpp"
 #include "engine/precision.hpp"

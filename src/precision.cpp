@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The working precision of MPFR values: a shared lock on Boost 1.74's process-wide default
 // precision (include/pendavg/mpfr.hpp explains the contract).
 //

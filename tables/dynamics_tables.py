@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Dynamics tables (issues 4 and 5): trajectories that confirm the exact averages.
 
 usage: dynamics_tables.py PENDAVG TABLES_DIR     writes, each atomically (temp file + rename):

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Writes tables/REPORT.md to stdout from the generated tables; exits 1 if a check fails.
 
 usage: make_report.py TABLES_DIR [WALL_SECONDS]

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Regenerates pendavg's committed tables and reports from the built CLI ($PENDAVG).
 # Every file is written to a temporary name and renamed into place, so an interrupted run
 # never leaves a half-written table. Progress goes to stderr.

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Speed against error: every available pendavg method on a fixed set of cases (issue 5, item g).
 
 usage: work_precision.py PENDAVG      writes the CSV to stdout (make_tables.sh renames it into

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_api.cpp -- the public API (issue 10): one entry point for any N, options checked
 // against the method they select, error kinds, workspaces, and thread safety across precisions.
 #include <catch2/catch.hpp>

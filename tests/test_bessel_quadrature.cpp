@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Building blocks: scaled Bessel functions (GSL vs the generic series/asymptotic code vs
 // Boost.Math at high precision), Miller tables vs direct values and the sum rule, and the
 // nested Clenshaw-Curtis rule on integrals known in closed form.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The CLI's fast scientific notation (src/cli/decimal.hpp) against std::to_chars: the same
 // characters for every value it accepts (ties to even, powers of ten, rounding up to the next
 // power), and it accepts the values the CLI prints most (beta<K_i> ~ 1e-13..1, errors ~1e-17).

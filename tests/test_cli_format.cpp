@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The CLI's printed errors (src/cli/format.cpp, printed_error): the error printed beside a value
 // printed with `digits` digits adds half a unit in the value's last printed place, so it covers
 // the printing's rounding. Checked exactly: the printed text read in MPFR at 400 digits.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_cross_check.cpp -- independent methods checked against each other.
 //
 //  * the test oracle itself: Gauss-Legendre nodes against GSL, the oracle's matrices against the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_domain.cpp -- issue 11: every accepted input gives a finite answer with an honest
 // error, or one clear error before any work. Each engine's domain check by name:
 //  * large beta (any N): the low-temperature extrapolation (src/average.cpp) against the torus

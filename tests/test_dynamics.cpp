@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_dynamics.cpp -- RATTLE + compositions, constrained Langevin, time averages with
 // blocking error bars, and the Poincare section (pendavg/dynamics.hpp), checked against
 // independent references: dense-matrix Lagrangian mechanics (Eigen), the exact microcanonical

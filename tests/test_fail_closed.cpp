@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_fail_closed.cpp -- the one domain module (src/domain.hpp) and the result checks:
 // every entry point refuses before any work what its engines cannot compute, a NaN or an
 // overflow is a refusal (never a pass), no non-finite or underflowed number is returned, and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // q_power_moments (detail/fourier_moments.hpp): Fourier moments of q(t)^s, s = 1/2, -1/2, -3/2,
 // q = mu1 + mu2 sin^2 t, against references computed independently of the header's method:
 //  * 147 values pasted from mpmath (hyp2f1 form at 80 digits, cross-checked against

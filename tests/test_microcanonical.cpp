@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Tests of pendavg/microcanonical.hpp. Every check compares independent methods:
 //   * the shell integrals F_p, G_p against adaptive quadrature of their definitions;
 //   * N = 2 against brute-force quadrature of the definition over (phi_1, phi_2) with Eigen's

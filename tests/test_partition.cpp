@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_partition.cpp -- what the CLI's MPI layer relies on in the library (issue 14):
 // one qmc average split between cooperating parts (pendavg::ShiftPartition) gives the bits of the
 // undivided run for any number of parts, and check_average refuses, without computing, exactly

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_torus.cpp -- the any-N torus quadrature (include/pendavg/torus.hpp, MATH.md Secs. 1-4,
 // 6, 8) against independent methods and exact identities:
 //  * N = 2 against the library's 1-D reduced integral (double_pendulum.hpp), which shares none of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Tests of the O(N) trace formula (include/pendavg/trace_formula.hpp) against the dense oracle
 // (tests/oracle/dense_traces.hpp, eqs. a-ij and the definition of A^(i)), against MATH.md
 // Sec. 3 (Fixman's tridiagonal form), against the paper's double-pendulum closed forms

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/test_transfer.cpp -- the transfer operator along the chain (src/engine/chain_transfer.hpp,
 // README "Large N"; method transfer of pendavg::average) against independent methods and exact
 // identities:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/average.hpp -- the one entry point for canonical averages of any chain (N = 1..16384):
 // beta<K_i>, <cos phi_i>, beta^2 Var K_i, <K_1>/<K_2>, beta<K_i^(c)> and the paper's diagonal
 // approximation, each with its error and the kind of guarantee the error carries

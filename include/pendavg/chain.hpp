@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/chain.hpp -- the model: a planar chain of N point masses on massless rigid links,
 // hanging from a fixed pivot in uniform gravity (paper Sec. II, eqs. a-ij, potential-energy).
 //

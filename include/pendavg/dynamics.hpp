@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/dynamics.hpp -- constrained symplectic trajectories of the N-link chain, their time
 // averages with error bars, constrained Langevin sampling and the double pendulum's Poincare
 // section (paper Sec. "Simulation Method", Appendix "Poincare surface of section"; MATH.md Sec. 7).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/microcanonical.hpp -- exact microcanonical averages at fixed energy E (MATH.md Sec. 7):
 // the values that NVE time averages along a trajectory (dynamics) must reproduce.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/mpfr.hpp -- pendavg in multiprecision: the MPFR number type, its working precision,
 // and the library's explicit instantiations for it.
 //

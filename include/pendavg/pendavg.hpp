@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/pendavg.hpp -- the whole public API of pendavg in double precision: thermal averages of
 // the kinetic energy of each particle of a planar N-link pendulum (Konishi & Yanagita), exactly
 // and with honest errors, and the trajectories that confirm them.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/result.hpp -- what every average comes back as: value + error + kind of error, work,
 // method.
 //

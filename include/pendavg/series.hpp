@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/series.hpp -- the paper's series for the double pendulum, term by term (eq.
 // ave-K1-result; MATH.md Sec. 5): the convergence table that proves the value.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/trace_formula.hpp -- the trace formula at one angle node, in O(N) (MATH.md Secs. 1, 3, 4).
 //
 // What it computes. For one configuration phi of an N-link chain (paper eq. a-ij):

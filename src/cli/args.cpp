@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/args.cpp -- strict parsing of the pendavg command line, numbers and cases files.
 #include "args.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/args.hpp -- input side of the pendavg CLI: the command line, strict decimal numbers
 // (double and MPFR) and the `--cases` CSV file. Everything here reports bad input by throwing
 // usage_error, which the CLI maps to exit code 2; nothing here computes physics.

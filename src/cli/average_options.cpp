@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/average_options.cpp -- see average_options.hpp.
 #include "average_options.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/average_options.hpp -- the options of pendavg::average as the CLI spells them (--method,
 // --digits, --tol, --samples, --shifts, --seed), shared by `average`, `limit` and `table`. Only
 // the reading is here: which options a method accepts is the library's rule

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/case_columns.cpp -- the output columns of `average --cases` and --columns.
 #include "case_columns.hpp"
 

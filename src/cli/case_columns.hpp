@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/case_columns.hpp -- the output columns of `average --cases` (after the input columns)
 // and --columns, which selects and orders them. One list names them for the header and drives
 // the row writer, so the two cannot disagree.

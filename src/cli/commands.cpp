@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/commands.cpp -- the pendavg commands average, limit and series: options -> Chain<Real>
 // and beta -> one library call (pendavg::average, the limits, series_convergence) -> formatted
 // string. `digits` == 16 runs in double, more digits in MPFR under a working_precision held

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/commands.hpp -- the pendavg commands (average, limit, series, help, --version): parse
 // and validate the options, call the library, format the result as one string for stdout.
 #pragma once

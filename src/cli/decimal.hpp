@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/decimal.hpp -- fast exact scientific notation for doubles: the same characters as
 // std::to_chars(first, last, x, std::chars_format::scientific, digits - 1) (and printf's
 // "%.*e"), i.e. x correctly rounded to `digits` significant digits, ties to even.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/distribute.cpp -- what both builds share (see distribute.hpp): failure reports.
 #include "distribute.hpp"
 

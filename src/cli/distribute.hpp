@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/distribute.hpp -- the processes of one pendavg run: a single process (a plain run, or
 // a build without MPI), or the ranks of an MPI job (pendavg built with MPI and started by
 // mpirun or srun). Everything MPI is behind this interface (distribute_mpi.cpp; the build

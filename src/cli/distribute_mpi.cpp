@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/distribute_mpi.cpp -- distribute.hpp over MPI (the build with MPI). Only the main
 // thread calls MPI (MPI_THREAD_FUNNELED): the sweep engine's coordinator runs there and its
 // compute threads never communicate.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/distribute_serial.cpp -- distribute.hpp for a build without MPI: one process.
 #include "distribute.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/exact_values.cpp -- see exact_values.hpp.
 #include "exact_values.hpp"
 

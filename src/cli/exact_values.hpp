@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/exact_values.hpp -- the exact values beside a trajectory: the microcanonical averages
 // at the run's initial state (NVE) or the canonical ones at its beta (Langevin), as `simulate`
 // prints them and pendavg.simulate returns them (one implementation for the CLI and Python).

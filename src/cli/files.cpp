@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/files.cpp -- atomic output files (see files.hpp).
 #include "files.hpp"
 

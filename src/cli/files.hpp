@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/files.hpp -- output files of the pendavg CLI, written atomically: everything goes to a
 // temporary file next to the target, which is renamed onto it only when complete. A failed or
 // abandoned file leaves nothing behind (the temporary is removed), and SIGINT/SIGTERM/SIGHUP are

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/format.cpp -- decimal strings and the JSON, CSV and text writers of the pendavg CLI.
 #include "format.hpp"
 

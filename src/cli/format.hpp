@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/format.hpp -- output side of the pendavg CLI: numbers as decimal strings (double and
 // MPFR alike, `digits` significant digits), and small JSON, CSV and aligned-text writers.
 // Everything builds strings; the caller writes them to stdout once, after all work succeeded.

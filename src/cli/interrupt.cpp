@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/interrupt.cpp -- see interrupt.hpp.
 #include "interrupt.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/interrupt.hpp -- SIGINT/SIGTERM end long CLI runs cleanly: a handler sets a flag that
 // the library polls (DynamicsObserver::stop) or the CLI checks between points, and the command
 // still prints what it finished. While an output file is being written (temporary file, then

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/main.cpp -- entry point of the `pendavg` command-line tool: joins the MPI job when
 // started as one (distribute.hpp), runs one command, writes its output to stdout in one piece
 // (commands that stream, such as table, write it themselves), and maps failures to exit codes

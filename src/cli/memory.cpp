@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/memory.cpp -- see memory.hpp.
 #include "memory.hpp"
 

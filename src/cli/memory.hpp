@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/memory.hpp -- how the pendavg process takes memory from the kernel. A sweep allocates
 // and frees large buffers all the time (a cases file, each chunk's rows as text, the rows other
 // ranks send, the numbers the check keeps); with glibc's defaults each of them is fresh memory

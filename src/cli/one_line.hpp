@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/one_line.hpp -- the text of a message line that may echo what a user gave (an
 // argument, a field of a cases file): printed as one line that a terminal shows as it is.
 // Control characters (C0 but newline, DEL, C1, U+2028/U+2029) and bytes that are not UTF-8

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/simulate.cpp -- `pendavg simulate` (a trajectory's time averages beside the exact
 // microcanonical or canonical values) and `pendavg poincare` (the double pendulum's section).
 // Thin: parse, call the library (dynamics.hpp, microcanonical.hpp, the canonical engines),

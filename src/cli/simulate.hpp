@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/simulate.hpp -- `pendavg simulate` and `pendavg poincare` (dynamics, issue 4).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/sweep.cpp -- the sweep engine (see sweep.hpp): a coordinator on every rank's main
 // thread (rank 0's also schedules and writes), and a team of compute threads.
 #include "sweep.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/sweep.hpp -- the engine under `table`, `average --cases` and `simulate --replicas`:
 // rows 0..count-1, each a pure function of its index, computed on every rank's threads and
 // written in index order by rank 0.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/sweep_file.cpp -- see sweep_file.hpp.
 #include "sweep_file.hpp"
 

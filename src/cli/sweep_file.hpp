@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/sweep_file.hpp -- where a sweep's rows go (sweep.hpp's SweepOutput on rank 0): stdout
 // or an atomically written file (files.hpp), after a header, streamed in row order; and the rows
 // of an earlier, interrupted run of the same sweep (--resume), which are kept instead of being

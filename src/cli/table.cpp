@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/table.cpp -- `pendavg table`: every combination of swept parameters, one CSV row each.
 // Every point is checked first; then the rows are generated from their index and computed by
 // the sweep engine (sweep.hpp: every rank and thread, one thread per row, so the numbers do not

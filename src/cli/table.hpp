@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/table.hpp -- `pendavg table`: parameter sweeps written as one CSV (atomically).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // B_{2j} / (2j) per MPFR precision: see engine/bernoulli.hpp.
 #include "engine/bernoulli.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/bernoulli.hpp -- the coefficients B_{2j} / (2j) of the asymptotic series of the digamma
 // function in MPFR, tabulated once per precision (MATH.md does not need them; the Fourier moments
 // of q^s do, through psi: engine/detail/fourier_moments.hpp).

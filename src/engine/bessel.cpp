@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scaled modified Bessel functions: GSL in double, series/asymptotic generic, Miller tables.
 #include "engine/bessel.hpp"
 

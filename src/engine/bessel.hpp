@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/bessel.hpp -- exponentially scaled modified Bessel functions, generic over Real.
 //
 // What for: every Boltzmann weight of the pendulum is a product of I_k(alpha) factors with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The transfer operator along the chain (engine/chain_transfer.hpp has the equations).
 #include "engine/chain_transfer.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/chain_transfer.hpp -- near-exact canonical averages of long chains (N = 5..1024 and
 // beyond) by a transfer operator along the chain (MATH.md Secs. 1, 3, 4; README "Large N";
 // paper eq. ave-Ki-linear-pi-trace-varphi). The public entry point is average() with method

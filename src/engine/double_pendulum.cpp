@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The exact 1-D reduced integral for the double pendulum (MATH.md Sec. 2 and 4), generic over
 // Real, plus the engine dispatcher. See include/pendavg/double_pendulum.hpp for the design.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2); the public
 // entry point is average() (pendavg/average.hpp).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Constrained symplectic dynamics of the N-link chain (include/pendavg/dynamics.hpp): states,
 // observables and the workspace, and the run-time choice of the kernels' instruction set
 // (src/engine/dynamics_kernels.cpp is compiled for baseline x86-64 and, where the compiler

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The constrained-dynamics kernels (states, observables, RATTLE stages, compositions, BAOAB,
 // runs, the Poincare section); see include/pendavg/dynamics.hpp. This file is compiled once per
 // instruction set (CMake: PENDAVG_DYNAMICS_ISA names the namespace, e.g. dynamics_base for

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/estimates.hpp -- helpers the engines share to fill an Averages<Real> (result.hpp).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The beta -> 0 limit of the double pendulum (paper eq. aveK1-beta0).
 //
 // beta -> 0: the Boltzmann factor drops out and t = phi2 - phi1 is uniform, so with

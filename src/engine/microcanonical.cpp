@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Microcanonical averages (pendavg/microcanonical.hpp): the three rules, the two entry points
 // (energy, excitation) and their explicit instantiations (double, long double, mpfr_real).
 #include "domain.hpp"

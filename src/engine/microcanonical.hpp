@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/microcanonical.hpp -- the microcanonical engine's internals (shell integrals, nested
 // tanh-sinh quadrature); see include/pendavg/microcanonical.hpp for what it computes.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/parallel.hpp -- exceptions out of OpenMP regions.
 //
 // An exception may not leave an OpenMP structured block (the runtime calls std::terminate). Each

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Nested Clenshaw-Curtis rules (Waldvogel's explicit cosine-sum weights, built per level).
 #include "engine/quadrature.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/quadrature.hpp -- nested Clenshaw-Curtis rules on [0, 1], generic over Real.
 //
 // What for: the 1-D reduced integral needs a rule whose levels nest, so that each refinement

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The paper's series for the double pendulum, eq. ave-K1-result, with a rigorous truncation
 // bound (MATH.md Sec. 5).
 //

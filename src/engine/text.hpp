@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // engine/text.hpp -- numbers in the engines' one-line error messages.
 #pragma once
 

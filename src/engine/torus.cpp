@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Explicit instantiations of the any-N torus and QMC engines (engine/torus.hpp).
 #include "engine/torus.hpp"
 

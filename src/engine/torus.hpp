@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/torus.hpp -- exact canonical averages for any N by tensor quadrature on the reduced
 // (N-1)-torus (MATH.md Secs. 1-4 and 6; paper eq. ave-Ki-linear-pi-trace-varphi).
 //

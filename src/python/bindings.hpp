@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/bindings.hpp -- the extension pendavg._pendavg, one binding file per algorithm
 // (Pinocchio's bindings/python/algorithm/expose-*.cpp): each expose_* adds its functions and
 // result classes to the module. The documented API is pendavg/__init__.py, which calls these.

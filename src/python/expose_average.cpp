@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/expose_average.cpp -- pendavg.average (one point, or a broadcast grid of points on
 // all cores) and pendavg.limit, and their result class Averages.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/expose_dynamics.cpp -- pendavg.simulate (time averages along a RATTLE or Langevin
 // trajectory beside the exact values of its ensemble) and pendavg.poincare (the double
 // pendulum's section), as `pendavg simulate` and `pendavg poincare` run them

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/expose_microcanonical.cpp -- pendavg.microcanonical: exact fixed-energy averages
 // <K_i>_E, <K_i^(c)>_E, <cos phi_i>_E, Var K_i and the density of states
 // (pendavg/microcanonical.hpp), as `pendavg average --energy E | --excitation D

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/expose_series.cpp -- pendavg.series: the paper's series for beta<K_1> term by term
 // (eq. ave-K1-result; pendavg/series.hpp), as `pendavg series` computes it (src/cli/commands.cpp,
 // series_command): always in MPFR at digits + guard digits, whatever the digits.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/inputs.cpp -- see inputs.hpp.
 #include "inputs.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/inputs.hpp -- Python arguments as the CLI receives them. Every number becomes the
 // decimal text a user would have typed (in double, a valid float is taken as it is: the same
 // double its repr parses to) and is checked by the CLI's own parsers (src/cli/args.hpp), so the

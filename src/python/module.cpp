@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/module.cpp -- the extension module pendavg._pendavg. Bad input is a
 // pendavg::invalid_input (a std::invalid_argument), raised as ValueError with the library's or
 // the CLI's one-line message (a long quoted text in it shortened: abbreviated); a Python

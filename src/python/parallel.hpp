@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/parallel.hpp -- long computations with the GIL released and Ctrl-C honoured.
 //
 // Python runs signal handlers only on its main thread, between bytecodes or in

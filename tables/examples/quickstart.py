@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Quickstart: the paper's Fig. 5 -- beta<K_i> of the double pendulum m1 = m2 = 1/2,
 l1 = l2 = 1 (g = 1) against beta, with its beta -> 0 and beta -> infinity limits.
 

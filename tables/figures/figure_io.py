@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Shared by the plotting scripts: the non-interactive pyplot, the table and figure directories from
 the command line, reading a table (CSV with leading # lines), the axis labels every figure uses for
 the same quantity, and atomic output of each figure as PDF (vector, for print) and 300-dpi PNG

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Dynamics figures from TABLES_DIR's dynamics CSVs (written by tables/dynamics_tables.py).
 
 usage: plot_dynamics.py TABLES_DIR     writes, each atomically, into TABLES_DIR/figures/:

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Figures of pendavg's tables (paper Figs. 5-8 and the chains), from the CSVs in TABLES_DIR.
 
 usage: plot_figures.py TABLES_DIR      writes TABLES_DIR/figures/*.pdf and *.png (300 dpi), each atomically

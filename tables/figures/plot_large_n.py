@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Large-N figures (issue 13), each drawn only when its table exists:
 
   large_n_work_precision.png  from large_n_work_precision.csv, large_n_fits.csv and

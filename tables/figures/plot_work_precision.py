@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Work-precision figure from TABLES_DIR/work_precision.csv: seconds (x) vs true error (y), log-log,
 one panel per case, one line per method; the method's reported error is the lighter open marker.
 

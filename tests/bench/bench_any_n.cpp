@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Any-N targets (issue 3), measured with Google Benchmark:
 //  * the torus trapezoid for N = 3 to 1e-13 and N = 4 to 1e-11 (unit chain, beta = 1);
 //  * the O(N) per-node traces for N = 8 .. 4096: ns per node (fit the exponent from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/bench/bench_arb_cases.cpp -- pendavg's double pendulum (N = 2) against Arb's rigorous
 // integrator on five fixed cases, in double, at 38 and at 77 digits (issue 30).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/bench/bench_double_pendulum.cpp -- the speed targets for the double pendulum.
 //
 //   BM_double_all_cases          one iteration = reduced_integral_average<double> over all 1000

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Dynamics targets (issue 4), measured with Google Benchmark:
 //  * the cost of one Yoshida-4 (and Yoshida-6) RATTLE step for N = 2 .. 1024 (unit chain, the
 //    paper's start phi_i = pi/2 at rest, after a 2000-step warm-up): time per step (and per

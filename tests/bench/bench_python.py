@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Timings of the Python module (issue 12 targets): one N = 2 call in double from Python, the same
 point through the CLI as a subprocess (what scripts paid before the module), and a 61 x 61
 (beta, l2) grid in double on all cores.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/bench/bench_series.cpp -- the paper's series (eq. ave-K1-result) in MPFR.
 //
 //   BM_series/mu1_<m>/digits_<d>   pendavg::series_average<mpfr_real>(chain, beta = 1, d) with

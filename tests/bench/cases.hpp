@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/bench/cases.hpp -- the fixed, seeded parameter cases shared by the benchmark programs
 // and by tests/bench/cli_cases_bench.sh (through `bench_double_pendulum --write-cases FILE`).
 //

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/bench/cli_cases_bench.sh -- times the CLI path `pendavg average --cases FILE` on the
 # 1000 benchmark cases of tests/bench/cases.hpp repeated 100 times (100,000 rows), two ways:
 #

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Hostile sweep (issue 11): extreme parameters through `pendavg average` for N = 1..6 (600 runs: N = 6
 by the automatic method, the transfer operator, and by qmc; 20 s each at most); reports every NaN/inf with exit 0, bad rejection format, other exit code or timeout.
 Usage: python3 tests/bench/hostile_sweep.py build/pendavg"""

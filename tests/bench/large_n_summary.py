@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Fitted convergence rates and errors at equal time from tables/large_n_work_precision.csv
 (tests/bench/large_n_work_precision.sh).
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # The large-N study (issue 13): the transfer operator against randomized lattice QMC on unit
 # chains, one process per (N, beta), one thread, thread CPU time (tests/bench/bench_large_n.cpp).
 #   tables/large_n_work_precision.csv  every run: method, work, seconds, true and reported errors

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """tests/bench/mpi_model.py -- a model of pendavg's sweep engine (src/cli/sweep.cpp) on many MPI
 ranks, to estimate the parallel efficiency of a 10^6-row 77-digit sweep on 1,000 ranks.
 

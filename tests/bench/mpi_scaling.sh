@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/bench/mpi_scaling.sh -- strong scaling of pendavg's sweeps under MPI (issue 14), 1 and 2
 # ranks with one OpenMP thread each, on the issue's two workloads and ten times longer ones:
 #   cases     `average --cases` of 20,000 rows in double: the 1000 seeded benchmark cases of

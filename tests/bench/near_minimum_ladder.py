@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """tests/bench/near_minimum_ladder.py -- the microcanonical near-minimum ladder through the CLI,
 against an independent mpmath evaluation of the definition (issue 15).
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """tests/cli/extreme_inputs.py -- the fail-closed contract of every `pendavg` command under
 extreme inputs (issue 26 item 6): an adversarial generator plus fixed named reproducers.
 

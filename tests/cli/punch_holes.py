@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A sweep file as an interrupted run might have left it, for --resume tests: every third row
 left out, and the last K rows (default 2), then an '# interrupted' line.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/cli/row_faults.cpp -- the test build of the command (pendavg_row_faults): the same
 // objects as pendavg, with this definition of inject_row_fault (sweep.hpp) in place of the
 // shipped one, which does nothing. PENDAVG_TEST_FAILING_ROWS=I,J,... (row indices, from 0) makes

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_cli.sh -- end-to-end checks of the `pendavg` command-line contract.
 #
 # Usage: test_cli.sh PATH/TO/pendavg

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_fail_closed.sh PENDAVG -- the hostile-input audit's reproducers, one per root
 # cause, through the command line: each either exits 0 with finite numbers, or exits 2 with
 # exactly one line on stderr and nothing on stdout. Usage: test_fail_closed.sh build/pendavg

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_mpi.sh -- pendavg under MPI (issue 14): the outputs of 1, 2 and 3 ranks
 # (oversubscribed on this machine: correctness, not speed) are the outputs of the plain serial
 # run, byte for byte apart from timing fields; a sweep killed under mpirun and resumed on

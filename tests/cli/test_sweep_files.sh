@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_sweep_files.sh -- sweeps and their files never lose work (issues 26 and 28): a
 # row that fails while the sweep runs becomes a '# failed:' line and the others are kept (exit 3),
 # --resume keeps only whole rows, a full disk or a file size limit leaves one line and no

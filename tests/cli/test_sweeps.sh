@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_sweeps.sh -- the sweep commands (`table`, `average --cases`, `simulate
 # --replicas`) as a batch job sees them: every row checked before any work, rows streamed with
 # bounded memory, output files that follow symbolic links and never replace a device, no

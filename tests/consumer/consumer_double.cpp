@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A user's program: beta<K_i> of three chains through the one entry point, in double.
 // Prints "label value..." lines that tests/consumer/run.sh compares with the pendavg CLI.
 #include <pendavg/pendavg.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A user's program in multiprecision: beta<K_i> of the double pendulum to 30 digits.
 #include <pendavg/mpfr.hpp>
 #include <pendavg/pendavg.hpp>

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/consumer/isa.sh BUILD_DIR -- the library runs on any x86-64 CPU: in every object of
 # libpendavg, the only functions with AVX registers or fused multiply-adds are the dynamics
 # kernels compiled for x86-64-v3 (namespace dynamics_x86_64_v3, chosen at run time only on CPUs

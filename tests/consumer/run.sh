@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/consumer/run.sh BUILD_DIR -- the package test of issue 10. Installs BUILD_DIR into a
 # temporary prefix, builds tests/consumer (a separate project) against it with CMake's
 # find_package(pendavg 0.2) and again with pkg-config, checks that a double-only program's

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/consumer/shared.sh SOURCE_DIR [PYTHON] -- the package test against a shared libpendavg
 # (BUILD_SHARED_LIBS=ON): a fresh library-only build in a temporary directory, then run.sh. The
 # library exports its API only (hidden visibility, pendavg/export.hpp): every exported name of

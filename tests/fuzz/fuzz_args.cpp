@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/fuzz/fuzz_args.cpp -- libFuzzer target: the command line. The input is argv without the
 // program name, one argument per line ("average\n--masses\n1,1\n..."). Every command runs its
 // option parser (args.cpp), its numbers, the average options (average_options.cpp), the

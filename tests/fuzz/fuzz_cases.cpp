@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/fuzz/fuzz_cases.cpp -- libFuzzer target: the `--cases` reader. The input is one line of
 // extra `average` options (separated by spaces; may be empty), then the cases file itself.
 //

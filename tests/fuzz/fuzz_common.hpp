@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/fuzz/fuzz_common.hpp -- what the libFuzzer targets share: running one command up to
 // input_checked() (its checks, none of its work), and the contract every refusal keeps.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/fuzz/fuzz_number.cpp -- libFuzzer target: the CLI's numbers, read and printed. The input
 // is two control bytes (the printed digits 1..17; the MPFR digits 17..1000) and a token.
 //

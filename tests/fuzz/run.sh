@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # tests/fuzz/run.sh -- runs the libFuzzer targets of a PENDAVG_FUZZ build, one after another.
 #
 # Usage: run.sh BUILD_DIR [SECONDS_PER_TARGET [TARGET...]]     (default: 60 s; args number cases)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/definition_2d.hpp -- an independent test oracle: the ORIGINAL definition of the
 // double pendulum's thermal averages, evaluated by brute force on the 2-torus.
 //

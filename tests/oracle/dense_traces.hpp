@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/dense_traces.hpp -- an independent test oracle for the node quantities of the
 // trace formula: dense O(N^3) linear algebra, straight from the paper's definitions.
 //

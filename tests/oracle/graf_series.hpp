@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/graf_series.hpp -- an independent test oracle for the paper's series,
 // eq. ave-K1-result, with R_n(a1, a2) from Graf's addition theorem instead of the paper's
 // Bessel-derivative formula (which the library implements, MATH.md Sec. 5).

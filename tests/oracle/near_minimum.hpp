@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/near_minimum.hpp -- an independent test oracle for microcanonical averages near
 // the bottom of the well: the definition (MATH.md Sec. 7) integrated directly over the N absolute
 // angles, in the excitation form, by nested Gauss-Legendre rules.

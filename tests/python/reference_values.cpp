@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // tests/python/reference_values.cpp -- the C++ library's results, printed exactly, for the Python
 // tests' bitwise comparison (tests/python/test_pendavg.py, test_python_bits_equal_the_library).
 //

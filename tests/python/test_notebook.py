@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Results in a notebook: sweep() carries its axes (dims, coords), and every result converts to a
 dict, a pandas DataFrame and (Averages) an xarray Dataset whose entries are the result's own
 numbers at the labelled positions. pandas and xarray are optional: without them the

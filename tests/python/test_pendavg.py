@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The Python module against the CLI (the same library calls: the same bits and the same strings)
 and against direct C++ library calls (tests/python/reference_values.cpp: every number bit for
 bit), arrays against scalar calls, error kinds, bad input, Ctrl-C in simulate, thread safety, and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The Python module fails closed: every bad argument of every public function is a ValueError or
 a TypeError whose one-line message names the argument (never a RuntimeError, a hang or a silent
 NaN); decimal strings do not follow the locale; mpmath.mpf inputs of any exponent are read

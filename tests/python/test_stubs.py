@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The type stubs (pendavg/__init__.pyi, pendavg/_pendavg.pyi, the PEP 561 marker py.typed) match
 the module: mypy.stubtest against the built package, and an introspection check of what stubtest
 cannot see (the fields of the result objects, which are instance attributes).

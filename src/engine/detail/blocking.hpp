@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/detail/blocking.hpp -- time averages of correlated samples with Flyvbjerg-Petersen
 // blocking error bars (H. Flyvbjerg and H. G. Petersen, J. Chem. Phys. 91, 461 (1989)).
 //

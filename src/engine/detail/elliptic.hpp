@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/detail/elliptic.hpp -- complete elliptic integrals from the complementary parameter.
 //
 // K(k) and E(k) with k^2 = mu2 are taken as Carlson's symmetric forms of k'^2 = mu1, passed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/detail/fourier_moments.hpp -- Fourier moments of q(t)^s, q = mu1 + mu2 sin^2 t.
 //
 // WHAT. For 0 < mu1 < 1, mu2 = 1 - mu1 (both passed, so neither is rounded away), and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/detail/inner_panel_series.hpp -- product integration of the double pendulum's
 // reduced integrals over the inner panel t in [0, t1] (MATH.md Sec. 2 integrands, Sec. 6).
 //

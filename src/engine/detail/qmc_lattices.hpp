@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/detail/qmc_lattices.hpp -- the built-in rank-1 lattice generating vectors of
 // qmc_average (include/pendavg/torus.hpp; see the comment above QmcOptions there).
 //

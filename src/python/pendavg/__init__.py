@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """pendavg -- exact thermal averages of the kinetic energy in planar multiple pendulums.
 
 A chain of N point masses m_1..m_N on massless rigid links of lengths l_1..l_N hangs from a fixed

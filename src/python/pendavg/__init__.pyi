@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Type stubs of the package pendavg (the documented API of __init__.py; see its docstrings).
 from collections.abc import Callable, Sequence
 from decimal import Decimal

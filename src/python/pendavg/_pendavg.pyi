@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Type stubs of the extension pendavg._pendavg (pybind11): the C++ core under pendavg/__init__.py.
 # Its functions take the package's arguments as they come (see pendavg.average etc.).
 from collections.abc import Callable
