@@ -272,8 +272,8 @@ TEST_CASE("fail closed: microcanonical guards where double lost digits beyond it
                pendavg::microcanonical_average(Chain<double>({1e-10, 1}, {1, 1}), 0.0);
              }),
              Catch::Contains("below the double engine's accurate range (1e-8)"));
-  // At the edge, 1e-8, the error still covers a 30-digit run.
-  const Chain<double> edge({1e-8, 1}, {1, 1});
+  // Near the edge, 2e-8, the error still covers a 30-digit run.
+  const Chain<double> edge({2e-8, 1}, {1, 1});
   const auto a = pendavg::microcanonical_average(edge, 0.0);
   pendavg::MicrocanonicalOptions o30;
   o30.digits = 30;
@@ -324,4 +324,19 @@ TEST_CASE("fail closed: transfer refuses two adjacent light particles it cannot 
           pendavg::check_average(Chain<double>({1, 1e-8, 1, 1, 1}, std::vector<double>(5, 1.0)),
                                  1.0, {});
         }).empty());
+}
+
+TEST_CASE("fail closed: the MPFR torus without gravity refuses a particle it cannot resolve",
+          "[fail_closed]") {
+  // masses 1, 1e20, 1 at g = 0 and 17 digits ran for minutes (the double torus: seconds); the
+  // beta -> 0 limit of N >= 3 is that torus.
+  const pendavg::working_precision precision(17 + pendavg::guard_digits);
+  const Chain<mpfr_real> chain({mpfr_real(1), mpfr_real("1e20"), mpfr_real(1)},
+                               std::vector<mpfr_real>(3, mpfr_real(1)), mpfr_real(0));
+  CHECK_THAT(refusal([&] { pendavg::check_average(chain, mpfr_real(1), digits(17)); }),
+             Catch::Contains("at 16 digits it does"));
+  CHECK_THAT(refusal([&] { pendavg::high_temperature_limit(chain, digits(17)); }),
+             Catch::Contains("without gravity"));
+  // the beta -> infinity limit is a closed form and takes it
+  CHECK(all_finite(pendavg::low_temperature_limit(chain, digits(17))));
 }

@@ -735,6 +735,16 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
                           std::to_string(j + 1) + " (outside the double range)");
     }
   }
+  // The pivots u_j <= m_j / m_{j-1}, their offsets m_j / S_j and the node sums carry ratios up to
+  // M / m_min and their squares: finite only for M / m_min <= 1e150 (as the torus).
+  const Real lightest = *std::min_element(chain.masses().begin(), chain.masses().end());
+  using std::log10;
+  if (!(chain.total_mass() / lightest <= Real(1e150))) {
+    throw invalid_input("transfer: the total mass is 1e" +
+                        std::to_string(static_cast<int>(log10(chain.total_mass() / lightest))) +
+                        " times the lightest mass, beyond the double range of the transfer "
+                        "operator (1e150)");
+  }
   // A light particle (m_i / S_{i+1} small) gets its own node placement, but two adjacent ones do
   // not converge in bounded time (measured: four unit masses before a tail of 1e8 took 17 s,
   // 1e9 and 1e10 never finished; 1, 1e-8, 1e-8, 1, 1 never finished): refused before any work.
@@ -747,16 +757,6 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
                           std::to_string(i + 2) + " both weigh less than 1e-7 of the mass "
                           "beyond them (m_i / S_(i+1)); the transfer operator resolves one such "
                           "light particle, not two adjacent ones");
-  }
-  // The pivots u_j <= m_j / m_{j-1}, their offsets m_j / S_j and the node sums carry ratios up to
-  // M / m_min and their squares: finite only for M / m_min <= 1e150 (as the torus).
-  const Real lightest = *std::min_element(chain.masses().begin(), chain.masses().end());
-  using std::log10;
-  if (!(chain.total_mass() / lightest <= Real(1e150))) {
-    throw invalid_input("transfer: the total mass is 1e" +
-                        std::to_string(static_cast<int>(log10(chain.total_mass() / lightest))) +
-                        " times the lightest mass, beyond the double range of the transfer "
-                        "operator (1e150)");
   }
 }
 
