@@ -151,7 +151,7 @@ void check_dynamics_scales(const Chain<Real>& chain, const char* command) {
 /// h omega > 1 is refused.
 template <class Real>
 void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
-                            const char* command) {
+                            const char* command, double duration, double max_steps) {
   using Wide = long double;
   const std::size_t n = chain.size();
   Wide omega2 = 0;
@@ -177,11 +177,17 @@ void check_stable_time_step(const Chain<Real>& chain, double time_step, long dou
     throw invalid_input(std::string(command) + ": the fastest motion's angular frequency "
                         "overflows (masses, lengths, g and the energy far apart); choose units "
                         "nearer 1");
-  if (!(static_cast<Wide>(time_step) * omega <= 1))
+  if (!(static_cast<Wide>(time_step) * omega <= 1)) {
+    // The advised step only where it fits the run's step cap; beyond it the scales are the cause.
+    const Wide advised = Wide(0.05) / omega;
+    const bool fits = !(static_cast<Wide>(duration) / advised > static_cast<Wide>(max_steps));
     throw invalid_input(std::string(command) + ": a time step of " + short_decimal(time_step) +
                         " is beyond the integrator's stability limit (the fastest motion has "
-                        "angular frequency ~" + short_decimal(omega) + "); use --dt " +
-                        short_decimal(Wide(0.05) / omega) + " or smaller");
+                        "angular frequency ~" + short_decimal(omega) + "); " +
+                        (fits ? "use --dt " + short_decimal(advised) + " or smaller"
+                              : "a stable step would need more than " + short_decimal(max_steps) +
+                                    " steps for this run: choose units nearer 1"));
+  }
 }
 
 std::string more_digits_advice(const Chain<double>& chain, const double* beta,
@@ -276,7 +282,8 @@ void check_result(const Averages<Real>& a, const char* command, const std::strin
   template void check_result<Real>(const Averages<Real>&, const char*, const std::string&); \
   template void check_finite_estimate<Real>(const Estimate<Real>&, const char*, const char*); \
   template void check_finite_value<Real>(const Real&, const char*, const char*);            \
-  template void check_stable_time_step<Real>(const Chain<Real>&, double, long double, const char*);
+  template void check_stable_time_step<Real>(const Chain<Real>&, double, long double, const char*, \
+                                             double, double);
 PENDAVG_INSTANTIATE_DOMAIN(double)
 PENDAVG_INSTANTIATE_DOMAIN(long double)
 PENDAVG_INSTANTIATE_DOMAIN(mpfr_real)

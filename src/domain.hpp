@@ -79,8 +79,9 @@ void check_dynamics_scales(const Chain<Real>& chain, const char* command);
 /// is beyond the integrators' stability limit and refused, with the step that would do; a NaN
 /// energy or frequency is refused too (it read as 0 once).
 template <class Real>
+/// `duration` over the advised step beyond `max_steps` (the run's cap) gives no --dt advice.
 void check_stable_time_step(const Chain<Real>& chain, double time_step, long double kinetic,
-                            const char* command);
+                            const char* command, double duration, double max_steps);
 
 /// "; request 17 or more digits (MPFR)" when the same chain and beta pass the MPFR checks of
 /// `options.method` at 17 digits (so the advice is given only when it is true), else "".

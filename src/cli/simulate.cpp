@@ -595,11 +595,21 @@ std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
   // Everything the run refuses is refused first, before the exact values (seconds for N >= 4).
   check_simulation(chain, initial, request.run);
   out.energy = total_energy(chain, initial);
-  if (request.exact)
-    out.reference =
-        request.langevin
-            ? canonical_values(chain, *request.run.beta)
-            : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
+  if (request.exact) {
+    try {
+      out.reference =
+          request.langevin
+              ? canonical_values(chain, *request.run.beta)
+              : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
+    } catch (const invalid_input& e) {
+      // The exact values' refusal, without its advice to request digits (simulate has no
+      // --digits): the way out here is --exact no.
+      std::string why = e.what();
+      const std::size_t advice = why.find("; request ");
+      if (advice != std::string::npos) why.erase(advice);
+      throw invalid_input(why + "; --exact no runs the trajectory without the exact values");
+    }
+  }
   Progress progress("simulate");
   SimulationResult<double>& r = out.result;
   if (request.replicas == 1) {

@@ -260,7 +260,8 @@ void check_simulation(const Chain<Real>& chain, const ChainState<Real>& initial,
                         static_cast<long double>(chain.gravity()) * mass_sum * length_sum;
   if (options.thermostat == Thermostat::langevin && options.beta)
     kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / *options.beta);
-  domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate");
+  domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate",
+                                 options.duration + options.burn_in, max_simulation_steps);
 }
 
 /// The result check of simulate() (domain.hpp): every time average, energy and residual finite.

@@ -886,7 +886,8 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
     if (langevin)
       kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(*options.beta));
-    domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate");
+    domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate",
+                                   options.duration + options.burn_in, max_simulation_steps);
   }
 
   auto advance = [&]() {
@@ -1086,8 +1087,8 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
                         ") overflow double; choose units nearer 1");
   // Then the time step (its frequency estimate needs finite scales).
   domain::check_stable_time_step(chain, options.time_step,
-                         static_cast<long double>(energy) + static_cast<long double>(scale),
-                         "poincare");
+                                 static_cast<long double>(energy) + static_cast<long double>(scale),
+                                 "poincare", max_time, 1e12);
 
   std::vector<std::vector<SectionPoint<Real>>> per_orbit(orbits);
   std::vector<Real> energy_error(orbits, Real(0));

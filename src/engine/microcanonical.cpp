@@ -837,8 +837,7 @@ MicrocanonicalAverages<Real> checked(MicrocanonicalAverages<Real> a) {
     for (const auto& e : a.kinetic_variance) underflow = underflow || zero(e);
     if (underflow && a.excitation > 0)
       throw invalid_input("microcanonical: Var K_i or the density of states underflows double "
-                          "at the excitation " + short_decimal(a.excitation) +
-                          "; request 17 or more digits (MPFR) where the rule runs in MPFR");
+                          "at the excitation " + short_decimal(a.excitation));
   }
   check(a.kinetic_canonical, "<K_i^(c)>_E");
   check(a.kinetic_total, "<K>_E");

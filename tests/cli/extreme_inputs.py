@@ -436,6 +436,16 @@ def judge(case, r, args):
     # exit 3: a sweep that finished with failed rows (README, sweeps): one stderr line, every
     # finished row kept in the output with a '# failed:' line in place of each failed one, and
     # no non-finite number in the rows that were kept.
+    if r.rc == 3 and not case.outputs and r.stdout:
+        # the same for a sweep written to stdout
+        if len(err_lines) != 1 or not err_lines[0].startswith("pendavg: "):
+            c.add("refusal-stderr-lines", "exit 3 with %d stderr lines" % len(err_lines))
+        if "# failed:" not in r.stdout:
+            c.add("malformed-output", "exit 3 but stdout has no '# failed:' line")
+        rows = "\n".join(l for l in r.stdout.splitlines() if not l.startswith("#"))
+        if rows.strip():
+            c.csv_text(rows + "\n", "stdout")
+        return c, None
     if r.rc == 3 and case.outputs:
         if len(err_lines) != 1 or not err_lines[0].startswith("pendavg: "):
             c.add("refusal-stderr-lines", "exit 3 with %d stderr lines" % len(err_lines))
