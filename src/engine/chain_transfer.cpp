@@ -745,6 +745,12 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
                         " times the lightest mass, beyond the double range of the transfer "
                         "operator (1e150)");
   }
+  // A particle below 1e-16 of the total mass (the 1e-127 of a 6-particle chain ran unbounded;
+  // 1e-12 converges in seconds) is below double's resolution of the chain's sums: refused.
+  for (std::size_t i = 0; i < chain.size(); ++i)
+    if (!(chain.mass(i) / chain.total_mass() >= Real(1e-16)))
+      throw invalid_input("transfer: particle " + std::to_string(i + 1) + " weighs less than "
+                          "1e-16 of the total mass, below what the transfer operator resolves");
   // A light particle (m_i / S_{i+1} small) gets its own node placement, but two adjacent ones do
   // not converge in bounded time (measured: four unit masses before a tail of 1e8 took 17 s,
   // 1e9 and 1e10 never finished; 1, 1e-8, 1e-8, 1, 1 never finished): refused before any work.

@@ -384,6 +384,15 @@ void check_double_range(const Chain<Real>& chain, const Real& energy, const Real
                         text(chain.mass(0) / chain.total_mass()) +
                         " of the total, below the double engine's accurate range (1e-8); " +
                         advice);
+  // N >= 3 with a particle below 1e-8 of the total: the nested integral ran unbounded (masses
+  // 2.454, 1e-82, 7.361 at E = -1): refused like N = 2's light top particle.
+  if (chain.size() >= 3 && rule != MicrocanonicalOptions::Rule::qmc)
+    for (std::size_t i = 0; i < chain.size(); ++i)
+      if (!(chain.mass(i) / chain.total_mass() >= Real(1e-8)))
+        throw invalid_input("microcanonical: particle " + std::to_string(i + 1) + " is " +
+                            text(chain.mass(i) / chain.total_mass()) +
+                            " of the total mass, below the double quadrature's accurate range "
+                            "(1e-8)");
   // Link lengths far apart: the density of states lost digits beyond its error (lengths 1 and
   // 1e81 off by 5x its error; 1e40 still covered), so double takes length ratios up to 1e30.
   {

@@ -86,6 +86,23 @@ refused "average: last link 6e307" "link 3" \
 refused "table: g = DBL_MAX" "beyond double's range for the engines" \
   table --chain 3 --beta 1 --g 1.7976931348623157e308 --output "$work/table.csv"
 [[ -e $work/table.csv ]] && { fail=$((fail + 1)); echo "FAIL table: a refused table left a file"; }
+# transfer: a particle below 1e-16 of the total, two adjacent light particles (unbounded runs)
+refused "transfer: a particle of 3.7e-127" "below what the transfer operator resolves" \
+  average --masses 0.369,0.597,1.19,1.58,3.7e-127,2.29 --lengths 0.913,1.66,1.03,1.7,1.55,0.338 \
+  --g 2.3 --beta 2.59 --tol 1e-8
+refused "transfer: four light particles before a heavy tail" "not two adjacent ones" \
+  average --masses 1,1,1,1,1e14 --lengths 1,1,1,1,1 --beta 1 --tol 1e-4
+finite "transfer: one light particle (1e-12) converges" \
+  average --masses 1,1e-12,1,1,1 --lengths 1,1,1,1,1 --beta 1 --format csv
+# microcanonical: a light middle particle (unbounded), links 1e81 apart (error did not cover)
+refused "microcanonical: a middle mass of 1e-82" "below the double quadrature's accurate range" \
+  average --masses 2.454,1e-82,7.361 --lengths 2.04,2.44,2.29 --g 1 --energy -1 --tol 1e-8
+refused "microcanonical: links 1e81 apart" "more than 1e30 times the shortest" \
+  average --masses 1.12,0.638 --lengths 1.02,2e81 --g 0.412 --energy -0.6101
+refused "simulate: refused exact values point to --exact no" "--exact no runs the trajectory" \
+  simulate --masses 1e-12,1 --lengths 1,1 --theta 1 --time 1e-5 --dt 1e-8
+refused "poincare: no --dt advice beyond the step cap" "choose units nearer 1" \
+  poincare --masses 1,1 --lengths 1,1e-40 --g 1e40 --energy 0 --orbits 1 --points 2
 # underflow: Var K_i = 5e-601 printed as 0 +- 0
 refused "average: Var K underflows, N = 1" "leaves double's range" \
   average --masses 2 --lengths 3 --g 1 --beta 1e200
