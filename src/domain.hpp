@@ -69,7 +69,7 @@ template <class Real>
 void check_trace_formula_mass_range(const Chain<Real>& chain, const char* command);
 
 /// The dynamics (simulate, poincare; double and long double): every mass, length and g > 0
-/// within 1e-100..1e100, so that positions, momenta, tensions and frequencies stay normal
+/// within 1e-50..1e50, so that positions, momenta, tensions and frequencies stay normal
 /// doubles. Throws invalid_input ("choose units nearer 1").
 template <class Real>
 void check_dynamics_scales(const Chain<Real>& chain, const char* command);

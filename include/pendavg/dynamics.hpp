@@ -335,7 +335,7 @@ struct SimulationResult {
 };
 
 /// Checks, without a step, what simulate(chain, initial, options) checks before its first one:
-/// the options, the chain's scales (masses, lengths and g within 1e-100..1e100) and the time
+/// the options, the chain's scales (masses, lengths and g within 1e-50..1e50) and the time
 /// step against the fastest motion at the start's energy. Throws invalid_input. Cheap: a front
 /// end calls it before anything slow (the exact values of the run's ensemble).
 template <class Real>
