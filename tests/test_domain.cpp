@@ -12,6 +12,7 @@
 #include <catch2/catch.hpp>
 
 #include "engine/torus.hpp"
+#include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
 
@@ -31,15 +32,8 @@ using pendavg::Estimate;
 using pendavg::Method;
 using pendavg::mpfr_real;
 
-/// Every value and error finite.
-template <class Real>
-bool all_finite(const Averages<Real>& a) {
-  using std::isfinite;
-  for (const auto* group : {&a.beta_kinetic, &a.cos_angle, &a.beta2_kinetic_variance})
-    for (const Estimate<Real>& e : *group)
-      if (!isfinite(e.value) || !isfinite(e.error)) return false;
-  return true;
-}
+using pendavg_test::all_finite;
+using pendavg_test::rejection;
 
 /// |a - b| <= the two errors, for every observable.
 void require_agree(const Averages<double>& a, const Averages<double>& b) {
@@ -56,16 +50,6 @@ void require_agree(const Averages<double>& a, const Averages<double>& b) {
   }
 }
 
-/// The message of the invalid_input thrown by `f` ("" when none).
-template <class F>
-std::string rejection(F&& f) {
-  try {
-    f();
-  } catch (const pendavg::invalid_input& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 

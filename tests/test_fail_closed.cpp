@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include "domain.hpp"
+#include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
 
@@ -23,24 +24,8 @@ using pendavg::Chain;
 using pendavg::Estimate;
 using pendavg::mpfr_real;
 
-template <class F>
-std::string refusal(F&& f) {
-  try {
-    f();
-  } catch (const pendavg::invalid_input& e) {
-    return e.what();
-  }
-  return "";
-}
-
-template <class Real>
-bool all_finite(const Averages<Real>& a) {
-  using std::isfinite;
-  for (const auto* group : {&a.beta_kinetic, &a.cos_angle, &a.beta2_kinetic_variance})
-    for (const Estimate<Real>& e : *group)
-      if (!isfinite(e.value) || !isfinite(e.error)) return false;
-  return true;
-}
+using pendavg_test::all_finite;
+using pendavg_test::rejection;
 
 AverageOptions digits(int d) {
   AverageOptions o;
@@ -58,8 +43,8 @@ TEST_CASE("fail closed: limit with the lightest mass fraction below double's nor
   // error (4.9e-324) that did not cover, and a NaN beta^2 Var K_1 with converged = true.
   const Chain<double> chain({1e-300, 1e20}, {1, 0.5});
   for (const std::string& message :
-       {refusal([&] { pendavg::high_temperature_limit(chain); }),
-        refusal([&] { pendavg::low_temperature_limit(chain); })}) {
+       {rejection([&] { pendavg::high_temperature_limit(chain); }),
+        rejection([&] { pendavg::low_temperature_limit(chain); })}) {
     CHECK_THAT(message, Catch::Contains("below double's normal range"));
     CHECK_THAT(message, Catch::Contains(mpfr_advice));
   }
@@ -82,8 +67,8 @@ TEST_CASE("fail closed: limit with M / m_min beyond the trace formula's double r
   for (const std::vector<double>& masses :
        {std::vector<double>{1, 1e154, 1}, std::vector<double>{0.5, 1e-300, 5.467694768196e306}}) {
     const Chain<double> chain(masses, std::vector<double>(3, 1.0));
-    CHECK_FALSE(refusal([&] { pendavg::high_temperature_limit(chain); }).empty());
-    CHECK_FALSE(refusal([&] { pendavg::low_temperature_limit(chain); }).empty());
+    CHECK_FALSE(rejection([&] { pendavg::high_temperature_limit(chain); }).empty());
+    CHECK_FALSE(rejection([&] { pendavg::low_temperature_limit(chain); }).empty());
   }
   // Inside the range both limits still run.
   const Chain<double> inside({1, 1e100, 1}, {1, 1, 1});
@@ -93,7 +78,7 @@ TEST_CASE("fail closed: limit with M / m_min beyond the trace formula's double r
 TEST_CASE("fail closed: limit N = 2 with mu1 = 1e-400 is one refusal, not Boost's ellint_rf",
           "[fail_closed]") {
   const Chain<double> chain({1e-200, 1e200}, {1, 1});
-  const std::string message = refusal([&] { pendavg::high_temperature_limit(chain); });
+  const std::string message = rejection([&] { pendavg::high_temperature_limit(chain); });
   CHECK_THAT(message, Catch::Contains("below double's normal range"));
   CHECK(message.find("ellint") == std::string::npos);
   CHECK(all_finite(pendavg::high_temperature_limit(chain.cast<mpfr_real>(), digits(20))));
@@ -104,8 +89,8 @@ TEST_CASE("fail closed: every joint's stiffness is checked in double, the last l
   // g = 6e307 (N = 3) and a link of 6e307 ran for a minute and failed with four lines; the
   // last link's stiffness was never checked.
   const auto both = [](const Chain<double>& chain, double beta) {
-    const std::string checked = refusal([&] { pendavg::check_average(chain, beta, {}); });
-    const std::string run = refusal([&] { pendavg::average(chain, beta); });
+    const std::string checked = rejection([&] { pendavg::check_average(chain, beta, {}); });
+    const std::string run = rejection([&] { pendavg::average(chain, beta); });
     CHECK(checked == run);
     return checked;
   };
@@ -129,17 +114,17 @@ TEST_CASE("fail closed: MPFR joints' stiffness is formed in MPFR (beta = 1e400)"
   const pendavg::working_precision precision(20 + pendavg::guard_digits);
   const mpfr_real huge("1e400");
   const std::vector<mpfr_real> ones3(3, mpfr_real(1)), ones4(4, mpfr_real(1));
-  CHECK_FALSE(refusal([&] {
+  CHECK_FALSE(rejection([&] {
                 pendavg::check_average(Chain<mpfr_real>(ones3, ones3), huge, digits(20));
               }).empty());
-  CHECK_FALSE(refusal([&] {
+  CHECK_FALSE(rejection([&] {
                 pendavg::check_average(Chain<mpfr_real>(ones4, ones4), huge, digits(20));
               }).empty());
-  CHECK_FALSE(refusal([&] {
+  CHECK_FALSE(rejection([&] {
                 pendavg::check_average(Chain<mpfr_real>(ones3, ones3, huge), mpfr_real(1),
                                        digits(20));
               }).empty());
-  CHECK_FALSE(refusal([&] {
+  CHECK_FALSE(rejection([&] {
                 pendavg::check_average(
                     Chain<mpfr_real>(ones3, {mpfr_real(1), huge, mpfr_real(1)}), mpfr_real(1),
                     digits(20));
@@ -150,13 +135,13 @@ TEST_CASE("fail closed: a link far stiffer than the softest joint is refused wit
           "[fail_closed]") {
   // l_3 = 1e24 made the double torus refine forever (l_3 = 1e20 converges in 0.2 s).
   const Chain<double> chain({1, 1, 1}, {1, 1, 1e24});
-  const std::string message = refusal([&] { pendavg::check_average(chain, 1.0, {}); });
+  const std::string message = rejection([&] { pendavg::check_average(chain, 1.0, {}); });
   CHECK_THAT(message, Catch::Contains("request 17 or more digits"));
   const Averages<mpfr_real> a = pendavg::average(chain.cast<mpfr_real>(), mpfr_real(1), digits(17));
   REQUIRE(all_finite(a));
   CHECK(a.converged);
   // The first link is the torus' reference and is not limited: l_1 = 1e24 runs in double.
-  CHECK(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1e24, 1, 1}), 1.0, {}); })
+  CHECK(rejection([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1e24, 1, 1}), 1.0, {}); })
             .empty());
 }
 
@@ -165,7 +150,7 @@ TEST_CASE("fail closed: MPFR exponent overflow is named, without advice to reque
   const pendavg::working_precision precision(30 + pendavg::guard_digits);
   const Chain<mpfr_real> chain({mpfr_real(1), mpfr_real(1)}, {mpfr_real(1), mpfr_real(1)});
   const std::string message =
-      refusal([&] { pendavg::check_average(chain, mpfr_real("1e200000000"), digits(30)); });
+      rejection([&] { pendavg::check_average(chain, mpfr_real("1e200000000"), digits(30)); });
   CHECK_THAT(message, Catch::Contains("MPFR's exponent range"));
   CHECK(message.find("request 17") == std::string::npos);
 }
@@ -191,7 +176,7 @@ TEST_CASE("fail closed: simulate refuses scales whose trajectory leaves double's
         o.thermostat = pendavg::Thermostat::langevin;
         o.beta = 1.0;
       }
-      CHECK_THAT(refusal([&] { pendavg::simulate(chain, start, o); }),
+      CHECK_THAT(rejection([&] { pendavg::simulate(chain, start, o); }),
                  Catch::Contains("choose units nearer 1"));
     }
   }
@@ -203,25 +188,25 @@ TEST_CASE("fail closed: the result check refuses NaN, infinity and subnormal val
   a.beta_kinetic = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
   a.cos_angle = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
   a.beta2_kinetic_variance = {{0.5, 1e-16, pendavg::ErrorKind::estimate}};
-  CHECK(refusal([&] { pendavg::domain::check_result(a, "average"); }).empty());
+  CHECK(rejection([&] { pendavg::domain::check_result(a, "average"); }).empty());
   SECTION("NaN value") {
     a.beta2_kinetic_variance[0].value = std::nan("");
-    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "average"); }),
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "average"); }),
                Catch::Contains("non-finite beta^2 Var K_i"));
   }
   SECTION("infinite error") {
     a.cos_angle[0].error = std::numeric_limits<double>::infinity();
-    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "limit"); }),
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "limit"); }),
                Catch::Contains("limit: "));
   }
   SECTION("subnormal value") {
     a.beta_kinetic[0].value = 1e-318;
-    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "limit", "; advice"); }),
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "limit", "; advice"); }),
                Catch::Contains("below double's normal range") && Catch::Contains("; advice"));
   }
   SECTION("NaN ratio") {
     a.ratio = Estimate<double>{std::nan(""), 0, pendavg::ErrorKind::estimate};
-    CHECK_THAT(refusal([&] { pendavg::domain::check_result(a, "average"); }),
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "average"); }),
                Catch::Contains("<K1>/<K2>"));
   }
 }
@@ -259,7 +244,7 @@ TEST_CASE("fail closed: NVE replicas are brought back to the run's energy shell"
   // Below the bottom of the well there is no state at all: refused, not a wrong energy.
   const std::vector<double> bottom(3, 0.0);
   const double lowest = pendavg::total_energy(chain, pendavg::state_from_angles(chain, bottom, zero));
-  CHECK_THAT(refusal([&] {
+  CHECK_THAT(rejection([&] {
                pendavg::state_at_energy(chain, std::vector<double>{1e-3, 0, 0}, zero, lowest - 1);
              }),
              Catch::Contains("no state at the energy"));
@@ -268,7 +253,7 @@ TEST_CASE("fail closed: NVE replicas are brought back to the run's energy shell"
 TEST_CASE("fail closed: microcanonical guards where double lost digits beyond its error",
           "[fail_closed][microcanonical]") {
   // N = 2 with m1/M = 1e-10: <K_1>_E was off by 3x its error (1e-20: 1e5x, 1e-40: 2%).
-  CHECK_THAT(refusal([] {
+  CHECK_THAT(rejection([] {
                pendavg::microcanonical_average(Chain<double>({1e-10, 1}, {1, 1}), 0.0);
              }),
              Catch::Contains("below the double engine's accurate range (1e-8)"));
@@ -282,13 +267,13 @@ TEST_CASE("fail closed: microcanonical guards where double lost digits beyond it
   CHECK(std::abs(a.kinetic[0].value - static_cast<double>(b.kinetic[0].value)) <=
         a.kinetic[0].error);
   // Links 1e81 apart: the density of states was off by 5x its error.
-  CHECK_THAT(refusal([] {
+  CHECK_THAT(rejection([] {
                pendavg::microcanonical_average(Chain<double>({1.12, 0.638}, {1.02, 2e81}, 0.412),
                                                -0.6101);
              }),
              Catch::Contains("more than 1e30 times the shortest"));
   // Var K_i ~ D^2 = 1e-600 underflowed to 0 +- 0 at the excitation 1e-300.
-  CHECK_THAT(refusal([] {
+  CHECK_THAT(rejection([] {
                pendavg::microcanonical_average_excitation(Chain<double>({1, 1}, {1, 1}), 1e-300);
              }),
              Catch::Contains("underflows double"));
@@ -299,10 +284,10 @@ TEST_CASE("fail closed: a tolerance finer than double resolves is refused", "[fa
   AverageOptions o;
   o.method = pendavg::AverageMethod::torus_gauss;
   o.tolerance = 1e-300;
-  CHECK_THAT(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); }),
+  CHECK_THAT(rejection([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); }),
              Catch::Contains("tol must be in [1e-15, 1)"));
   o.tolerance = 1e-15;
-  CHECK(refusal([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); })
+  CHECK(rejection([&] { pendavg::check_average(Chain<double>({1, 1, 1}, {1, 1, 1}), 1.0, o); })
             .empty());
 }
 
@@ -310,17 +295,17 @@ TEST_CASE("fail closed: transfer refuses two adjacent light particles it cannot 
           "[fail_closed][transfer]") {
   // Four unit masses before a tail of 1e10 (every m_i / S_(i+1) = 1e-10) ran unbounded; one light
   // particle anywhere converges in seconds (tests/test_transfer.cpp).
-  CHECK_THAT(refusal([] {
+  CHECK_THAT(rejection([] {
                pendavg::check_average(Chain<double>({1, 1, 1, 1, 1e10}, std::vector<double>(5, 1.0)),
                                       1.0, {});
              }),
              Catch::Contains("not two adjacent ones"));
-  CHECK_THAT(refusal([] {
+  CHECK_THAT(rejection([] {
                pendavg::check_average(
                    Chain<double>({1, 1e-8, 1e-8, 1, 1}, std::vector<double>(5, 1.0)), 1.0, {});
              }),
              Catch::Contains("not two adjacent ones"));
-  CHECK(refusal([] {
+  CHECK(rejection([] {
           pendavg::check_average(Chain<double>({1, 1e-8, 1, 1, 1}, std::vector<double>(5, 1.0)),
                                  1.0, {});
         }).empty());
@@ -333,9 +318,9 @@ TEST_CASE("fail closed: the MPFR torus without gravity refuses a particle it can
   const pendavg::working_precision precision(17 + pendavg::guard_digits);
   const Chain<mpfr_real> chain({mpfr_real(1), mpfr_real("1e20"), mpfr_real(1)},
                                std::vector<mpfr_real>(3, mpfr_real(1)), mpfr_real(0));
-  CHECK_THAT(refusal([&] { pendavg::check_average(chain, mpfr_real(1), digits(17)); }),
+  CHECK_THAT(rejection([&] { pendavg::check_average(chain, mpfr_real(1), digits(17)); }),
              Catch::Contains("at 16 digits it does"));
-  CHECK_THAT(refusal([&] { pendavg::high_temperature_limit(chain, digits(17)); }),
+  CHECK_THAT(rejection([&] { pendavg::high_temperature_limit(chain, digits(17)); }),
              Catch::Contains("without gravity"));
   // the beta -> infinity limit is a closed form and takes it
   CHECK(all_finite(pendavg::low_temperature_limit(chain, digits(17))));
