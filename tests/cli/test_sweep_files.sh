@@ -19,47 +19,9 @@ faulty=${2:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_fault
 python=/usr/bin/python3
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-passed=0
-failed=0
-export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare
-
-pass() { passed=$((passed + 1)); }
-fail() {
-  failed=$((failed + 1))
-  echo "FAIL: $1"
-  [ -s "$work/out" ] && head -c 2000 "$work/out" | sed 's/^/  stdout: /' | head -5
-  [ -s "$work/err" ] && head -c 2000 "$work/err" | sed 's/^/  stderr: /' | head -5
-}
-run() {
-  "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-}
-# one_error_line: stderr is one line "pendavg: error: ..." (after progress lines "[command] ...")
-one_error_line() {
-  [ "$(grep -vc '^\[[a-z]*\] ' "$work/err")" -eq 1 ] && tail -1 "$work/err" | grep -q '^pendavg: error: '
-}
-# bad NAME ARGS...: exit 2, one stderr line "pendavg: error: ...", empty stdout, within 20 s.
-bad() {
-  local name=$1
-  shift
-  timeout 20 "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-  if [ "$rc" -ne 2 ]; then
-    fail "$name: exit code $rc, expected 2"
-  elif [ -s "$work/out" ]; then
-    fail "$name: stdout not empty"
-  elif ! one_error_line; then
-    fail "$name: stderr is not one 'pendavg: error: ' line"
-  else
-    pass
-  fi
-}
-check() { # NAME COMMAND...: the command succeeds
-  local name=$1
-  shift
-  if "$@"; then pass; else fail "$name"; fi
-}
-no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+progress_lines_allowed=1
+# shellcheck source=sweep_harness.sh
+source "$(cd "$(dirname "$0")" && pwd)/sweep_harness.sh"
 # faulty_run ROWS ARGS...: the test build with rows ROWS failing late
 faulty_run() {
   local rows=$1

@@ -15,44 +15,8 @@ python=/usr/bin/python3
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-passed=0
-failed=0
-export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare
-
-pass() { passed=$((passed + 1)); }
-fail() {
-  failed=$((failed + 1))
-  echo "FAIL: $1"
-  [ -s "$work/out" ] && sed 's/^/  stdout: /' "$work/out" | head -5
-  [ -s "$work/err" ] && sed 's/^/  stderr: /' "$work/err" | head -5
-}
-run() {
-  "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-}
-# bad NAME ARGS...: exit 2, one stderr line "pendavg: error: ...", empty stdout, within 20 s
-# (nothing is computed before the input is refused).
-bad() {
-  local name=$1
-  shift
-  timeout 20 "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-  if [ "$rc" -ne 2 ]; then
-    fail "$name: exit code $rc, expected 2"
-  elif [ -s "$work/out" ]; then
-    fail "$name: stdout not empty"
-  elif [ "$(wc -l <"$work/err")" -ne 1 ] || ! head -1 "$work/err" | grep -q '^pendavg: error: '; then
-    fail "$name: stderr is not one 'pendavg: error: ' line"
-  else
-    pass
-  fi
-}
-check() { # NAME COMMAND...: the command succeeds
-  local name=$1
-  shift
-  if "$@"; then pass; else fail "$name"; fi
-}
-no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+# shellcheck source=sweep_harness.sh
+source "$here/sweep_harness.sh"
 # peak_rss_kb PID: the process' peak resident memory so far (kB)
 peak_rss_kb() { awk '/^VmHWM:/ { print $2 }' "/proc/$1/status"; }
 # start_then_signal SECONDS SIGNAL ARGS...: runs pendavg ARGS in the background, sends SIGNAL
