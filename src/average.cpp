@@ -112,9 +112,24 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
   }
 }
 
+/// The torus' work cap (TorusOptions::max_evaluations): the node evaluations that take about 20 s
+/// of one core, so that no torus run is unbounded (a particle of 1e-100 of the chain's mass with
+/// gravity took hours in MPFR; soft interior links between stiff ones ~100 s in double). Beyond
+/// it the refinement stops with converged = false and the last level's errors. The cost of one
+/// node per particle (user time over evaluations of `pendavg average --method torus-trapezoid`,
+/// one core, N = 3..5): ~0.07 us in double, ~15 + 0.12
+/// digits us in MPFR (N = 3: 51, 72, 79 us per node at 17, 38, 77 digits). A run split into
+/// `runs` torus runs (the low-temperature extrapolation's three references) shares the cap.
+double torus_evaluation_budget(std::size_t n, int digits, int runs) {
+  constexpr double seconds = 20;
+  const double per_particle = digits == min_digits ? 7e-8 : (15 + 0.12 * digits) * 1e-6;
+  return seconds / (per_particle * static_cast<double>(n) * runs);
+}
+
 TorusOptions torus_options(const AverageOptions& o, AverageMethod method, std::size_t n,
-                           const char* what) {
+                           const char* what, int runs = 1) {
   TorusOptions torus;
+  torus.max_evaluations = torus_evaluation_budget(n, o.digits, runs);
   torus.rule = method == AverageMethod::torus_gauss ? TorusRule::gauss_legendre
                                                      : TorusRule::trapezoid;
   const double nodes =
@@ -224,6 +239,14 @@ JointStiffness joint_stiffness(const Chain<Real>& chain, const Real& beta) {
     k.largest = std::max(k.largest, kappa);
     k.smallest_effective = std::min(k.smallest_effective, kappa * std::min(1.0L, light));
   }
+  // A joint's kappa_i is the cost of bending that joint alone. Turning one link alone (two
+  // joints bent oppositely) costs only that link's own alpha_j: a soft link between stiff ones
+  // (lengths 1, 1e-9, 1e3 at beta = 1e7: alpha_2 = 0.02 while every kappa_i is ~3e7) stays free
+  // however stiff the joints look, and extrapolating from the joints' stiffness printed
+  // <cos phi_2> = 0.9995 +- 7e-5 for a true 0.0084. The chain's softest mode lies between
+  // min_j alpha_j / 4 and min_j alpha_j, so the links' stiffness bounds the effective one too.
+  for (std::size_t j = 0; j < n; ++j)
+    k.smallest_effective = std::min(k.smallest_effective, narrow(alpha[j]));
   return k;
 }
 
@@ -325,11 +348,19 @@ Averages<Real> low_temperature_extrapolation(const Chain<Real>& chain, const Rea
 }
 
 /// The method that takes a chain the torus and qmc methods cannot: the double-pendulum integral
-/// or the transfer operator (which follows the peaks at any beta).
+/// or the transfer operator (which follows the peaks at any beta), advised only when its own
+/// checks accept the chain (a particle of 1e-16 of the mass is beyond the transfer operator).
 template <class Real>
-std::string other_method_advice(const Chain<Real>& chain) {
-  return chain.size() == 2 ? "use method integral (the default for N = 2)"
-                           : "use method transfer (the default for N >= 5)";
+std::string other_method_advice(const Chain<Real>& chain, const Real& beta) {
+  AverageOptions other;
+  other.method = chain.size() == 2 ? AverageMethod::integral : AverageMethod::transfer;
+  try {
+    check_average(chain, beta, other);
+  } catch (const invalid_input&) {
+    return "";
+  }
+  return chain.size() == 2 ? "; use method integral (the default for N = 2)"
+                           : "; use method transfer (the default for N >= 5)";
 }
 
 /// Whether the same chain and beta, rounded to double, pass the double torus' checks: the advice
@@ -416,16 +447,17 @@ StiffnessPlan check_stiffness(const Chain<Real>& chain, const Real& beta, Averag
         throw invalid_input(
             "average: the joints' stiffnesses beta g S l (" + short_decimal(stiffness.largest) +
             ", and an effective " + short_decimal(stiffness.smallest_effective) +
-            " where a light particle meets a heavy tail) differ by more than 2.5e9, beyond "
-            "what the low-temperature extrapolation resolves; " + other_method_advice(chain));
+            " where a light particle meets a heavy tail or on a soft link) differ by more than "
+            "2.5e9, beyond what the low-temperature extrapolation resolves" +
+            other_method_advice(chain, beta));
       return StiffnessPlan::extrapolate;
     }
     if (stiffness.largest > stiffness_resolved)
       throw invalid_input("average: a joint's stiffness beta g S l = " +
                           short_decimal(stiffness.largest) + " is beyond what the torus and "
                           "qmc methods resolve (1e13) while another joint is soft (effective "
-                          "stiffness " + short_decimal(stiffness.smallest_effective) + "); " +
-                          other_method_advice(chain));
+                          "stiffness " + short_decimal(stiffness.smallest_effective) + ")" +
+                          other_method_advice(chain, beta));
   } else if (stiffness.largest > stiffness_resolved_mpfr) {
     throw invalid_input("average: a joint's stiffness beta g S l = " +
                         short_decimal(stiffness.largest) + " is beyond what the torus "
@@ -461,12 +493,15 @@ Averages<Real> run_average(const Chain<Real>& chain, const Real& beta, const Ave
     case AverageMethod::torus_trapezoid:
     case AverageMethod::torus_gauss:
     case AverageMethod::qmc: {
+      const StiffnessPlan plan = check_stiffness(chain, beta, method);
+      const int runs = plan == StiffnessPlan::extrapolate ? 3 : 1;
       const std::function<Averages<Real>(const Real&)> run = [&](const Real& b) {
         return method == AverageMethod::qmc
                    ? qmc_average(chain, b, qmc_options(o))
-                   : torus_average(chain, b, torus_options(o, method, chain.size(), "average"));
+                   : torus_average(chain, b,
+                                   torus_options(o, method, chain.size(), "average", runs));
       };
-      if (check_stiffness(chain, beta, method) == StiffnessPlan::extrapolate)
+      if (plan == StiffnessPlan::extrapolate)
         return low_temperature_extrapolation(chain, beta, joint_stiffness(chain, beta), run);
       return run(beta);
     }

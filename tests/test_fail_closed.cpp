@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include "domain.hpp"
+#include "engine/torus.hpp"
 #include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -324,4 +325,57 @@ TEST_CASE("fail closed: the MPFR torus without gravity refuses a particle it can
              Catch::Contains("without gravity"));
   // the beta -> infinity limit is a closed form and takes it
   CHECK(all_finite(pendavg::low_temperature_limit(chain, digits(17))));
+}
+
+namespace {
+
+/// |a - b| within both errors (and a few ulps) for every beta<K_i>, <cos phi_i> and Var K_i.
+void check_within_errors(const Averages<double>& a, const Averages<double>& b) {
+  const auto close = [](const Estimate<double>& x, const Estimate<double>& y) {
+    return std::abs(x.value - y.value) <=
+           x.error + y.error + 4 * std::numeric_limits<double>::epsilon() * std::abs(y.value);
+  };
+  REQUIRE(a.beta_kinetic.size() == b.beta_kinetic.size());
+  for (std::size_t i = 0; i < a.beta_kinetic.size(); ++i) {
+    INFO("particle " << i + 1);
+    CHECK(close(a.beta_kinetic[i], b.beta_kinetic[i]));
+    CHECK(close(a.cos_angle[i], b.cos_angle[i]));
+    CHECK(close(a.beta2_kinetic_variance[i], b.beta2_kinetic_variance[i]));
+  }
+}
+
+}  // namespace
+
+TEST_CASE("fail closed: a soft link between stiff joints is not extrapolated to low temperature",
+          "[fail_closed]") {
+  // Lengths 1, 1e-9, 1e3 at beta = 1e7: every joint's kappa is ~3e7, but link 2's own alpha is
+  // 0.02 (it turns freely between the stiff links). The extrapolation from the joints printed
+  // beta<K_1> = 0.49991 +- 1e-5 and <cos phi_2> = 0.9995 +- 7e-5 for 0.3151 and 0.0084. qmc
+  // (cheap here) and the transfer operator must now agree within their errors.
+  const Chain<double> chain({1, 1, 1}, {1, 1e-9, 1e3});
+  AverageOptions qmc, transfer;
+  qmc.method = pendavg::AverageMethod::qmc;
+  transfer.method = pendavg::AverageMethod::transfer;
+  const Averages<double> sampled = pendavg::average(chain, 1e7, qmc);
+  const Averages<double> exact = pendavg::average(chain, 1e7, transfer);
+  CHECK(sampled.method == pendavg::Method::qmc);
+  CHECK(exact.cos_angle[1].value < 0.01);  // the soft link is free
+  check_within_errors(sampled, exact);
+}
+
+TEST_CASE("fail closed: the torus' work cap ends its refinement with errors that still hold",
+          "[fail_closed][torus]") {
+  // A light middle particle (1e-6 of its tail) needs ~5e5 nodes in double, 1e-100 more than any
+  // budget (MPFR at 17 digits ran for hours before the cap). Capped at 2e4 evaluations, the run
+  // stops with converged = false, and its errors cover the converged values.
+  const Chain<double> chain({1.27, 1e-6, 0.986}, {0.835, 2.26, 0.88}, 1.58);
+  pendavg::TorusOptions capped;
+  capped.max_evaluations = 2e4;
+  const Averages<double> early = pendavg::torus_average(chain, 2.02, capped);
+  const Averages<double> full = pendavg::torus_average(chain, 2.02);
+  CHECK_FALSE(early.converged);
+  CHECK(early.evaluations <= 20000);
+  REQUIRE(full.converged);
+  CHECK(full.evaluations > 100000);
+  check_within_errors(early, full);
 }

@@ -16,7 +16,8 @@ Every run must either
       left behind (no partial output, no temporaries); a refusal slower than --refusal-soft
       (0.1 s) is recorded as a soft finding, slower than --refusal-hard (2 s) as a failure; a
       refusal's advice must be true ("request 17 or more digits": the same command at 17 digits
-      runs; "at 16 digits pendavg extrapolates": the same command at 16 digits runs);
+      runs; "at 16 digits pendavg extrapolates": the same command at 16 digits runs; "use method
+      transfer": the same command with that method runs);
 and it must end within --timeout seconds (else "unbounded-run"). Exit 1 (internal error), any
 other status and a signal are failures.
 
@@ -539,6 +540,10 @@ def advice_case(case, r):
         if case.command() == "simulate" and not steps <= 2e5:
             return None, None  # the advice is checked only where following it is cheap
         return Case(case.name + "+advice", with_option(case.argv, "dt", m.group(1)),
+                    files=case.files, outputs=case.outputs), msg
+    m = re.search(r"use method (integral|transfer)", msg)
+    if m and case.command() == "average" and "--cases" not in case.argv:
+        return Case(case.name + "+advice", with_option(case.argv, "method", m.group(1)),
                     files=case.files, outputs=case.outputs), msg
     m = re.search(r"at (\d+) digits pendavg", msg)
     if m and case.command() in ("average", "limit"):
@@ -1086,6 +1091,20 @@ def fixed_cases():
                                    "1e300"]),
         Case("poincare-g-tiny", ["poincare", "--masses", "1,1", "--lengths", "1,1", "--g",
                                  "1e-300", "--energy", "1", "--orbits", "1", "--points", "2"]),
+        # a soft link between stiff ones: the joints' stiffness (3e7) hid link 2's alpha = 0.02
+        # and the low-temperature extrapolation printed <cos phi_2> = 0.9995 (truth 0.0084)
+        Case("average-soft-link-between-stiff",
+             ["average", "--masses", "1,1,1", "--lengths", "1,1e-9,1e3", "--beta", "1e7"],
+             cross=(["average", "--masses", "1,1,1", "--lengths", "1,1e-9,1e3", "--beta", "1e7",
+                     "--method", "transfer"], "average")),
+        # the torus' work cap: each ran for minutes (the MPFR one for hours) before it
+        Case("average-torus-cap-light-mpfr",
+             ["average", "--masses", "1.27,5e-101,0.986", "--lengths", "0.835,2.26,0.88", "--g",
+              "1.58", "--beta", "2.02", "--method", "torus-trapezoid", "--digits", "17"]),
+        Case("average-torus-cap-extreme-lengths-n4",
+             ["average", "--masses", "3.7e144,0.593,0.73,0.626", "--lengths",
+              "7e27,0.1169,1.4916681462400413e-154,1.234567890123e126", "--g", "3.328", "--beta",
+              "0.9746", "--tol", "1e-8"]),
         Case("cases-overflow-row", ["average", "--cases", "{in}/c.csv", "--output", "o.csv"],
              files={"c.csv": "beta,g,m1,m2,l1,l2\n1,1,1,1,1,1\n1e300,1e10,1,1,1,1\n"},
              outputs=["o.csv"]),
