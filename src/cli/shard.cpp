@@ -116,13 +116,14 @@ std::optional<Shard> shard_option(const Options& options, std::string_view comma
 const std::string_view merge_usage =
     "usage: pendavg merge --output FILE SHARD...\n"
     "\n"
-    "Joins the files of the shards of one sweep (table or average --cases run with --shard K/N\n"
-    "for K = 1..N, e.g. the tasks of a job array) into FILE, written atomically: the header\n"
-    "(without the shard line, with the first shard's date) and every row in the order of the\n"
-    "whole sweep, the file one run of the sweep writes. Refuses shards of different sweeps (any\n"
-    "other header line differing), a shard given twice, one missing, and a shard that is\n"
-    "incomplete (interrupted: --resume it with the same --shard first) or has extra rows.\n"
-    "A '# failed:' line (a row that failed) is kept in its place; the merge then exits 3.\n";
+    "Joins the files of the shards of one sweep (pendavg table or average with a cases file, run\n"
+    "as shard K of N for K = 1..N, e.g. the tasks of a job array: see their help) into FILE,\n"
+    "written atomically: the header (without the shard line, with the first shard's date) and\n"
+    "every row in the order of the whole sweep, the file one run of the sweep writes. Refuses\n"
+    "shards of different sweeps (any other header line differing), a shard given twice, one\n"
+    "missing, and a shard that is incomplete (interrupted: resume it as the same shard first)\n"
+    "or has extra rows. A '# failed:' line (a row that failed) is kept in its place; the merge\n"
+    "then exits 3.\n";
 
 std::string merge_command(const Options& options) {
   const std::string output(options.required("output"));
