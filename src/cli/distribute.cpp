@@ -32,7 +32,7 @@ int report(std::string_view kind, std::string_view text, int exit_code) {
                  static_cast<int>(kind.size()), kind.data(), message.c_str(), rank());
     abort_job(exit_code);
   }
-  if (reach == FailureReach::not_every_rank && !is_root()) {  // a failure of its own to report
+  if (reach == FailureReach::not_every_rank) {  // a failure of its own to report
     std::fprintf(stderr, "pendavg: %.*s: %s (rank %d)\n", static_cast<int>(kind.size()),
                  kind.data(), message.c_str(), rank());
     return exit_code;
