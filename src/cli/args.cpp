@@ -94,10 +94,14 @@ mpfr_real to_mpfr(std::string_view text, std::string_view what) {
 
 Options::Options(std::string_view command, std::span<const std::string_view> args,
                  std::span<const std::string_view> allowed,
-                 std::span<const std::string_view> flags)
+                 std::span<const std::string_view> flags, bool operands)
     : command_(command) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     std::string_view arg = args[i];
+    if (operands && !arg.starts_with("--")) {
+      operands_.emplace_back(arg);
+      continue;
+    }
     if (!arg.starts_with("--") || arg.size() == 2)
       throw usage_error(command_ + ": unexpected argument " + in_quotes(arg));
     arg.remove_prefix(2);

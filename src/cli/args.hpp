@@ -32,10 +32,11 @@ std::string in_quotes(std::string_view text);
 class Options {
  public:
   /// Parses `args` (everything after the command). Only names in `allowed` (options with a
-  /// value) and `flags` (without one) are accepted.
+  /// value) and `flags` (without one) are accepted; other arguments are operands (files) when
+  /// `operands` is set, else refused.
   Options(std::string_view command, std::span<const std::string_view> args,
           std::span<const std::string_view> allowed,
-          std::span<const std::string_view> flags = {});
+          std::span<const std::string_view> flags = {}, bool operands = false);
 
   bool has(std::string_view name) const { return values_.contains(name); }
   /// The value of --name, or `fallback` when it was not given.
@@ -43,9 +44,11 @@ class Options {
   /// The value of --name; throws usage_error "<command>: missing required option --name".
   std::string_view required(std::string_view name) const;
   const std::string& command() const { return command_; }
+  const std::vector<std::string>& operands() const { return operands_; }
 
  private:
   std::string command_;
+  std::vector<std::string> operands_;
   std::map<std::string, std::string, std::less<>> values_;
 };
 

@@ -14,6 +14,7 @@
 #include "interrupt.hpp"
 #include "simulate.hpp"
 #include "sweep.hpp"
+#include "shard.hpp"
 #include "sweep_file.hpp"
 #include "table.hpp"
 #include "version_info.hpp"
@@ -63,6 +64,7 @@ constexpr std::string_view general_usage =
     "  pendavg table   (--energy SPEC | --excitation SPEC) ...: microcanonical sweeps\n"
     "  pendavg simulate --masses ... --lengths ... (--theta A | --phi ...) --time T [options]\n"
     "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
+    "  pendavg merge   --output FILE SHARD...: the files of table/average --cases --shard K/N\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
     "\n"
     "Numbers are plain decimals (0.5, 1e-3). --digits D (16..1000, default 16) is the number of\n"
@@ -76,7 +78,7 @@ constexpr std::string_view average_usage =
     "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
     "                       [--columns LIST] [--output FILE | --resume FILE] [--timing]\n"
-    "                       [--timing-rows FILE]\n"
+    "                       [--timing-rows FILE] [--shard K/N]\n"
     "\n"
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
@@ -124,6 +126,9 @@ constexpr std::string_view average_usage =
     "uninterrupted run does (a FILE that does not exist yet is simply written). A row that\n"
     "fails while it is computed becomes a '# failed: FILE line L: reason' line in its place;\n"
     "the others are kept and the run exits 3, naming the first; --resume computes it again.\n"
+    "--shard K/N (a job array without MPI: K = 1..N; not with --timing) computes the K-th of N\n"
+    "fixed shares of the rows into its own file; 'pendavg merge' joins the N files into the\n"
+    "file one run of all the rows writes.\n"
     "A cases file written by pandas (df.to_csv(): its unnamed index column) is read.\n"
     "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
     "is the same for any number of ranks.\n"
@@ -942,6 +947,7 @@ struct CasesOutput {
   std::string resume;     ///< --resume
   std::string timing_rows;  ///< --timing-rows
   bool timing = false;
+  std::optional<Shard> shard;  ///< --shard K/N
 };
 
 // ---------------------------------------------------------------- average_cases' steps
@@ -1003,7 +1009,8 @@ std::string cases_header(const CasesFile& file, const std::string& path,
 /// Step 3: rank 0 checks the outputs and reads a resumed file into `resumed`; every rank learns
 /// the verdict (a usage_error on every rank when the outputs cannot be written or the file does
 /// not match).
-void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& columns,
+void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
+                        const std::vector<std::string>& columns,
                         const std::string& header, const CasesOutput& where,
                         std::optional<ResumedRows>& resumed,
                         std::optional<AtomicFile>& timing_file, std::optional<SweepFile>& output) {
@@ -1019,9 +1026,9 @@ void open_cases_outputs(const CasesFile& file, const std::vector<std::string>& c
       }
       if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
         std::vector<std::string_view> fields(columns.size());
-        resumed.emplace(where.resume, "average", header, file.rows.size(), columns.size(),
+        resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
                         [&](std::size_t k) {
-                          case_fields(file, file.rows[k], fields);
+                          case_fields(file, rows[k], fields);
                           std::string key;
                           for (const std::string_view field : fields)
                             (key += key.empty() ? "" : ",") += field;
@@ -1065,7 +1072,12 @@ void add_timing_rows(std::string& text, std::size_t first, std::span<const doubl
 template <class Real>
 std::string average_cases(const CasesFile& file, const std::string& path,
                           const AverageOptions& settings, const CasesOutput& where) {
-  const std::vector<CaseRow>& rows = file.rows;
+  // The rows of this run: the file's, or those of the shard (plan_cases and the header still see
+  // the whole file: a shard's rows run as in the whole sweep, and its header names the sweep).
+  std::vector<CaseRow> shard_rows;
+  for (std::size_t k = 0; where.shard && k < where.shard->count(); ++k)
+    shard_rows.push_back(file.rows[where.shard->row(k)]);
+  const std::vector<CaseRow>& rows = where.shard ? shard_rows : file.rows;
   const std::size_t n = file.particles;
   const std::vector<std::string> columns = case_columns(n, file.state);
   const int digits = settings.digits;
@@ -1124,12 +1136,13 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     check(bad, 0);  // throws the first bad row's error, on every rank
 
   const std::string header =
+      (where.shard ? where.shard->header_line() : "") +
       cases_header(file, path, settings, columns, output_names, !where.path.empty());
   std::optional<ResumedRows> resumed;
   std::optional<AtomicFile> timing_file;  // --timing-rows, on rank 0
   std::string timing_text;                // its lines not yet written
   std::optional<SweepFile> output;
-  open_cases_outputs(file, columns, header, where, resumed, timing_file, output);
+  open_cases_outputs(file, rows, columns, header, where, resumed, timing_file, output);
 
   // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
@@ -1240,6 +1253,7 @@ std::string average_command(const Options& options) {
   }
   const CasesFile file = read_cases_file(path);
   where.timing = options.has("timing") || !where.timing_rows.empty();
+  where.shard = shard_option(options, "average", file.rows.size());
   if (settings.digits == min_digits) return average_cases<double>(file, path, settings, where);
   return average_cases<mpfr_real>(file, path, settings, where);
 }
@@ -1472,25 +1486,28 @@ struct Command {
   std::string (*run)(const Options&);
   std::span<const std::string_view> flags = {};  ///< options without a value
   bool distributed = false;  ///< runs on every MPI rank; the others run on rank 0 alone
+  bool operands = false;     ///< takes file names besides its options
 };
 
-constexpr std::array<std::string_view, 18> average_options{
+constexpr std::array<std::string_view, 19> average_options{
     "masses", "lengths", "g",      "beta",   "digits",      "method", "format",
     "cases",  "tol",     "samples", "shifts", "seed",       "timing-rows", "output",
-    "resume", "energy",  "excitation", "columns"};
+    "resume", "energy",  "excitation", "columns", "shard"};
+constexpr std::array<std::string_view, 1> merge_options{"output"};
 constexpr std::array<std::string_view, 1> average_flags{"timing"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",
                                                          "digits", "terms",   "format"};
 
-const std::array<Command, 6> commands{{
+const std::array<Command, 7> commands{{
     {"average", average_usage, average_options, average_command, average_flags, true},
     {"limit", limit_usage, limit_options, limit_command},
     {"series", series_usage, series_options, series_command},
     {"table", table_usage, table_options, table_command, {}, true},
     {"simulate", simulate_usage, simulate_options, simulate_command, {}, true},
     {"poincare", poincare_usage, poincare_options, poincare_command},
+    {"merge", merge_usage, merge_options, merge_command, {}, false, true},
 }};
 
 const Command& find_command(std::string_view name) {
@@ -1526,7 +1543,7 @@ std::string run(std::span<const std::string_view> args) {
   const Command& command = find_command(name);
   if (asks_for_help(rest)) return std::string(command.usage);
   set_digits_advice(std::ranges::find(command.options, "digits") != command.options.end());
-  const Options options(name, rest, command.options, command.flags);
+  const Options options(name, rest, command.options, command.flags, command.operands);
   if (!command.distributed && !is_root()) return {};
   return command.run(options);
 }

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/distribute.cpp -- what both builds share (see distribute.hpp): failure reports.
+// src/cli/distribute.cpp -- what both builds share (see distribute.hpp): failure reports, the
+// launcher's rank count and a single process' sweep link.
 #include "distribute.hpp"
 
 #include "one_line.hpp"
@@ -10,6 +11,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
 #include <string>
 
 namespace pendavg::cli {
@@ -29,7 +32,7 @@ int report(std::string_view kind, std::string_view text, int exit_code) {
                  static_cast<int>(kind.size()), kind.data(), message.c_str(), rank());
     abort_job(exit_code);
   }
-  if (reach == FailureReach::not_every_rank && !is_root()) {  // a failure of its own to report
+  if (reach == FailureReach::not_every_rank) {  // a failure of its own to report
     std::fprintf(stderr, "pendavg: %.*s: %s (rank %d)\n", static_cast<int>(kind.size()),
                  kind.data(), message.c_str(), rank());
     return exit_code;
@@ -41,6 +44,32 @@ int report(std::string_view kind, std::string_view text, int exit_code) {
 }
 
 }  // namespace
+
+int launched_ranks() {
+  // OpenMPI's mpirun and PMIx, MPICH's hydra and PMI-2, and Slurm's srun (a step's tasks: a batch
+  // script itself has SLURM_NTASKS but not SLURM_STEP_NUM_TASKS).
+  int most = 1;
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "SLURM_STEP_NUM_TASKS"})
+    if (const char* value = std::getenv(name); value && *value)
+      most = std::max(most, std::atoi(value));
+  return most;
+}
+
+std::uint64_t LocalSweepLink::fetch(Counter counter, Op op, std::uint64_t operand) {
+  std::uint64_t& value = counters_[counter];
+  const std::uint64_t before = value;
+  switch (op) {
+    case Op::add: value += operand; break;
+    case Op::bit_or: value |= operand; break;
+    case Op::replace: value = operand; break;
+    case Op::read: break;
+  }
+  return before;
+}
+
+void LocalSweepLink::send(int, std::string) {
+  throw std::logic_error("LocalSweepLink::send: a single process has no rank 0 to send to");
+}
 
 int report_failure(const std::exception_ptr& failure) {
   try {

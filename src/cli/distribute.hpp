@@ -5,14 +5,15 @@
 // without MPI compiles distribute_serial.cpp instead), and the library never sees it.
 //
 // Rank 0 reads what must be read once, prints, and writes the output files; every rank parses
-// the command line and computes. The sweep engine (sweep.hpp) sends rows between ranks with
-// post() and receive(); the rest are collectives that every rank calls in the same order.
+// the command line and computes. The sweep engine (sweep.hpp) talks through a SweepLink; the
+// rest are collectives that every rank calls in the same order.
 #pragma once
 
 #include "pendavg/average.hpp"
 
 #include <cstdint>
 #include <exception>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -22,7 +23,8 @@ namespace pendavg::cli {
 
 /// Joins the MPI job when the process was started by an MPI launcher (mpirun, mpiexec, srun;
 /// PENDAVG_MPI=1 forces it, =0 prevents it) and leaves it on destruction. One per process, in
-/// main(). Without MPI it does nothing.
+/// main(). A build without MPI started as one of several ranks (launched_ranks() > 1) refuses:
+/// each rank would run the whole command and write the same files.
 class ProcessGroup {
  public:
   ProcessGroup(int& argc, char**& argv);
@@ -30,6 +32,10 @@ class ProcessGroup {
   ProcessGroup(const ProcessGroup&) = delete;
   ProcessGroup& operator=(const ProcessGroup&) = delete;
 };
+
+/// The number of ranks an MPI launcher (mpirun, mpiexec, srun) started, from the environment it
+/// gives each process (1 when none did).
+int launched_ranks();
 
 int rank();   ///< this process' rank (0 in a plain run)
 int ranks();  ///< the number of ranks (1 in a plain run)
@@ -50,43 +56,49 @@ std::vector<std::string> gather_to_root(const std::string& local);
 /// run.
 const ShiftPartition* shift_partition();
 
-/// A point-to-point message of the sweep engine.
-struct Message {
-  int source = 0;
-  int tag = 0;
-  std::string payload;
+/// What the ranks of one sweep share (sweep.hpp), and all they need of each other: three
+/// counters kept by rank 0 that every rank changes atomically, and messages to rank 0. A plain
+/// run has one rank and keeps the counters in memory (LocalSweepLink); an MPI job keeps them in
+/// a window in rank 0's memory (MPI_Fetch_and_op: passive target, no answer from rank 0 awaited);
+/// the unit tests connect ranks that are threads of one process.
+class SweepLink {
+ public:
+  enum Counter : int { next_chunk = 0, unwritten = 1, stop = 2 };
+  enum class Op { add, bit_or, replace, read };
+  enum Tag : int { rows = 1, finished = 2 };  ///< messages to rank 0: rows, then one finished
+  struct Message {
+    int source = 0;
+    int tag = 0;
+    std::string payload;
+  };
+  virtual ~SweepLink() = default;
+  virtual int rank() const = 0;
+  virtual int ranks() const = 0;
+  /// Applies `op` with `operand` to the counter, atomically; returns its value before.
+  virtual std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand = 0) = 0;
+  /// From a rank other than 0: sends to rank 0, returning once the payload may be reused.
+  virtual void send(int tag, std::string payload) = 0;
+  /// On rank 0: a message that has arrived, if any (never waits).
+  virtual std::optional<Message> receive() = 0;
 };
-/// Sends `payload` to `destination` without waiting (the payload is kept until it is sent).
-void post(int destination, int tag, std::string payload);
-/// The next message that has arrived, if any (never waits). Messages come in the order they
-/// arrived, except that a complete one tagged `urgent_tag` (a short request) goes ahead of
-/// long ones still arriving before it.
-std::optional<Message> receive(int urgent_tag = -1);
-/// True while some posted message has not been sent yet (also advances them). The payloads of
-/// the sends that completed are moved into `*sent` when it is given (for reuse).
-bool sends_pending(std::vector<std::string>* sent = nullptr);
-/// Memory for later long messages to arrive in: a received payload the caller is done with
-/// (fresh memory costs a page fault every 4 kB: ~10 us each in a VM, ~2 ms for a chunk of
-/// 2,000 double rows). Up to 16 MB are kept.
-void recycle_received(std::string&& payload);
-/// True while a message is being received. A long one (a chunk's rows) moves while the receiver
-/// calls MPI (with OpenMPI's shared-memory transport the receiver copies it out of the sender's
-/// memory; the sender's MPI calls only complete the send).
-bool receives_pending();
 
-/// Cells in rank 0's memory that every rank of the job reads and changes with atomic operations
-/// (an MPI-3 shared-memory window: the sweep's next row and its reorder limit, so that a rank
-/// takes its next chunk without waiting for rank 0 to answer). Collective: every rank calls it at
-/// the same point. Returns `count` 8-byte-aligned cells, zeroed, or null when the ranks cannot
-/// all reach rank 0's memory (not one node, one rank, a plain run, a window without the unified
-/// memory model, or PENDAVG_SWEEP_SHARED=0 on any rank): then the caller uses messages.
-std::uint64_t* open_shared_cells(int count);
-/// Local: this rank uses the cells no more (the end of its sweep, or a failure that left it;
-/// nothing when there are none). They are freed where the ranks meet at the end of the job, a
-/// collective step every rank reaches anyway (freeing them at the end of the sweep was one more,
-/// ~0.2 ms on the sweep's critical path). When the ranks do not all meet there, the job is
-/// stopped (report_failure) and the cells go with it.
-void release_shared_cells();
+/// The link of a single process: the counters in memory, no messages.
+class LocalSweepLink final : public SweepLink {
+ public:
+  int rank() const override { return 0; }
+  int ranks() const override { return 1; }
+  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override;
+  void send(int, std::string) override;
+  std::optional<Message> receive() override { return std::nullopt; }
+
+ private:
+  std::uint64_t counters_[3] = {};
+};
+
+/// Collective: the link of the ranks of this job (a LocalSweepLink in a plain run or on one
+/// rank). Its destruction is collective too, except while an exception leaves the sweep on this
+/// rank: then its share is let go here and the rest waits for the ranks' farewell.
+std::unique_ptr<SweepLink> open_sweep_link();
 
 /// Prints "pendavg: error: ..." (bad input, returns 2), "pendavg: interrupted: ..." (a signal
 /// before anything was finished, returns 130) or "pendavg: internal error: ..." (returns 1) for

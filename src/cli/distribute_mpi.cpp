@@ -27,10 +27,10 @@ int my_rank = 0, my_size = 1;
 /// Where the ranks meet at their end (a reduction of its own, never mixed with the commands'
 /// collectives): a rank that failed learns there whether the others failed too.
 MPI_Comm farewell = MPI_COMM_NULL;
-/// The shared cells (open_shared_cells), and whether this rank let them go (release_shared_cells;
-/// they are freed at the farewell).
-MPI_Win shared_window = MPI_WIN_NULL;
-bool shared_window_released = false;
+/// The window of the sweep link's counters, and whether this rank let it go (it is freed at the
+/// farewell, where every rank is: freeing it is collective).
+MPI_Win sweep_window = MPI_WIN_NULL;
+bool sweep_window_released = false;
 bool met_at_farewell = false;
 int farewell_failed = 0, every_rank_failed = 0;  // the reduction's buffers (MPI_MIN)
 
@@ -52,11 +52,10 @@ bool meet_at_farewell(bool failed, double limit_seconds) {
     MPI_Test(&request, &done, MPI_STATUS_IGNORE);
     if (done) {
       met_at_farewell = true;
-      // Every rank is here, so every rank let the cells go (at the end of its sweep, or when a
-      // failure left it): they are freed together.
-      if (shared_window != MPI_WIN_NULL) {
-        release_shared_cells();
-        MPI_Win_free(&shared_window);
+      // Every rank is here, and every rank let the sweep's window go: it is freed together.
+      if (sweep_window != MPI_WIN_NULL) {
+        if (!sweep_window_released) MPI_Win_unlock_all(sweep_window);
+        MPI_Win_free(&sweep_window);
       }
       return true;
     }
@@ -73,54 +72,11 @@ bool launched_by_mpi() {
     return std::string_view(forced) != "0";
   for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
     if (std::getenv(name)) return true;
-  return false;
+  return launched_ranks() > 1;
 }
 
 void check(int status, const char* what) {
   if (status != MPI_SUCCESS) throw std::runtime_error(std::string("MPI: ") + what + " failed");
-}
-
-struct PendingSend {
-  std::string payload;
-  MPI_Request request = MPI_REQUEST_NULL;
-};
-std::list<PendingSend> pending_sends;
-/// Payloads of completed sends, until sends_pending(&sent) takes them.
-std::vector<std::string> sent_payloads;
-constexpr std::size_t max_sent_payloads = 16;
-
-/// Messages being received, in arrival order: a long one (a chunk's rows) goes by rendezvous
-/// and needs both sides to make progress, so it is received without waiting (MPI_Imrecv) and
-/// handed out only when complete, in order.
-struct PendingReceive {
-  Message message;
-  MPI_Request request = MPI_REQUEST_NULL;
-};
-std::deque<PendingReceive> pending_receives;
-/// Payloads given back by recycle_received, for long messages to arrive in.
-std::vector<std::string> receive_pool;
-std::size_t receive_pool_bytes = 0;
-constexpr std::size_t receive_pool_limit = 16u << 20;
-constexpr std::size_t long_message_bytes = 64u << 10;
-
-/// A buffer for a message of `size` bytes: the smallest kept one that holds it (else the largest,
-/// which grows), or a fresh one. Its bytes are left as they were (the message overwrites them).
-std::string receive_buffer(std::size_t size) {
-  std::string buffer;
-  if (size >= long_message_bytes && !receive_pool.empty()) {
-    auto best = receive_pool.end(), largest = receive_pool.begin();
-    for (auto it = receive_pool.begin(); it != receive_pool.end(); ++it) {
-      if (it->capacity() >= size && (best == receive_pool.end() || it->capacity() < best->capacity()))
-        best = it;
-      if (it->capacity() > largest->capacity()) largest = it;
-    }
-    const auto chosen = best != receive_pool.end() ? best : largest;
-    receive_pool_bytes -= chosen->capacity();
-    buffer = std::move(*chosen);
-    receive_pool.erase(chosen);
-  }
-  buffer.resize(size);
-  return buffer;
 }
 
 int byte_count(std::size_t size) {
@@ -153,6 +109,12 @@ ProcessGroup::ProcessGroup(int& argc, char**& argv) {
   MPI_Comm_dup(MPI_COMM_WORLD, &farewell);
   MPI_Comm_rank(world, &my_rank);
   MPI_Comm_size(world, &my_size);
+  if (my_size == 1 && launched_ranks() > 1) {  // e.g. srun --mpi=none: K singletons
+    std::fprintf(stderr, "pendavg: error: started as %d ranks, but MPI sees one (each rank would "
+                         "run the whole command): launch with MPI support (srun --mpi=pmix)\n",
+                 launched_ranks());
+    std::exit(2);
+  }
   if (provided < MPI_THREAD_FUNNELED && my_size > 1) {
     if (my_rank == 0)
       std::fprintf(stderr, "pendavg: internal error: the MPI library does not provide "
@@ -166,27 +128,7 @@ ProcessGroup::~ProcessGroup() {
   int finalized = 0;
   MPI_Finalized(&finalized);
   if (finalized) return;
-  while (sends_pending()) {
-  }
   meet_at_farewell(false, -1);
-  // For tests, PENDAVG_TEST_UNRECEIVED=1: every message of the commands' protocol must have been
-  // received (MPI_Finalize with one pending is erroneous); each rank names what is left for it.
-  if (const char* check = std::getenv("PENDAVG_TEST_UNRECEIVED"); check && *check == '1') {
-    const double start = MPI_Wtime();
-    while (MPI_Wtime() - start < 0.05) {  // every rank has sent all it will: let it arrive
-      int arrived = 0;
-      MPI_Status status;
-      MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, world, &arrived, &status);
-      if (!arrived) continue;
-      std::fprintf(stderr, "pendavg: test: rank %d did not receive a message from rank %d (tag %d)\n",
-                   my_rank, status.MPI_SOURCE, status.MPI_TAG);
-      int size = 0;
-      MPI_Get_count(&status, MPI_BYTE, &size);
-      std::string bytes(static_cast<std::size_t>(size), '\0');
-      MPI_Recv(bytes.data(), size, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG, world,
-               MPI_STATUS_IGNORE);
-    }
-  }
   MPI_Comm_free(&farewell);
   MPI_Comm_free(&world);
   MPI_Finalize();
@@ -259,149 +201,77 @@ std::vector<std::string> gather_to_root(const std::string& local) {
 
 const ShiftPartition* shift_partition() { return my_size > 1 ? &rank_partition : nullptr; }
 
-void post(int destination, int tag, std::string payload) {
-  PendingSend& send = pending_sends.emplace_back();
-  send.payload = std::move(payload);
-  check(MPI_Isend(send.payload.data(), byte_count(send.payload.size()), MPI_BYTE, destination,
-                  tag, world, &send.request),
-        "MPI_Isend");
-}
+namespace {
 
-std::optional<Message> receive(int urgent_tag) {
-  if (!joined) return std::nullopt;
-  for (;;) {  // start receiving everything that has arrived
+/// The counters in a window of rank 0's memory, changed by MPI_Fetch_and_op (passive target: in
+/// one lock_all epoch for the whole sweep); rows go to rank 0 in messages of the sweep's own
+/// communicator.
+class MpiSweepLink final : public SweepLink {
+ public:
+  MpiSweepLink() {
+    if (sweep_window != MPI_WIN_NULL) MPI_Win_free(&sweep_window);  // an earlier sweep's
+    if (comm_ == MPI_COMM_NULL) check(MPI_Comm_dup(world, &comm_), "MPI_Comm_dup");
+    const MPI_Aint bytes = my_rank == 0 ? 3 * sizeof(std::uint64_t) : 0;
+    check(MPI_Win_allocate(bytes, sizeof(std::uint64_t), MPI_INFO_NULL, comm_, &counters_,
+                           &sweep_window),
+          "MPI_Win_allocate");
+    sweep_window_released = false;
+    if (my_rank == 0)
+      for (int k = 0; k < 3; ++k) counters_[k] = 0;
+    check(MPI_Barrier(comm_), "MPI_Barrier");  // the zeros are there before anyone fetches
+    check(MPI_Win_lock_all(0, sweep_window), "MPI_Win_lock_all");
+  }
+  /// Local: the window is freed at the farewell (a rank that ends the sweep early -- abandoned
+  /// rows, a failure -- must not wait there for the others).
+  ~MpiSweepLink() override {
+    if (sweep_window != MPI_WIN_NULL && !sweep_window_released) MPI_Win_unlock_all(sweep_window);
+    sweep_window_released = true;
+  }
+  int rank() const override { return my_rank; }
+  int ranks() const override { return my_size; }
+  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override {
+    const MPI_Op mpi_op = op == Op::add      ? MPI_SUM
+                          : op == Op::bit_or ? MPI_BOR
+                          : op == Op::replace ? MPI_REPLACE
+                                              : MPI_NO_OP;
+    std::uint64_t before = 0;
+    check(MPI_Fetch_and_op(&operand, &before, MPI_UINT64_T, 0, counter, mpi_op, sweep_window),
+          "MPI_Fetch_and_op");
+    check(MPI_Win_flush(0, sweep_window), "MPI_Win_flush");
+    return before;
+  }
+  void send(int tag, std::string payload) override {
+    check(MPI_Send(payload.data(), byte_count(payload.size()), MPI_BYTE, 0, tag, comm_), "MPI_Send");
+  }
+  std::optional<Message> receive() override {
     int arrived = 0;
-    MPI_Message handle;
     MPI_Status status;
-    check(MPI_Improbe(MPI_ANY_SOURCE, MPI_ANY_TAG, world, &arrived, &handle, &status),
-          "MPI_Improbe");
-    if (!arrived) break;
+    check(MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, comm_, &arrived, &status), "MPI_Iprobe");
+    if (!arrived) return std::nullopt;
     int size = 0;
     MPI_Get_count(&status, MPI_BYTE, &size);
-    PendingReceive& receiving = pending_receives.emplace_back();
-    receiving.message.source = status.MPI_SOURCE;
-    receiving.message.tag = status.MPI_TAG;
-    receiving.message.payload = receive_buffer(static_cast<std::size_t>(size));
-    check(MPI_Imrecv(receiving.message.payload.data(), size, MPI_BYTE, &handle,
-                     &receiving.request),
-          "MPI_Imrecv");
+    Message message;
+    message.source = status.MPI_SOURCE;
+    message.tag = status.MPI_TAG;
+    message.payload.resize(static_cast<std::size_t>(size));
+    check(MPI_Recv(message.payload.data(), size, MPI_BYTE, status.MPI_SOURCE, status.MPI_TAG,
+                   comm_, MPI_STATUS_IGNORE),
+          "MPI_Recv");
+    return message;
   }
-  if (pending_receives.empty()) return std::nullopt;
-  if (urgent_tag >= 0) {
-    for (auto it = pending_receives.begin() + 1; it != pending_receives.end(); ++it) {
-      if (it->message.tag != urgent_tag) continue;
-      int complete = 0;
-      check(MPI_Test(&it->request, &complete, MPI_STATUS_IGNORE), "MPI_Test");
-      if (!complete) continue;
-      Message message = std::move(it->message);
-      pending_receives.erase(it);
-      return message;
-    }
-  }
-  int done = 0;
-  check(MPI_Test(&pending_receives.front().request, &done, MPI_STATUS_IGNORE), "MPI_Test");
-  if (!done) return std::nullopt;
-  Message message = std::move(pending_receives.front().message);
-  pending_receives.pop_front();
-  return message;
-}
 
-bool sends_pending(std::vector<std::string>* sent) {
-  for (auto it = pending_sends.begin(); it != pending_sends.end();) {
-    int done = 0;
-    check(MPI_Test(&it->request, &done, MPI_STATUS_IGNORE), "MPI_Test");
-    if (!done) {
-      ++it;
-      continue;
-    }
-    // Kept until a caller takes them (a few: the sweep's chunks of rows).
-    if (sent_payloads.size() < max_sent_payloads) sent_payloads.push_back(std::move(it->payload));
-    it = pending_sends.erase(it);
-  }
-  if (sent) {
-    for (std::string& payload : sent_payloads) sent->push_back(std::move(payload));
-    sent_payloads.clear();
-  }
-  return !pending_sends.empty();
-}
+ private:
+  /// The sweeps' own communicator (rows never mix with the commands' collectives), kept for a
+  /// later sweep and freed by MPI_Finalize.
+  static inline MPI_Comm comm_ = MPI_COMM_NULL;
+  std::uint64_t* counters_ = nullptr;
+};
 
-void recycle_received(std::string&& payload) {
-  if (payload.capacity() < long_message_bytes ||
-      receive_pool_bytes + payload.capacity() > receive_pool_limit)
-    return;
-  // Kept with its old bytes: receive_buffer's resize then zeroes only what lies beyond them
-  // (a cleared string is zeroed whole before each message overwrites it: 6 MB a 20,000-row
-  // double sweep on 2 ranks, on rank 0's core).
-  receive_pool_bytes += payload.capacity();
-  receive_pool.push_back(std::move(payload));
-}
+}  // namespace
 
-bool receives_pending() { return !pending_receives.empty(); }
-
-std::uint64_t* open_shared_cells(int count) {
-  if (!joined || my_size == 1) return nullptr;
-  // Every rank must agree: one node (a shared-memory communicator of all ranks) and nobody
-  // asked for messages.
-  MPI_Comm node = MPI_COMM_NULL;
-  check(MPI_Comm_split_type(world, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node),
-        "MPI_Comm_split_type");
-  int node_size = 0;
-  MPI_Comm_size(node, &node_size);
-  MPI_Comm_free(&node);
-  const char* wanted = std::getenv("PENDAVG_SWEEP_SHARED");
-  std::uint64_t usable = node_size == my_size && !(wanted && std::string_view(wanted) == "0");
-  if (min_over_ranks(usable) == 0) return nullptr;
-  void* base = nullptr;
-  if (shared_window != MPI_WIN_NULL) {  // an earlier sweep's (every rank is here: collective)
-    release_shared_cells();
-    MPI_Win_free(&shared_window);
-  }
-  shared_window_released = false;
-  const MPI_Aint bytes = my_rank == 0 ? static_cast<MPI_Aint>(count) * 8 : 0;
-  // An MPI without a shared-memory window (e.g. its osc/sm component missing or excluded, or
-  // no room for the segment) fails here on every rank: then rank 0's messages hand out the
-  // chunks instead (the errors return rather than abort the job for this one call).
-  MPI_Comm_set_errhandler(world, MPI_ERRORS_RETURN);
-  const int allocated =
-      MPI_Win_allocate_shared(bytes, 8, MPI_INFO_NULL, world, &base, &shared_window);
-  MPI_Comm_set_errhandler(world, MPI_ERRORS_ARE_FATAL);
-  if (allocated != MPI_SUCCESS) shared_window = MPI_WIN_NULL;
-  if (min_over_ranks(allocated == MPI_SUCCESS) == 0) {
-    // A window that exists on some ranks only cannot be freed (collective over ranks that do
-    // not have it): those ranks leave it to MPI_Finalize.
-    shared_window = MPI_WIN_NULL;
-    return nullptr;
-  }
-  // The cells are read and written with the CPU's atomic instructions: that needs the unified
-  // memory model (public and private copies are the same memory), as every rank must agree.
-  int* model = nullptr;
-  int has_model = 0;
-  MPI_Win_get_attr(shared_window, MPI_WIN_MODEL, &model, &has_model);
-  const std::uint64_t unified = has_model && model && *model == MPI_WIN_UNIFIED;
-  if (min_over_ranks(unified) == 0) {
-    MPI_Win_free(&shared_window);
-    shared_window = MPI_WIN_NULL;
-    return nullptr;
-  }
-  MPI_Aint size = 0;
-  int unit = 0;
-  check(MPI_Win_shared_query(shared_window, 0, &size, &unit, &base), "MPI_Win_shared_query");
-  auto* cells = static_cast<std::uint64_t*>(base);
-  if (my_rank == 0)
-    for (int i = 0; i < count; ++i) cells[i] = 0;
-  // A passive-target epoch for the whole sweep (the cells are read and written with atomic
-  // instructions in the unified memory model); the barrier publishes the zeros.
-  check(MPI_Win_lock_all(MPI_MODE_NOCHECK, shared_window), "MPI_Win_lock_all");
-  MPI_Win_sync(shared_window);
-  check(MPI_Barrier(world), "MPI_Barrier");
-  MPI_Win_sync(shared_window);
-  return cells;
-}
-
-void release_shared_cells() {
-  if (shared_window == MPI_WIN_NULL || shared_window_released) return;
-  MPI_Win_unlock_all(shared_window);  // local: ends this rank's access epoch
-  shared_window_released = true;
+std::unique_ptr<SweepLink> open_sweep_link() {
+  if (!joined || my_size == 1) return std::make_unique<LocalSweepLink>();
+  return std::make_unique<MpiSweepLink>();
 }
 
 void exit_process(int code) {
@@ -411,8 +281,6 @@ void exit_process(int code) {
     int finalized = 0;
     MPI_Finalized(&finalized);
     if (!finalized) {
-      while (sends_pending()) {
-      }
       meet_at_farewell(false, -1);
       MPI_Finalize();
     }

@@ -4,11 +4,25 @@
 
 #include <cstdio>
 #include <cstdlib>
-#include <stdexcept>
 
 namespace pendavg::cli {
 
-ProcessGroup::ProcessGroup(int&, char**&) {}
+ProcessGroup::ProcessGroup(int&, char**&) {
+  // Started as one of several ranks, each process would run the whole command and write the same
+  // files: refuse instead (the first rank says so; every rank exits 2).
+  const int launched = launched_ranks();
+  if (launched <= 1) return;
+  const char* first_rank = nullptr;
+  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "SLURM_PROCID"})
+    if (!first_rank) first_rank = std::getenv(name);
+  if (!first_rank || std::atoi(first_rank) == 0)
+    std::fprintf(stderr,
+                 "pendavg: error: started as %d ranks (mpirun/srun), but this pendavg was built "
+                 "without MPI: every rank would run the whole command; run one process, or use "
+                 "--shard K/N for a job array\n",
+                 launched);
+  std::exit(2);
+}
 ProcessGroup::~ProcessGroup() = default;
 
 int rank() { return 0; }
@@ -22,14 +36,7 @@ std::vector<double> all_gather(std::span<const double> local) {
 }
 std::vector<std::string> gather_to_root(const std::string& local) { return {local}; }
 const ShiftPartition* shift_partition() { return nullptr; }
-
-void post(int, int, std::string) { throw std::logic_error("post: a plain run has no other rank"); }
-std::optional<Message> receive(int) { return std::nullopt; }
-bool sends_pending(std::vector<std::string>*) { return false; }
-bool receives_pending() { return false; }
-void recycle_received(std::string&&) {}
-std::uint64_t* open_shared_cells(int) { return nullptr; }
-void release_shared_cells() {}
+std::unique_ptr<SweepLink> open_sweep_link() { return std::make_unique<LocalSweepLink>(); }
 
 FailureReach failure_reach() { return FailureReach::every_rank; }
 void abort_job(int code) { exit_process(code); }

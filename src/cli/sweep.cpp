@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/sweep.cpp -- the sweep engine (see sweep.hpp): a coordinator on every rank's main
-// thread (rank 0's also schedules and writes), and a team of compute threads.
+// src/cli/sweep.cpp -- the sweep engine (see sweep.hpp): on every rank a coordinator (the main
+// thread: takes chunks, sends or writes finished rows) and a team of compute threads.
 #include "sweep.hpp"
 
 #include "distribute.hpp"
@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -37,78 +38,18 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// A chunk's aimed cost: 20 ms, or 50 us per compute thread of the job when that is more, so
-/// that rank 0 receives at most ~20,000 chunks a second (each costs it a few microseconds).
-constexpr double chunk_target_seconds = 0.02;
-constexpr double chunk_target_per_thread = 50e-6;
 /// Rows waiting to be written: 32 MB, and 128 kB more per compute thread of the job (the rows in
 /// flight grow with the threads: 160 MB at 1000).
 constexpr std::size_t reorder_budget_bytes = 32u << 20;
 constexpr std::size_t reorder_budget_per_thread = 128u << 10;
 constexpr std::size_t max_chunk_rows = 1u << 14;
-/// The smallest chunk towards the end of a sweep (from the rows' mean cost; a row at least).
-constexpr double chunk_floor_seconds = 2e-4;
-constexpr int chunks_per_thread = 2;                     ///< queued per compute thread
-constexpr std::size_t spare_text_bytes = 8u << 20;       ///< written texts kept for reuse
-
-// Message tags of the sweep protocol (distribute.hpp's post/receive).
-enum Tag : int {
-  tag_request = 101,  ///< rank -> 0: u64 chunks wanted
-  tag_grant,          ///< 0 -> rank: u64 n, n x (u64 first, u64 count), u8 exhausted
-  tag_result,         ///< rank -> 0: finished rows (pack_finished)
-  tag_stopping,       ///< rank -> 0: this rank got SIGINT/SIGTERM
-  tag_stop,           ///< 0 -> rank: start no more rows, report, then say finished
-  tag_finished,       ///< rank -> 0: u8 abandoned; every result was sent before
-  tag_done,           ///< 0 -> rank: the sweep is over
-};
-
-// ---------------------------------------------------------------- wire format
-
-class Packer {
- public:
-  template <class T>
-  Packer& put(T value) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    bytes_.append(reinterpret_cast<const char*>(&value), sizeof value);
-    return *this;
-  }
-  Packer& put_text(std::string_view text) {
-    put<std::uint64_t>(text.size());
-    bytes_.append(text);
-    return *this;
-  }
-  std::string take() { return std::move(bytes_); }
-
- private:
-  std::string bytes_;
-};
-
-class Unpacker {
- public:
-  explicit Unpacker(std::string_view bytes) : bytes_(bytes) {}
-  template <class T>
-  T get() {
-    T value;
-    need(sizeof value);
-    std::memcpy(&value, bytes_.data() + position_, sizeof value);
-    position_ += sizeof value;
-    return value;
-  }
-  std::string_view get_text() {
-    const auto size = static_cast<std::size_t>(get<std::uint64_t>());
-    need(size);
-    const std::string_view text(bytes_.data() + position_, size);
-    position_ += size;
-    return text;
-  }
-
- private:
-  void need(std::size_t size) const {
-    if (bytes_.size() - position_ < size) throw std::runtime_error("sweep: truncated message");
-  }
-  std::string_view bytes_;
-  std::size_t position_ = 0;
-};
+constexpr int chunks_per_thread = 2;  ///< queued per compute thread
+/// How often a coordinator looks for messages and at the stop counter when nothing wakes it (a
+/// finished chunk does): rank 0 receives rows, the others only watch for a stop.
+constexpr auto root_poll = std::chrono::milliseconds(2);
+constexpr auto rank_poll = std::chrono::milliseconds(10);
+/// The stop counter's bits.
+constexpr std::uint64_t stop_signal = 1, stop_row_failed = 2, stop_rank_failed = 4;
 
 struct Range {
   std::size_t first = 0, count = 0;
@@ -132,55 +73,85 @@ struct Finished {
   std::optional<RowFailure> first_failed;  ///< the first of them
 };
 
-/// A result message is the rows' text as it is (moved, not copied: a double sweep sends ~600
-/// bytes a row), then the rest of `f`, then that rest's length (u64).
+// ---------------------------------------------------------------- wire format
+
+void put_u64(std::string& out, std::uint64_t value) {
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+void put_text(std::string& out, std::string_view text) {
+  put_u64(out, text.size());
+  out.append(text);
+}
+void put_failure(std::string& out, const std::optional<RowFailure>& failure) {
+  put_u64(out, failure ? 1 + failure->bad_input : 0);
+  if (failure) {
+    put_u64(out, failure->row);
+    put_text(out, failure->message);
+  }
+}
+
+class Unpacker {
+ public:
+  explicit Unpacker(std::string_view bytes) : bytes_(bytes) {}
+  std::uint64_t u64() {
+    std::uint64_t value = 0;
+    std::memcpy(&value, take(sizeof value).data(), sizeof value);
+    return value;
+  }
+  std::string_view text() { return take(static_cast<std::size_t>(u64())); }
+  std::optional<RowFailure> failure() {
+    const std::uint64_t kind = u64();
+    if (kind == 0) return std::nullopt;
+    RowFailure failure;
+    failure.bad_input = kind == 2;
+    failure.row = u64();
+    failure.message = std::string(text());
+    return failure;
+  }
+
+ private:
+  std::string_view take(std::size_t size) {
+    if (bytes_.size() - position_ < size) throw std::runtime_error("sweep: truncated message");
+    const std::string_view part = bytes_.substr(position_, size);
+    position_ += size;
+    return part;
+  }
+  std::string_view bytes_;
+  std::size_t position_ = 0;
+};
+
+/// A rows message: the rows' text as it is (moved, not copied), then the rest of `f`, then that
+/// rest's length.
 std::string pack_finished(Finished&& f) {
-  Packer p;
-  p.put<std::uint64_t>(f.first).put<std::uint64_t>(f.count).put<double>(f.seconds);
-  p.put<std::uint8_t>(f.failure.has_value());
-  if (f.failure)
-    p.put<std::uint64_t>(f.failure->row).put<std::uint8_t>(f.failure->bad_input).put_text(f.failure->message);
-  p.put<std::uint64_t>(f.failed_rows).put<std::uint8_t>(f.first_failed.has_value());
-  if (f.first_failed) p.put<std::uint64_t>(f.first_failed->row).put_text(f.first_failed->message);
-  p.put<std::uint64_t>(f.row_us.size());
-  for (const double us : f.row_us) p.put<double>(us);
-  const std::string rest = p.take();
+  std::string rest;
+  put_u64(rest, f.first);
+  put_u64(rest, f.count);
+  put_failure(rest, f.failure);
+  put_u64(rest, f.failed_rows);
+  put_failure(rest, f.first_failed);
+  put_u64(rest, f.row_us.size());
+  for (const double us : f.row_us) put_u64(rest, std::bit_cast<std::uint64_t>(us));
   std::string bytes = std::move(f.text);
-  bytes.append(rest);
-  const std::uint64_t rest_size = rest.size();
-  bytes.append(reinterpret_cast<const char*>(&rest_size), sizeof rest_size);
+  bytes += rest;
+  put_u64(bytes, rest.size());
   return bytes;
 }
 
 Finished unpack_finished(std::string&& bytes) {
-  std::uint64_t rest_size = 0;
-  if (bytes.size() < sizeof rest_size) throw std::runtime_error("sweep: truncated message");
-  std::memcpy(&rest_size, bytes.data() + bytes.size() - sizeof rest_size, sizeof rest_size);
-  if (rest_size > bytes.size() - sizeof rest_size)
-    throw std::runtime_error("sweep: truncated message");
-  const std::size_t text_size = bytes.size() - sizeof rest_size - rest_size;
+  if (bytes.size() < 8) throw std::runtime_error("sweep: truncated message");
+  const std::uint64_t rest_size = Unpacker(std::string_view(bytes).substr(bytes.size() - 8)).u64();
+  if (rest_size > bytes.size() - 8) throw std::runtime_error("sweep: truncated message");
+  const std::size_t text_size = bytes.size() - 8 - rest_size;
   Unpacker u(std::string_view(bytes).substr(text_size, rest_size));
   Finished f;
-  f.first = u.get<std::uint64_t>();
-  f.count = u.get<std::uint64_t>();
-  f.seconds = u.get<double>();
-  if (u.get<std::uint8_t>()) {
-    RowFailure failure;
-    failure.row = u.get<std::uint64_t>();
-    failure.bad_input = u.get<std::uint8_t>() != 0;
-    failure.message = std::string(u.get_text());
-    f.failure = std::move(failure);
-  }
-  f.failed_rows = u.get<std::uint64_t>();
-  if (u.get<std::uint8_t>()) {
-    RowFailure first;
-    first.row = u.get<std::uint64_t>();
-    first.message = std::string(u.get_text());
-    f.first_failed = std::move(first);
-  }
-  f.row_us.resize(u.get<std::uint64_t>());
-  for (double& us : f.row_us) us = u.get<double>();
-  bytes.resize(text_size);  // shortens in place
+  f.first = u.u64();
+  f.count = u.u64();
+  f.failure = u.failure();
+  f.failed_rows = u.u64();
+  f.first_failed = u.failure();
+  f.row_us.resize(u.u64());
+  for (double& us : f.row_us) us = std::bit_cast<double>(u.u64());
+  bytes.resize(text_size);
   f.text = std::move(bytes);
   return f;
 }
@@ -208,36 +179,17 @@ class ComputeTeam {
   ~ComputeTeam() {
     stop();
     close();
-    if (!thread_.joinable()) return;
-    bool running = false;
-    {
-      const std::lock_guard lock(mutex_);
-      running = running_ > 0;
-    }
     // Idle threads leave at once; threads in abandoned rows are left to the process' exit.
-    if (running) thread_.detach();
+    if (running() > 0) thread_.detach();
     else thread_.join();
   }
   ComputeTeam(const ComputeTeam&) = delete;
   ComputeTeam& operator=(const ComputeTeam&) = delete;
 
-  /// Queues `range` with the memory its rows will be written to, taken here (the coordinator's
-  /// thread; see memory.hpp: the main thread's heap is in huge pages) from the spare texts or
-  /// afresh.
   void add(Range range) {
-    std::string text;
     {
       const std::lock_guard lock(mutex_);
-      if (!spare_texts_.empty()) {
-        spare_bytes_ -= spare_texts_.back().capacity();
-        text = std::move(spare_texts_.back());
-        spare_texts_.pop_back();
-      }
-    }
-    text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
-    {
-      const std::lock_guard lock(mutex_);
-      queue_.push_back(Queued{range, std::move(text)});
+      queue_.push_back(range);
     }
     work_.notify_one();
   }
@@ -261,11 +213,12 @@ class ComputeTeam {
   /// Chunks wanted to keep every thread busy with some in reserve.
   std::size_t wanted() const {
     const std::lock_guard lock(mutex_);
-    const std::size_t target = static_cast<std::size_t>(chunks_per_thread * threads_);
+    const auto target = static_cast<std::size_t>(chunks_per_thread * threads_);
     const std::size_t have = queue_.size() + static_cast<std::size_t>(running_);
     return have < target ? target - have : 0;
   }
-  /// No row is running and none will start (queue empty, or stopping).
+  /// No row is running and none will start (queue empty, or stopping). Every finished row is
+  /// then in take()'s results.
   bool idle() const {
     const std::lock_guard lock(mutex_);
     return running_ == 0 && (queue_.empty() || stopping_.load());
@@ -274,32 +227,59 @@ class ComputeTeam {
     const std::lock_guard lock(mutex_);
     return std::exchange(results_, {});
   }
-  /// A written chunk's text, kept for a later chunk's rows (fresh memory costs page faults);
-  /// at most 2 per queued chunk and spare_text_bytes in all.
-  /// Returns false (and leaves `text` as it was) when the team keeps enough already.
-  bool recycle(std::string& text) {
-    const std::lock_guard lock(mutex_);
-    if (spare_texts_.size() >= static_cast<std::size_t>(2 * chunks_per_thread * threads_) ||
-        spare_bytes_ + text.capacity() > spare_text_bytes)
-      return false;
-    text.clear();
-    spare_bytes_ += text.capacity();
-    spare_texts_.push_back(std::move(text));
-    return true;
-  }
-  /// Waits until a result is ready or `timeout` passed; a zero `timeout` only yields the core.
-  void wait(std::chrono::microseconds timeout) {
-    if (timeout.count() == 0) {
-      std::this_thread::yield();
-      return;
-    }
+  /// Waits until a result is ready or `timeout` passed.
+  void wait(std::chrono::milliseconds timeout) {
     std::unique_lock lock(mutex_);
     done_.wait_for(lock, timeout, [&] { return !results_.empty(); });
   }
 
  private:
+  int running() const {
+    const std::lock_guard lock(mutex_);
+    return running_;
+  }
   bool stopped() const {
     return stopping_.load(std::memory_order_relaxed) || stop_flag().load(std::memory_order_relaxed);
+  }
+
+  /// Rows range.first.. until the range ends, a stop, or a row that fails (without failed_row).
+  Finished compute(Range range, int thread) {
+    Finished done;
+    done.first = range.first;
+    done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
+    const Clock::time_point start = Clock::now();
+    for (std::size_t i = range.first; i < range.first + range.count && !stopped(); ++i) {
+      const std::size_t text_before = done.text.size();
+      std::optional<RowFailure> failure;
+      try {
+        inject_row_fault(i);
+        const double begin = rows_.timing ? thread_cpu_microseconds() : 0;
+        rows_.compute(i, thread, done.text);
+        if (rows_.timing) done.row_us.push_back(thread_cpu_microseconds() - begin);
+      } catch (const invalid_input& bad) {
+        failure = RowFailure{i, true, bad.what()};
+      } catch (const std::exception& error) {
+        failure = RowFailure{i, false, error.what()};
+      } catch (...) {
+        failure = RowFailure{i, false, "unknown exception"};
+      }
+      if (failure && !rows_.failed_row) {
+        done.failure = std::move(failure);
+        break;
+      }
+      if (failure) {
+        // Recorded in its place (whatever the row wrote before it threw is dropped), and the
+        // sweep goes on.
+        done.text.resize(text_before);
+        done.text += rows_.failed_row(i, failure->message);
+        if (rows_.timing) done.row_us.push_back(-std::numeric_limits<double>::infinity());
+        if (!done.first_failed) done.first_failed = std::move(failure);
+        ++done.failed_rows;
+      }
+      ++done.count;
+    }
+    done.seconds = seconds_since(start);
+    return done;
   }
 
   void run() {
@@ -314,53 +294,15 @@ class ComputeTeam {
 #endif
       for (;;) {
         Range range;
-        Finished done;
         {
           std::unique_lock lock(mutex_);
           work_.wait(lock, [&] { return stopping_.load() || closed_ || !queue_.empty(); });
           if (stopping_.load() || queue_.empty()) break;
-          range = queue_.front().range;
-          done.text = std::move(queue_.front().text);
+          range = queue_.front();
           queue_.pop_front();
           ++running_;
         }
-        done.first = range.first;
-        const Clock::time_point start = Clock::now();
-        for (std::size_t i = range.first; i < range.first + range.count; ++i) {
-          if (stopped()) break;
-          const std::size_t text_before = done.text.size();
-          std::optional<RowFailure> failure;
-          try {
-            inject_row_fault(i);
-            if (rows_.timing) {
-              const double begin = thread_cpu_microseconds();
-              rows_.compute(i, thread, done.text);
-              done.row_us.push_back(thread_cpu_microseconds() - begin);
-            } else {
-              rows_.compute(i, thread, done.text);
-            }
-          } catch (const invalid_input& bad) {
-            failure = RowFailure{i, true, bad.what()};
-          } catch (const std::exception& error) {
-            failure = RowFailure{i, false, error.what()};
-          } catch (...) {
-            failure = RowFailure{i, false, "unknown exception"};
-          }
-          if (failure && rows_.failed_row) {
-            // Recorded in its place (whatever the row wrote before it threw is dropped), and
-            // the sweep goes on.
-            done.text.resize(text_before);
-            done.text += rows_.failed_row(i, failure->message);
-            if (rows_.timing) done.row_us.push_back(-std::numeric_limits<double>::infinity());
-            if (!done.first_failed) done.first_failed = std::move(failure);
-            ++done.failed_rows;
-          } else if (failure) {
-            done.failure = std::move(failure);
-            break;
-          }
-          ++done.count;
-        }
-        done.seconds = seconds_since(start);
+        Finished done = compute(range, thread);
         {
           const std::lock_guard lock(mutex_);
           results_.push_back(std::move(done));
@@ -369,154 +311,30 @@ class ComputeTeam {
         done_.notify_all();
       }
     }
-    {
-      const std::lock_guard lock(mutex_);
-      exited_ = true;
-    }
-    done_.notify_all();
   }
 
   const SweepRows& rows_;
   const int threads_;
   mutable std::mutex mutex_;
   std::condition_variable work_, done_;
-  struct Queued {
-    Range range;
-    std::string text;  ///< room for the chunk's rows
-  };
-  std::deque<Queued> queue_;
+  std::deque<Range> queue_;
   std::vector<Finished> results_;
-  std::vector<std::string> spare_texts_;
-  std::size_t spare_bytes_ = 0;
-  bool closed_ = false, exited_ = false;
+  bool closed_ = false;
   std::atomic<bool> stopping_{false};
   int running_ = 0;
   std::thread thread_;
 };
 
-// ---------------------------------------------------------------- rank 0: schedule and write
-
-/// Hands out chunks of rows in index order (see sweep.hpp: sizes and window). The next row to
-/// hand out is rank 0's own counter, or a cell in rank 0's memory that every rank advances
-/// (distribute.hpp: open_shared_cells): then each rank's coordinator takes its chunks itself,
-/// sized from its own rows' timings, and no rank waits for rank 0 to answer a request.
-class Scheduler {
- public:
-  /// `kept(i)`: row i is in the output already (resumed); `shared_next`: the shared cell, or null.
-  Scheduler(std::size_t count, std::size_t window, int threads,
-            std::function<bool(std::size_t)> kept, std::uint64_t* shared_next = nullptr)
-      : count_(count), window_(window), threads_(static_cast<std::size_t>(threads)),
-        target_seconds_(std::max(chunk_target_seconds,
-                                 chunk_target_per_thread * static_cast<double>(threads))),
-        kept_(std::move(kept)), shared_next_(shared_next) {}
-
-  /// The next chunk, or nothing when every row is handed out or the window is full.
-  std::optional<Range> next(std::size_t first_unwritten) {
-    for (;;) {
-      const std::size_t claimed = load();
-      std::size_t first = claimed;
-      while (first < count_ && kept_(first)) ++first;
-      const std::size_t limit = std::min(count_, first_unwritten + window_);
-      if (first >= limit) return std::nullopt;
-      const std::size_t remaining = count_ - first;
-      // Until a row's cost is known: chunks of 1, 2, 4, ... rows (a probe that keeps the first
-      // ranks busy while the first timings come in, without betting on a row's cost).
-      std::size_t size = timed_rows_ == 0 ? probe_rows_
-                         : static_cast<std::size_t>(std::max(
-                               1.0, target_seconds_ * static_cast<double>(timed_rows_) /
-                                        std::max(seconds_, 1e-12)));
-      // Towards the end: a quarter of the remaining rows per thread, but not below ~0.2 ms of
-      // rows (each chunk costs its coordinators ~20-40 us; below that the last chunks of a
-      // 20,000-row double sweep were 1-row chunks, ~40 of them, 2% of its time).
-      const std::size_t tail_size = std::max<std::size_t>(
-          remaining / (4 * threads_),
-          timed_rows_ == 0 ? 1
-                           : static_cast<std::size_t>(chunk_floor_seconds *
-                                                      static_cast<double>(timed_rows_) /
-                                                      std::max(seconds_, 1e-12)));
-      size = std::min({size, std::max<std::size_t>(1, tail_size), max_chunk_rows,
-                       std::max<std::size_t>(1, window_ / (4 * threads_)), limit - first});
-      for (std::size_t k = 1; k < size; ++k)
-        if (kept_(first + k)) {
-          size = k;
-          break;
-        }
-      if (!advance(claimed, first + size)) continue;  // another rank took rows meanwhile
-      if (timed_rows_ == 0) probe_rows_ = std::min<std::size_t>(2 * probe_rows_, max_chunk_rows);
-      return Range{first, size};
-    }
-  }
-  bool exhausted() const {
-    std::size_t first = load();
-    while (first < count_ && kept_(first)) ++first;
-    return first >= count_;
-  }
-  /// No row is handed out any more, by any rank (the sweep closes).
-  void stop() {
-    if (shared_next_) std::atomic_ref<std::uint64_t>(*shared_next_).store(count_);
-    else next_ = count_;
-  }
-  void record(std::size_t rows, double seconds) {
-    timed_rows_ += rows;
-    seconds_ += seconds;
-  }
-
- private:
-  std::size_t load() const {
-    if (!shared_next_) return next_;
-    return static_cast<std::size_t>(std::atomic_ref<std::uint64_t>(*shared_next_).load());
-  }
-  bool advance(std::size_t from, std::size_t to) {
-    if (!shared_next_) {
-      next_ = to;
-      return true;
-    }
-    std::uint64_t expected = from;
-    return std::atomic_ref<std::uint64_t>(*shared_next_).compare_exchange_strong(expected, to);
-  }
-
-  const std::size_t count_, window_, threads_;
-  const double target_seconds_;
-  const std::function<bool(std::size_t)> kept_;
-  std::uint64_t* const shared_next_;
-  std::size_t next_ = 0, timed_rows_ = 0, probe_rows_ = 1;
-  double seconds_ = 0;
-};
+// ---------------------------------------------------------------- rank 0: order and write
 
 /// Rows that may wait in the reorder buffer (see sweep.hpp: window); `threads`: of the job.
-/// Rank 0 decides it (the other ranks learn it from rank 0). PENDAVG_SWEEP_WINDOW_ROWS=K, for
-/// tests, makes it K rows (at least 1).
-std::size_t reorder_window(const SweepRows& rows, int threads) {
-  if (const char* forced = std::getenv("PENDAVG_SWEEP_WINDOW_ROWS"); forced && *forced)
-    return std::max<std::size_t>(1, std::strtoull(forced, nullptr, 10));
-  const auto total_threads = static_cast<std::size_t>(threads);
-  return std::max({(reorder_budget_bytes + reorder_budget_per_thread * total_threads) /
+std::size_t reorder_window(const SweepRows& rows, std::size_t threads) {
+  if (const std::size_t forced = test_window_rows(); forced > 0) return forced;
+  return std::max({(reorder_budget_bytes + reorder_budget_per_thread * threads) /
                        std::max<std::size_t>(rows.row_bytes, 1),
-                   16 * total_threads, std::size_t(64)});
+                   16 * threads, std::size_t(64)});
 }
 
-/// The cells of a one-node job (distribute.hpp: open_shared_cells), each on a cache line of its
-/// own (the index counts 8-byte cells): the next row to hand out (every rank advances it), the
-/// first row not yet written (rank 0 moves it; the window starts there), how the sweep closed
-/// (Closed), and the window in rows (rank 0's, set before any chunk).
-enum SharedCell : int { cell_next = 0, cell_unwritten = 8, cell_closed = 16, cell_window = 24,
-                        cell_count = 32 };
-/// The value of cell_closed. Rank 0 and a rank that got a signal each claim the close with a
-/// compare-and-swap from `not_closed`, so that a complete sweep's quiet end (nothing to stop, nothing
-/// said back) and a signal exclude each other: every message sent to rank 0 is received.
-enum Closed : std::uint64_t {
-  not_closed = 0,
-  closed_stopping = 1,  ///< rank 0 closed the sweep (signal or failure): stop, say finished
-  closed_complete = 2,  ///< rank 0 wrote every row: nothing to stop; wait for tag_done
-  closed_by_signal = 3  ///< a rank got SIGINT/SIGTERM; its tag_stopping is on its way
-};
-std::atomic_ref<std::uint64_t> shared_cell(std::uint64_t* cells, SharedCell cell) {
-  static_assert(std::atomic_ref<std::uint64_t>::is_always_lock_free,
-                "the cells are shared between processes: their atomics must not take a lock");
-  return std::atomic_ref<std::uint64_t>(cells[cell]);
-}
-
-/// Kept rows as bits (row i: bit i % 8 of byte i / 8), for the ranks that take their own chunks.
 bool kept_bit(const std::string& bits, std::size_t i) {
   return !bits.empty() && ((static_cast<unsigned char>(bits[i / 8]) >> (i % 8)) & 1u) != 0;
 }
@@ -524,10 +342,7 @@ bool kept_bit(const std::string& bits, std::size_t i) {
 /// Rank 0's reorder buffer: rows go to the output in index order.
 class OrderedWriter {
  public:
-  /// `recycle` gets every written chunk's text.
-  OrderedWriter(SweepOutput& output, std::size_t count,
-                std::function<void(std::string&&)> recycle)
-      : output_(output), count_(count), recycle_(std::move(recycle)) {}
+  OrderedWriter(SweepOutput& output, std::size_t count) : output_(output), count_(count) {}
   void add(Finished&& rows) {
     if (rows.count > 0) waiting_.emplace(rows.first, std::move(rows));
   }
@@ -545,7 +360,6 @@ class OrderedWriter {
       output_.write_rows(rows.first, rows.count, rows.text, rows.row_us);
       position_ += rows.count;
       written_ += rows.count;
-      recycle_(std::move(rows.text));
       waiting_.erase(it);
     }
   }
@@ -566,15 +380,15 @@ class OrderedWriter {
  private:
   SweepOutput& output_;
   const std::size_t count_;
-  std::function<void(std::string&&)> recycle_;
   std::size_t position_ = 0, written_ = 0;
   std::map<std::size_t, Finished> waiting_;
 };
 
 /// "[name] k/count unit" on stderr every 2 s once the sweep has run 2 s, and at the end.
-class Progress {
+class SweepProgress {
  public:
-  Progress(const SweepRows& rows) : name_(rows.progress), unit_(rows.unit), count_(rows.count) {}
+  explicit SweepProgress(const SweepRows& rows)
+      : name_(rows.progress), unit_(rows.unit), count_(rows.count) {}
   void report(std::size_t done, bool last = false) {
     if (name_.empty()) return;
     const double elapsed = seconds_since(start_);
@@ -593,294 +407,204 @@ class Progress {
   bool reported_ = false;
 };
 
-/// Poll interval of a coordinator that talks to other ranks: 0.25 ms while messages come, up to
-/// 1 ms (rank 0, when it answers requests) or 4 ms (the others, unless their threads wait for
-/// work; rank 0 when the ranks take chunks from shared cells, as it then answers nothing) while
-/// nothing happens, so that a coordinator costs little CPU beside the compute threads
-/// of its core (the ~40 ms of work queued per thread hide the latency); 50 us while a long
-/// message is arriving (the receiver copies it: see distribute.hpp). A rank whose long result
-/// is on its way out needs no fast polls: waking every 50 us made its compute thread ~20%
-/// slower per row (a 2-rank double sweep).
-/// At the ends of a sweep (no row left to start on this rank, or closing) with its own threads
-/// idle the core is free: for the first spin_seconds of that the coordinator polls without
-/// sleeping (yielding the core at each turn, for other ranks that share it), then every 50 us.
-/// There every poll of the closing counts: a sleep of 50 us lets an idle core halt, and took
-/// 140 us on this machine's VM (the kernel's 50 us timer slack, then ~40 us to wake the vCPU),
-/// at each step. Idle threads in mid-sweep (a full window, a grant awaited) are polled every
-/// 50 us: their rows are elsewhere, maybe on this core.
-class PollInterval {
+// ---------------------------------------------------------------- one rank's sweep
+
+/// One rank's side of a sweep: takes chunks from the link's counter for its team; rank 0 also
+/// receives every rank's finished rows and writes them in order, the others send theirs to it.
+/// run() loops until the rows are exhausted (or the sweep stopped) and this rank's rows ended;
+/// rank 0 then waits for every other rank's last message.
+class RankSweep {
  public:
-  static constexpr double spin_seconds = 0.02;
-  /// `alone`: no other rank; `longest`: the longest interval (us).
-  PollInterval(bool alone, long longest) : alone_(alone), longest_(longest) {}
-  /// `active`: something happened, or an answer is awaited by a thread without work; `idle`: this
-  /// rank's compute threads have nothing to do; `ending`: no row is left to start here, or the
-  /// sweep is closing. Zero: look again at once.
-  std::chrono::microseconds next(bool active, bool idle, bool ending) {
-    if (alone_) return std::chrono::microseconds(50000);  // only results and signals to see
-    if (!(idle && ending)) {
-      was_idle_ = false;
-    } else {
-      const Clock::time_point now = Clock::now();
-      if (!was_idle_) idle_since_ = now;
-      was_idle_ = true;
-      if (now - idle_since_ < std::chrono::duration<double>(spin_seconds))
-        return std::chrono::microseconds(0);
-    }
-    // A long message arriving moves while the receiver calls MPI: poll at 50 us until it is in.
-    if (receives_pending() || idle) return std::chrono::microseconds(50);
-    current_ = active ? 250 : std::min(longest_, current_ * 2);
-    return std::chrono::microseconds(current_);
-  }
-
- private:
-  bool alone_;
-  long longest_, current_ = 250;
-  bool was_idle_ = false;
-  Clock::time_point idle_since_{};  ///< since when the threads are idle at an end (was_idle_)
-};
-
-struct Peer {
-  std::size_t wanted = 0;
-  bool told_exhausted = false, finished = false, abandoned = false;
-  std::size_t rows = 0, chunks = 0;  ///< computed by this rank (the work distribution)
-  double seconds = 0;                ///< wall time of its chunks, summed over its threads
-};
-
-/// PENDAVG_SWEEP_REPORT=1: one line on stderr after a sweep (rank 0) with its wall time, the
-/// coordinator's CPU time and message count, and each rank's rows and busy time -- what
-/// tests/bench/mpi_scaling.sh reads.
-void report_distribution(const SweepOutcome& outcome, const std::vector<Peer>& peers,
-                         std::size_t messages, double coordinator_cpu_seconds, bool shared) {
-  const char* wanted = std::getenv("PENDAVG_SWEEP_REPORT");
-  if (!wanted || std::string_view(wanted) != "1") return;
-  std::string ranks_text;
-  for (std::size_t r = 0; r < peers.size(); ++r) {
-    if (r > 0) ranks_text += ' ';
-    ranks_text += std::to_string(peers[r].rows);
-    ranks_text += '/';
-    ranks_text += std::to_string(peers[r].chunks);
-    ranks_text += '/';
-    ranks_text += std::to_string(peers[r].seconds);
-  }
-  std::fprintf(stderr,
-               "pendavg: sweep: rows=%zu computed=%zu ranks=%zu threads=%d seconds=%.6f "
-               "coordinator_cpu_seconds=%.6f messages=%zu chunks_from=%s "
-               "per_rank(rows/chunks/busy_s)=%s\n",
-               outcome.count, outcome.computed, peers.size(), outcome.threads, outcome.seconds,
-               coordinator_cpu_seconds, messages, shared ? "shared_memory" : "rank_0",
-               ranks_text.c_str());
-}
-
-double thread_cpu_seconds() { return 1e-6 * thread_cpu_microseconds(); }
-
-/// Rank 0's side of one sweep: its main thread schedules chunks (to its own compute team and to
-/// the other ranks), receives the finished rows and writes them in order; run() loops over
-/// these steps until every row is written, or a signal or a failing row closes the sweep.
-class RootSweep {
- public:
-  /// `cells`: the shared cells of a one-node job (SharedCell), or null.
-  RootSweep(const SweepRows& rows, SweepOutput& output, std::uint64_t* cells)
-      : rows_(rows), output_(output), size_(ranks()), cells_(cells),
-        scheduler_(rows.count, reorder_window(rows, rows.threads * size_), rows.threads * size_,
-                   [&output](std::size_t i) { return output.kept(i); },
-                   cells ? &cells[cell_next] : nullptr),
-        // written texts serve this rank's later chunks, then the other ranks' next results
-        writer_(output, rows.count,
-                [this](std::string&& text) {
-                  if (!team_.recycle(text)) recycle_received(std::move(text));
-                }),
-        // with shared cells nobody waits for rank 0's answers: up to 4 ms between polls, as the
-        // other ranks (fewer wake-ups on a core that also computes: 77-digit sweep -4%)
-        progress_(rows), poll_(size_ == 1, cells ? 4000 : 1000),
-        peers_(static_cast<std::size_t>(size_)), team_(rows, rows.threads) {
+  RankSweep(SweepLink& link, const SweepRows& rows, SweepOutput* output, const std::string& kept)
+      : link_(link), rows_(rows), root_(link.rank() == 0),
+        threads_(static_cast<std::size_t>(rows.threads) * static_cast<std::size_t>(link.ranks())),
+        window_(reorder_window(rows, threads_)) {
+    if (!kept.empty())  // else every row is pending, and pending_ is left empty
+      for (std::size_t i = 0; i < rows.count; ++i)
+        if (!kept_bit(kept, i)) pending_.push_back(i);
+    pending_count_ = kept.empty() ? rows.count : pending_.size();
+    bounds_ = guided_chunks(pending_count_, threads_,
+                            std::min(max_chunk_rows, std::max<std::size_t>(1, window_ / (4 * threads_))));
     outcome_.count = rows.count;
-    outcome_.threads = rows.threads * size_;
+    outcome_.threads = static_cast<int>(threads_);
+    if (root_) {
+      writer_.emplace(*output, rows.count);
+      rows_per_rank_.assign(static_cast<std::size_t>(link.ranks()), 0);
+    }
   }
 
   SweepOutcome run(const std::function<void(const SweepOutcome&)>& finish) {
-    for (;;) {
-      bool active = collect();
-      if (!closing_ && stop_flag().load()) {
-        outcome_.interrupted = true;
-        close(rows_.grace_seconds);
+    try {
+      inject_rank_fault(true);
+      for (;;) {
+        for (Finished& f : team_.take()) finished(std::move(f), 0);
+        if (root_) receive();
+        watch_stop();
+        if (!stopping_) feed();
+        if (root_) write_ready();
+        if (ended()) break;
+        team_.wait(root_ ? root_poll : window_wait_ ? std::chrono::milliseconds(1) : rank_poll);
       }
-      if (!closing_ && failure_) close(rows_.grace_seconds);
-      if (!closing_) active = hand_out() || active;
-      write_ready();
-      progress_.report(outcome_.computed + output_.kept_count());
-      if (!closing_ && writer_.complete()) close(0);
-      if (closing_ && closed()) break;
-      sends_pending();
-      // With nothing of its own to compute (the last rows are elsewhere, or closing) the core
-      // is free: notice the last results and the peers' goodbyes at once.
-      const bool idle = team_.idle();
-      team_.wait(poll_.next((active && !cells_) || closing_ || idle, idle,
-                            closing_ || scheduler_.exhausted()));
+    } catch (...) {
+      // This rank cannot go on: the others stop, and rank 0 writes what was finished. Its rows
+      // get their grace; rows still running then would outlive what they use: the process ends.
+      link_.fetch(SweepLink::stop, SweepLink::Op::bit_or, stop_rank_failed);
+      if (!root_) link_.send(SweepLink::finished, "1");
+      begin_stop();
+      while (!team_.idle() && Clock::now() < deadline_) team_.wait(rank_poll);
+      if (!team_.idle()) exit_process(report_failure(std::current_exception()));
+      throw;
     }
-    release_peers();
-    release_shared_cells();  // freed at the job's end (distribute.hpp)
-    return conclude(finish);
+    for (Finished& f : team_.take()) finished(std::move(f), 0);
+    const bool abandoned = !team_.idle();
+    if (!root_) {
+      link_.send(SweepLink::finished, abandoned ? "1" : "0");
+      if (abandoned) exit_process(0);  // rank 0 reports
+      return outcome_;
+    }
+    return conclude(finish, abandoned || abandoned_elsewhere_);
   }
 
  private:
-  /// Finished rows from rank `source` (0: this rank's team) go to the writer.
-  void accept(Finished&& rows_done, int source) {
-    Peer& from = peers_[static_cast<std::size_t>(source)];
-    from.rows += rows_done.count;
-    from.chunks += 1;
-    from.seconds += rows_done.seconds;
-    outcome_.computed += rows_done.count;
-    scheduler_.record(rows_done.count + (rows_done.failure ? 1 : 0), rows_done.seconds);
-    if (rows_done.failure && (!failure_ || rows_done.failure->row < failure_->row))
-      failure_ = rows_done.failure;
-    outcome_.failed_rows += rows_done.failed_rows;
-    if (rows_done.first_failed &&
-        (!first_failed_ || rows_done.first_failed->row < first_failed_->row))
-      first_failed_ = std::move(rows_done.first_failed);
-    writer_.add(std::move(rows_done));
+  /// Rows finished on rank `source` (0: this rank's team; rank 0 only for the others).
+  void finished(Finished&& f, int source) {
+    if (f.failure && !stopping_) {
+      link_.fetch(SweepLink::stop, SweepLink::Op::bit_or, stop_row_failed);
+      begin_stop();
+    }
+    if (!root_) {
+      outcome_.computed += f.count;
+      link_.send(SweepLink::rows, pack_finished(std::move(f)));
+      return;
+    }
+    rows_per_rank_[static_cast<std::size_t>(source)] += f.count;
+    outcome_.computed += f.count;
+    if (f.failure && (!failure_ || f.failure->row < failure_->row)) failure_ = f.failure;
+    outcome_.failed_rows += f.failed_rows;
+    if (f.first_failed && (!first_failed_ || f.first_failed->row < first_failed_->row))
+      first_failed_ = std::move(f.first_failed);
+    writer_->add(std::move(f));
   }
 
-  /// The end: complete, interrupted or failed. No more rows start anywhere; running rows get
-  /// `grace` seconds.
-  void close(double grace) {
-    if (closing_) return;
-    closing_ = true;
+  /// Rank 0: every message that has arrived.
+  void receive() {
+    while (std::optional<SweepLink::Message> message = link_.receive()) {
+      if (message->tag == SweepLink::rows) {
+        finished(unpack_finished(std::move(message->payload)), message->source);
+      } else {
+        ++peers_finished_;
+        abandoned_elsewhere_ = abandoned_elsewhere_ || message->payload != "0";
+      }
+    }
+  }
+
+  /// A signal here stops every rank; a stop anywhere (a signal, a failed row, a failed rank)
+  /// stops this one. The counter is read every poll (a few microseconds).
+  void watch_stop() {
+    if (stopping_) return;
+    if (stop_flag().load()) link_.fetch(SweepLink::stop, SweepLink::Op::bit_or, stop_signal);
+    if (link_.fetch(SweepLink::stop, SweepLink::Op::read) != 0) begin_stop();
+  }
+
+  void begin_stop() {
+    stopping_ = true;
     team_.stop();
-    scheduler_.stop();  // other ranks that take their own chunks take no more
     deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                   std::chrono::duration<double>(grace));
-    // Every row written, and the other ranks took their chunks from the cells: each of them has
-    // sent all it computed and has no row left, so it needs no stop and says nothing more (it
-    // ends at tag_done) -- unless one of them claimed the close for a signal first. Otherwise
-    // the others stop (and start no rows: the cell says so) and say when they have finished.
-    bool quiet_end = false;
-    if (cells_) {
-      std::atomic_ref<std::uint64_t> closed = shared_cell(cells_, cell_closed);
-      std::uint64_t expected = not_closed;
-      quiet_end = writer_.complete() && !failure_ && !outcome_.interrupted &&
-                  closed.compare_exchange_strong(expected, closed_complete);
-      if (!quiet_end) closed.store(closed_stopping);
-    }
-    for (int r = 1; r < size_; ++r) {
-      if (quiet_end) peers_[static_cast<std::size_t>(r)].finished = true;
-      else post(r, tag_stop, {});
-    }
+                                   std::chrono::duration<double>(rows_.grace_seconds));
   }
 
-  /// This rank's finished rows and every message from the other ranks; true when anything came.
-  bool collect() {
-    bool active = false;
-    for (Finished& f : team_.take()) {
-      accept(std::move(f), 0);
-      active = true;
-    }
-    // Requests go ahead of long results still arriving (the grant is on its way sooner).
-    while (std::optional<Message> message = receive(tag_request)) {
-      active = true;
-      ++messages_;
-      Peer& peer = peers_[static_cast<std::size_t>(message->source)];
-      switch (message->tag) {
-        case tag_request: peer.wanted += Unpacker(message->payload).get<std::uint64_t>(); break;
-        case tag_result:
-          accept(unpack_finished(std::move(message->payload)), message->source);
+  /// Takes chunks for the team while it wants them and the window allows.
+  void feed() {
+    window_wait_ = false;
+    while (team_.wanted() > 0) {
+      if (held_.empty()) {
+        if (exhausted_) break;
+        const std::uint64_t chunk = link_.fetch(SweepLink::next_chunk, SweepLink::Op::add, 1);
+        if (chunk + 1 >= bounds_.size()) {
+          exhausted_ = true;
           break;
-        case tag_stopping:
-          outcome_.interrupted = true;
-          close(rows_.grace_seconds);
-          break;
-        case tag_finished:
-          peer.finished = true;
-          peer.abandoned = Unpacker(message->payload).get<std::uint8_t>() != 0;
-          break;
-        default: break;
+        }
+        hold(bounds_[chunk], bounds_[chunk + 1]);
       }
-    }
-    return active;
-  }
-
-  /// Chunks to this rank's team and to every rank that asked (or must learn that the rows are
-  /// exhausted); true when any went out.
-  bool hand_out() {
-    bool active = false;
-    for (std::size_t k = team_.wanted(); k > 0; --k) {
-      const std::optional<Range> chunk = scheduler_.next(writer_.position());
-      if (!chunk) break;
-      team_.add(*chunk);
-      active = true;
-    }
-    // With shared cells the other ranks take their chunks themselves.
-    for (int r = 1; r < size_ && !cells_; ++r) {
-      Peer& peer = peers_[static_cast<std::size_t>(r)];
-      if (peer.wanted == 0 && !(scheduler_.exhausted() && !peer.told_exhausted)) continue;
-      std::vector<Range> chunks;
-      for (; peer.wanted > 0; --peer.wanted) {
-        const std::optional<Range> chunk = scheduler_.next(writer_.position());
-        if (!chunk) break;
-        chunks.push_back(*chunk);
+      const Range next = held_.front();
+      if (next.first >= unwritten_ + window_) {
+        unwritten_ = root_ ? writer_->position()
+                           : link_.fetch(SweepLink::unwritten, SweepLink::Op::read);
+        if (next.first >= unwritten_ + window_) {
+          window_wait_ = true;
+          break;
+        }
       }
-      const bool exhausted = scheduler_.exhausted();
-      if (chunks.empty() && !(exhausted && !peer.told_exhausted)) continue;
-      Packer grant;
-      grant.put<std::uint64_t>(chunks.size());
-      for (const Range& chunk : chunks)
-        grant.put<std::uint64_t>(chunk.first).put<std::uint64_t>(chunk.count);
-      grant.put<std::uint8_t>(exhausted);
-      peer.told_exhausted = exhausted;
-      if (exhausted) peer.wanted = 0;
-      post(r, tag_grant, grant.take());
-      active = true;
+      team_.add(next);
+      held_.pop_front();
     }
-    if (scheduler_.exhausted()) team_.close();
-    return active;
+    if (exhausted_ && held_.empty()) team_.close();
   }
 
-  /// Writes every row that is next in order; an output that cannot be written fails the sweep.
+  /// The rows of pending positions [from, to) as runs of consecutive rows.
+  void hold(std::size_t from, std::size_t to) {
+    if (pending_.empty()) {
+      held_.push_back(Range{from, to - from});
+      return;
+    }
+    for (std::size_t k = from; k < to; ++k) {
+      if (!held_.empty() && held_.back().first + held_.back().count == pending_[k])
+        ++held_.back().count;
+      else
+        held_.push_back(Range{pending_[k], 1});
+    }
+  }
+
+  /// Rank 0: writes the rows that are next in order (an output that cannot be written fails the
+  /// sweep) and tells the others where the window starts.
   void write_ready() {
-    try {
-      writer_.advance();
-      if (cells_ && writer_.position() != published_)
-        shared_cell(cells_, cell_unwritten).store(published_ = writer_.position());
-    } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
-      if (!failure_) failure_ = RowFailure{rows_.count, true, bad.what()};
-    } catch (const std::exception& error) {
-      if (!failure_) failure_ = RowFailure{rows_.count, false, error.what()};
-    }
-  }
-
-  /// While closing: true once every other rank finished and this rank's rows ended (or their
-  /// grace ran out); takes this rank's last rows.
-  bool closed() {
-    const bool peers_finished =
-        std::all_of(peers_.begin() + 1, peers_.end(), [](const Peer& p) { return p.finished; });
-    if (!peers_finished || !(team_.idle() || Clock::now() >= deadline_)) return false;
-    for (Finished& f : team_.take()) accept(std::move(f), 0);
-    return true;
-  }
-
-  /// Tells every other rank that the sweep is over and waits until the messages are out.
-  void release_peers() {
-    for (int r = 1; r < size_; ++r) post(r, tag_done, {});
-    while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
-  }
-
-  /// Writes what is left (after an interruption: every row there is, past the missing ones),
-  /// fills the outcome and lets `finish` complete the output. When rows had to be abandoned the
-  /// process ends here.
-  SweepOutcome conclude(const std::function<void(const SweepOutcome&)>& finish) {
-    const bool abandoned = !team_.idle() || std::any_of(peers_.begin(), peers_.end(),
-                                                        [](const Peer& p) { return p.abandoned; });
     if (!failure_) {
       try {
-        if (outcome_.interrupted) writer_.drain();
-        else writer_.advance();
+        writer_->advance();
+      } catch (const invalid_input& bad) {  // e.g. the output file cannot be written
+        failure_ = RowFailure{rows_.count, true, bad.what()};
+      } catch (const std::exception& error) {
+        failure_ = RowFailure{rows_.count, false, error.what()};
+      }
+      if (failure_ && !stopping_) {
+        link_.fetch(SweepLink::stop, SweepLink::Op::bit_or, stop_row_failed);
+        begin_stop();
+      }
+    }
+    if (writer_->position() != published_) {
+      published_ = writer_->position();
+      link_.fetch(SweepLink::unwritten, SweepLink::Op::replace, published_);
+    }
+    progress_.report(outcome_.computed + (rows_.count - pending_count_));
+  }
+
+  /// This rank's rows ended (none left to start, or stopped, and none running or past their
+  /// grace); on rank 0 also every other rank's.
+  bool ended() {
+    const bool no_more = stopping_ || (exhausted_ && held_.empty());
+    if (!no_more || !(team_.idle() || (stopping_ && Clock::now() >= deadline_))) return false;
+    return !root_ || peers_finished_ == link_.ranks() - 1;
+  }
+
+  /// Rank 0: writes what is left (after a stop: every row there is, past the missing ones),
+  /// fills the outcome and lets `finish` complete the output. When rows had to be abandoned the
+  /// process ends here.
+  SweepOutcome conclude(const std::function<void(const SweepOutcome&)>& finish, bool abandoned) {
+    const std::uint64_t stop = link_.fetch(SweepLink::stop, SweepLink::Op::read);
+    outcome_.interrupted = (stop & (stop_signal | stop_rank_failed)) != 0;
+    if (!failure_) {
+      try {
+        if (stop != 0) writer_->drain();
+        else writer_->advance();
       } catch (const invalid_input& bad) {
         failure_ = RowFailure{rows_.count, true, bad.what()};
       } catch (const std::exception& error) {
         failure_ = RowFailure{rows_.count, false, error.what()};
       }
     }
-    outcome_.written = writer_.written();
+    if (!failure_ && !writer_->complete())
+      failure_ = RowFailure{rows_.count, false, "sweep: rows went missing"};
+    outcome_.written = writer_->written();
     outcome_.seconds = seconds_since(start_);
     if (failure_) {
       outcome_.failed = true;
@@ -892,9 +616,8 @@ class RootSweep {
       outcome_.first_failed_row = first_failed_->row;
       outcome_.first_failed_reason = first_failed_->message;
     }
-    progress_.report(outcome_.computed + output_.kept_count(), true);
-    report_distribution(outcome_, peers_, messages_, thread_cpu_seconds() - start_cpu_,
-                        cells_ != nullptr);
+    progress_.report(outcome_.written, true);
+    report_sweep(outcome_, rows_per_rank_);
     if (!abandoned) {
       finish(outcome_);
       return outcome_;
@@ -911,199 +634,68 @@ class RootSweep {
   }
 
   const Clock::time_point start_ = Clock::now();
-  const double start_cpu_ = thread_cpu_seconds();
+  SweepLink& link_;
   const SweepRows& rows_;
-  SweepOutput& output_;
-  const int size_;
-  std::uint64_t* const cells_;
-  std::size_t published_ = 0;  ///< the first unwritten row as the cells last said
-  SweepOutcome outcome_;
-  Scheduler scheduler_;
-  OrderedWriter writer_;
-  Progress progress_;
-  PollInterval poll_;
-  std::vector<Peer> peers_;
-  std::optional<RowFailure> failure_;
-  std::optional<RowFailure> first_failed_;  ///< the first row written as a failed row
-  bool closing_ = false;
+  const bool root_;
+  const std::size_t threads_, window_;
+  std::vector<std::size_t> pending_;  ///< the rows to compute (not kept), in order; empty: all
+  std::size_t pending_count_ = 0;
+  std::vector<std::size_t> bounds_;   ///< the chunks, as positions in pending_
+  std::deque<Range> held_;            ///< a chunk taken, its runs not yet given to the team
+  bool exhausted_ = false, stopping_ = false, window_wait_ = false;
+  std::size_t unwritten_ = 0;  ///< the first unwritten row, as last seen
   Clock::time_point deadline_{};
-  std::size_t messages_ = 0;
-  ComputeTeam team_;  // last: its threads stop (destructor) before the state above goes
+  SweepOutcome outcome_;
+  // rank 0
+  std::optional<OrderedWriter> writer_;
+  SweepProgress progress_{rows_};
+  std::vector<std::size_t> rows_per_rank_;
+  std::optional<RowFailure> failure_, first_failed_;
+  std::size_t published_ = 0;
+  int peers_finished_ = 0;
+  bool abandoned_elsewhere_ = false;
+  ComputeTeam team_{rows_, rows_.threads};  // last: its threads stop before the state above goes
 };
-
-/// A rank other than 0. `cells`: the shared cells (it takes its own chunks), or null (it asks
-/// rank 0 for them); `kept`: the rows kept from a resumed file, as bits (empty: none).
-SweepOutcome run_worker(const SweepRows& rows, std::uint64_t* cells, const std::string& kept) {
-  SweepOutcome outcome;
-  outcome.count = rows.count;
-  outcome.threads = rows.threads * ranks();
-  ComputeTeam team(rows, rows.threads);
-  PollInterval poll(false, 4000);
-  Scheduler scheduler(
-      rows.count,
-      cells ? static_cast<std::size_t>(shared_cell(cells, cell_window).load())
-            : reorder_window(rows, rows.threads * ranks()),
-      rows.threads * ranks(), [&kept](std::size_t i) { return kept_bit(kept, i); },
-      cells ? &cells[cell_next] : nullptr);
-  bool requested = false, exhausted = false, stopping = false, told = false;
-  bool finished_sent = false, done = false;
-  std::vector<std::string> sent;
-  Clock::time_point deadline{};
-  const auto stop = [&](double grace) {
-    if (stopping) return;
-    stopping = true;
-    team.stop();
-    deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                  std::chrono::duration<double>(grace));
-  };
-  while (!done) {
-    bool active = false;
-    // Grants first: a request for more then goes out ahead of the rows just finished.
-    while (std::optional<Message> message = receive()) {
-      active = true;
-      if (message->tag == tag_grant) {
-        Unpacker grant(message->payload);
-        const auto n = grant.get<std::uint64_t>();
-        for (std::uint64_t k = 0; k < n; ++k) {
-          Range range;
-          range.first = grant.get<std::uint64_t>();
-          range.count = grant.get<std::uint64_t>();
-          if (!stopping) team.add(range);
-        }
-        exhausted = exhausted || grant.get<std::uint8_t>() != 0;
-        requested = false;
-      } else if (message->tag == tag_stop) {
-        stop(rows.grace_seconds);
-      } else if (message->tag == tag_done) {
-        done = true;
-      }
-    }
-    for (Finished& f : team.take()) {
-      outcome.computed += f.count;
-      scheduler.record(f.count + (f.failure ? 1 : 0), f.seconds);
-      // A request for more goes ahead of the rows: a short message rank 0 answers at once, where
-      // a long one arrives only when all of it is through.
-      if (!cells && !stopping && !exhausted && !requested) {
-        if (const std::size_t wanted = team.wanted(); wanted > 0) {
-          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
-          requested = true;
-        }
-      }
-      post(0, tag_result, pack_finished(std::move(f)));
-      active = true;
-    }
-    if (!told && !finished_sent && stop_flag().load()) {
-      told = true;
-      // With the cells the signal claims the close, unless rank 0 closed a complete sweep
-      // first: then nothing runs here any more and nothing is said (rank 0 listens no more).
-      std::uint64_t closed = not_closed;
-      if (!cells || shared_cell(cells, cell_closed).compare_exchange_strong(closed, closed_by_signal) ||
-          closed != closed_complete) {
-        post(0, tag_stopping, {});
-        stop(rows.grace_seconds);
-      }
-    }
-    if (!stopping && cells) {
-      const std::uint64_t closed = shared_cell(cells, cell_closed).load();
-      if (closed == closed_stopping || closed == closed_by_signal)
-        stop(rows.grace_seconds);  // rank 0's tag_stop follows
-    }
-    if (!stopping && cells) {  // take chunks from the shared cells
-      exhausted = exhausted || scheduler.exhausted();
-      if (exhausted) team.close();
-      for (std::size_t k = exhausted ? 0 : team.wanted(); k > 0; --k) {
-        const std::size_t unwritten = shared_cell(cells, cell_unwritten).load();
-        const std::optional<Range> chunk = scheduler.next(unwritten);
-        if (!chunk) break;
-        team.add(*chunk);
-        active = true;
-      }
-      // Threads without work wait for the window to move: look again soon.
-      requested = !exhausted && team.wanted() > 0;
-    } else if (!stopping) {
-      if (exhausted) {
-        team.close();
-      } else if (!requested) {
-        if (const std::size_t wanted = team.wanted(); wanted > 0) {
-          post(0, tag_request, Packer().put<std::uint64_t>(wanted).take());
-          requested = true;
-        }
-      }
-    }
-    if (stopping && !finished_sent && (team.idle() || Clock::now() >= deadline)) {
-      for (Finished& f : team.take()) {
-        outcome.computed += f.count;
-        post(0, tag_result, pack_finished(std::move(f)));
-      }
-      post(0, tag_finished, Packer().put<std::uint8_t>(!team.idle()).take());
-      finished_sent = true;
-    }
-    // The sent rows' memory serves later chunks (fresh memory costs a page fault every 4 kB).
-    sent.clear();
-    sends_pending(&sent);
-    for (std::string& bytes : sent) team.recycle(bytes);
-    // Waiting with idle threads (for a grant, or for the end once the rows are exhausted)
-    // counts as active: the answer is noticed at once, and no computation is disturbed; so does
-    // a thread without work (with the cells: the window is full). With the cells nothing else
-    // needs a quick look (the threads wake this loop when a chunk is done, and rank 0 has no
-    // answer to give): up to 4 ms between polls, as rank 0's. Each poll disturbs the compute
-    // thread of this core: polls at 0.25-1 ms after every chunk made rank 1's rows ~5% slower
-    // than alone (a 2-rank double sweep, thread CPU time per row).
-    if (!done)
-      team.wait(poll.next((active && !cells) || (cells && requested) ||
-                              (team.idle() && (requested || exhausted || stopping)),
-                          team.idle(), exhausted || stopping));
-  }
-  release_shared_cells();  // freed at the job's end (distribute.hpp)
-  while (sends_pending()) std::this_thread::sleep_for(std::chrono::microseconds(50));
-  if (!team.idle()) exit_process(0);  // abandoned rows (rank 0 reports)
-  return outcome;
-}
 
 }  // namespace
 
-// Weak: the test build's definition (tests/cli/row_faults.cpp) replaces it at link time.
+// Weak: the test build's definitions (tests/cli/row_faults.cpp) replace them at link time.
 [[gnu::weak]] void inject_row_fault(std::size_t) {}
+[[gnu::weak]] void inject_rank_fault(bool) {}
+[[gnu::weak]] std::size_t test_window_rows() { return 0; }
+[[gnu::weak]] void report_sweep(const SweepOutcome&, std::span<const std::size_t>) {}
+
+std::vector<std::size_t> guided_chunks(std::size_t rows, std::size_t threads, std::size_t largest) {
+  std::vector<std::size_t> bounds{0};
+  const std::size_t share = 2 * std::max<std::size_t>(threads, 1);
+  for (std::size_t first = 0; first < rows;) {
+    const std::size_t size = std::clamp<std::size_t>((rows - first) / share, 1,
+                                                     std::max<std::size_t>(largest, 1));
+    first += size;
+    bounds.push_back(first);
+  }
+  return bounds;
+}
+
+SweepOutcome run_sweep_on(SweepLink& link, const SweepRows& rows, SweepOutput* output,
+                          const std::string& kept,
+                          const std::function<void(const SweepOutcome&)>& finish) {
+  return RankSweep(link, rows, output, kept).run(finish);
+}
 
 SweepOutcome run_sweep(const SweepRows& rows, SweepOutput* output,
                        const std::function<void(const SweepOutcome&)>& finish) {
-  // For tests, PENDAVG_TEST_FAIL_ON_RANK=K[:sweep]: a failure on rank K alone (K = all: on
-  // every rank), just before the sweep's first collective step (or, with ":sweep", once the
-  // sweep has begun).
-  const auto fail_here = [](bool begun) {
-    const char* failing = std::getenv("PENDAVG_TEST_FAIL_ON_RANK");
-    if (!failing || !*failing) return;
-    const std::string_view which(failing);
-    if (!which.starts_with("all") && std::atoi(failing) != rank()) return;
-    if (begun == (which.find(":sweep") != std::string_view::npos))
-      throw std::runtime_error("a failure injected on this rank (PENDAVG_TEST_FAIL_ON_RANK)");
-  };
-  fail_here(false);
-  // Collective: shared cells when every rank reaches rank 0's memory; then every rank needs
-  // rank 0's window and the kept rows (bits; empty when there are none). The broadcast also
-  // orders rank 0's store of the window before the other ranks' first look.
-  std::uint64_t* const cells = open_shared_cells(cell_count);
-  // The cells are let go on this rank alone (freeing them is collective, at the job's end: see
-  // distribute.hpp), at the end of its sweep or when an exception leaves it (the other ranks may
-  // still be sweeping, and this rank must get on to report its failure); twice does nothing.
-  struct ReleaseCells {
-    ~ReleaseCells() { release_shared_cells(); }
-  } release_cells;
+  inject_rank_fault(false);
+  const std::unique_ptr<SweepLink> link = open_sweep_link();  // collective
+  // Every rank needs the kept rows (bits; empty when there are none).
   std::string kept;
-  if (cells) {
-    if (is_root()) {
-      shared_cell(cells, cell_window).store(reorder_window(rows, rows.threads * ranks()));
-      if (output->kept_count() > 0) {
-        kept.assign((rows.count + 7) / 8, '\0');
-        for (std::size_t i = 0; i < rows.count; ++i)
-          if (output->kept(i)) kept[i / 8] = static_cast<char>(kept[i / 8] | (1 << (i % 8)));
-      }
-    }
-    kept = broadcast_from_root(std::move(kept));
+  if (is_root() && output->kept_count() > 0) {
+    kept.assign((rows.count + 7) / 8, '\0');
+    for (std::size_t i = 0; i < rows.count; ++i)
+      if (output->kept(i)) kept[i / 8] = static_cast<char>(kept[i / 8] | (1 << (i % 8)));
   }
-  fail_here(true);
-  if (is_root()) return RootSweep(rows, *output, cells).run(finish);
-  return run_worker(rows, cells, kept);
+  kept = broadcast_from_root(std::move(kept));
+  return run_sweep_on(*link, rows, output, kept, finish);
 }
 
 void rethrow_failure(const SweepOutcome& outcome,

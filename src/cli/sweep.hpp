@@ -3,34 +3,25 @@
 // rows 0..count-1, each a pure function of its index, computed on every rank's threads and
 // written in index order by rank 0.
 //
-// Work distribution. Chunks of consecutive rows are handed out dynamically (rows may differ 1000x
-// in cost). A chunk is one thread's unit; its size aims at ~20 ms (50 us per thread of the job
-// beyond 400 threads, which bounds rank 0's message rate) from the rows' measured mean cost
-// (before the first chunk is timed: 1, 2, 4, ... rows) and shrinks towards the end (at most 1/4
-// of the remaining rows per thread, as guided scheduling, but not below ~0.2 ms of rows), so
-// that the last chunks balance the ranks. Each rank keeps about two chunks per thread queued.
-// When every rank reaches rank 0's memory (one node: an MPI-3 shared-memory window), the next
-// row to hand out, the reorder limit, the window and how the sweep closed are cells there (a
-// complete sweep then ends with one message to each rank), and each rank's coordinator takes its
-// chunks itself with an atomic compare-and-swap (sized from its own rows' timings): nobody waits
-// for rank 0 to be scheduled. Rows kept from a resumed file go to every rank as bits.
-// Otherwise (ranks on several nodes, or PENDAVG_SWEEP_SHARED=0) rank 0 hands them out on request,
-// and the queued chunks hide the round trip (a rank asks for more, in a short message, just
-// before it sends a chunk's rows; rank 0 reads requests ahead of long results still arriving).
-// Finished rows go to rank 0 in messages either way (long ones arrive in recycled memory). Rank
-// 0 computes too: its main thread only schedules, receives and writes (it sleeps between polls),
-// and a second thread runs the OpenMP team of every rank.
+// Work distribution. The rows still to compute (not kept from a resumed file) are cut into
+// chunks by a fixed rule (guided_chunks: a chunk is 1/(2T) of the rows left, T the job's compute
+// threads, capped so the reorder buffer stays small), the same on every rank; one counter kept
+// by rank 0 (SweepLink: MPI_Fetch_and_op on a window in rank 0's memory) hands out the next
+// chunk, so a rank takes work without waiting for rank 0. Each rank keeps about two chunks per
+// thread queued. Every rank's main thread coordinates (takes chunks, sends finished rows to rank
+// 0, which writes them) while a team of OpenMP threads computes.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
-// that arrive early wait in a reorder buffer. No row more than `window` past the first unwritten
-// one is handed out, so the buffer holds at most window rows; window = (32 MB + 128 kB per
-// compute thread of the job) / row_bytes, at least 16 rows per thread: memory is
-// O(threads x row), not O(rows).
+// that arrive early wait in a reorder buffer. No chunk starting more than `window` rows past the
+// first unwritten row starts (a second counter: rank 0's first unwritten row), so the buffer
+// holds O(window) rows: window = (32 MB + 128 kB per compute thread of the job) / row_bytes, at
+// least 16 rows per thread: memory is O(threads x row), not O(rows).
 // Output. Every row is computed by the same function with one thread, so the output does not
 // depend on the rank or thread count, nor on which rank computed which row.
-// Interruption. SIGINT/SIGTERM on any rank stop the sweep: no new rows start, rows running get
-// `grace_seconds` to finish, then rank 0 writes every finished row (in order, the missing ones
-// left out) and the command ends; rows still running are abandoned (the process exits at once
-// after its output is complete).
+// Interruption. SIGINT/SIGTERM on any rank stop the sweep (a third counter, which every rank
+// watches): no new rows start, rows running get `grace_seconds` to finish, then rank 0 writes
+// every finished row (in order, the missing ones left out) and the command ends; rows still
+// running are abandoned (the process exits at once after its output is complete). A rank that
+// fails outside its rows stops the sweep the same way, and names itself.
 #pragma once
 
 #include <cstddef>
@@ -108,10 +99,33 @@ class rows_failed : public std::runtime_error {
 /// bad input (2), which computed nothing.
 inline constexpr int exit_rows_failed = 3;
 
-/// Test builds only: called before each row of a sweep is computed. This definition does
-/// nothing; the test build of the command (tests/cli/row_faults.cpp) replaces it with one that
-/// throws for chosen rows, a row that fails late (after the check before the sweep passed it).
+/// Test hooks. The shipped definitions do nothing; the test build of the command
+/// (tests/cli/row_faults.cpp, pendavg_row_faults) replaces them at link time.
+/// Called before each row of a sweep is computed: throws for chosen rows (a row that fails late,
+/// after the check before the sweep passed it).
 void inject_row_fault(std::size_t index);
+/// Called on every rank before the sweep's first collective step (`begun` false) and as its
+/// sweep begins (true): throws to fail this rank alone.
+void inject_rank_fault(bool begun);
+/// A reorder window of this many rows instead of the computed one (0: no change).
+std::size_t test_window_rows();
+/// Called on rank 0 after a sweep with the rows each rank computed.
+void report_sweep(const SweepOutcome& outcome, std::span<const std::size_t> rows_per_rank);
+
+/// The chunks of `rows` rows for a job of `threads` compute threads: the boundaries
+/// 0 = b_0 < b_1 < ... < b_m = rows of chunk k = rows b_k..b_{k+1}-1. Guided: each chunk is
+/// 1/(2 threads) of the rows left (the first chunks keep every thread busy long; the last ones,
+/// of one row, balance the end), at most `largest` rows. A pure function: every rank computes
+/// the same chunks.
+std::vector<std::size_t> guided_chunks(std::size_t rows, std::size_t threads, std::size_t largest);
+
+class SweepLink;
+/// run_sweep over a given link (every rank of it calls this; the unit tests connect threads):
+/// `kept` has bit i % 8 of byte i / 8 set for row i kept from a resumed file (empty: none), the
+/// same on every rank.
+SweepOutcome run_sweep_on(SweepLink& link, const SweepRows& rows, SweepOutput* output,
+                          const std::string& kept,
+                          const std::function<void(const SweepOutcome&)>& finish);
 
 /// Runs the sweep on every rank (collective). `output` is used on rank 0 only (null elsewhere).
 /// `finish` runs on rank 0 after the last row was written, before anything is released: it

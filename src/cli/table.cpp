@@ -13,6 +13,7 @@
 #include "format.hpp"
 #include "interrupt.hpp"
 #include "sweep.hpp"
+#include "shard.hpp"
 #include "sweep_file.hpp"
 
 #include "pendavg/mpfr.hpp"
@@ -44,7 +45,7 @@ namespace pendavg::cli {
 const std::string_view table_usage =
     "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g SPEC]\n"
     "                     [--digits LIST] [--method auto|integral|series]\n"
-    "                     [--output FILE.csv | --resume FILE.csv]\n"
+    "                     [--output FILE.csv | --resume FILE.csv] [--shard K/N]\n"
     "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
     "                     [--method auto|torus-trapezoid|transfer|qmc] [--tol T] [--samples S]\n"
     "                     [--shifts R] [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
@@ -97,6 +98,9 @@ const std::string_view table_usage =
     "(and any row cut short).\n"
     "Under mpirun/srun (pendavg built with MPI) the rows are shared by all ranks (OpenMP threads\n"
     "in each); rank 0 writes the file, which is the same for any number of ranks and threads.\n"
+    "--shard K/N (a job array without MPI: K = 1..N) computes the K-th of N fixed shares of the\n"
+    "points into its own file (--output, or --resume with the same --shard); 'pendavg merge'\n"
+    "joins the N files into the file one run of the whole sweep writes.\n"
     "\n"
     "Microcanonical sweeps: --energy SPEC (any sign; every E must exceed the chain's E_min =\n"
     "-sum_j g S_j l_j) or --excitation SPEC (D = E - E_min > 0) instead of --beta, for the double\n"
@@ -831,9 +835,12 @@ std::string table_header(const TableRequest& request, const TableMethods& m,
 /// rows (sweep.hpp) and rank 0 streams them, in order, after `header`.
 void run_table(const TableRequest& request, const PointSpace& space,
                const std::function<AverageOptions(std::size_t, int)>& row_options,
-               const TableTarget& target, const std::string& header, int threads) {
+               const TableTarget& target, const std::string& header, int threads,
+               const std::optional<Shard>& shard) {
   const TablePlan& plan = request.plan;
-  const std::size_t row_count = space.count();
+  const std::size_t row_count = shard ? shard->count() : space.count();
+  // Row k of this run: the sweep's row k, or the shard's k-th.
+  const auto point = [&](std::size_t k) { return space.point(shard ? shard->row(k) : k, row_options); };
   std::optional<ResumedRows> resumed;
   std::optional<SweepFile> file;
   std::string verdict;
@@ -843,7 +850,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
       if (!target.resume.empty() && std::filesystem::exists(target.resume))
         resumed.emplace(target.resume, "table", header, row_count, 4 + 2 * plan.columns_particles,
                         [&](std::size_t k) {
-                          return row_key(space.point(k, row_options), plan.columns_particles);
+                          return row_key(point(k), plan.columns_particles);
                         });
       // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
       file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
@@ -869,12 +876,12 @@ void run_table(const TableRequest& request, const PointSpace& space,
                      (2 * m + 2) * 32 + 4 * m + 6 * 25 + 64;
   }
   rows.compute = [&](std::size_t k, int, std::string& text) {
-    const Point point = space.point(k, row_options);
-    text += point.options.digits == min_digits ? table_row<double>(point, plan)
-                                               : table_row<mpfr_real>(point, plan);
+    const Point p = point(k);
+    text += p.options.digits == min_digits ? table_row<double>(p, plan)
+                                           : table_row<mpfr_real>(p, plan);
   };
   const auto point_context = [&](std::size_t k) {
-    return "point (" + space.point(k, row_options).describe() + "): ";
+    return "point (" + point(k).describe() + "): ";
   };
   // A point that fails once the sweep runs (the check passed it) does not cost the others: it
   // becomes a '# failed:' line in its place, and the run ends with rows_failed (exit 3).
@@ -920,9 +927,10 @@ std::string table_command(const Options& options) {
                                                                            int digits) {
     return row_method(plan, n, digits).options;
   };
-  const std::size_t row_count = space.count();
+  const std::optional<Shard> shard = shard_option(options, "table", space.count());
+  const std::size_t row_count = shard ? shard->count() : space.count();
   const auto check = [&](std::size_t k, int /*thread*/) {
-    const Point point = space.point(k, row_options);
+    const Point point = space.point(shard ? shard->row(k) : k, row_options);
     try {
       if (point.options.digits == min_digits) check_point<double>(point);
       else check_point<mpfr_real>(point);
@@ -935,8 +943,9 @@ std::string table_command(const Options& options) {
       bad < row_count)
     check(bad, 0);  // throws the first bad point's error, on every rank
 
-  run_table(request, space, row_options, target, table_header(request, methods, row_count),
-            threads);
+  run_table(request, space, row_options, target,
+            (shard ? shard->header_line() : "") + table_header(request, methods, space.count()),
+            threads, shard);
   return {};
 }
 

@@ -12,9 +12,9 @@ namespace pendavg::cli {
 
 extern const std::string_view table_usage;
 
-inline constexpr std::array<std::string_view, 16> table_options{
+inline constexpr std::array<std::string_view, 17> table_options{
     "beta",    "mu1",    "l1",   "l2",     "g",      "chain",  "digits",     "method",
-    "tol",     "samples", "shifts", "seed", "output", "resume", "energy", "excitation"};
+    "tol",     "samples", "shifts", "seed", "output", "resume", "energy", "excitation", "shard"};
 
 /// Runs `pendavg table`: streams the CSV to stdout, or to --output (or --resume) through a
 /// temporary file in the same directory; returns "".

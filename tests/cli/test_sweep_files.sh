@@ -134,13 +134,13 @@ open(sys.argv[1], "w").write(text[:-5])
 PY
 check "damaged rows: row 50 has 9 fields" \
   test "$(data_rows "$work/damaged.csv" | sed -n 50p | tr ',' '\n' | wc -l)" -eq 9
-PENDAVG_SWEEP_REPORT=1 run "${cases[@]}" --resume "$work/damaged.csv"
+PENDAVG_SWEEP_REPORT=1 faulty_run "" "${cases[@]}" --resume "$work/damaged.csv"  # the report
 check "damaged rows resumed: exit 0" test "$rc" -eq 0
 check "damaged rows resumed: the 3 damaged rows computed, the others kept" \
-  grep -q '^pendavg: sweep: rows=120 computed=3 ' "$work/err"
+  grep -q '^pendavg: test: sweep of 120 rows, 3 computed,' "$work/err"
 check "damaged rows resumed = a full run" cmp -s "$work/damaged.csv" "$work/cases_reference.csv"
-PENDAVG_SWEEP_REPORT=1 run "${table[@]}" --resume "$work/table_failed.csv"
-check "a whole file resumed: every row kept" grep -q '^pendavg: sweep: rows=40 computed=0 ' "$work/err"
+PENDAVG_SWEEP_REPORT=1 faulty_run "" "${table[@]}" --resume "$work/table_failed.csv"
+check "a whole file resumed: every row kept" grep -q '^pendavg: test: sweep of 40 rows, 0 computed,' "$work/err"
 
 # ---------------------------------------------------------------- 3. a file size limit
 big_table=(table --beta log:0.1:10:2000 --mu1 0.1,0.5 --digits 16)

@@ -1,0 +1,195 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// src/cli/shard.cpp -- see shard.hpp.
+#include "shard.hpp"
+
+#include "files.hpp"
+#include "sweep.hpp"
+#include "sweep_file.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+namespace pendavg::cli {
+
+namespace {
+
+constexpr std::size_t blocks_per_shard = 16;
+constexpr std::string_view shard_prefix = "# shard ";
+
+/// "K/N" as two integers, or nothing.
+std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
+  const std::size_t slash = text.find('/');
+  const auto number = [](std::string_view digits) -> std::optional<std::size_t> {
+    if (digits.empty() || digits.size() > 9) return std::nullopt;
+    std::size_t value = 0;
+    for (const char c : digits) {
+      if (c < '0' || c > '9') return std::nullopt;
+      value = 10 * value + static_cast<std::size_t>(c - '0');
+    }
+    return value;
+  };
+  if (slash == std::string_view::npos) return std::nullopt;
+  const auto k = number(text.substr(0, slash)), n = number(text.substr(slash + 1));
+  if (!k || !n) return std::nullopt;
+  return std::pair{*k, *n};
+}
+
+/// One shard file being merged: its header, then its rows on demand.
+struct ShardFile {
+  std::string path;
+  std::ifstream in;
+  std::string shard_line;           ///< its first line
+  std::vector<std::string> header;  ///< the lines after it up to the column line
+  std::size_t number = 0, shards = 0, rows = 0, block = 0;
+};
+
+[[noreturn]] void refuse(const std::string& what) { throw usage_error("merge: " + what); }
+
+void open_shard(ShardFile& f) {
+  f.in.open(f.path, std::ios::binary);
+  if (!f.in) refuse("cannot read '" + f.path + "': " + std::strerror(errno));
+  if (!std::getline(f.in, f.shard_line) || !f.shard_line.starts_with(shard_prefix))
+    refuse("'" + f.path + "' is not a shard (its first line is not '# shard K/N ...': written by "
+           "table or average --cases with --shard K/N)");
+  unsigned long long k = 0, n = 0, rows = 0, block = 0;
+  if (std::sscanf(f.shard_line.c_str(), "# shard %llu/%llu: blocks of %llu of the %llu rows",
+                  &k, &n, &block, &rows) != 4 || k < 1 || k > n || block < 1)
+    refuse("'" + f.path + "': its shard line '" + f.shard_line + "' cannot be read");
+  f.number = k, f.shards = n, f.rows = rows, f.block = block;
+  std::string line;
+  while (std::getline(f.in, line)) {
+    f.header.push_back(line);
+    if (!line.starts_with("#")) return;  // the column line
+  }
+  refuse("'" + f.path + "' ends before its column line");
+}
+
+/// The next row of `f` (a data line, or a '# failed:' line in place of a row); false at its end.
+/// An '# interrupted' line means rows are missing.
+bool next_row(ShardFile& f, std::string& line) {
+  if (!std::getline(f.in, line)) return false;
+  if (line.starts_with("# interrupted"))
+    refuse("'" + f.path + "' is incomplete (" + line.substr(2) + "): complete it with --resume '" +
+           f.path + "' and the same --shard, then merge");
+  if (line.starts_with("#") && !line.starts_with("# failed: "))
+    refuse("'" + f.path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
+  if (f.in.eof()) refuse("'" + f.path + "' ends in the middle of a row");
+  return true;
+}
+
+}  // namespace
+
+Shard::Shard(std::size_t number, std::size_t shards, std::size_t rows)
+    : number_(number), shards_(shards), rows_(rows),
+      block_(std::max<std::size_t>(1, (rows + blocks_per_shard * shards - 1) /
+                                          (blocks_per_shard * shards))) {
+  for (std::size_t b = number - 1; b * block_ < rows; b += shards)
+    count_ += std::min(block_, rows - b * block_);
+}
+
+std::string Shard::header_line() const {
+  return std::string(shard_prefix) + std::to_string(number_) + "/" + std::to_string(shards_) +
+         ": blocks of " + std::to_string(block_) + " of the " + std::to_string(rows_) +
+         " rows, those numbered " + std::to_string(number_ - 1) + " mod " +
+         std::to_string(shards_) + " (pendavg merge joins the shards)\n";
+}
+
+std::optional<Shard> shard_option(const Options& options, std::string_view command,
+                                  std::size_t rows) {
+  if (!options.has("shard")) return std::nullopt;
+  const std::string_view text = options.get("shard", "");
+  const auto fraction = parse_fraction(text);
+  if (!fraction || fraction->first < 1 || fraction->first > fraction->second)
+    throw usage_error(std::string(command) + ": --shard takes K/N with 1 <= K <= N (e.g. 3/8), "
+                      "not '" + std::string(text) + "'");
+  for (const std::string_view timing : {"timing", "timing-rows"})
+    if (options.has(timing))
+      throw usage_error(std::string(command) + ": --shard and --" + std::string(timing) +
+                        " cannot be combined");
+  return Shard(fraction->first, fraction->second, rows);
+}
+
+const std::string_view merge_usage =
+    "usage: pendavg merge --output FILE SHARD...\n"
+    "\n"
+    "Joins the files of the shards of one sweep (pendavg table or average with a cases file, run\n"
+    "as shard K of N for K = 1..N, e.g. the tasks of a job array: see their help) into FILE,\n"
+    "written atomically: the header (without the shard line, with the first shard's date) and\n"
+    "every row in the order of the whole sweep, the file one run of the sweep writes. Refuses\n"
+    "shards of different sweeps (any other header line differing), a shard given twice, one\n"
+    "missing, and a shard that is incomplete (interrupted: resume it as the same shard first)\n"
+    "or has extra rows. A '# failed:' line (a row that failed) is kept in its place; the merge\n"
+    "then exits 3.\n";
+
+std::string merge_command(const Options& options) {
+  const std::string output(options.required("output"));
+  if (output.empty()) refuse("--output needs a file name");
+  const std::vector<std::string>& paths = options.operands();
+  if (paths.empty()) refuse("no shard files given (pendavg merge --output FILE SHARD...)");
+  std::vector<std::unique_ptr<ShardFile>> files;
+  for (const std::string& path : paths) {
+    refuse_same_file(output, "output", path, "a shard", "merge");
+    files.push_back(std::make_unique<ShardFile>());
+    files.back()->path = path;
+    open_shard(*files.back());
+  }
+  // One sweep: the same N, rows and blocks, the same header (up to the date), each K once.
+  const ShardFile& first = *files.front();
+  std::vector<ShardFile*> by_number(first.shards, nullptr);
+  for (const auto& f : files) {
+    if (f->shards != first.shards || f->rows != first.rows || f->block != first.block)
+      refuse("'" + f->path + "' is shard " + std::to_string(f->number) + "/" +
+             std::to_string(f->shards) + " of " + std::to_string(f->rows) + " rows, '" +
+             first.path + "' of " + std::to_string(first.shards) + " shards of " +
+             std::to_string(first.rows) + " rows: not shards of one sweep");
+    bool same = f->header.size() == first.header.size();
+    for (std::size_t k = 0; same && k < first.header.size(); ++k)
+      same = same_header_line(first.header[k], f->header[k]);
+    if (!same)
+      refuse("'" + f->path + "' and '" + first.path + "' are shards of different sweeps (their "
+             "headers differ)");
+    ShardFile*& slot = by_number[f->number - 1];
+    if (slot)
+      refuse("'" + slot->path + "' and '" + f->path + "' are both shard " +
+             std::to_string(f->number) + "/" + std::to_string(f->shards) + " (overlapping rows)");
+    slot = f.get();
+  }
+  for (std::size_t k = 0; k < by_number.size(); ++k)
+    if (!by_number[k])
+      refuse("shard " + std::to_string(k + 1) + "/" + std::to_string(first.shards) +
+             " is missing (its rows would be missing)");
+  std::string text;
+  for (const std::string& line : first.header) text += line + "\n";
+  AtomicFile file(output, "merge");
+  std::string line;
+  std::size_t failed = 0;
+  for (std::size_t b = 0; b * first.block < first.rows; ++b) {
+    ShardFile& f = *by_number[b % first.shards];
+    for (std::size_t r = b * first.block; r < std::min(first.rows, (b + 1) * first.block); ++r) {
+      if (!next_row(f, line))
+        refuse("'" + f.path + "' ends before its rows do (row " + std::to_string(r) +
+               " of the sweep is missing)");
+      failed += line.starts_with("#");
+      (text += line) += '\n';
+    }
+    if (text.size() >= (1u << 20)) {
+      file.append(text);
+      text.clear();
+    }
+  }
+  for (const auto& f : files)
+    if (next_row(*f, line)) refuse("'" + f->path + "' has more rows than its shard's blocks");
+  file.append(text);
+  file.commit();
+  if (failed > 0)
+    throw rows_failed("merge: " + std::to_string(failed) + " of " + std::to_string(first.rows) +
+                      " rows failed while they were computed; '" + output + "' has a '# failed:' "
+                      "line in place of each; --resume the shards that have them, then merge again");
+  return {};
+}
+
+}  // namespace pendavg::cli

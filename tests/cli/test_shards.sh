@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
+# tests/cli/test_shards.sh -- a sweep split over a job array without MPI (--shard K/N) and joined
+# by `pendavg merge`: for N = 1, 2 and 3 shards of a table (torus and transfer rows) and of an
+# `average --cases` run, the merged file is the serial run's, byte for byte, whatever order the
+# shards are given in; a shard stopped by SIGTERM at a random moment and resumed gives the same
+# merged file; merge refuses a missing shard, a shard given twice, shards of other sweeps, an
+# interrupted shard, and a file that is no shard; --shard refuses a malformed K/N.
+#
+# Usage: test_shards.sh PATH/TO/pendavg       Prints "N passed, M failed" last.
+set -u
+pendavg=${1:?usage: test_shards.sh PATH/TO/pendavg}
+python=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+source "$(dirname "$0")/sweep_harness.sh"
+
+table=(table --chain 3,8 --beta log:0.1:10:40 --g 1,2 --tol 1e-8)
+"$python" - "$work/cases.csv" <<'PY'
+import random, sys
+rng = random.Random(29)
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for _ in range(500):
+        mu1 = rng.uniform(0.01, 0.99)
+        f.write(f"{10 ** rng.uniform(-2, 2):.6g},1,{mu1:.6g},{1 - mu1:.6g},1,{rng.uniform(0.5, 2):.6g}\n")
+PY
+cases=(average --cases "$work/cases.csv")
+
+# same_merged NAME ARGS...: the shards of 1, 2 and 3, merged (in reverse order), against the
+# serial file.
+same_merged() {
+  local name=$1 n k
+  shift
+  "$pendavg" "$@" --output "$work/serial.csv" 2>/dev/null || { fail "$name: serial run"; return; }
+  for n in 1 2 3; do
+    rm -f "$work"/shard*.csv
+    for ((k = 1; k <= n; ++k)); do
+      "$pendavg" "$@" --shard "$k/$n" --output "$work/shard$k.csv" 2>/dev/null ||
+        fail "$name: shard $k/$n exited with an error"
+    done
+    if ! run merge --output "$work/merged.csv" $(ls "$work"/shard*.csv | sort -r); then
+      fail "$name: merging $n shards exited $rc"
+    elif [ -s "$work/out" ] || [ -s "$work/err" ]; then
+      fail "$name: merging $n shards printed something"
+    elif ! cmp -s "$work/merged.csv" "$work/serial.csv"; then
+      fail "$name: $n shards merged differ from the serial file"
+    else
+      pass
+    fi
+  done
+}
+same_merged "table" "${table[@]}"
+same_merged "average --cases" "${cases[@]}" --columns beta_K,ratio
+
+# Shard 2/3 of a slow sweep stopped by SIGTERM at a random moment, resumed with the same --shard:
+# merged with the other two, the serial file.
+slow=(table --beta log:1:1000:60 --mu1 0.001,0.05 --digits 200)
+export OMP_NUM_THREADS=1  # MPFR rows of N = 2: their last digits vary with two threads (a race)
+"$pendavg" "${slow[@]}" --output "$work/slow_serial.csv" 2>/dev/null
+for k in 1 3; do "$pendavg" "${slow[@]}" --shard "$k/3" --output "$work/slow$k.csv" 2>/dev/null; done
+delay=$("$python" -c 'import random; print(round(random.uniform(0.3, 1.5), 2))')
+"$pendavg" "${slow[@]}" --shard 2/3 --output "$work/slow2.csv" >/dev/null 2>&1 &
+pid=$!
+sleep "$delay"
+kill -TERM "$pid" 2>/dev/null
+wait "$pid"
+interrupted=$(grep -c '^# interrupted' "$work/slow2.csv" 2>/dev/null)
+if [ "${interrupted:-0}" -gt 0 ]; then
+  bad "merge of an interrupted shard" merge --output "$work/slow.csv" "$work/slow1.csv" "$work/slow2.csv" "$work/slow3.csv"
+fi
+if ! "$pendavg" "${slow[@]}" --shard 2/3 --resume "$work/slow2.csv" 2>/dev/null; then
+  fail "resuming shard 2/3 after SIGTERM at $delay s"
+elif ! run merge --output "$work/slow.csv" "$work/slow1.csv" "$work/slow2.csv" "$work/slow3.csv" ||
+     ! cmp -s "$work/slow.csv" "$work/slow_serial.csv"; then
+  fail "shard 2/3 stopped at $delay s (interrupted: ${interrupted:-none}), resumed, merged: not the serial file"
+else
+  pass
+fi
+bad "--resume a shard with another --shard" "${slow[@]}" --shard 1/3 --resume "$work/slow2.csv"
+unset OMP_NUM_THREADS
+
+# Refusals: one error line, exit 2, nothing written.
+for k in 1 2 3; do "$pendavg" "${table[@]}" --shard "$k/3" --output "$work/t$k.csv" 2>/dev/null; done
+"$pendavg" "${cases[@]}" --shard 2/3 --output "$work/c2.csv" 2>/dev/null
+"$pendavg" "${table[@]}" --tol 1e-9 --shard 2/3 --output "$work/other2.csv" 2>/dev/null
+bad "merge: a shard missing" merge --output "$work/m.csv" "$work/t1.csv" "$work/t3.csv"
+bad "merge: a shard twice" merge --output "$work/m.csv" "$work/t1.csv" "$work/t2.csv" "$work/t2.csv" "$work/t3.csv"
+bad "merge: a shard of another sweep (rows)" merge --output "$work/m.csv" "$work/t1.csv" "$work/c2.csv" "$work/t3.csv"
+bad "merge: a shard of another sweep (header)" merge --output "$work/m.csv" "$work/t1.csv" "$work/other2.csv" "$work/t3.csv"
+bad "merge: not a shard" merge --output "$work/m.csv" "$work/t1.csv" "$work/serial.csv"
+bad "merge: no shards" merge --output "$work/m.csv"
+bad "merge: output is a shard" merge --output "$work/t1.csv" "$work/t1.csv" "$work/t2.csv" "$work/t3.csv"
+check "merge refusals wrote nothing" test ! -e "$work/m.csv"
+check "merge refusals left no temporary" no_temporaries
+for spec in 0/3 4/3 3 a/3 2/0 -1/3 1/-3 "1/3x"; do bad "--shard $spec" "${table[@]}" --shard "$spec"; done
+bad "--shard with --timing" "${cases[@]}" --shard 1/2 --timing
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
