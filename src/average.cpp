@@ -112,8 +112,9 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
   }
 }
 
-/// The torus' work cap (TorusOptions::max_evaluations): the node evaluations that take about 20 s
-/// of one core, so that no torus run is unbounded (a particle of 1e-100 of the chain's mass with
+/// The torus' work cap (TorusOptions::max_evaluations): the node evaluations that take about 10 s
+/// of one core (N = 3 at 77 digits and beta = 2, 131,074 nodes, still converges), so that no
+/// torus run is unbounded (a particle of 1e-100 of the chain's mass with
 /// gravity took hours in MPFR; soft interior links between stiff ones ~100 s in double). Beyond
 /// it the refinement stops with converged = false and the last level's errors. The cost of one
 /// node per particle (user time over evaluations of `pendavg average --method torus-trapezoid`,
@@ -121,7 +122,7 @@ void check_options(const AverageOptions& o, AverageMethod resolved, std::size_t 
 /// digits us in MPFR (N = 3: 51, 72, 79 us per node at 17, 38, 77 digits). A run split into
 /// `runs` torus runs (the low-temperature extrapolation's three references) shares the cap.
 double torus_evaluation_budget(std::size_t n, int digits, int runs) {
-  constexpr double seconds = 20;
+  constexpr double seconds = 10;
   const double per_particle = digits == min_digits ? 7e-8 : (15 + 0.12 * digits) * 1e-6;
   return seconds / (per_particle * static_cast<double>(n) * runs);
 }
