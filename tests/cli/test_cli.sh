@@ -856,12 +856,17 @@ assert d['interrupted'] and not d['converged'], d
   fi
 }
 ones() { printf '1%.0s,' $(seq 2 "$1"); printf '1'; }
-# The text format says so too: a qmc run of 64 short shifts stopped after 3 s reports the
-# shifts it finished, "converged = no" and an "interrupted:" line.
+# The text format says so too: a qmc run of 64 short shifts stopped once its progress shows a
+# finished shift (4% of the points: more than two shifts' worth, so one is finished on up to two
+# threads; a fixed 3 s was not always enough on a loaded machine) reports the shifts it
+# finished, "converged = no" and an "interrupted:" line.
 "$pendavg" average --masses "$(ones 64)" --lengths "$(ones 64)" --beta 1 --method qmc \
   --samples 65536 --shifts 64 --format text >"$work/out" 2>"$work/err" &
 text_pid=$!
-sleep 3
+for _ in $(seq 600); do  # up to 60 s
+  grep -Eq '^\[average\] +([4-9]|[1-9][0-9])% of the qmc points' "$work/err" && break
+  sleep 0.1
+done
 kill -INT "$text_pid"
 wait "$text_pid"
 rc=$?
