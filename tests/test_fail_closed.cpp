@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include "domain.hpp"
+#include "engine/chain_transfer.hpp"
 #include "engine/torus.hpp"
 #include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
@@ -377,5 +378,22 @@ TEST_CASE("fail closed: the torus' work cap ends its refinement with errors that
   CHECK(early.evaluations <= 20000);
   REQUIRE(full.converged);
   CHECK(full.evaluations > 100000);
+  check_within_errors(early, full);
+}
+
+TEST_CASE("fail closed: the transfer operator's work cap ends its refinement with verified errors",
+          "[fail_closed][transfer]") {
+  // Links alternating between 1e-118 and 1e118 (N = 8) refined for over a minute; average() now
+  // caps the work at 4e6 kernel evaluations per particle. Capped far below what this ordinary
+  // chain needs, the run stops after its verified level: converged = false, errors that cover.
+  const Chain<double> chain(std::vector<double>(8, 1.0), std::vector<double>(8, 1.0));
+  pendavg::TransferOptions tight, capped;
+  tight.tolerance = capped.tolerance = 1e-12;
+  capped.max_kernel_evaluations = 3e5;
+  const Averages<double> early = pendavg::chain_transfer_average(chain, 1.0, capped);
+  const Averages<double> full = pendavg::chain_transfer_average(chain, 1.0, tight);
+  CHECK_FALSE(early.converged);
+  CHECK(early.evaluations < full.evaluations / 4);
+  REQUIRE(full.converged);
   check_within_errors(early, full);
 }

@@ -1494,8 +1494,14 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
       error = verified_error(ladder, last.scale, last.noise, contracting);
       if (contracting && within(error, reported.scale, reported.noise, tol)) break;
     }
-    // The cap stops refinement once a level is verified (the first verifies nothing).
+    // The caps stop refinement once a level is verified (the first verifies nothing). A
+    // level's kernel evaluations grow like n^2 m; m grows by at most a half per level.
     if (rungs.size() >= 2 && next_angle_nodes(n) > options.max_angle_nodes) break;
+    const double growth = static_cast<double>(next_angle_nodes(n)) / static_cast<double>(n);
+    if (rungs.size() >= 2 &&
+        run.kernel_evaluations + 1.5 * growth * growth * level.kernel_evaluations >
+            options.max_kernel_evaluations)
+      break;
     n = next_angle_nodes(n);
   }
   const Rung& reported = rungs[rungs.size() - 2];

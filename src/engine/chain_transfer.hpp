@@ -106,6 +106,7 @@
 #include "pendavg/result.hpp"
 
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace pendavg {
@@ -119,6 +120,9 @@ struct TransferOptions {
   std::size_t pivot_nodes = 0;        ///< fixed m at every level; 0: automatic (see the .cpp)
   std::size_t max_angle_nodes = 512;  ///< refinement stops (converged = false) beyond it
   std::size_t max_pivot_nodes = 96;   ///< m never exceeds it
+  /// Work cap: once a level is verified, refinement stops (converged = false unless within the
+  /// tolerance) before a level whose kernel evaluations would bring the run's total beyond it.
+  double max_kernel_evaluations = std::numeric_limits<double>::infinity();
   int threads = 1;                    ///< OpenMP threads (results independent of it)
   /// Progress (the fraction of the current level's two sweeps) and stop, polled between links:
   /// stopped after two finished levels, the run returns the last of them with its ladder error
