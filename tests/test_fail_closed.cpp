@@ -313,6 +313,31 @@ TEST_CASE("fail closed: transfer refuses two adjacent light particles it cannot 
         }).empty());
 }
 
+TEST_CASE("fail closed: transfer refuses a stiff first link far softer than the second",
+          "[fail_closed][transfer]") {
+  // g = 5e196, l_1 = 1e-164 (alpha_1 = 1e34, alpha_2 = 1e198) printed non-finite values after
+  // 5 s; the same at l_1 = 1e-10, g = 1e20 after 0.1 s.
+  const std::vector<double> masses{0.442, 2.43, 0.817, 2.65, 0.678, 1.23, 1.1, 0.536};
+  const auto lengths = [](double first) {
+    return std::vector<double>{first, 0.411, 1.22, 0.742, 0.517, 0.433, 1.57, 1.72};
+  };
+  CHECK_THAT(rejection([&] {
+               pendavg::check_average(Chain<double>(masses, lengths(9.99e-165), 5e196), 2.052, {});
+             }),
+             Catch::Contains("link 1's stiffness"));
+  CHECK_THAT(rejection([&] {
+               pendavg::check_average(Chain<double>(masses, lengths(1e-10), 1e20), 2.052, {});
+             }),
+             Catch::Contains("link 1's stiffness"));
+  // a free first link (alpha_1 << 1), and a short one of comparable stiffness, are taken
+  const std::vector<double> both_short{1e-9, 1e-9, 1.22, 0.742, 0.517, 0.433, 1.57, 1.72};
+  for (const Chain<double>& chain : {Chain<double>(masses, lengths(1e-60), 1e50),
+                                     Chain<double>(masses, both_short, 1e13)}) {
+    CHECK(rejection([&] { pendavg::check_average(chain, 2.052, {}); }).empty());
+    CHECK(all_finite(pendavg::average(chain, 2.052, {})));
+  }
+}
+
 TEST_CASE("fail closed: the MPFR torus without gravity refuses a particle it cannot resolve",
           "[fail_closed]") {
   // masses 1, 1e20, 1 at g = 0 and 17 digits ran for minutes (the double torus: seconds); the

@@ -764,6 +764,19 @@ void check_transfer_domain(const Chain<Real>& chain, const Real& beta) {
                           "beyond them (m_i / S_(i+1)); the transfer operator resolves one such "
                           "light particle, not two adjacent ones");
   }
+  // A stiff first link far softer than the second (alpha_1 >= 10 and alpha_1 <= 1e-8 alpha_2)
+  // produced non-finite values (measured on N = 8: alpha_1 = 110..2e12 at ratios 2.5e-9 and
+  // below, after up to 5 s; ratio 1e-8 ends non-converged; interior links at any ratio
+  // converge; alpha_1 = 22 at 2.5e-12 converged and is refused too, for a margin): refused
+  // before any work.
+  if (chain.size() >= 2) {
+    const Real alpha1 = beta * chain.potential_coefficient(0),
+               alpha2 = beta * chain.potential_coefficient(1);
+    if (alpha1 >= Real(10) && !(alpha1 > Real(1e-8) * alpha2))
+      throw invalid_input("transfer: link 1's stiffness beta g S_1 l_1 is below 1e-8 of link "
+                          "2's while itself stiff (>= 10), which the transfer operator does not "
+                          "resolve");
+  }
 }
 
 namespace {
