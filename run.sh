@@ -9,7 +9,7 @@ cd "$(dirname "$0")"
 
 BUILD_DIR=${PENDAVG_BUILD_DIR:-build}
 JOBS=$(nproc 2>/dev/null || echo 2)
-PACKAGES_BUILD=(g++ cmake make pkg-config libgsl-dev libboost-dev libmpfr-dev libgmp-dev libeigen3-dev catch2 libbenchmark-dev
+PACKAGES_BUILD=(g++ cmake make pkg-config libgsl-dev libboost1.81-dev libmpfr-dev libgmp-dev libeigen3-dev catch2 libbenchmark-dev
                 libflint-arb-dev
                 pybind11-dev python3-dev python3-numpy python3-pytest python3-mpmath python3-matplotlib
                 python3-pandas python3-xarray mypy locales

@@ -8,7 +8,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdlib>
+#include <mutex>
 #include <random>
 #include <sstream>
 #include <string>
@@ -293,11 +296,22 @@ TEST_CASE("api: working precisions nest and are restored", "[api][mpfr]") {
   CHECK(pendavg::current_mpfr_digits() == before);
 }
 
-// The epoch lock of pendavg/mpfr.hpp: calls of several threads at different digits give the
-// same bits as the same calls one after another. The calls cover the double engine (which takes
-// an MPFR working precision inside its long-double moments), the exact-sum and quadrature paths
-// of the MPFR double pendulum (whose Fourier moments run at extra digits), the series (its own
-// guard digits) and the torus in MPFR.
+namespace {
+
+/// An MPFR input built at `digits10` digits without touching the thread's precision (the caller
+/// of an entry point holds nothing).
+mpfr_real input(const char* text, int digits10) {
+  return mpfr_real(text, static_cast<unsigned>(digits10));
+}
+
+}  // namespace
+
+// MPFR's precision is per thread (pendavg/mpfr.hpp): calls of several threads at different
+// digits give the same bits as the same calls one after another, and leave each thread's
+// precision as it was. The callers hold no working_precision. The calls cover the double engine
+// (which takes an MPFR working precision inside its long-double moments), the exact-sum and
+// quadrature paths of the MPFR double pendulum (whose Fourier moments run at extra digits), the
+// series (its own guard digits, and two OpenMP threads for its table) and the torus in MPFR.
 TEST_CASE("api: concurrent calls at 16, 30 and 60 digits give the bits of serial calls",
           "[api][mpfr][threads]") {
   struct Call {
@@ -329,11 +343,15 @@ TEST_CASE("api: concurrent calls at 16, 30 and 60 digits give the bits of serial
       for (const char* x : c.lengths) l.push_back(std::stod(x));
       return fingerprint(pendavg::average(Chain<double>(m, l), std::stod(c.beta), options));
     }
-    const pendavg::working_precision precision(c.digits + pendavg::guard_digits);
+    const int working = c.digits + pendavg::guard_digits;
     std::vector<mpfr_real> m, l;
-    for (const char* x : c.masses) m.emplace_back(x);
-    for (const char* x : c.lengths) l.emplace_back(x);
-    return fingerprint(pendavg::average(Chain<mpfr_real>(m, l), mpfr_real(c.beta), options));
+    for (const char* x : c.masses) m.push_back(input(x, working));
+    for (const char* x : c.lengths) l.push_back(input(x, working));
+    const int before = pendavg::current_mpfr_digits();
+    std::string result =
+        fingerprint(pendavg::average(Chain<mpfr_real>(m, l), input(c.beta, working), options));
+    if (pendavg::current_mpfr_digits() != before) result += " (precision not restored)";
+    return result;
   };
   std::vector<std::string> serial;
   for (const Call& c : calls) serial.push_back(run(c));
@@ -357,6 +375,101 @@ TEST_CASE("api: concurrent calls at 16, 30 and 60 digits give the bits of serial
       CHECK(concurrent[i] == serial[i]);
     }
   }
+}
+
+namespace {
+
+/// A barrier that gives up after `timeout`: arrive_and_wait() is true when every party arrived
+/// in time. With a process-wide precision lock the threads below would never all arrive.
+class TimedBarrier {
+ public:
+  explicit TimedBarrier(int parties) : waiting_(parties) {}
+  bool arrive_and_wait(std::chrono::seconds timeout) {
+    std::unique_lock lock(mutex_);
+    if (--waiting_ == 0) all_arrived_.notify_all();
+    return all_arrived_.wait_for(lock, timeout, [&] { return waiting_ == 0; });
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable all_arrived_;
+  int waiting_;
+};
+
+}  // namespace
+
+// No waiting: three threads at 30, 77 and 25 digits are inside their MPFR calls at the same time.
+// Each call's first progress report (made inside the computation, at the call's own working
+// precision) waits at a barrier until the other two calls have reached theirs, which a lock
+// serializing precisions would make impossible. Each call sees its own precision there, and
+// gives the bits of the same call made alone.
+TEST_CASE("api: MPFR calls at different digits run at the same time, each at its own precision",
+          "[api][mpfr][threads]") {
+  struct Result {
+    std::string text;
+    std::vector<int> digits_seen;  // current_mpfr_digits() at each progress report
+    bool met = true;               // the first report met the other threads at the barrier
+  };
+  TimedBarrier barrier(3);
+  constexpr auto patience = std::chrono::seconds(120);
+  const auto observed = [](Result& r, TimedBarrier* meet) {
+    pendavg::RunControl control;
+    control.progress = [&r, meet, first = true](double) mutable {
+      r.digits_seen.push_back(pendavg::current_mpfr_digits());
+      if (first && meet != nullptr) r.met = meet->arrive_and_wait(patience);
+      first = false;
+    };
+    return control;
+  };
+  // The series (beta<K1> term by term) at `digits`; its Bessel table reports progress.
+  const auto series = [&](int digits, TimedBarrier* meet) {
+    Result r;
+    const int working = digits + pendavg::guard_digits;
+    const Chain<mpfr_real> chain({input("0.5", working), input("0.5", working)},
+                                 {input("1", working), input("0.7", working)});
+    const auto rows = pendavg::series_convergence(chain, input("3", working), digits, 0,
+                                                  observed(r, meet));
+    for (const auto& row : rows)
+      r.text += row.beta_kinetic1.str(0, std::ios::scientific) + ' ' +
+                row.bound.str(0, std::ios::scientific) + '\n';
+    return r;
+  };
+  // The torus of N = 3 through average() at `digits`; each level's rows report progress.
+  const auto torus = [&](int digits, TimedBarrier* meet) {
+    Result r;
+    const int working = digits + pendavg::guard_digits;
+    const Chain<mpfr_real> chain({input("1", working), input("2", working), input("3", working)},
+                                 {input("1", working), input("1", working), input("1", working)});
+    AverageOptions options = with_method(AverageMethod::torus_trapezoid);
+    options.digits = digits;
+    options.control = observed(r, meet);
+    r.text = fingerprint(pendavg::average(chain, input("1", working), options));
+    return r;
+  };
+  const Result alone[] = {series(30, nullptr), series(77, nullptr), torus(25, nullptr)};
+  Result together[3];
+  {
+    std::thread a([&] { together[0] = series(30, &barrier); });
+    std::thread b([&] { together[1] = series(77, &barrier); });
+    std::thread c([&] { together[2] = torus(25, &barrier); });
+    a.join();
+    b.join();
+    c.join();
+  }
+  const int digits[] = {30, 77, 25};
+  for (int k = 0; k < 3; ++k) {
+    INFO("call at " << digits[k] << " digits");
+    CHECK(together[k].met);
+    CHECK(together[k].text == alone[k].text);
+    REQUIRE(!together[k].digits_seen.empty());
+    // The call's working precision (digits + guard_digits; the series' own guard is smaller),
+    // whatever the other threads run at.
+    for (const int seen : together[k].digits_seen) {
+      CHECK(seen > digits[k]);
+      CHECK(seen <= digits[k] + pendavg::guard_digits);
+    }
+  }
+  CHECK(together[2].digits_seen.front() == 25 + pendavg::guard_digits);
 }
 
 namespace {

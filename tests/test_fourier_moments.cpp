@@ -241,7 +241,7 @@ constexpr int kRefDigits = 50;
 void agm_elliptic(const mpfr_real& mu1, mpfr_real& K, mpfr_real& E) {
   mpfr_real a = 1, b = sqrt(mu1), c = sqrt(1 - mu1);
   mpfr_real sum = c * c / 2, pow2 = 1;  // sum_{n>=0} 2^{n-1} c_n^2
-  const mpfr_real eps = pow(mpfr_real(10), -static_cast<int>(mpfr_real::default_precision()) - 5);
+  const mpfr_real eps = pow(mpfr_real(10), -static_cast<int>(mpfr_real::thread_default_precision()) - 5);
   for (int n = 1; n < 200 && abs(c) > eps * a; ++n) {
     const mpfr_real an = (a + b) / 2;
     c = (a - b) / 2;

@@ -156,7 +156,8 @@ class PENDAVG_EXPORT AverageWorkspace {
 /// the options against the method, digits, beta, and the chosen engine's domain (e.g. the
 /// double-pendulum engine's range of beta g M l in double, the joints' stiffnesses of the torus
 /// and qmc methods). Throws the invalid_input average() would throw. Cheap (no quadrature).
-/// For mpfr_real, call it under a working_precision of at least digits + guard_digits.
+/// For mpfr_real it checks at digits + guard_digits on the calling thread, as average() computes
+/// (see pendavg/mpfr.hpp); the caller holds nothing.
 template <class Real>
 PENDAVG_EXPORT void check_average(const Chain<Real>& chain, const Real& beta,
                                   const AverageOptions& options);

@@ -197,7 +197,8 @@ PENDAVG_EXPORT MicrocanonicalAverages<Real> microcanonical_average_excitation(
 /// Checks, without computing, everything microcanonical_average(chain, energy, options) checks
 /// before its work (options, the state, the rule against N and digits, the engine's double
 /// range); throws the invalid_input it would throw. Cheap: a sweep checks every row with it
-/// before the first. For mpfr_real with options.digits = 0, call it under the working precision.
+/// before the first. For mpfr_real with options.digits = 0 it checks at this thread's current
+/// precision, as microcanonical_average() would compute (see pendavg/mpfr.hpp).
 template <class Real>
 PENDAVG_EXPORT void check_microcanonical(const Chain<Real>& chain, const Real& energy,
                                          const MicrocanonicalOptions& options = {});

@@ -6,21 +6,21 @@
 // 16 digits run in double). A double-only program does not need it and does not pull in
 // Boost.Multiprecision. pendavg::pendavg links MPFR and GMP for you.
 //
-// Working precision. Boost 1.74 keeps the default precision of every new mpfr_real in one
-// process-wide variable. working_precision makes that variable safe to share between threads:
-// it is a shared lock on it. Threads that ask for the same precision run together; a thread that
-// asks for another one waits until the threads at the current precision have left (first come,
-// first served), and a nested working_precision of another precision on the same thread leaves
-// the outer one while it lives. So concurrent calls give the same bits as the same calls made one
-// after another, whatever their threads and digits.
+// Working precision. Boost.Multiprecision (>= 1.77) keeps the default precision of new mpfr_real
+// values, and how operations mix precisions, per thread. Every pendavg entry point that is given
+// digits (AverageOptions::digits, MicrocanonicalOptions::digits > 0, series_convergence's digits,
+// ...) sets its own thread's precision (the requested digits plus guard_digits, and the precision
+// rules below), rounds its inputs to it, and restores the thread's settings when it returns. So
+// an MPFR call works from any thread without the caller holding anything, threads at different
+// digits run truly concurrently (no lock, no waiting), and a call gives the same bits on any
+// thread, alone or beside others. An entry point that is not given digits (digits = 0,
+// minimum_energy, the Chain constructor, ...) computes at this thread's current precision.
 //
-// Every pendavg entry point that computes in MPFR takes its own working_precision (the requested
-// digits plus guard digits) and rounds its inputs to it. Construct the inputs under a
-// working_precision of at least that many digits (e.g. working_precision(digits +
-// pendavg::guard_digits)), so that decimal inputs such as 0.1 are exact to the digits asked for.
-// Code of your own that creates mpfr_real values while other threads run pendavg in MPFR must hold
-// a working_precision too. Do not hold one around an OpenMP region whose threads take one: they
-// would wait for each other.
+// working_precision sets this thread's precision for a scope: a convenience for building inputs.
+// An input is taken as the value it holds; to have decimal inputs such as 0.1 exact to the digits
+// asked for, construct them at a precision of at least digits + guard_digits (e.g. under
+// working_precision(digits + pendavg::guard_digits)), as a value built at Boost's default of 50
+// digits carries only those.
 #pragma once
 
 #include "pendavg/export.hpp"
@@ -37,18 +37,24 @@ namespace pendavg {
 /// Boost.Multiprecision's variable-precision MPFR float.
 using mpfr_real = boost::multiprecision::mpfr_float;
 
-/// RAII: this thread computes at `digits10` decimal digits while the object lives (see the
-/// header comment). Nested objects of the same precision cost nothing.
+/// RAII: new mpfr_real values of this thread have `digits10` decimal digits while the object
+/// lives, and operations on this thread mix precisions by pendavg's rule (Boost's
+/// preserve_related_precision: an operation computes at the largest precision among its operands
+/// and the thread's default). The destructor restores this thread's previous precision and rule.
+/// Affects no other thread; nests. Throws std::invalid_argument for digits10 < 1.
 class PENDAVG_EXPORT working_precision {
  public:
   explicit working_precision(int digits10);
   ~working_precision();
   working_precision(const working_precision&) = delete;
   working_precision& operator=(const working_precision&) = delete;
+
+ private:
+  unsigned previous_digits10_;
+  boost::multiprecision::variable_precision_options previous_options_;
 };
 
-/// The decimal digits of new mpfr_real values on this thread (the working precision, when one is
-/// held).
+/// The decimal digits of new mpfr_real values on this thread (its current precision).
 PENDAVG_EXPORT int current_mpfr_digits();
 
 // Explicit instantiations for mpfr_real live in the library (src/).

@@ -60,8 +60,8 @@ enum class Domain { positive, nonnegative, any };
 
 /// Parses one decimal number strictly: [+-]digits[.digits][e[+-]digits], the whole token, finite,
 /// inside `domain`. `what` names the quantity in the error message (e.g. "--beta").
-/// For mpfr_real the caller must already hold a working_precision guard: the text is rounded
-/// once, directly at working precision (0.1 never goes through double).
+/// For mpfr_real the text is rounded once, directly to this thread's working precision (0.1 never
+/// goes through double): parse under the working_precision of the call the value is for.
 /// Whether the running command takes --digits: a number out of double's range is then refused
 /// with the advice "use --digits > 16" (set by run() for each command; on by default).
 void set_digits_advice(bool command_takes_digits);

@@ -2,7 +2,8 @@
 // src/cli/commands.cpp -- the pendavg commands average, limit and series: options -> Chain<Real>
 // and beta -> one library call (pendavg::average, the limits, series_convergence) -> formatted
 // string. `digits` == 16 runs in double, more digits in MPFR under a working_precision held
-// while the numbers are parsed (a parallel loop takes one per row instead).
+// while the numbers are parsed (MPFR's precision is per thread: a parallel loop takes one per
+// row instead).
 #include "commands.hpp"
 
 #include "args.hpp"

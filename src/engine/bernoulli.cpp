@@ -16,7 +16,7 @@ struct DigammaSeriesTable {
 
   DigammaSeriesTable() {
     const mpfr_prec_t bits = static_cast<mpfr_prec_t>(
-        boost::multiprecision::detail::digits10_2_2(mpfr_real::default_precision()));
+        boost::multiprecision::detail::digits10_2_2(mpfr_real::thread_default_precision()));
     const double log_inverse_u = static_cast<double>(bits - 1) * 0.6931471805599453;
     // The largest argument-independent index needed: j <= pi x0 with x0 = 1.2 ln(1/u)/(2 pi) + 2.
     const auto count = static_cast<std::size_t>(0.6 * log_inverse_u + 3.2 * 3.14159) + 2;
@@ -47,7 +47,7 @@ struct DigammaSeriesTable {
 
 std::shared_ptr<const std::vector<mpfr_real>> digamma_series_coefficients() {
   static ConstantCache<DigammaSeriesTable> cache;
-  const auto table = cache.get(0, mpfr_real::default_precision());
+  const auto table = cache.get(0, mpfr_real::thread_default_precision());
   return {table, &table->c};  // aliasing: keeps the table alive
 }
 

@@ -27,7 +27,7 @@ template <class Real>
 double log_inverse_roundoff() {
   if constexpr (is_mpfr_v<Real>) {
     const double bits = static_cast<double>(
-        boost::multiprecision::detail::digits10_2_2(mpfr_real::default_precision()));
+        boost::multiprecision::detail::digits10_2_2(mpfr_real::thread_default_precision()));
     return (bits - 1.0) * 0.6931471805599453;  // unit_roundoff = 2^(1 - bits)
   } else {
     using std::log;
@@ -165,7 +165,7 @@ struct HankelMpfrTable {
 
 std::shared_ptr<const HankelMpfrTable> hankel_mpfr_table() {
   static ConstantCache<HankelMpfrTable> cache;
-  return cache.get(0, mpfr_real::default_precision());
+  return cache.get(0, mpfr_real::thread_default_precision());
 }
 
 /// Hankel terms for x >= asymptotic_threshold: the first n with c_n x^{-n} <= u/16.

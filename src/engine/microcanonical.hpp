@@ -389,7 +389,7 @@ struct TanhSinhTable {
       static std::mutex mutex;
       static std::map<long, Slot> tables;
       static unsigned long long clock = 0;
-      const long bits = static_cast<long>(mpfr_real::default_precision());
+      const long bits = static_cast<long>(mpfr_real::thread_default_precision());
       const std::lock_guard lock(mutex);
       Slot& slot = tables[bits];
       if (!slot.table) slot.table = std::make_shared<const TanhSinhTable>(12);

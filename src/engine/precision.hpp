@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // engine/precision.hpp -- the engines' view of the number types: which Real is MPFR, its unit
-// roundoff at the working precision, a guard for the entry points, and the rounding of inputs to
-// the working precision (include/pendavg/mpfr.hpp explains the working precision).
+// roundoff at the working precision, a guard for the entry points (and for the threads of a
+// parallel region: MPFR's working precision is per thread), and the rounding of inputs to the
+// working precision (include/pendavg/mpfr.hpp explains the working precision).
 //
 // The library is generic over the number type `Real`. Instantiated: double (the fast path,
 // microseconds per parameter set), long double where an engine gains from it, and mpfr_real
@@ -23,19 +24,19 @@ namespace pendavg {
 template <class Real>
 inline constexpr bool is_mpfr_v = std::is_same_v<Real, mpfr_real>;
 
-/// A working precision held alone: while it lives no other thread computes in MPFR. For code
-/// that mixes values of several precisions, where Boost 1.74 switches the process-wide default
-/// inside single operations (a shared epoch would let other threads see that). Nested working
-/// precisions of this thread then set the default directly.
-class exclusive_precision {
- public:
-  explicit exclusive_precision(int digits10);
-  ~exclusive_precision();
-  exclusive_precision(const exclusive_precision&) = delete;
-  exclusive_precision& operator=(const exclusive_precision&) = delete;
-};
+/// How operations of this thread mix MPFR values of several precisions while a
+/// working_precision lives. preserve_related_precision (Boost's default, as the library has always
+/// run): an operation computes at the largest precision among its operands and the default, and
+/// a copy keeps its source's precision. The series and the Fourier moments rely on that: their
+/// inputs keep the caller's precision while they run at another one. assume_uniform_precision
+/// (every operation at the default) would round those inputs to it, changing the results' bits,
+/// and measured no faster on the N = 2 MPFR benchmarks (README, "Multiprecision").
+inline constexpr boost::multiprecision::variable_precision_options mpfr_precision_rule =
+    boost::multiprecision::variable_precision_options::preserve_related_precision;
 
-/// The entry points' guard: a working_precision for MPFR, nothing for other number types.
+/// The entry points' guard: a working_precision for MPFR, nothing for other number types. MPFR's
+/// working precision is per thread: a parallel region's threads each take one, of the digits
+/// current_digits10<Real>() gave on the thread that starts the region.
 template <class Real>
 class precision_guard {
  public:
@@ -53,7 +54,7 @@ Real unit_roundoff() {
   if constexpr (is_mpfr_v<Real>) {
     // 2^(1 - p) with p the current precision in bits.
     const long bits = static_cast<long>(
-        boost::multiprecision::detail::digits10_2_2(mpfr_real::default_precision()));
+        boost::multiprecision::detail::digits10_2_2(mpfr_real::thread_default_precision()));
     Real one = 1;
     return ldexp(one, static_cast<int>(1 - bits));
   } else {
@@ -65,18 +66,19 @@ Real unit_roundoff() {
 template <class Real>
 int current_digits10() {
   if constexpr (is_mpfr_v<Real>) {
-    return static_cast<int>(mpfr_real::default_precision());
+    return static_cast<int>(mpfr_real::thread_default_precision());
   } else {
     return std::numeric_limits<Real>::digits10 + 1;
   }
 }
 
-/// x rounded to the working precision (MPFR: a value of another precision would make Boost
-/// switch the process-wide precision inside every operation it enters); x itself otherwise.
+/// x rounded to the working precision (MPFR: an input of a higher precision would make every
+/// operation it enters compute at that precision, and one of a lower precision would carry fewer
+/// digits than the run's); x itself otherwise.
 template <class Real>
 Real at_working_precision(const Real& x) {
   if constexpr (is_mpfr_v<Real>) {
-    return Real(x, mpfr_real::default_precision());
+    return Real(x, mpfr_real::thread_default_precision());
   } else {
     return x;
   }

@@ -63,7 +63,7 @@ void ClenshawCurtisRule<Real>::ensure_level(std::size_t level) const {
 template <class Real>
 std::shared_ptr<const ClenshawCurtisRule<Real>> shared_clenshaw_curtis_rule(std::size_t n0) {
   static ConstantCache<ClenshawCurtisRule<Real>> cache;
-  const unsigned precision = is_mpfr_v<Real> ? mpfr_real::default_precision() : 0;
+  const unsigned precision = is_mpfr_v<Real> ? mpfr_real::thread_default_precision() : 0;
   return cache.get(n0, precision, n0);
 }
 

@@ -29,7 +29,6 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <optional>
 
 namespace pendavg {
 namespace {
@@ -107,8 +106,11 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
   // An exception may not leave the parallel region: the first one is kept and rethrown after
   // it; failed() is set before a barrier, so every thread sees it at the same d, as `stopped`.
   ParallelErrors errors;
+  const int digits10 = current_digits10<Real>();
 #pragma omp parallel num_threads(2) if (Mx > 48)
   {
+    // MPFR's precision is per thread: the scratch numbers take the caller's.
+    const precision_guard<Real> precision(digits10);
     Real tmp = 0, coef = 0;
     for (std::size_t d = 0; d <= 2 * Mx; ++d) {
       if (stopped || errors.failed()) break;  // every thread sees the same value at the same d
@@ -253,12 +255,10 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
   const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
   std::vector<SeriesRow<Real>> rows;
   {
-  // The inputs keep the caller's precision while the sums run at digits + series_guard; Boost
-  // 1.74 switches the process-wide precision inside such mixed operations, so the sums run with
-  // MPFR to themselves (exclusive_precision), and the rows are rounded to the caller's precision
-  // (exactly: it is the higher one) when they are done.
-  std::optional<exclusive_precision> precision;
-  if constexpr (is_mpfr_v<Real>) precision.emplace(digits + series_guard);
+  // The inputs keep the caller's precision while the sums run at digits + series_guard (an
+  // operation on both computes at the higher: mpfr_precision_rule), and the rows are rounded to
+  // the caller's precision (exactly: it is the higher one) when they are done.
+  const precision_guard<Real> precision(digits + series_guard);
   const auto p = double_pendulum_parameters(chain, beta);
   const Real tol = is_mpfr_v<Real> ? Real(pow(Real(10), -(digits + 1)))
                                    : Real(4 * unit_roundoff<Real>());

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/exact.hpp -- an MPFR number's exact binary value, kept as plain data (made without
-// the GIL, under the working precision) and turned into an mpmath.mpf later (in Python, with the
-// GIL, without any precision lock): mantissa * 2^exponent, mantissa an integer in hex.
+// the GIL, on the thread that computed it) and turned into an mpmath.mpf later (in Python, with
+// the GIL, needing no MPFR precision): mantissa * 2^exponent, mantissa an integer in hex.
 #pragma once
 
 #include "pendavg/mpfr.hpp"

@@ -47,7 +47,6 @@ PYBIND11_MODULE(_pendavg, m) {
       return;
     }
     const std::string text = pendavg::python::number_text(x, what);
-    pybind11::gil_scoped_release release;
     const pendavg::working_precision precision(d + pendavg::guard_digits);
     pendavg::cli::parse_real<pendavg::mpfr_real>(text, what, kind);
   });

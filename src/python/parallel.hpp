@@ -4,9 +4,7 @@
 // Python runs signal handlers only on its main thread, between bytecodes or in
 // PyErr_CheckSignals. While a computation runs in C++ the calling thread therefore waits for it
 // (GIL released) and every `poll_interval` takes the GIL to call `poll` (which runs the signal
-// handlers, progress callbacks, ...). The computation itself never touches Python, and never
-// waits for the GIL while it holds an MPFR working_precision (no lock-order inversion with other
-// Python threads that compute in MPFR).
+// handlers, progress callbacks, ...). The computation itself never touches Python.
 #pragma once
 
 #include <pybind11/pybind11.h>

@@ -837,9 +837,9 @@ QPowerMoments<Real> q_power_moments_with(const Real& mu1, const Real& mu2, std::
     round_moment_rows(qa, qb, K, mu1, mu1r, ell, p_real, b, u_R, out, bound);
   };
   if constexpr (is_mpfr_v<Real>) {
-    // Values of the caller's precision and of this wider one meet here, and Boost 1.74 switches
-    // the process-wide precision inside such operations: run alone (exclusive_precision).
-    exclusive_precision guard(p_real + plan.extra_digits);
+    // Values of the caller's precision and of this wider one meet here (each operation computes
+    // at the wider: mpfr_precision_rule).
+    const working_precision guard(p_real + plan.extra_digits);
     body();
   } else {
     body();
