@@ -23,8 +23,8 @@ the normalizations below. A case with `threads 1 2` runs once per thread count, 
 
 Normalizations (what legitimately varies between two runs of the same command; nothing else is
 touched, so any other difference fails):
-  seconds   the wall-clock time: JSON "seconds": X, text `seconds = X` and a CSV column named
-            seconds become <seconds>
+  seconds   the wall-clock time: JSON "seconds": X, text `seconds = X`, a Python repr's
+            seconds=X and field `seconds: X`, and a CSV column named seconds become <seconds>
   version   the version in the sweep files' provenance line `# pendavg 0.2.0, generated ...`
             becomes <version> (a release changes it; the date is pinned by SOURCE_DATE_EPOCH)
   progress  stderr lines `[command] ...` (progress of runs over 2 s) are dropped
@@ -57,7 +57,8 @@ class Case:
     def __init__(self, name, line):
         self.name = name
         self.line = line  # where the case starts in cases.txt, for messages
-        self.args = None
+        self.args = None    # pendavg's arguments, or
+        self.python = None  # a Python statement run with `pendavg` and `show` imported
         self.inputs = []
         self.files = []
         self.env = {}
@@ -87,6 +88,8 @@ def read_cases(path=CASES_FILE):
                 sys.exit(f"{where}: {word!r} before the first case line")
             if word == "run":
                 case.args = shlex.split(rest)
+            elif word == "python":
+                case.python = rest
             elif word == "input":
                 case.inputs += rest.split()
             elif word == "file":
@@ -104,15 +107,15 @@ def read_cases(path=CASES_FILE):
             else:
                 sys.exit(f"{where}: unknown line {word!r}")
     for c in cases:
-        if c.args is None:
-            sys.exit(f"{path}:{c.line}: case {c.name} has no run line")
+        if (c.args is None) == (c.python is None):
+            sys.exit(f"{path}:{c.line}: case {c.name} needs one run or python line")
     return cases
 
 
 # ---------------------------------------------------------------- normalizations
 
 SECONDS_JSON = re.compile(r'("seconds": )-?[0-9][0-9.eE+-]*')
-SECONDS_TEXT = re.compile(r"(\bseconds = )-?[0-9][0-9.eE+-]*")
+SECONDS_TEXT = re.compile(r"(\bseconds(?: = |=|: ))-?[0-9][0-9.eE+-]*")
 VERSION_LINE = re.compile(r"^(# pendavg )\S+(, generated )", re.M)
 PROGRESS_LINE = re.compile(r"^\[[a-z-]+\] ")
 TIMING_LINE = re.compile(r"^pendavg: timing: ")
@@ -174,19 +177,25 @@ def section(title, text):
     return f"--- {title}\n{text}"
 
 
-def run_case(pendavg, case, threads):
+def run_case(tools, case, threads):
     """The rendered document of one run of `case`: what its expected file holds."""
+    env = clean_environment(case, threads)
+    if case.python is None:
+        command, title = [tools.pendavg] + case.args, f"$ pendavg {shlex.join(case.args)}"
+    else:
+        command = [sys.executable, "-c", "import pendavg\nfrom show import refusal, show\n" + case.python]
+        title = f">>> {case.python}"
+        env["PYTHONPATH"] = os.pathsep.join([tools.python_path, HERE])
     with tempfile.TemporaryDirectory(prefix="pendavg-golden-") as work:
         for name in case.inputs:
             shutil.copy(os.path.join(INPUTS, name), os.path.join(work, name))
         try:
-            done = subprocess.run([pendavg] + case.args, cwd=work, stdin=subprocess.DEVNULL,
-                                  capture_output=True, env=clean_environment(case, threads),
-                                  timeout=TIMEOUT)
+            done = subprocess.run(command, cwd=work, stdin=subprocess.DEVNULL,
+                                  capture_output=True, env=env, timeout=TIMEOUT)
             code, out, err = done.returncode, done.stdout, done.stderr
         except subprocess.TimeoutExpired:
             code, out, err = "timeout", b"", f"killed after {TIMEOUT} s\n".encode()
-        doc = [f"$ pendavg {shlex.join(case.args)}\n"]
+        doc = [title + "\n"]
         doc += [f"env {k}={v}\n" for k, v in sorted(case.env.items())]
         doc.append(f"exit {code}\n")
         doc.append(section("stdout", normalize_output(out.decode("utf-8", "backslashreplace"))))
@@ -245,32 +254,32 @@ def window(line, column, width=60):
     return ("..." if start > 0 else "") + text + ("..." if start + width < len(line) else "")
 
 
-def report(case, threads, against, expected, got, pendavg):
+def report(case, threads, against, expected, got, tools):
     """Prints which case differs from what, where first, and how to accept the change."""
     title, line, e, g, column, field = first_difference(expected, got)
     where = "" if threads is None else f" (OMP_NUM_THREADS={threads})"
     text = [f"golden {case.name}{where}: differs from {against}",
-            f"  command:  pendavg {shlex.join(case.args)}",
+            f"  command:  {got.split(chr(10), 1)[0]}",
             f"  first difference: {title}, line {line}, character {column + 1}"
             + (f", {field}" if field else ""),
             f"  expected: {window(e, column)}",
             f"  got:      {window(g, column)}"]
     if title == "header" and "\n--- stderr\n" in got:  # another exit code: what it said
         text += [f"  stderr:   {l}" for l in got.split("\n--- stderr\n", 1)[1].splitlines()[:3]]
-    text.append(f"  if the change is intended: {os.path.relpath(__file__)} --pendavg {pendavg} "
-                f"--update {case.name}, then review git diff tests/golden/expected")
+    text.append(f"  if the change is intended: {os.path.relpath(__file__)} {tools.options()}"
+                f" --update {case.name}, then review git diff tests/golden/expected")
     print("\n".join(text))
 
 
-def check(pendavg, case, update):
+def check(tools, case, update):
     path = os.path.join(EXPECTED, case.name + ".out")
-    docs = [(threads, run_case(pendavg, case, threads)) for threads in case.threads]
+    docs = [(threads, run_case(tools, case, threads)) for threads in case.threads]
     if update:
         first = docs[0][1]
         for threads, doc in docs[1:]:
             if doc != first:
                 report(case, threads, f"the run with OMP_NUM_THREADS={docs[0][0]} (not written)",
-                       first, doc, pendavg)
+                       first, doc, tools)
                 return False
         old = open(path, encoding="utf-8").read() if os.path.exists(path) else None
         if old != first:
@@ -286,7 +295,7 @@ def check(pendavg, case, update):
     for threads, doc in docs:
         if doc != expected:
             ok = False
-            report(case, threads, os.path.relpath(path), expected, doc, pendavg)
+            report(case, threads, os.path.relpath(path), expected, doc, tools)
     return ok
 
 
@@ -295,22 +304,36 @@ def children_cpu_seconds():
     return usage.ru_utime + usage.ru_stime
 
 
+class Tools:
+    """What the cases run: the pendavg binary and the directory of the Python module."""
+    def __init__(self, pendavg, python_path):
+        self.pendavg = os.path.abspath(pendavg)
+        self.python_path = python_path and os.path.abspath(python_path)
+
+    def options(self):
+        return f"--pendavg {self.pendavg}" + (f" --python-path {self.python_path}"
+                                              if self.python_path else "")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--pendavg", help="the pendavg binary (build/pendavg)")
+    parser.add_argument("--python-path", help="the Python module's directory (build/python), "
+                        "for the cases with a python line")
     parser.add_argument("--update", action="store_true", help="rewrite the expected files")
-    parser.add_argument("--list", action="store_true", help="print each case's name and label")
+    parser.add_argument("--list", action="store_true",
+                        help="print each case's name, label and kind (cli or python)")
     parser.add_argument("--times", action="store_true", help="print each case's wall and CPU time")
     parser.add_argument("cases", nargs="*", help="case names or shell patterns (default: all)")
     options = parser.parse_args()
     cases = read_cases()
     if options.list:
         for case in cases:
-            print(case.name, case.label)
+            print(case.name, case.label, "cli" if case.python is None else "python")
         return 0
     if not options.pendavg:
         parser.error("--pendavg is required")
-    pendavg = os.path.abspath(options.pendavg)
+    tools = Tools(options.pendavg, options.python_path)
     chosen = cases
     if options.cases:
         chosen = [c for c in cases if any(fnmatch.fnmatchcase(c.name, p) for p in options.cases)]
@@ -318,12 +341,15 @@ def main():
                      if not any(fnmatch.fnmatchcase(c.name, p) for c in cases)]
         if unmatched:
             sys.exit(f"no case matches {', '.join(unmatched)}")
+    if not tools.python_path and any(c.python is not None for c in chosen):
+        sys.exit("the python cases need --python-path (build/python); "
+                 "or name only the cli cases")
     if options.update:
         os.makedirs(EXPECTED, exist_ok=True)
     failed = []
     for case in chosen:
         start, cpu = time.monotonic(), children_cpu_seconds()
-        if not check(pendavg, case, options.update):
+        if not check(tools, case, options.update):
             failed.append(case.name)
         if options.times:
             print(f"golden {case.name}: {time.monotonic() - start:.2f} s wall, "
