@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""tests/golden/golden.py -- golden outputs of the pendavg CLI (issue 27 item 1): every command,
-method and format run on fixed inputs and compared byte for byte with tests/golden/expected/,
-so that every later move of the front ends is checked.
+"""tests/golden/golden.py -- golden outputs of the pendavg CLI and Python module (issue 27 item
+1): every command, method and format run on fixed inputs and compared byte for byte with
+tests/golden/expected/, so that every later move of the front ends is checked.
 
-    golden.py --pendavg build/pendavg [CASE ...]           check (every case, or the named ones)
-    golden.py --pendavg build/pendavg --update [CASE ...]  rewrite their expected files
-    golden.py --list                                       every case's name and label (CMake)
+    golden.py --pendavg build/pendavg --python-path build/python [CASE ...]   check
+    golden.py --pendavg build/pendavg --python-path build/python --update [CASE ...]
+    golden.py --list          every case's name, label and kind (cli or python), for CMake
+
+Without CASE every case runs (--update then also deletes the expected files of removed cases);
+--python-path is needed only by the python cases; --times prints each case's wall and CPU time.
 
 CASE is a case name or a shell pattern (`average.n2.*`). ctest runs each case as its own test,
 golden.<case> (`ctest -R golden` lists them). After a deliberate change of the output (a renamed
@@ -19,7 +22,8 @@ names in the output are the same everywhere; in an environment without PENDAVG_*
 variables (but OMP_NUM_THREADS, which the case's `threads` line may set), with LC_ALL=C and
 SOURCE_DATE_EPOCH=0 (the sweep files' date line). The expected file holds the command, its exit
 code, its stdout, its stderr without progress lines, and every `file` the case names, each after
-the normalizations below. A case with `threads 1 2` runs once per thread count, each run checked.
+the normalizations below. A difference is reported with the case, the section and line, the
+character and the JSON key or CSV column there, and both lines around it. A case with `threads 1 2` runs once per thread count, each run checked.
 
 Normalizations (what legitimately varies between two runs of the same command; nothing else is
 touched, so any other difference fails):
@@ -272,6 +276,8 @@ def report(case, threads, against, expected, got, tools):
 
 
 def check(tools, case, update):
+    """Runs `case` (once per thread count): "passed", "failed", or with update "written" or
+    "unchanged" (runs that differ between thread counts are "failed" and not written)."""
     path = os.path.join(EXPECTED, case.name + ".out")
     docs = [(threads, run_case(tools, case, threads)) for threads in case.threads]
     if update:
@@ -280,23 +286,24 @@ def check(tools, case, update):
             if doc != first:
                 report(case, threads, f"the run with OMP_NUM_THREADS={docs[0][0]} (not written)",
                        first, doc, tools)
-                return False
+                return "failed"
         old = open(path, encoding="utf-8").read() if os.path.exists(path) else None
         if old != first:
             with open(path, "w", encoding="utf-8") as f:
                 f.write(first)
             print(f"golden {case.name}: {'written' if old is None else 'updated'} {path}")
-        return True
+            return "written"
+        return "unchanged"
     if not os.path.exists(path):
         print(f"golden {case.name}: no expected file {path} (write it with --update {case.name})")
-        return False
+        return "failed"
     expected = open(path, encoding="utf-8").read()
-    ok = True
+    status = "passed"
     for threads, doc in docs:
         if doc != expected:
-            ok = False
+            status = "failed"
             report(case, threads, os.path.relpath(path), expected, doc, tools)
-    return ok
+    return status
 
 
 def children_cpu_seconds():
@@ -346,11 +353,13 @@ def main():
                  "or name only the cli cases")
     if options.update:
         os.makedirs(EXPECTED, exist_ok=True)
-    failed = []
+    failed, written = [], 0
     for case in chosen:
         start, cpu = time.monotonic(), children_cpu_seconds()
-        if not check(tools, case, options.update):
+        status = check(tools, case, options.update)
+        if status == "failed":
             failed.append(case.name)
+        written += status == "written"
         if options.times:
             print(f"golden {case.name}: {time.monotonic() - start:.2f} s wall, "
                   f"{children_cpu_seconds() - cpu:.2f} s CPU")
@@ -362,7 +371,10 @@ def main():
     if failed:
         print(f"golden: {len(failed)} of {len(chosen)} cases failed: {' '.join(failed)}")
         return 1
-    print(f"golden: {len(chosen)} cases {'written' if options.update else 'passed'}")
+    if options.update:
+        print(f"golden: {len(chosen)} cases run, {written} expected files written")
+    else:
+        print(f"golden: {len(chosen)} cases passed")
     return 0
 
 
