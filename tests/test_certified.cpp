@@ -431,6 +431,27 @@ TEST_CASE("certified: truncated Graf sums still enclose, with tail bounds near t
   }
 }
 
+TEST_CASE("certified: beyond the work limit converged is false and the bound still holds",
+          "[certified]") {
+  // mu1 = 1e-9 at beta = 1e9: ~1.2e5 Graf rows (and no moment cut) against the limit of 40000
+  const Case c{1e-9, 1 - 1e-9, 1, 1, 1, 1e9};
+  bool converged = true;
+  const auto run = certified_run(c, 16, &converged);
+  CHECK_FALSE(converged);
+  AverageOptions o;
+  o.digits = 30;
+  Averages<mpfr_real> reference;
+  {
+    const pendavg::working_precision wp(30 + pendavg::guard_digits);
+    reference = pendavg::average(Chain<mpfr_real>({mpfr_real(c.m1), mpfr_real(c.m2)},
+                                                  {mpfr_real(1), mpfr_real(1)}, mpfr_real(1)),
+                                 mpfr_real(c.beta), o);
+  }
+  const pendavg::working_precision wp(200);
+  check_run(c, 16, run, observables(reference), false);
+  for (const Observable& x : run) CHECK(x.kind == ErrorKind::bound);
+}
+
 TEST_CASE("certified: 200 seeded random cases hold against Arb's integrator and more digits",
           "[certified][.slow]") {
   double worst = 0;
