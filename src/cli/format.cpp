@@ -155,14 +155,15 @@ Real printed_error(const Real& value, const Real& error, int digits, bool upward
   using std::log10;
   using std::pow;
   if (upward) {
-    // 8 units of the value's last binary place: the roundings of a quotient value / divisor
-    // formed in Real or wider and rounded to Real
+    // 2^(1-p) |value| (p the value's bits): the rounding of a quotient value / divisor formed
+    // in Real (MPFR: relative error <= 2^(1-p)) or in long double and rounded to double
+    // (<= 2^-53 + 2^-64 < 2^-52)
     Real rounding = abs(value);
     if constexpr (is_mpfr_v<Real>) {
       mpfr_mul_2si(rounding.backend().data(), rounding.backend().data(),
-                   3 - static_cast<long>(mpfr_get_prec(value.backend().data())), MPFR_RNDU);
+                   1 - static_cast<long>(mpfr_get_prec(value.backend().data())), MPFR_RNDU);
     } else {
-      rounding *= 8 * std::numeric_limits<Real>::epsilon();
+      rounding *= std::numeric_limits<Real>::epsilon();
     }
     const Real shown = printed_error(value, Real(error + rounding), digits, false);
     return shown + shown / 64;

@@ -37,9 +37,9 @@ char* write_decimal(char* out, const Real& x, int digits);
 
 /// The printed error of a value printed with `digits` digits (printed_errors, one value).
 /// `upward` (certified results, Method::certified_integral): the error is a proven bound and
-/// stays one when printed -- it also covers a few roundings of a quotient formed from the value
-/// (write_quotient) and is enlarged by 1/64 so that its error_digits-digit decimal, rounded to
-/// nearest, is not below it.
+/// stays one when printed -- it also covers the rounding of a quotient formed from the value
+/// (write_quotient: 2^(1-p) |value|, p the value's bits) and is enlarged by 1/64 so that its
+/// error_digits-digit decimal, rounded to nearest, is not below it.
 template <class Real>
 Real printed_error(const Real& value, const Real& error, int digits, bool upward = false);
 

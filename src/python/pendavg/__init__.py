@@ -66,6 +66,13 @@ dynamics_instruction_set = _core.dynamics_instruction_set
 
 # ---------------------------------------------------------------- canonical averages
 
+def _flag(value, name):
+    """A True/False argument: bool or numpy.bool_ only (not 0/1, None or strings)."""
+    if isinstance(value, (bool, _np.bool_)):
+        return bool(value)
+    raise TypeError(f"{name} must be True or False, not {type(value).__name__}")
+
+
 def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, samples=None,
             shifts=None, seed=None, progress=None, certified=False):
     """Canonical (thermal) averages of an N-link pendulum at inverse temperature beta.
@@ -144,8 +151,9 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
     (pendavg.sweep does the same from 1-D axes). A bad point raises ValueError naming its index.
     """
     callback = _progress_callback(progress, "average")
+    certified = _flag(certified, "certified")
     result = _core.average_point(masses, lengths, beta, g, digits, method, tol, samples, shifts,
-                                 seed, bool(certified), callback)
+                                 seed, certified, callback)
     if result is not None:
         if result.interrupted:
             print("[average] interrupted: the last finished torus level is reported",
@@ -165,7 +173,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
             from None
     flat = [_np.ascontiguousarray(_np.broadcast_to(c, shape)).reshape(-1) for c in columns]
     return _core.average_grid(list(shape), len(m), flat, digits, method, tol, samples, shifts, seed,
-                              bool(certified), callback)
+                              certified, callback)
 
 
 def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=None):
@@ -271,7 +279,7 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None, certified=False
     Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
     """
     callback = _progress_callback(progress, "limit")
-    high, low = _core.limit(masses, lengths, g, digits, bool(certified), callback)
+    high, low = _core.limit(masses, lengths, g, digits, _flag(certified, "certified"), callback)
     if high.interrupted:
         print("[limit] interrupted: the last finished torus level is reported", file=_sys.stderr,
               flush=True)
