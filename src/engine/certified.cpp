@@ -761,7 +761,13 @@ Averages<Real> certified_double_pendulum_average(const Chain<Real>& chain, const
   const double requested = static_cast<double>(target_bits(digits));
   const double tight = static_cast<double>(result_bits<Real>());
   slong prec = static_cast<slong>(tight) + 24;
-  const slong max_prec = 2 * static_cast<slong>(tight) + 256;
+  // Tiny mu1: 1 - r^2 ~ 4 sqrt(mu1), which the 2F1 near z = 1 needs resolved in the ball of z
+  // (whose radius is ~2^-prec): log2(1/mu1)/2 more bits where that exceeds 30 (mu1 < 1e-18).
+  using std::log2;
+  const double mu1_log2 = static_cast<double>(log2(Real(chain.mass(0) / chain.total_mass())));
+  const slong near_one = std::isfinite(mu1_log2) ? static_cast<slong>(-mu1_log2 / 2) - 30 : 0;
+  if (near_one > 0) prec += near_one;
+  const slong max_prec = 2 * prec + 256;
   Observables best;
   double best_radius = std::numeric_limits<double>::infinity();
   std::size_t best_rows = 0;
