@@ -300,6 +300,19 @@ TEST_CASE("certified: seeded random cases hold and are tight (a default subset)"
   }
 }
 
+TEST_CASE("certified: hard cases hold and are tight", "[certified]") {
+  // mu1 -> 0 (the 2F1 at z = r^2 next to 1), mu2 -> 0, beta -> infinity, g = 0, extreme lengths
+  for (const auto& [c, digits] :
+       {std::pair{Case{1e-150, 1, 1, 1, 1, 1}, 30}, std::pair{Case{1e-12, 1, 1, 1, 1, 1e4}, 16},
+        std::pair{Case{1, 1e-150, 1, 1, 1, 1}, 30}, std::pair{Case{1, 1, 1, 1, 1, 1e12}, 20},
+        std::pair{Case{1, 1, 1, 1, 0, 1}, 16}, std::pair{Case{1, 1, 1, 1e4, 1, 1e6}, 16},
+        std::pair{Case{1, 1, 1, 1e-4, 1, 1e6}, 25}}) {
+    const double tight = check_against_more_digits(c, digits);
+    INFO(c.text() << " digits " << digits << ": tightness " << tight);
+    CHECK(tight <= 10);
+  }
+}
+
 TEST_CASE("certified: the beta -> 0 limit holds against the elliptic formula", "[certified]") {
   for (const double mu1 : {0.5, 1e-9, 1 - 1e-9}) {
     const Case c{mu1, 1 - mu1, 1, 1, 1, 1};
