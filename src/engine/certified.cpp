@@ -192,15 +192,19 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
   // Sec. 3.2: Miller's backward recurrence from N + 1, N with the start vectors (1, 0) and
   // (0, 1); the true ratios I_m / I_0 lie between those of the two runs (the mediant).
   slong extra = miller_extra > 0 ? miller_extra : static_cast<slong>(extra_d);
-  Ball ratio_u, ratio_v;
+  Ball ratio_u, ratio_v, sum_u, sum_v;
+  bool by_sum = false;  // I~_0 from sum_m I~_m = 1 (Sec. 3.2) instead of Arb
   for (int attempt = 0;; ++attempt) {
     const slong N = count + extra;
+    by_sum = static_cast<double>(N) >= a_d + 8;
     Balls u(count), v(count);
     Ball up, ui, vp, vi, next;  // X_{m+1}, X_m of the two runs
     arb_one(up);
     arb_zero(ui);
     arb_zero(vp);
     arb_one(vi);
+    arb_zero(sum_u);
+    arb_zero(sum_v);
     for (slong m = N; m >= 1; --m) {
       // X_{m-1} = X_{m+1} + (2m/a) X_m
       arb_mul_ui(t, two_over_a, static_cast<ulong>(m), prec);
@@ -212,10 +216,45 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
       arb_add(next, next, vp, prec);
       arb_swap(vp, vi);
       arb_swap(vi, next);
+      if (by_sum && m - 1 >= 1) {  // sum_{m=1}^{N-1} X_m
+        arb_add(sum_u, sum_u, ui, prec);
+        arb_add(sum_v, sum_v, vi, prec);
+      }
       if (m - 1 < count) {
         arb_set(u[m - 1], ui);
         arb_set(v[m - 1], vi);
       }
+    }
+    if (by_sum) {
+      // sum_{m>=1} I~_m / I~_0 = S + T: S = sum_{m<N} between the runs' (the mediant again),
+      // T = the rest from N on, <= rho_{N-1} q / (1 - q) with I~_{m+1}/I~_m < a/(2(m+1)) <=
+      // q = a/(2N) < 1 and rho_{N-1} between U_{N-1}/U_0 = 1/U_0 and V_{N-1}/V_0 = (2N/a)/V_0.
+      Ball S, T, q, rho;
+      arb_div(ratio_u, sum_u, u[0], prec);
+      arb_div(ratio_v, sum_v, v[0], prec);
+      arb_union(S, ratio_u, ratio_v, prec);
+      arb_inv(ratio_u, u[0], prec);
+      arb_mul_ui(ratio_v, two_over_a, static_cast<ulong>(N), prec);
+      arb_div(ratio_v, ratio_v, v[0], prec);
+      arb_union(rho, ratio_u, ratio_v, prec);
+      arb_div_ui(q, two_over_a, static_cast<ulong>(N), prec);
+      arb_inv(q, q, prec);  // a / (2N)
+      if (!arb_lt(q, Ball(1))) by_sum = false;
+      arb_sub_ui(T, q, 1, prec);
+      arb_neg(T, T);
+      arb_div(T, q, T, prec);
+      arb_mul(T, T, rho, prec);
+      mag_t rest;
+      mag_init(rest);
+      arb_get_mag(rest, T);
+      mag_mul_2exp_si(rest, rest, -1);
+      arf_set_mag(arb_midref(T), rest);  // [0, T] = T/2 +- T/2
+      mag_set(arb_radref(T), rest);
+      mag_clear(rest);
+      arb_add(S, S, T, prec);
+      arb_mul_2exp_si(S, S, 1);
+      arb_add_ui(S, S, 1, prec);
+      if (by_sum) arb_inv(u0, S, prec);
     }
     // ratios and their hull; accept when every ratio is resolved to 2^-(prec - 16) absolutely
     bool resolved = true;
@@ -229,38 +268,58 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
     if (resolved || attempt >= 3 || miller_extra > 0) break;
     extra = 2 * extra + 32;
   }
-  Ball zero;
-  arb_hypgeom_bessel_i_scaled(u0, zero, a, prec);
+  if (!by_sum) {
+    Ball zero;
+    arb_hypgeom_bessel_i_scaled(u0, zero, a, prec);
+  }
   for (slong m = 1; m < count; ++m) arb_mul(out[m], out[m], u0, prec);
   arb_set(out[0], u0);
 }
 
-/// e^{-(a1 + a2)} I_nu(a1 - a2) = sign(a1 - a2)^nu e^{-2 min(a1, a2)} e^{-|d|} I_nu(|d|).
-void scaled_difference_bessel(arb_t out, slong nu, const arb_t a1, const arb_t a2, slong prec) {
-  Ball d, ad, lo, n, e;
-  arb_sub(d, a1, a2, prec);
+/// e^{-a} I_nu(a) for nu = 0, 1: from a two-entry table when its Miller run may normalize by
+/// the sum (a below ~L), else from Arb.
+void scaled_bessel_low_orders(arb_t i0, arb_t i1, const arb_t a, double a_d, double L,
+                              slong prec) {
+  if (a_d + 8 <= 26.0 + std::ceil(std::sqrt(std::max(a_d, 0.0) * (L + 16.0)))) {
+    Balls table(2);
+    scaled_bessel_table(table, a, a_d, L, prec);
+    arb_set(i0, table[0]);
+    arb_set(i1, table[1]);
+    return;
+  }
+  Ball nu;
+  arb_zero(nu);
+  arb_hypgeom_bessel_i_scaled(i0, nu, a, prec);
+  arb_one(nu);
+  arb_hypgeom_bessel_i_scaled(i1, nu, a, prec);
+}
+
+/// e^{-(a1 + a2)} I_nu(a1 - a2) = sign(a1 - a2)^nu e^{-2 min(a1, a2)} e^{-|d|} I_nu(|d|) for
+/// nu = 0 (out0) and 1 (out1).
+void scaled_difference_bessel(arb_t out0, arb_t out1, const Parameters& p, double L, slong prec) {
+  Ball d, ad, lo, e;
+  arb_sub(d, p.a1, p.a2, prec);
   arb_abs(ad, d);
-  arb_min(lo, a1, a2, prec);
-  arb_set_si(n, nu);
+  arb_min(lo, p.a1, p.a2, prec);
   if (arb_is_zero(ad)) {
-    arb_set_si(out, nu == 0 ? 1 : 0);
+    arb_one(out0);
+    arb_zero(out1);
   } else {
-    arb_hypgeom_bessel_i_scaled(out, n, ad, prec);
+    scaled_bessel_low_orders(out0, out1, ad, std::fabs(p.a1_d - p.a2_d), L, prec);
   }
   arb_mul_2exp_si(e, lo, 1);
   arb_neg(e, e);
   arb_exp(e, e, prec);
-  arb_mul(out, out, e, prec);
-  if (nu % 2 == 1) {
-    if (arb_is_positive(d)) {
-    } else if (arb_is_negative(d)) {
-      arb_neg(out, out);
-    } else {
-      Ball sign;  // [-1, 1]
-      arb_zero(sign);
-      mag_one(arb_radref(sign.get()));
-      arb_mul(out, out, sign, prec);
-    }
+  arb_mul(out0, out0, e, prec);
+  arb_mul(out1, out1, e, prec);
+  if (arb_is_positive(d)) {
+  } else if (arb_is_negative(d)) {
+    arb_neg(out1, out1);
+  } else {
+    Ball sign;  // [-1, 1]
+    arb_zero(sign);
+    mag_one(arb_radref(sign.get()));
+    arb_mul(out1, out1, sign, prec);
   }
 }
 
@@ -557,18 +616,19 @@ Integrals integrals_of(const Parameters& p, slong K, double L, slong prec) {
 
   // ---- tails (Sec. 5)
   // The coefficients' full sums from Graf's theorem at t = 0 and t = pi.
-  Ball A, nu, total0, total1, total2, diff;
+  Ball A, total0, total1, total2, diff0, diff1;
   arb_add(A, p.a1, p.a2, prec);
-  arb_zero(nu);
-  arb_hypgeom_bessel_i_scaled(total0, nu, A, prec);
-  scaled_difference_bessel(diff, 0, p.a1, p.a2, prec);
-  arb_add(total0, total0, diff, prec);
-  arb_one(nu);
-  arb_hypgeom_bessel_i_scaled(total1, nu, A, prec);
+  if (arb_is_zero(A)) {
+    arb_one(total0);
+    arb_zero(total1);
+  } else {
+    scaled_bessel_low_orders(total0, total1, A, p.a1_d + p.a2_d, L, prec);
+  }
+  scaled_difference_bessel(diff0, diff1, p, L, prec);
+  arb_add(total0, total0, diff0, prec);
   arb_set(total2, total1);
-  scaled_difference_bessel(diff, 1, p.a1, p.a2, prec);
-  arb_add(total1, total1, diff, prec);
-  arb_sub(total2, total2, diff, prec);
+  arb_add(total1, total1, diff1, prec);
+  arb_sub(total2, total2, diff1, prec);
   const std::array<const Ball*, 3> totals = {&total0, &total1, &total2};
   const std::array<const Balls*, 3> rows = {&c0, &c1, &c2};
   std::array<Ball, 3> rest;  // sum_{k >= K} c_k, >= 0
