@@ -7,6 +7,7 @@
 
 #include "domain.hpp"
 #include "engine/chain_transfer.hpp"
+#include "engine/certified.hpp"
 #include "engine/double_pendulum.hpp"
 #include "engine/estimates.hpp"
 #include "engine/precision.hpp"
@@ -654,10 +655,38 @@ void check_average_domain(const Chain<Real>& chain, const Real& beta, const Aver
   }
 }
 
+/// The certified engine's scope (src/engine/certified.md): N = 2 with method automatic or
+/// integral, in a build with Arb. `what`: the command, for the message.
+void check_certified(std::size_t n, const AverageOptions& o, const char* what) {
+  if (!o.certified) return;
+  const auto refuse = [what](const std::string& message) {
+    throw invalid_input(std::string(what) + ": --certified " + message);
+  };
+  if (!certified_available()) refuse(std::string("is unavailable: ") + certified_unavailable_reason());
+  if (n != 2) refuse("covers N = 2 only, not " + particles_text(n));
+  if (o.method != AverageMethod::automatic && o.method != AverageMethod::integral)
+    refuse(std::string("runs the N = 2 integral (method auto or integral), not method ") +
+           average_method_name(o.method));
+}
+
 template <class Real>
 Averages<Real> average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options,
                        AverageWorkspace<Real>& workspace) {
   const AverageMethod method = resolve_average_method(chain.size(), options);
+  check_certified(chain.size(), options, "average");
+  if (options.certified) {
+    check_digits<Real>(options.digits);
+    check_beta(beta);
+    return translating_dependency_errors("average", [&] {
+      // The inputs as given (not rounded to the working precision): the enclosure is for them.
+      const precision_guard<Real> precision(options.digits + guard_digits);
+      double_pendulum_parameters(at_working_precision(chain), at_working_precision(beta));
+      Averages<Real> out = certified_double_pendulum_average(chain, beta, options.digits);
+      add_chain_extras(out, chain);
+      check_finite(out, "average", chain, &beta, options);
+      return out;
+    });
+  }
   check_digits<Real>(options.digits);
   check_beta(beta);
   check_average_domain(chain, beta, options, method);
@@ -735,6 +764,7 @@ void check_method_domain(const Chain<Real>& chain, const Real& beta, AverageMeth
 template <class Real>
 void check_average(const Chain<Real>& chain, const Real& beta, const AverageOptions& options) {
   const AverageMethod method = resolve_average_method(chain.size(), options);
+  check_certified(chain.size(), options, "average");
   check_digits<Real>(options.digits);
   check_beta(beta);
   check_average_domain(chain, beta, options, method);
@@ -792,7 +822,13 @@ Averages<Real> high_temperature_limit_unchecked(const Chain<Real>& chain, const 
                         average_method_name(method) + " at g = 0)";
   });
   check_digits<Real>(options.digits);
+  check_certified(n, options, "limit");
   const precision_guard<Real> precision(options.digits + guard_digits);
+  if (n == 2 && options.certified) {
+    Averages<Real> out = certified_high_temperature_limit(chain, options.digits);
+    add_chain_extras(out, chain);
+    return out;
+  }
   if (n == 2) {
     Averages<Real> out = elliptic_high_temperature_limit(at_working_precision(chain), options.digits);
     add_chain_extras(out, chain);
@@ -824,6 +860,8 @@ Averages<Real> low_temperature_limit_unchecked(const Chain<Real>& chain, const A
   check_options(options, AverageMethod::automatic, chain.size(), "limit",
                 [] { return std::string("the beta -> infinity limit (a closed form)"); });
   check_digits<Real>(options.digits);
+  // certified: the closed form's values for N = 2 (1/2, 1, 1/2) are exact (kind bound)
+  check_certified(chain.size(), options, "limit");
   const precision_guard<Real> precision(options.digits + guard_digits);
   return low_temperature_limit_any(at_working_precision(chain));
 }

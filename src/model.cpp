@@ -104,6 +104,7 @@ const char* method_name(Method m) {
     case Method::microcanonical: return "microcanonical";
     case Method::dynamics_nve: return "dynamics-nve";
     case Method::dynamics_langevin: return "dynamics-langevin";
+    case Method::certified_integral: return "certified-integral";
   }
   return "unknown";
 }

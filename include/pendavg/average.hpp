@@ -43,6 +43,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace pendavg {
@@ -107,7 +108,20 @@ struct AverageOptions {
   RunControl control;
   /// qmc: share the shifts with other processes (see ShiftPartition); null: compute them all.
   const ShiftPartition* partition = nullptr;
+  /// N = 2 (method automatic or integral) and the N = 2 beta -> 0 limit: certified enclosures,
+  /// every error a proven bound (kind bound, method certified-integral; src/engine/certified.md)
+  /// for the inputs as the exact binary numbers given. Needs a build with Arb
+  /// (certified_available()); refused otherwise, and for other N and methods.
+  bool certified = false;
 };
+
+/// Whether this build can compute certified enclosures (AverageOptions::certified): Arb was
+/// found at configure time.
+PENDAVG_EXPORT bool certified_available();
+
+/// What the certified enclosures run on: "Arb 2.23.0" (the run-time library), or, in a build
+/// without Arb, why they are unavailable.
+PENDAVG_EXPORT std::string certified_backend();
 
 /// The optional settings of AverageOptions that only some methods use.
 enum class AverageOption { tolerance, samples, shifts, seed };

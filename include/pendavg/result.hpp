@@ -61,6 +61,9 @@ enum class Method {
   microcanonical,           ///< exact microcanonical averages at fixed energy (MATH.md Sec. 7)
   dynamics_nve,             ///< time averages along a RATTLE + Yoshida-4 trajectory (fixed energy)
   dynamics_langevin,        ///< time averages along constrained Langevin (BAOAB + RATTLE)
+  /// N = 2: the exact 1-D reduced integral's finite Graf sums in ball arithmetic with proven
+  /// tails (AverageOptions::certified; every error a bound: src/engine/certified.md)
+  certified_integral,
 };
 
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).

@@ -74,7 +74,7 @@ constexpr std::string_view general_usage =
 constexpr std::string_view average_usage =
     "usage: pendavg average --masses M1,...,MN --lengths L1,...,LN [--g G] --beta B [--digits D]\n"
     "                       [--method M] [--tol T] [--samples S] [--shifts R] [--seed K]\n"
-    "                       [--format json|csv|text]\n"
+    "                       [--certified] [--format json|csv|text]\n"
     "       pendavg average --masses ... --lengths ... [--g G] (--energy E | --excitation D)\n"
     "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
@@ -98,6 +98,12 @@ constexpr std::string_view average_usage =
     "                   1024..1048576, default 65536), --shifts R (4..1024, default 16), --seed K\n"
     "                   (default 1)\n"
     "Options of a method that is not run are rejected.\n"
+    "--certified (N = 2, method auto or integral, --beta or --cases): certified enclosures --\n"
+    "every error is a proven bound (error_kind bound, method certified-integral): the exact\n"
+    "average for the inputs as parsed (decimals rounded to double, or to MPFR at the working\n"
+    "precision) lies within value +- error, printed errors rounded up. converged false: the\n"
+    "requested digits were not reached within the work limit (the bound still holds). Needs a\n"
+    "build with Arb (the version text says whether this one has it).\n"
     "Output (default json): N, beta, digits, method, beta_K, K, error, ratio (<K1>/<K2>, null\n"
     "for N = 1), cos_phi, var_K, evaluations, seconds, converged, diagonal_approx (the paper's\n"
     "eq. ke-linear-tave-1), beta_Kc (beta<K_i^(c)> = 1/2), then every other error: error_kind\n"
@@ -162,13 +168,15 @@ constexpr std::string_view average_usage =
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
-    "                     [--format json|csv|text]\n"
+    "                     [--certified] [--format json|csv|text]\n"
     "\n"
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
     "N = 2: the paper's elliptic K/E formula. Any N: beta -> 0 is the torus average of the chain\n"
     "at g = 0 (tensor trapezoid for N <= 5, transfer beyond, double only);\n"
     "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n"
+    "--certified (N = 2): beta -> 0 in ball arithmetic, every error a proven bound (as for\n"
+    "`pendavg average`).\n"
     "JSON (default): N, digits, and per limit (high_temperature, low_temperature) beta_K, error,\n"
     "ratio, var_K_beta2, method, error_kind, ratio_error, cos_phi, cos_phi_error,\n"
     "var_K_beta2_error, error_kinds, evaluations, work_unit, then converged, run (the torus\n"
@@ -238,7 +246,9 @@ class Stopwatch {
 
 /// `average`'s options (method, digits, tol, samples, shifts, seed).
 AverageOptions average_settings(const Options& options) {
-  return parse_average_options(options, average_option_names);
+  AverageOptions settings = parse_average_options(options, average_option_names);
+  settings.certified = options.has("certified");
+  return settings;
 }
 
 // ---------------------------------------------------------------- average: output
@@ -793,9 +803,10 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
   const auto value = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
     if (i < estimates.size()) p = write_decimal(p, estimates[i].value, digits);
   };
+  const bool upward = upward_errors(averages);
   const auto error = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
     if (i < estimates.size())
-      p = write_decimal(p, printed_error(estimates[i].value, estimates[i].error, digits),
+      p = write_decimal(p, printed_error(estimates[i].value, estimates[i].error, digits, upward),
                         error_digits);
   };
   const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
@@ -814,7 +825,7 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
       char* v = variance_text.data();
       for (const Estimate<Real>& e : averages.beta2_kinetic_variance) {
         char* const first = v;
-        v = write_quotient(v, e.value, e.error, beta2, digits, ',');
+        v = write_quotient(v, e.value, e.error, beta2, digits, ',', upward);
         variance_at.push_back(static_cast<std::size_t>(first - variance_text.data()));
         variance_at.push_back(
             static_cast<std::size_t>(std::find(first, v, ',') - variance_text.data()));
@@ -839,8 +850,9 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
       case CaseField::evaluations: p = std::to_chars(p, p + 24, averages.evaluations).ptr; break;
       case CaseField::ratio_error:
         if (averages.ratio)
-          p = write_decimal(p, printed_error(averages.ratio->value, averages.ratio->error, digits),
-                            error_digits);
+          p = write_decimal(
+              p, printed_error(averages.ratio->value, averages.ratio->error, digits, upward),
+              error_digits);
         break;
       case CaseField::cos_angle_error: error(averages.cos_angle, i); break;
       case CaseField::variance: variance(i, false); break;
@@ -1218,6 +1230,9 @@ std::string average_command(const Options& options) {
     constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
     const Format format = format_option(options, "json", formats);
     const std::string_view state = state_option(options);
+    if (state != "beta" && settings.certified)
+      throw usage_error("average: --certified is for canonical averages (--beta), not --" +
+                        std::string(state));
     if (state != "beta")
       return with_number_type(settings.digits, [&]<class Real>() {
         return microcanonical_one<Real>(options, settings, state, format);
@@ -1361,6 +1376,7 @@ std::string limit_report(const Options& options, int digits, Format format) {
   input_checked("limit");
   AverageOptions settings;
   settings.digits = digits;
+  settings.certified = options.has("certified");
   settings.threads = hardware_threads();
   Progress progress("limit");
   StopOnSignal signals;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
@@ -1495,7 +1511,8 @@ constexpr std::array<std::string_view, 19> average_options{
     "cases",  "tol",     "samples", "shifts", "seed",       "timing-rows", "output",
     "resume", "energy",  "excitation", "columns", "shard"};
 constexpr std::array<std::string_view, 1> merge_options{"output"};
-constexpr std::array<std::string_view, 1> average_flags{"timing"};
+constexpr std::array<std::string_view, 2> average_flags{"timing", "certified"};
+constexpr std::array<std::string_view, 1> limit_flags{"certified"};
 constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
                                                         "format"};
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",
@@ -1503,7 +1520,7 @@ constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g
 
 const std::array<Command, 7> commands{{
     {"average", average_usage, average_options, average_command, average_flags, true},
-    {"limit", limit_usage, limit_options, limit_command},
+    {"limit", limit_usage, limit_options, limit_command, limit_flags},
     {"series", series_usage, series_options, series_command},
     {"table", table_usage, table_options, table_command, {}, true},
     {"simulate", simulate_usage, simulate_options, simulate_command, {}, true},

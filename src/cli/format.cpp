@@ -55,7 +55,7 @@ char* write_decimal(char* out, const Real& x, int digits) {
 
 template <class Real>
 char* write_quotient(char* out, const Real& value, const Real& error,
-                     const quotient_t<Real>& divisor, int digits, char separator) {
+                     const quotient_t<Real>& divisor, int digits, char separator, bool upward) {
   using Wide = quotient_t<Real>;
   const Wide q = Wide(value) / divisor, e = Wide(error) / divisor;
   if constexpr (std::is_same_v<Real, double>) {
@@ -71,12 +71,12 @@ char* write_quotient(char* out, const Real& value, const Real& error,
     if (plain(qd) && plain(ed)) {
       out = write_decimal(out, qd, digits);
       *out++ = separator;
-      return write_decimal(out, printed_error(qd, ed, digits), error_digits);
+      return write_decimal(out, printed_error(qd, ed, digits, upward), error_digits);
     }
   }
   out = write_decimal(out, q, digits);
   *out++ = separator;
-  return write_decimal(out, printed_error(q, e, digits), error_digits);
+  return write_decimal(out, printed_error(q, e, digits, upward), error_digits);
 }
 
 template <class Real>
@@ -149,11 +149,25 @@ long floor_log10(const mpfr_real& a) {
 }  // namespace
 
 template <class Real>
-Real printed_error(const Real& value, const Real& error, int digits) {
+Real printed_error(const Real& value, const Real& error, int digits, bool upward) {
   using std::abs;
   using std::floor;
   using std::log10;
   using std::pow;
+  if (upward) {
+    // 2^(1-p) |value| (p the value's bits): the rounding of a quotient value / divisor formed
+    // in Real (MPFR: relative error <= 2^(1-p)) or in long double and rounded to double
+    // (<= 2^-53 + 2^-64 < 2^-52)
+    Real rounding = abs(value);
+    if constexpr (is_mpfr_v<Real>) {
+      mpfr_mul_2si(rounding.backend().data(), rounding.backend().data(),
+                   1 - static_cast<long>(mpfr_get_prec(value.backend().data())), MPFR_RNDU);
+    } else {
+      rounding *= std::numeric_limits<Real>::epsilon();
+    }
+    const Real shown = printed_error(value, Real(error + rounding), digits, false);
+    return shown + shown / 64;
+  }
   if (value == 0) return error;
   // scientific notation with `digits` significant digits: the last place is
   // 10^(floor(log10 |v|) - digits + 1); rounding to it moves the value by at most half.
@@ -192,14 +206,16 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
   using Wide = std::conditional_t<is_mpfr_v<Real>, Real, long double>;
   // Values with `digits` digits; errors (scaled like their values) with error_digits, plus half a
   // unit in the last place of the printed value.
-  const auto put = [digits](const std::vector<Estimate<Real>>& estimates, auto scale,
-                            std::vector<std::string>& values, std::vector<std::string>& errors) {
+  const bool upward = upward_errors(averages);
+  const auto put = [digits, upward](const std::vector<Estimate<Real>>& estimates, auto scale,
+                                    std::vector<std::string>& values,
+                                    std::vector<std::string>& errors) {
     values.reserve(estimates.size());
     errors.reserve(estimates.size());
     for (const Estimate<Real>& e : estimates) {
       const auto value = scale(e.value);
       values.push_back(decimal(value, digits));
-      errors.push_back(decimal(printed_error(value, scale(e.error), digits), error_digits));
+      errors.push_back(decimal(printed_error(value, scale(e.error), digits, upward), error_digits));
     }
   };
   const auto same = [](const Real& value) { return value; };
@@ -215,7 +231,7 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
                                    std::vector<std::string>& errors) {
       for (const Estimate<Real>& e : estimates) {
         const char* end =
-            write_quotient(buffer.data(), e.value, e.error, divisor, digits, ' ');
+            write_quotient(buffer.data(), e.value, e.error, divisor, digits, ' ', upward);
         const std::string_view both(buffer.data(), static_cast<std::size_t>(end - buffer.data()));
         const std::size_t space = both.find(' ');
         values.emplace_back(both.substr(0, space));
@@ -231,8 +247,8 @@ AveragesText averages_text(const Averages<Real>& averages, int digits, const Rea
     text.diagonal_approximation.push_back(decimal(d, digits));
   if (averages.ratio) {
     text.ratio = decimal(averages.ratio->value, digits);
-    text.ratio_error = decimal(printed_error(averages.ratio->value, averages.ratio->error, digits),
-                               error_digits);
+    text.ratio_error = decimal(
+        printed_error(averages.ratio->value, averages.ratio->error, digits, upward), error_digits);
   }
   text.equipartition_residual = decimal(averages.equipartition_residual, error_digits);
   text.method = method_name(averages.method);
@@ -292,12 +308,13 @@ template char* write_decimal<double>(char*, const double&, int);
 template char* write_decimal<mpfr_real>(char*, const mpfr_real&, int);
 template char* write_decimal<long double>(char*, const long double&, int);
 template char* write_quotient<double>(char*, const double&, const double&, const long double&, int,
-                                      char);
+                                      char, bool);
 template char* write_quotient<mpfr_real>(char*, const mpfr_real&, const mpfr_real&,
-                                         const mpfr_real&, int, char);
-template double printed_error<double>(const double&, const double&, int);
-template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int);
-template long double printed_error<long double>(const long double&, const long double&, int);
+                                         const mpfr_real&, int, char, bool);
+template double printed_error<double>(const double&, const double&, int, bool);
+template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, int, bool);
+template long double printed_error<long double>(const long double&, const long double&, int,
+                                                bool);
 template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
 template AveragesText averages_text<double>(const Averages<double>&, int, const double*);
 template AveragesText averages_text<mpfr_real>(const Averages<mpfr_real>&, int,

@@ -36,8 +36,18 @@ template <class Real>
 char* write_decimal(char* out, const Real& x, int digits);
 
 /// The printed error of a value printed with `digits` digits (printed_errors, one value).
+/// `upward` (certified results, Method::certified_integral): the error is a proven bound and
+/// stays one when printed -- it also covers the rounding of a quotient formed from the value
+/// (write_quotient: 2^(1-p) |value|, p the value's bits) and is enlarged by 1/64 so that its
+/// error_digits-digit decimal, rounded to nearest, is not below it.
 template <class Real>
-Real printed_error(const Real& value, const Real& error, int digits);
+Real printed_error(const Real& value, const Real& error, int digits, bool upward = false);
+
+/// Whether a result's printed errors must stay bounds (printed_error's `upward`).
+template <class Real>
+bool upward_errors(const Averages<Real>& averages) {
+  return averages.method == Method::certified_integral;
+}
 
 
 /// Where a quotient value / divisor (<K_i> = beta<K_i>/beta, Var K_i = beta^2 Var K_i/beta^2) is
@@ -66,7 +76,8 @@ void check_printed_quotients(const Real& beta) {
 
 template <class Real>
 char* write_quotient(char* out, const Real& value, const Real& error,
-                     const quotient_t<Real>& divisor, int digits, char separator);
+                     const quotient_t<Real>& divisor, int digits, char separator,
+                     bool upward = false);
 
 template <class Real>
 std::string decimal(const Real& x, int digits) {

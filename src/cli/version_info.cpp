@@ -5,6 +5,7 @@
 #include "version_info.hpp"
 
 #include "pendavg/dynamics.hpp"
+#include "pendavg/average.hpp"
 #include "pendavg/version.hpp"
 
 #include <boost/version.hpp>
@@ -84,6 +85,9 @@ std::string version_text() {
           std::to_string(__GNU_MP_VERSION) + "." + std::to_string(__GNU_MP_VERSION_MINOR) + "." +
           std::to_string(__GNU_MP_VERSION_PATCHLEVEL) + ")\n";
   text += std::string("GSL: ") + gsl_version + " (compiled against " GSL_VERSION ")\n";
+  text += std::string("certified enclosures (--certified): ") +
+          (certified_available() ? certified_backend() : "unavailable: " + certified_backend()) +
+          "\n";
   return text;
 }
 

@@ -507,13 +507,15 @@ std::vector<std::string> texts(const std::vector<py::object>& values, std::strin
 /// them and calls average_grid).
 py::object average_point(py::handle masses, py::handle lengths, py::handle beta, py::handle g,
                          py::handle digits, py::handle method, py::handle tol, py::handle samples,
-                         py::handle shifts, py::handle seed, const py::object& progress) {
+                         py::handle shifts, py::handle seed, bool certified,
+                         const py::object& progress) {
   const std::vector<py::object> m = entries(masses), l = entries(lengths);
   if (is_array_like(beta) || is_array_like(g) ||
       std::any_of(m.begin(), m.end(), [](const py::object& x) { return is_array_like(x); }) ||
       std::any_of(l.begin(), l.end(), [](const py::object& x) { return is_array_like(x); }))
     return py::none();
-  const AverageOptions settings = average_options(digits, method, tol, samples, shifts, seed);
+  AverageOptions settings = average_options(digits, method, tol, samples, shifts, seed);
+  settings.certified = certified;
   AveragesResult result;
   result.particles = m.size();
   result.digits = settings.digits;
@@ -579,11 +581,12 @@ Column column(py::handle x, std::size_t count) {
 AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const py::list& columns,
                             py::handle digits, py::handle method, py::handle tol,
                             py::handle samples, py::handle shifts, py::handle seed,
-                            const py::object& progress) {
+                            bool certified, const py::object& progress) {
   std::size_t count = 1;
   for (const py::ssize_t s : shape) count *= static_cast<std::size_t>(s);
   if (columns.size() != 2 + 2 * n) throw std::invalid_argument("average_grid: 2 + 2N columns");
-  const AverageOptions settings = average_options(digits, method, tol, samples, shifts, seed);
+  AverageOptions settings = average_options(digits, method, tol, samples, shifts, seed);
+  settings.certified = certified;
   AveragesResult result;
   result.shape = std::move(shape);
   result.particles = n;
@@ -707,7 +710,7 @@ void limit_mpfr(AveragePoint& high, AveragePoint& low, const PointTexts& in,
 
 /// beta -> 0 and beta -> infinity, as `pendavg limit` (src/cli/commands.cpp, limit_report).
 py::tuple limit(py::handle masses, py::handle lengths, py::handle g, py::handle digits,
-                const py::object& progress) {
+                bool certified, const py::object& progress) {
   const int d = digits_option(digits);
   const std::vector<py::object> m = entries(masses);
   std::vector<py::object> l;
@@ -715,6 +718,7 @@ py::tuple limit(py::handle masses, py::handle lengths, py::handle g, py::handle 
   else l = entries(lengths);
   AverageOptions settings;
   settings.digits = d;
+  settings.certified = certified;
   settings.threads = hardware_threads();
   Observation observation;  // the beta -> 0 limit of N >= 3 is a torus run at g = 0
   settings.control = observation.control();
@@ -983,12 +987,12 @@ paper. See help(pendavg.average) for every field.)");
       .def("_exact_values", &exact_values);
 
   m.def("average_point", &average_point, "masses"_a, "lengths"_a, "beta"_a, "g"_a, "digits"_a,
-        "method"_a, "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "progress"_a,
+        "method"_a, "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "certified"_a, "progress"_a,
         "One point of pendavg.average, or None when an argument holds several values.");
   m.def("average_grid", &average_grid, "shape"_a, "n"_a, "columns"_a, "digits"_a, "method"_a,
-        "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "progress"_a,
+        "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "certified"_a, "progress"_a,
         "pendavg.average over flat columns beta, g, m1..mN, l1..lN of the broadcast shape.");
-  m.def("limit", &limit, "masses"_a, "lengths"_a, "g"_a, "digits"_a, "progress"_a,
+  m.def("limit", &limit, "masses"_a, "lengths"_a, "g"_a, "digits"_a, "certified"_a, "progress"_a,
         "(beta -> 0, beta -> infinity) limits as two Averages.");
 }
 

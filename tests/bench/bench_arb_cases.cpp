@@ -10,7 +10,8 @@
 // exactly these doubles (Arb forms mu_i = m_i / (m1 + m2) in ball arithmetic).
 //
 // pendavg: pendavg::average (automatic method: the reduced integral) with an AverageWorkspace
-// kept across calls, at digits 16 (double), 38 and 77 (mpfr_real); all observables.
+// kept across calls, at digits 16 (double), 38 and 77 (mpfr_real); all observables. Certified:
+// the same call with AverageOptions::certified (every observable an enclosure).
 // Arb (when built with Debian's libflint-arb-dev; PENDAVG_BENCH_HAS_ARB): acb_calc_integrate of
 // the two integrals behind beta<K_1> = (mu1/2) J_{-1/2} / J_{1/2},
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,
@@ -24,14 +25,17 @@
 //
 // Runs:
 //   bench_arb_cases                       Google Benchmark: BM_pendavg/<case>/<digits>,
+//                                         BM_certified/<case>/<digits>,
 //                                         BM_arb/<case>/<digits> (add e.g.
 //                                         --benchmark_repetitions=5
 //                                         --benchmark_enable_random_interleaving=true).
 //   bench_arb_cases --table [ROUNDS]      side by side in one run: per case and digits, ROUNDS
-//                                         (default 7) rounds each timing a block of pendavg calls
-//                                         and then a block of Arb calls (thread CPU time, blocks
-//                                         of ~20 ms); prints the medians (us), Arb/pendavg, and
-//                                         the check of pendavg's beta<K_1> against Arb's ball.
+//                                         (default 7) rounds each timing a block of pendavg calls,
+//                                         a block of certified pendavg calls (--certified,
+//                                         src/engine/certified.md) and a block of Arb calls
+//                                         (thread CPU time, blocks of ~20 ms); prints the medians
+//                                         (us), certified/pendavg, Arb/certified, and the check
+//                                         of both pendavg beta<K_1> against Arb's ball.
 //   bench_arb_cases --check               only the check: pendavg's beta<K_1> must lie in Arb's
 //                                         ball widened by pendavg's own error; exit status 1 if
 //                                         not.
@@ -50,9 +54,7 @@
 #include <vector>
 
 #ifdef PENDAVG_BENCH_HAS_ARB
-#include <acb_calc.h>
-#include <acb_hypgeom.h>
-#include <arb.h>
+#include "arb_oracle.hpp"
 #endif
 
 namespace {
@@ -87,8 +89,9 @@ double median_of(std::vector<double> v) {
 /// One pendavg call of a case at `digits`, ready to repeat (inputs built once, workspace kept).
 class PendavgCall {
  public:
-  PendavgCall(const NamedCase& c, int digits) : digits_(digits) {
+  PendavgCall(const NamedCase& c, int digits, bool certified = false) : digits_(digits) {
     options_.digits = digits;
+    options_.certified = certified;
     if (digits == 16) {
       chain_d_.emplace_back(std::vector<double>{c.m1(), c.m2()}, std::vector<double>{1.0, 1.0},
                             1.0);
@@ -135,76 +138,8 @@ class PendavgCall {
 
 #ifdef PENDAVG_BENCH_HAS_ARB
 
-/// The reduced integrand's parameters as balls at the working precision, and s = +-1/2.
-struct ArbIntegrand {
-  arb_t mu1, mu2, a1, a2, A, P;  // P = 4 a1 a2
-  int sign = 1;                  // +1: q^{1/2}; -1: q^{-1/2}
-  ArbIntegrand() {
-    for (arb_ptr x : {mu1, mu2, a1, a2, A, P}) arb_init(x);
-  }
-  ~ArbIntegrand() {
-    for (arb_ptr x : {mu1, mu2, a1, a2, A, P}) arb_clear(x);
-  }
-  ArbIntegrand(const ArbIntegrand&) = delete;
-  ArbIntegrand& operator=(const ArbIntegrand&) = delete;
-  void set(const NamedCase& c, slong prec) {
-    arb_t m1, m2, M;
-    arb_init(m1);
-    arb_init(m2);
-    arb_init(M);
-    arb_set_d(m1, c.m1());
-    arb_set_d(m2, c.m2());
-    arb_add(M, m1, m2, prec);
-    arb_div(mu1, m1, M, prec);
-    arb_div(mu2, m2, M, prec);
-    arb_set_d(a1, c.beta);
-    arb_mul(a1, a1, M, prec);  // beta M g l1 (g = l1 = 1)
-    arb_set_d(a2, c.beta);
-    arb_mul(a2, a2, m2, prec);  // beta m2 g l2 (g = l2 = 1)
-    arb_add(A, a1, a2, prec);
-    arb_mul(P, a1, a2, prec);
-    arb_mul_2exp_si(P, P, 2);
-    arb_clear(m1);
-    arb_clear(m2);
-    arb_clear(M);
-  }
-};
-
-/// q(t)^s e^{-A} I_0(R(t)). q^{+-1/2} by the analytic square root (non-finite where the ball
-/// meets the branch cut, as acb_calc_integrate requires); R by the principal square root, which
-/// is harmless: e^{R - A} e^{-R} I_0(R) = e^{-A} I_0(R) is even in R.
-int arb_integrand(acb_ptr out, const acb_t t, void* param, slong order, slong prec) {
-  if (order > 1) flint_abort();
-  const auto* p = static_cast<const ArbIntegrand*>(param);
-  acb_t s, q, root, h, R, E, I, zero;
-  for (acb_ptr x : {s, q, root, h, R, E, I, zero}) acb_init(x);
-  acb_sin(s, t, prec);
-  acb_sqr(s, s, prec);
-  acb_mul_arb(q, s, p->mu2, prec);
-  acb_add_arb(q, q, p->mu1, prec);
-  if (p->sign > 0) {
-    acb_sqrt_analytic(root, q, order != 0, prec);
-  } else {
-    acb_rsqrt_analytic(root, q, order != 0, prec);
-  }
-  acb_mul_2exp_si(h, t, -1);
-  acb_sin(h, h, prec);
-  acb_sqr(h, h, prec);
-  acb_mul_arb(h, h, p->P, prec);  // P sin^2(t/2)
-  acb_set_arb(R, p->A);
-  acb_sqr(R, R, prec);
-  acb_sub(R, R, h, prec);
-  acb_sqrt(R, R, prec);
-  acb_add_arb(E, R, p->A, prec);
-  acb_div(E, h, E, prec);
-  acb_neg(E, E);  // R - A
-  acb_exp(E, E, prec);
-  acb_hypgeom_bessel_i_scaled(I, zero, R, prec);
-  acb_mul(out, I, E, prec);
-  acb_mul(out, out, root, prec);
-  for (acb_ptr x : {s, q, root, h, R, E, I, zero}) acb_clear(x);
-  return 0;
-}
+using pendavg_test::arb_integrand;
+using pendavg_test::ArbIntegrand;
 
 /// Arb's beta<K_1> for one case at `digits` (16: a 53-bit goal), ready to repeat.
 class ArbCall {
@@ -212,7 +147,7 @@ class ArbCall {
   ArbCall(const NamedCase& c, int digits) {
     goal_ = digits == 16 ? 53 : static_cast<slong>(std::ceil(digits * 3.321928094887362)) + 4;
     prec_ = goal_ + 32;
-    f_.set(c, prec_);
+    f_.set(c.m1(), c.m2(), 1.0, 1.0, 1.0, c.beta, prec_);
     acb_init(a_);
     acb_init(b_);
     acb_zero(a_);
@@ -224,7 +159,7 @@ class ArbCall {
     // |J| from a coarse run (not timed): the absolute tolerance 2^-goal |J| keeps the goal
     // relative (the integrals are positive).
     for (int sign : {1, -1}) {
-      f_.sign = sign;
+      f_.twice_s = sign;
       acb_t rough;
       acb_init(rough);
       mag_t tol;
@@ -251,9 +186,9 @@ class ArbCall {
   ArbCall(const ArbCall&) = delete;
   ArbCall& operator=(const ArbCall&) = delete;
   void run() {
-    f_.sign = 1;
+    f_.twice_s = 1;
     acb_calc_integrate(j_half_, arb_integrand, &f_, a_, b_, goal_, tol_half_, options_, prec_);
-    f_.sign = -1;
+    f_.twice_s = -1;
     acb_calc_integrate(j_minus_half_, arb_integrand, &f_, a_, b_, goal_, tol_minus_half_,
                        options_, prec_);
     arb_div(k1_, acb_realref(j_minus_half_), acb_realref(j_half_), prec_);
@@ -320,6 +255,11 @@ void BM_pendavg(benchmark::State& state, NamedCase c, int digits) {
   for (auto _ : state) call.run();
 }
 
+void BM_certified(benchmark::State& state, NamedCase c, int digits) {
+  PendavgCall call(c, digits, true);
+  for (auto _ : state) call.run();
+}
+
 #ifdef PENDAVG_BENCH_HAS_ARB
 void BM_arb(benchmark::State& state, NamedCase c, int digits) {
   ArbCall call(c, digits);
@@ -333,6 +273,9 @@ void register_benchmarks() {
       const std::string suffix = std::string("/") + c.name + "/" + std::to_string(digits);
       benchmark::RegisterBenchmark(("BM_pendavg" + suffix).c_str(), BM_pendavg, c, digits)
           ->Unit(benchmark::kMicrosecond);
+      if (pendavg::certified_available())
+        benchmark::RegisterBenchmark(("BM_certified" + suffix).c_str(), BM_certified, c, digits)
+            ->Unit(benchmark::kMicrosecond);
 #ifdef PENDAVG_BENCH_HAS_ARB
       benchmark::RegisterBenchmark(("BM_arb" + suffix).c_str(), BM_arb, c, digits)
           ->Unit(benchmark::kMicrosecond);
@@ -359,38 +302,46 @@ int reps_for(F&& call, double budget) {
 
 int run_table(int rounds, bool timing) {
   int failures = 0;
+  const bool certified = pendavg::certified_available();
   if (timing) {
-    std::printf("%-4s %6s %14s %14s %10s\n", "case", "digits", "pendavg_us", "arb_us",
-                "arb/pendavg");
+    std::printf("%-4s %6s %12s %12s %12s %10s %10s\n", "case", "digits", "pendavg_us",
+                "certified_us", "arb_us", "cert/pend", "arb/cert");
   }
   for (int digits : digit_levels) {
     for (const NamedCase& c : named_cases) {
       PendavgCall p(c, digits);
-      std::string k1, k1_error;
+      PendavgCall pc(c, digits, certified);
+      std::string k1, k1_error, ck1, ck1_error;
       p.run(&k1, &k1_error);
+      pc.run(&ck1, &ck1_error);
 #ifdef PENDAVG_BENCH_HAS_ARB
       ArbCall a(c, digits);
       a.run();
       if (!check_against_arb(c, digits, k1, k1_error, a)) ++failures;
+      if (certified && !check_against_arb(c, digits, ck1, ck1_error, a)) ++failures;
+#else
+      std::printf("%s %d: beta<K1> = %s (error %s), certified %s (error %s)\n", c.name, digits,
+                  k1.c_str(), k1_error.c_str(), ck1.c_str(), ck1_error.c_str());
+#endif
       if (!timing) continue;
       const int p_reps = reps_for([&] { p.run(); }, 0.02);
+      const int c_reps = reps_for([&] { pc.run(); }, 0.02);
+      std::vector<double> tp, tc, ta;
+#ifdef PENDAVG_BENCH_HAS_ARB
       const int a_reps = reps_for([&] { a.run(); }, 0.02);
-      std::vector<double> tp, ta;
+#endif
       for (int r = 0; r < rounds; ++r) {  // alternating blocks
         tp.push_back(block_time([&] { p.run(); }, p_reps));
+        tc.push_back(block_time([&] { pc.run(); }, c_reps));
+#ifdef PENDAVG_BENCH_HAS_ARB
         ta.push_back(block_time([&] { a.run(); }, a_reps));
-      }
-      const double mp = median_of(tp) * 1e6, ma = median_of(ta) * 1e6;
-      std::printf("%-4s %6d %14.2f %14.2f %10.1f\n", c.name, digits, mp, ma, ma / mp);
-#else
-      std::printf("%s %d: beta<K1> = %s (error %s)\n", c.name, digits, k1.c_str(),
-                  k1_error.c_str());
-      if (!timing) continue;
-      const int p_reps = reps_for([&] { p.run(); }, 0.02);
-      std::vector<double> tp;
-      for (int r = 0; r < rounds; ++r) tp.push_back(block_time([&] { p.run(); }, p_reps));
-      std::printf("%-4s %6d %14.2f %14s %10s\n", c.name, digits, median_of(tp) * 1e6, "-", "-");
 #endif
+      }
+      const double mp = median_of(tp) * 1e6, mc = median_of(tc) * 1e6;
+      const double ma = ta.empty() ? 0.0 : median_of(ta) * 1e6;
+      std::printf("%-4s %6d %12.2f %12.2f %12.2f %10.2f %10.1f\n", c.name, digits, mp,
+                  certified ? mc : 0.0, ma, certified ? mc / mp : 0.0,
+                  certified && ma > 0 ? ma / mc : 0.0);
       std::fflush(stdout);
     }
   }

@@ -1439,6 +1439,44 @@ good "cases energy column: K_total, density_of_states, work_unit" 'check_micro_a
 good "cases excitation column: the same" 'check_micro_added "$work/out" cases excitation' \
   average --cases "$work/excitation.csv"
 
+# --certified (N = 2): every printed error a bound that covers the printed value; the JSON's
+# kinds are all "bound" and the printed value lies within its printed error of a 60-digit run.
+check_certified() { # FILE DIGITS REFERENCE-FILE
+  "$python" - "$1" "$2" "$3" <<'PY'
+import json, sys
+from decimal import Decimal, getcontext
+getcontext().prec = 80
+run, digits, ref = json.load(open(sys.argv[1])), int(sys.argv[2]), json.load(open(sys.argv[3]))
+assert run["method"] == "certified-integral" and run["error_kind"] == "bound", run
+assert run["converged"] is True, run
+assert all(k == "bound" for k in run["error_kinds"].values()), run["error_kinds"]
+for key, err in (("beta_K", "error"), ("K", "K_error"), ("cos_phi", "cos_phi_error"),
+                 ("var_K", "var_K_error")):
+    for v, e, r in zip(run[key], run[err], ref[key]):
+        assert abs(Decimal(v) - Decimal(r)) <= Decimal(e), (key, v, e, r)
+        assert Decimal(e) <= Decimal(10) ** (2 - digits) * abs(Decimal(v)) + Decimal("1e-300"), (key, v, e)
+assert abs(Decimal(run["ratio"]) - Decimal(ref["ratio"])) <= Decimal(run["ratio_error"])
+PY
+}
+if "$pendavg" --version | grep -q '^certified enclosures (--certified): Arb'; then
+  run average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 60
+  cp "$work/out" "$work/certified_ref.json"
+  good "average --certified: bounds (double)" 'check_certified "$work/out" 16 "$work/certified_ref.json"' \
+    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified
+  good "average --certified --digits 30: bounds" 'check_certified "$work/out" 30 "$work/certified_ref.json"' \
+    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 30
+  good "limit --certified: beta -> 0 in balls" 'grep -q "\"certified-integral\"" "$work/out"' \
+    limit --masses 1,3 --certified
+  printf 'beta,g,m1,m2,l1,l2\n7,2,1,3,1,2\n' >"$work/certified.csv"
+  good "average --cases --certified: kind bound" 'grep -q ",certified-integral," "$work/out" && ! grep -q estimate "$work/out"' \
+    average --cases "$work/certified.csv" --certified
+  bad "average --certified N = 3" average --masses 1,1,1 --lengths 1,1,1 --beta 1 --certified
+  bad "average --certified --method series" average --masses 1,1 --lengths 1,1 --beta 1 --certified --method series
+  bad "average --certified --energy" average --masses 1,1 --lengths 1,1 --energy 1 --certified
+else
+  bad "average --certified without Arb" average --masses 1,1 --lengths 1,1 --beta 1 --certified
+fi
+
 good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
 
 for command in average limit series simulate poincare; do

@@ -140,6 +140,29 @@ def test_mpfr_agrees_with_cli(masses, lengths, beta, digits):
             assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - digits)
 
 
+def certified_build():
+    return "certified enclosures (--certified): Arb" in cli("--version").stdout
+
+
+@pytest.mark.parametrize("masses, lengths, beta, digits", [
+    ([0.5, 0.5], [1.0, 2.0], 3.0, 16),
+    (["0.05", "0.95"], ["1", "1"], "100", 30),
+])
+def test_certified_agrees_with_cli(masses, lengths, beta, digits):
+    if not certified_build():
+        with pytest.raises(ValueError, match="certified"):
+            pendavg.average(masses, lengths, beta, digits=digits, certified=True)
+        return
+    r = pendavg.average(masses, lengths, beta, digits=digits, certified=True)
+    args = ["average", "--masses", ",".join(map(text, masses)), "--lengths",
+            ",".join(map(text, lengths)), "--beta", text(beta), "--digits", digits, "--certified"]
+    assert_same_as_cli(r, cli_json(*args, "--format", "json"))
+    assert r.method == "certified-integral" and r.error_kind == "bound" and r.converged
+    assert set(r.error_kinds.values()) == {"bound"}
+    lim = pendavg.limit(masses, digits=digits, certified=True)
+    assert lim.high_temperature.method == "certified-integral"
+
+
 def test_limit_agrees_with_cli():
     for masses, digits in (([0.5, 0.5], 16), (["0.05", "0.95"], 20), ([1, 1, 1], 16)):
         lim = pendavg.limit(masses, digits=digits)

@@ -66,8 +66,15 @@ dynamics_instruction_set = _core.dynamics_instruction_set
 
 # ---------------------------------------------------------------- canonical averages
 
+def _flag(value, name):
+    """A True/False argument: bool or numpy.bool_ only (not 0/1, None or strings)."""
+    if isinstance(value, (bool, _np.bool_)):
+        return bool(value)
+    raise TypeError(f"{name} must be True or False, not {type(value).__name__}")
+
+
 def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, samples=None,
-            shifts=None, seed=None, progress=None):
+            shifts=None, seed=None, progress=None, certified=False):
     """Canonical (thermal) averages of an N-link pendulum at inverse temperature beta.
 
     The chain: point masses m_i on massless rigid links l_i, the first hanging from a fixed
@@ -126,6 +133,10 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
       progress None (silent), True (a line on stderr every 2 s, as the CLI) or a callable
                f(fraction) called from this thread: for one point the fraction of the current
                torus level (torus methods), for a grid the fraction of points done.
+      certified  N = 2 (method 'auto' or 'integral'): certified enclosures (as `pendavg average
+               --certified`): every error a proven bound (error_kind 'bound', method
+               'certified-integral') for the inputs as converted (a float exactly; other
+               numbers rounded to the working precision). Needs a build with Arb.
     An option the chosen method does not use is refused (ValueError), so a typo cannot silently
     change nothing. Ctrl-C: a torus run stops after its current level and returns the last
     finished one (interrupted = True; KeyboardInterrupt if none finished); a grid stops starting
@@ -140,8 +151,9 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
     (pendavg.sweep does the same from 1-D axes). A bad point raises ValueError naming its index.
     """
     callback = _progress_callback(progress, "average")
+    certified = _flag(certified, "certified")
     result = _core.average_point(masses, lengths, beta, g, digits, method, tol, samples, shifts,
-                                 seed, callback)
+                                 seed, certified, callback)
     if result is not None:
         if result.interrupted:
             print("[average] interrupted: the last finished torus level is reported",
@@ -161,7 +173,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
             from None
     flat = [_np.ascontiguousarray(_np.broadcast_to(c, shape)).reshape(-1) for c in columns]
     return _core.average_grid(list(shape), len(m), flat, digits, method, tol, samples, shifts, seed,
-                              callback)
+                              certified, callback)
 
 
 def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=None):
@@ -243,7 +255,7 @@ class Limits(_namedtuple("Limits", ["high_temperature", "low_temperature"])):
                              names=["limit"])
 
 
-def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
+def limit(masses, lengths=None, g=1.0, digits=16, progress=None, certified=False):
     """The high- and low-temperature limits of beta<K_i>, <K1>/<K2>, beta^2 Var K_i, <cos phi_i>.
 
     beta -> 0: for N = 2 the paper's closed form beta<K_1> = (mu_1/2) K(k)/E(k), k^2 = mu_2 =
@@ -261,11 +273,13 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None):
                 only, the transfer operator).
       progress  None, True (a line on stderr every 2 s) or a callable f(fraction) of the torus
                 level of the beta -> 0 limit (N >= 3), as for pendavg.average.
+      certified N = 2: the beta -> 0 limit in ball arithmetic, every error a proven bound (as
+                `pendavg limit --certified`; the beta -> infinity limit is exact).
     Ctrl-C stops the torus run of N >= 3 after a finished level. Returns
     Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
     """
     callback = _progress_callback(progress, "limit")
-    high, low = _core.limit(masses, lengths, g, digits, callback)
+    high, low = _core.limit(masses, lengths, g, digits, _flag(certified, "certified"), callback)
     if high.interrupted:
         print("[limit] interrupted: the last finished torus level is reported", file=_sys.stderr,
               flush=True)
