@@ -6,10 +6,10 @@
 // behind either. A temporary is named "<target>.tmp.<host>.<pid>.XXXXXX"; one left by a process
 // that was killed outright (SIGKILL, a crash: no handler runs) holds the rows that process had
 // written: --resume of the target on the same host takes them (sweep_file.hpp), and the next
-// commit of the target there removes it. A symbolic link is followed: its final target is what gets
-// replaced. A target that exists and is not a regular file (a device such as /dev/null, a FIFO)
-// is written in place, never replaced; a FIFO that no process reads is refused (an open would
-// wait forever). A replaced file keeps its permissions (and its owner and group when the process
+// commit of the target there removes it. A symbolic link is followed: its final target is what
+// gets replaced. A target that exists and is not a regular file (a device such as /dev/null, a
+// FIFO) is written in place, never replaced; a FIFO that no process reads is refused (an open
+// would wait forever). A replaced file keeps its permissions (and its owner and group when the process
 // may give them). A file with several hard links is refused: replacing it would leave the other
 // links with the old content, and writing it in place would not be atomic. A target's name may
 // be as long as the file system allows (its temporary's name is cut to fit).

@@ -651,7 +651,8 @@ class RankSweep {
   std::size_t published_ = 0;
   int peers_finished_ = 0;
   bool abandoned_elsewhere_ = false;
-  ComputeTeam team_{rows_, rows_.threads, handover_period(threads_)};  // last: its threads stop before the state above goes
+  // Last: its threads stop before the state above goes.
+  ComputeTeam team_{rows_, rows_.threads, handover_period(threads_)};
 };
 
 }  // namespace

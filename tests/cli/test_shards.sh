@@ -4,8 +4,9 @@
 # by `pendavg merge`: for N = 1, 2 and 3 shards of a table (torus and transfer rows) and of an
 # `average --cases` run, the merged file is the serial run's, byte for byte, whatever order the
 # shards are given in; a shard stopped by SIGTERM at a random moment and resumed gives the same
-# merged file, and one killed by SIGKILL and resumed is the uninterrupted shard's file; merge refuses a missing shard, a shard given twice, shards of other sweeps, an
-# interrupted shard, and a file that is no shard; --shard refuses a malformed K/N.
+# merged file, and one killed by SIGKILL and resumed is the uninterrupted shard's file; merge
+# refuses a missing shard, a shard given twice, shards of other sweeps, an interrupted shard,
+# and a file that is no shard; --shard refuses a malformed K/N.
 #
 # Usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults   Prints "N passed, M failed"
 # last. (pendavg_row_faults, the test build, says how many rows a resumed shard computed.)
