@@ -11,6 +11,7 @@
 #include "cli/sweep.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <deque>
 #include <mutex>
 #include <set>
@@ -250,4 +251,35 @@ TEST_CASE("the ranks an MPI launcher started, from its environment", "[sweep]") 
   CHECK(launched_ranks() == 3);
   unsetenv("OMPI_COMM_WORLD_SIZE");
   unsetenv("SLURM_NTASKS");
+}
+
+TEST_CASE("a long chunk's finished rows reach the output while it runs, and are flushed at once",
+          "[sweep]") {
+  // One rank, one thread: the first guided chunk is half of the 24 rows, 12 x >= 0.1 s. A run
+  // killed outright keeps only what its output was given and flushed: the chunk hands its
+  // finished rows over after 1 s (after its 10th row at the latest), so its first piece written
+  // is shorter than the chunk, and every piece is flushed.
+  struct Flushed : TextOutput {
+    std::string out;                 ///< what flush() let out
+    std::vector<std::size_t> pieces;  ///< the rows of each write
+    void write_rows(std::size_t first, std::size_t count, std::string_view rows,
+                    std::span<const double> us) override {
+      TextOutput::write_rows(first, count, rows, us);
+      pieces.push_back(count);
+    }
+    void flush() override { out = text; }
+  };
+  constexpr std::size_t count = 24;
+  SweepRows rows = rows_of(count, 1);
+  rows.compute = [](std::size_t i, int, std::string& out) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    row_text(i, out);
+  };
+  Flushed output;
+  const SweepOutcome outcome = run_job(1, rows, output);
+  CHECK(output.text == serial_text(count));
+  CHECK(output.out == output.text);
+  REQUIRE_FALSE(output.pieces.empty());
+  CHECK(output.pieces.front() < guided_chunks(count, 1, count)[1]);
+  CHECK(outcome.written == count);
 }

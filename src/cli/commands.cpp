@@ -33,7 +33,6 @@
 #include <cstring>
 #include <ctime>
 #include <exception>
-#include <filesystem>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -130,7 +129,8 @@ constexpr std::string_view average_usage =
     "hash of the file), digits, method, version and date. SIGINT/SIGTERM stop early: every\n"
     "finished row is written, then an '# interrupted: K of N rows computed' line; --resume\n"
     "FILE continues such a file (same cases, digits, method and version) and rewrites it as an\n"
-    "uninterrupted run does (a FILE that does not exist yet is simply written). A row that\n"
+    "uninterrupted run does (a FILE that does not exist yet is simply written; the rows of a\n"
+    "run killed outright, in FILE's temporary, are taken too). A row that\n"
     "fails while it is computed becomes a '# failed: FILE line L: reason' line in its place;\n"
     "the others are kept and the run exits 3, naming the first; --resume computes it again.\n"
     "--shard K/N (a job array without MPI: K = 1..N; not with --timing) computes the K-th of N\n"
@@ -1037,7 +1037,7 @@ void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
         timing_file.emplace(where.timing_rows, "average");
         timing_file->append("row,line,us\n");
       }
-      if (!where.resume.empty() && std::filesystem::exists(where.resume)) {
+      if (!where.resume.empty()) {  // the file, or a killed run's temporary, or nothing yet
         std::vector<std::string_view> fields(columns.size());
         resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
                         [&](std::size_t k) {

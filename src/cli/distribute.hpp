@@ -40,8 +40,6 @@ int launched_ranks();
 int rank();   ///< this process' rank (0 in a plain run)
 int ranks();  ///< the number of ranks (1 in a plain run)
 inline bool is_root() { return rank() == 0; }
-/// "MPI, K ranks" or "no MPI": for messages and the --version line.
-std::string distribution_text();
 
 /// Collective: the smallest `value` over the ranks.
 std::uint64_t min_over_ranks(std::uint64_t value);
@@ -49,8 +47,6 @@ std::uint64_t min_over_ranks(std::uint64_t value);
 std::string broadcast_from_root(std::string text);
 /// Collective: every rank's `local` values concatenated in rank order, on every rank.
 std::vector<double> all_gather(std::span<const double> local);
-/// Collective: every rank's `local` bytes, in rank order, on rank 0 (empty elsewhere).
-std::vector<std::string> gather_to_root(const std::string& local);
 
 /// The shifts of one qmc average shared by all ranks (pendavg::ShiftPartition); null in a plain
 /// run.

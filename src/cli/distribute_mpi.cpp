@@ -10,9 +10,7 @@
 #include <chrono>
 #include <climits>
 #include <cstdio>
-#include <deque>
 #include <cstdlib>
-#include <list>
 #include <stdexcept>
 #include <string_view>
 #include <thread>
@@ -136,11 +134,6 @@ ProcessGroup::~ProcessGroup() {
 
 int rank() { return my_rank; }
 int ranks() { return my_size; }
-std::string distribution_text() {
-  return joined ? "MPI, " + std::to_string(my_size) + (my_size == 1 ? " rank" : " ranks")
-                : "built with MPI, not started by an MPI launcher";
-}
-
 std::uint64_t min_over_ranks(std::uint64_t value) {
   if (my_size == 1) return value;
   std::uint64_t smallest = value;
@@ -172,31 +165,6 @@ std::vector<double> all_gather(std::span<const double> local) {
                        MPI_DOUBLE, world),
         "MPI_Allgatherv");
   return all;
-}
-
-std::vector<std::string> gather_to_root(const std::string& local) {
-  if (my_size == 1) return {local};
-  const int mine = byte_count(local.size());
-  std::vector<int> counts(static_cast<std::size_t>(my_size)), offsets(counts.size());
-  check(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, world), "MPI_Gather");
-  std::string all;
-  if (my_rank == 0) {
-    std::size_t total = 0;
-    for (std::size_t r = 0; r < counts.size(); ++r) {
-      offsets[r] = byte_count(total);
-      total += static_cast<std::size_t>(counts[r]);
-    }
-    all.resize(total);
-  }
-  check(MPI_Gatherv(local.data(), mine, MPI_BYTE, all.data(), counts.data(), offsets.data(),
-                    MPI_BYTE, 0, world),
-        "MPI_Gatherv");
-  if (my_rank != 0) return {};
-  std::vector<std::string> parts;
-  for (std::size_t r = 0; r < counts.size(); ++r)
-    parts.push_back(all.substr(static_cast<std::size_t>(offsets[r]),
-                               static_cast<std::size_t>(counts[r])));
-  return parts;
 }
 
 const ShiftPartition* shift_partition() { return my_size > 1 ? &rank_partition : nullptr; }

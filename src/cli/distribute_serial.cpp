@@ -27,14 +27,12 @@ ProcessGroup::~ProcessGroup() = default;
 
 int rank() { return 0; }
 int ranks() { return 1; }
-std::string distribution_text() { return "built without MPI"; }
 
 std::uint64_t min_over_ranks(std::uint64_t value) { return value; }
 std::string broadcast_from_root(std::string text) { return text; }
 std::vector<double> all_gather(std::span<const double> local) {
   return {local.begin(), local.end()};
 }
-std::vector<std::string> gather_to_root(const std::string& local) { return {local}; }
 const ShiftPartition* shift_partition() { return nullptr; }
 std::unique_ptr<SweepLink> open_sweep_link() { return std::make_unique<LocalSweepLink>(); }
 

@@ -4,12 +4,15 @@
 
 #include "args.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <climits>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <utility>
+#include <vector>
 
 #include <dirent.h>
 #include <fcntl.h>
@@ -60,35 +63,16 @@ std::string temporary_stem(const std::filesystem::path& target) {
   return name.size() + suffix <= most || most <= suffix ? name : name.substr(0, most - suffix);
 }
 
-/// Removes the temporaries of `target` that a process of this host left behind when it was
-/// killed (SIGKILL, a crash, a power cut: no handler runs): "<target>.tmp.<host>.<pid>.XXXXXX"
-/// whose pid no longer exists. Temporaries of other hosts (a shared file system) and of live
-/// processes are left alone.
-void remove_stale_temporaries(const std::string& target) {
-  namespace fs = std::filesystem;
-  const fs::path path = target;
-  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const std::string host_prefix = temporary_stem(path) + ".tmp." + writer_tag(0);
-  const std::string prefix = host_prefix.substr(0, host_prefix.size() - 2);  // "<...>.<host>."
-  DIR* dir = opendir(parent.c_str());
-  if (dir == nullptr) return;
-  while (const dirent* entry = readdir(dir)) {
-    const std::string_view name = entry->d_name;
-    if (!name.starts_with(prefix)) continue;
-    const std::string_view rest = name.substr(prefix.size());  // "<pid>.XXXXXX"
-    const std::size_t dot = rest.find('.');
-    if (dot == 0 || dot == std::string_view::npos || rest.size() - dot != 7) continue;
-    long pid = 0;
-    bool digits = true;
-    for (const char c : rest.substr(0, dot)) {
-      if (c < '0' || c > '9' || pid > 1'000'000'000) digits = false;
-      pid = pid * 10 + (c - '0');
-    }
-    if (!digits || pid <= 0) continue;
-    if (kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
-      unlink((parent / std::string(name)).c_str());
-  }
-  closedir(dir);
+/// Whether process `pid` has ended: gone, or a zombie (ended, not yet reaped: when its parent
+/// was killed too -- all of an mpirun's ranks -- a container's first process may reap it only
+/// seconds later).
+bool process_ended(long pid) {
+  if (kill(static_cast<pid_t>(pid), 0) != 0) return errno == ESRCH;
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string text;
+  std::getline(stat, text);
+  const std::size_t name_end = text.rfind(')');  // "pid (name) state ..."
+  return name_end != std::string::npos && name_end + 2 < text.size() && text[name_end + 2] == 'Z';
 }
 
 /// Opens a target that is not a regular file (a device, a FIFO) for writing. A FIFO without a
@@ -111,6 +95,35 @@ int open_in_place(const std::string& path, std::string_view command) {
 }
 
 }  // namespace
+
+std::vector<std::string> dead_temporaries(const std::string& target) {
+  namespace fs = std::filesystem;
+  const fs::path path = target;
+  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const std::string host_prefix = temporary_stem(path) + ".tmp." + writer_tag(0);
+  const std::string prefix = host_prefix.substr(0, host_prefix.size() - 2);  // "<...>.<host>."
+  std::vector<std::string> dead;
+  DIR* dir = opendir(parent.c_str());
+  if (dir == nullptr) return dead;
+  while (const dirent* entry = readdir(dir)) {
+    const std::string_view name = entry->d_name;
+    if (!name.starts_with(prefix)) continue;
+    const std::string_view rest = name.substr(prefix.size());  // "<pid>.XXXXXX"
+    const std::size_t dot = rest.find('.');
+    if (dot == 0 || dot == std::string_view::npos || rest.size() - dot != 7) continue;
+    long pid = 0;
+    bool digits = true;
+    for (const char c : rest.substr(0, dot)) {
+      if (c < '0' || c > '9' || pid > 1'000'000'000) digits = false;
+      pid = pid * 10 + (c - '0');
+    }
+    if (digits && pid > 0 && process_ended(pid))
+      dead.push_back((parent / std::string(name)).string());
+  }
+  closedir(dir);
+  std::ranges::sort(dead);  // a fixed order, whatever the directory's
+  return dead;
+}
 
 std::string resolved_path(const std::string& path, std::string_view command) {
   namespace fs = std::filesystem;
@@ -157,7 +170,6 @@ AtomicFile::AtomicFile(std::string path, std::string_view command)
   }
   target_ = resolved_path(path_, command_);  // a regular file: replace it, not a link to it
   deferred_.emplace();
-  remove_stale_temporaries(target_);
   {
     const std::filesystem::path target = target_;
     temporary_ = (target.parent_path() / (temporary_stem(target) + ".tmp." +
@@ -234,6 +246,8 @@ void AtomicFile::commit() {
   }
   committed_ = true;
   deferred_.reset();
+  // Only now: a dead writer's rows, which --resume took (ResumedRows), are in the file.
+  for (const std::string& dead : dead_temporaries(target_)) unlink(dead.c_str());
 }
 
 void write_atomically(const std::string& path, const std::string& content,

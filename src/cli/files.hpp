@@ -4,11 +4,12 @@
 // abandoned file leaves nothing behind (the temporary is removed), and SIGINT/SIGTERM/SIGHUP are
 // deferred while the temporary exists (interrupt.hpp, DeferSignals), so no signal leaves one
 // behind either. A temporary is named "<target>.tmp.<host>.<pid>.XXXXXX"; one left by a process
-// that was killed outright (SIGKILL, a crash: no handler runs) is removed by the next write of
-// the same target on the same host. A symbolic link is followed: its final target is what gets
-// replaced. A target that exists and is not a regular file (a device such as /dev/null, a FIFO)
-// is written in place, never replaced; a FIFO that no process reads is refused (an open would
-// wait forever). A replaced file keeps its permissions (and its owner and group when the process
+// that was killed outright (SIGKILL, a crash: no handler runs) holds the rows that process had
+// written: --resume of the target on the same host takes them (sweep_file.hpp), and the next
+// commit of the target there removes it. A symbolic link is followed: its final target is what
+// gets replaced. A target that exists and is not a regular file (a device such as /dev/null, a
+// FIFO) is written in place, never replaced; a FIFO that no process reads is refused (an open
+// would wait forever). A replaced file keeps its permissions (and its owner and group when the process
 // may give them). A file with several hard links is refused: replacing it would leave the other
 // links with the old content, and writing it in place would not be atomic. A target's name may
 // be as long as the file system allows (its temporary's name is cut to fit).
@@ -19,6 +20,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace pendavg::cli {
 
@@ -43,6 +45,11 @@ class AtomicFile {
   int fd_ = -1;
   bool committed_ = false, in_place_ = false;
 };
+
+/// The temporaries of `target` (a resolved path) that a process of this host left when it was
+/// killed: "<target>.tmp.<host>.<pid>.XXXXXX" whose pid no longer exists, in name order.
+/// Temporaries of other hosts (a shared file system) and of live processes are not listed.
+std::vector<std::string> dead_temporaries(const std::string& target);
 
 /// Writes `content` to `path` atomically (AtomicFile in one go).
 void write_atomically(const std::string& path, const std::string& content, std::string_view command);

@@ -5,10 +5,8 @@
 // (2 bad input, 1 internal error, 130 stopped by a signal before anything was finished), each
 // with exactly one line on stderr (distribute.hpp, report_failure); a sweep that wrote its output
 // but has failed rows exits with 3 (sweep.hpp, rows_failed). Under MPI only rank 0 prints.
-// Before anything else it sets up how the process takes memory (memory.hpp).
 #include "commands.hpp"
 #include "distribute.hpp"
-#include "memory.hpp"
 
 #include <csignal>
 #include <cstdio>
@@ -19,7 +17,6 @@
 #include <vector>
 
 int main(int argc, char** argv) {
-  pendavg::cli::prepare_process_memory();  // first: MPI and the command allocate after it
   // A file size limit (ulimit -f) is then a write error as a full disk is (EFBIG): the command
   // says so in one line and removes its temporary, where SIGXFSZ would kill it and leave both.
   std::signal(SIGXFSZ, SIG_IGN);

@@ -7,6 +7,7 @@
 #include "sweep_file.hpp"
 
 #include <cerrno>
+#include <charconv>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -20,22 +21,16 @@ namespace {
 constexpr std::size_t blocks_per_shard = 16;
 constexpr std::string_view shard_prefix = "# shard ";
 
-/// "K/N" as two integers, or nothing.
+/// "K/N" as two integers (at most 9 digits each), or nothing.
 std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
-  const std::size_t slash = text.find('/');
-  const auto number = [](std::string_view digits) -> std::optional<std::size_t> {
-    if (digits.empty() || digits.size() > 9) return std::nullopt;
-    std::size_t value = 0;
-    for (const char c : digits) {
-      if (c < '0' || c > '9') return std::nullopt;
-      value = 10 * value + static_cast<std::size_t>(c - '0');
-    }
-    return value;
-  };
-  if (slash == std::string_view::npos) return std::nullopt;
-  const auto k = number(text.substr(0, slash)), n = number(text.substr(slash + 1));
-  if (!k || !n) return std::nullopt;
-  return std::pair{*k, *n};
+  std::size_t k = 0, n = 0;
+  const char* const end = text.data() + text.size();
+  const auto [slash, k_error] = std::from_chars(text.data(), end, k);
+  if (k_error != std::errc() || slash == end || *slash != '/' || slash - text.data() > 9)
+    return std::nullopt;
+  const auto [last, n_error] = std::from_chars(slash + 1, end, n);
+  if (n_error != std::errc() || last != end || last - slash > 10) return std::nullopt;
+  return std::pair{k, n};
 }
 
 /// One shard file being merged: its header, then its rows on demand.

@@ -10,7 +10,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <bit>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -48,6 +47,12 @@ constexpr int chunks_per_thread = 2;  ///< queued per compute thread
 /// finished chunk does): rank 0 receives rows, the others only watch for a stop.
 constexpr auto root_poll = std::chrono::milliseconds(2);
 constexpr auto rank_poll = std::chrono::milliseconds(10);
+/// How long a running chunk keeps its finished rows (ComputeTeam::compute): 1 s, or 1 ms per
+/// compute thread of the job, so that rank 0 gets at most ~1000 such handovers a second.
+Clock::duration handover_period(std::size_t threads) {
+  return std::chrono::duration_cast<Clock::duration>(
+      std::chrono::milliseconds(std::max<std::size_t>(1000, threads)));
+}
 /// The stop counter's bits.
 constexpr std::uint64_t stop_signal = 1, stop_row_failed = 2, stop_rank_failed = 4;
 
@@ -65,7 +70,6 @@ struct RowFailure {
 /// cut short by a stop or a failing row).
 struct Finished {
   std::size_t first = 0, count = 0;
-  double seconds = 0;  ///< wall time of the chunk
   std::string text;
   std::vector<double> row_us;
   std::optional<RowFailure> failure;  ///< row first + count failed
@@ -75,83 +79,57 @@ struct Finished {
 
 // ---------------------------------------------------------------- wire format
 
-void put_u64(std::string& out, std::uint64_t value) {
-  out.append(reinterpret_cast<const char*>(&value), sizeof value);
-}
-void put_text(std::string& out, std::string_view text) {
-  put_u64(out, text.size());
-  out.append(text);
-}
-void put_failure(std::string& out, const std::optional<RowFailure>& failure) {
-  put_u64(out, failure ? 1 + failure->bad_input : 0);
-  if (failure) {
-    put_u64(out, failure->row);
-    put_text(out, failure->message);
-  }
-}
-
-class Unpacker {
- public:
-  explicit Unpacker(std::string_view bytes) : bytes_(bytes) {}
-  std::uint64_t u64() {
-    std::uint64_t value = 0;
-    std::memcpy(&value, take(sizeof value).data(), sizeof value);
-    return value;
-  }
-  std::string_view text() { return take(static_cast<std::size_t>(u64())); }
-  std::optional<RowFailure> failure() {
-    const std::uint64_t kind = u64();
-    if (kind == 0) return std::nullopt;
-    RowFailure failure;
-    failure.bad_input = kind == 2;
-    failure.row = u64();
-    failure.message = std::string(text());
-    return failure;
-  }
-
- private:
-  std::string_view take(std::size_t size) {
-    if (bytes_.size() - position_ < size) throw std::runtime_error("sweep: truncated message");
-    const std::string_view part = bytes_.substr(position_, size);
-    position_ += size;
-    return part;
-  }
-  std::string_view bytes_;
-  std::size_t position_ = 0;
+/// A rows message: the rows' text as it is (moved, not copied), the times, the failures'
+/// messages, then a Tail that says how long each part is (messages stay within one job: one
+/// binary, one byte order).
+struct Tail {
+  std::uint64_t first, count, failed_rows, times;
+  std::uint64_t failure[3], first_failed[3];  ///< kind (0: none, 2: bad input), row, length
 };
 
-/// A rows message: the rows' text as it is (moved, not copied), then the rest of `f`, then that
-/// rest's length.
+void put_failure(std::uint64_t (&slot)[3], std::string& bytes,
+                 const std::optional<RowFailure>& failure) {
+  slot[0] = failure ? 1 + failure->bad_input : 0;
+  slot[1] = failure ? failure->row : 0;
+  slot[2] = failure ? failure->message.size() : 0;
+  if (failure) bytes += failure->message;
+}
+
 std::string pack_finished(Finished&& f) {
-  std::string rest;
-  put_u64(rest, f.first);
-  put_u64(rest, f.count);
-  put_failure(rest, f.failure);
-  put_u64(rest, f.failed_rows);
-  put_failure(rest, f.first_failed);
-  put_u64(rest, f.row_us.size());
-  for (const double us : f.row_us) put_u64(rest, std::bit_cast<std::uint64_t>(us));
+  Tail tail{f.first, f.count, f.failed_rows, f.row_us.size(), {}, {}};
   std::string bytes = std::move(f.text);
-  bytes += rest;
-  put_u64(bytes, rest.size());
-  return bytes;
+  if (!f.row_us.empty())
+    bytes.append(reinterpret_cast<const char*>(f.row_us.data()), f.row_us.size() * sizeof(double));
+  put_failure(tail.failure, bytes, f.failure);
+  put_failure(tail.first_failed, bytes, f.first_failed);
+  return bytes.append(reinterpret_cast<const char*>(&tail), sizeof tail);
 }
 
 Finished unpack_finished(std::string&& bytes) {
-  if (bytes.size() < 8) throw std::runtime_error("sweep: truncated message");
-  const std::uint64_t rest_size = Unpacker(std::string_view(bytes).substr(bytes.size() - 8)).u64();
-  if (rest_size > bytes.size() - 8) throw std::runtime_error("sweep: truncated message");
-  const std::size_t text_size = bytes.size() - 8 - rest_size;
-  Unpacker u(std::string_view(bytes).substr(text_size, rest_size));
+  Tail tail{};
+  std::size_t end = bytes.size();
+  // The parts, taken from the end; the text is what is left.
+  const auto take = [&](std::uint64_t size) {
+    if (size > end) throw std::runtime_error("sweep: truncated message");
+    end -= static_cast<std::size_t>(size);
+    return std::string_view(bytes).substr(end, static_cast<std::size_t>(size));
+  };
+  std::memcpy(&tail, take(sizeof tail).data(), sizeof tail);
+  const auto failure = [&](const std::uint64_t (&slot)[3]) -> std::optional<RowFailure> {
+    const std::string_view message = take(slot[2]);
+    if (slot[0] == 0) return std::nullopt;
+    return RowFailure{slot[1], slot[0] == 2, std::string(message)};
+  };
   Finished f;
-  f.first = u.u64();
-  f.count = u.u64();
-  f.failure = u.failure();
-  f.failed_rows = u.u64();
-  f.first_failed = u.failure();
-  f.row_us.resize(u.u64());
-  for (double& us : f.row_us) us = std::bit_cast<double>(u.u64());
-  bytes.resize(text_size);
+  f.first = tail.first;
+  f.count = tail.count;
+  f.failed_rows = tail.failed_rows;
+  f.first_failed = failure(tail.first_failed);
+  f.failure = failure(tail.failure);
+  const std::string_view times = take(tail.times * sizeof(double));
+  f.row_us.resize(tail.times);
+  if (!times.empty()) std::memcpy(f.row_us.data(), times.data(), times.size());
+  bytes.resize(end);
   f.text = std::move(bytes);
   return f;
 }
@@ -173,7 +151,9 @@ double seconds_since(Clock::time_point start) {
 /// add(); finished rows come out through take().
 class ComputeTeam {
  public:
-  ComputeTeam(const SweepRows& rows, int threads) : rows_(rows), threads_(threads) {
+  /// `handover`: how long a running chunk keeps its finished rows before it hands them over.
+  ComputeTeam(const SweepRows& rows, int threads, Clock::duration handover)
+      : rows_(rows), threads_(threads), handover_(handover) {
     thread_ = std::thread([this] { run(); });
   }
   ~ComputeTeam() {
@@ -242,13 +222,17 @@ class ComputeTeam {
     return stopping_.load(std::memory_order_relaxed) || stop_flag().load(std::memory_order_relaxed);
   }
 
-  /// Rows range.first.. until the range ends, a stop, or a row that fails (without failed_row).
-  Finished compute(Range range, int thread) {
+  /// Rows range.first.. until the range ends, a stop, or a row that fails (without failed_row),
+  /// into results_: at the end, and every `handover_` while the chunk runs (the first chunks
+  /// are long, a 1/(2T) share of the sweep each: their rows reach rank 0's file as they are
+  /// finished, and a run killed outright does not lose them).
+  void compute(Range range, int thread) {
     Finished done;
     done.first = range.first;
     done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
-    const Clock::time_point start = Clock::now();
-    for (std::size_t i = range.first; i < range.first + range.count && !stopped(); ++i) {
+    Clock::time_point handed = Clock::now();
+    const std::size_t end = range.first + range.count;
+    for (std::size_t i = range.first; i < end && !stopped(); ++i) {
       const std::size_t text_before = done.text.size();
       std::optional<RowFailure> failure;
       try {
@@ -277,9 +261,22 @@ class ComputeTeam {
         ++done.failed_rows;
       }
       ++done.count;
+      if (i + 1 < end && Clock::now() - handed >= handover_) {
+        deliver(std::exchange(done, Finished{}), false);
+        done.first = i + 1;
+        handed = Clock::now();
+      }
     }
-    done.seconds = seconds_since(start);
-    return done;
+    deliver(std::move(done), true);
+  }
+
+  void deliver(Finished&& done, bool last) {
+    {
+      const std::lock_guard lock(mutex_);
+      results_.push_back(std::move(done));
+      if (last) --running_;
+    }
+    done_.notify_all();
   }
 
   void run() {
@@ -302,19 +299,14 @@ class ComputeTeam {
           queue_.pop_front();
           ++running_;
         }
-        Finished done = compute(range, thread);
-        {
-          const std::lock_guard lock(mutex_);
-          results_.push_back(std::move(done));
-          --running_;
-        }
-        done_.notify_all();
+        compute(range, thread);
       }
     }
   }
 
   const SweepRows& rows_;
   const int threads_;
+  const Clock::duration handover_;
   mutable std::mutex mutex_;
   std::condition_variable work_, done_;
   std::deque<Range> queue_;
@@ -346,8 +338,27 @@ class OrderedWriter {
   void add(Finished&& rows) {
     if (rows.count > 0) waiting_.emplace(rows.first, std::move(rows));
   }
-  /// Writes every row that is next in order.
+  /// Writes every row that is next in order, and lets them out of the output's buffer.
   void advance() {
+    write_next();
+    output_.flush();
+  }
+  /// After an interruption: every row there is, in order, past the missing ones.
+  void drain() {
+    for (;;) {
+      write_next();
+      if (position_ >= count_) return;
+      const std::size_t next_waiting = waiting_.empty() ? count_ : waiting_.begin()->first;
+      ++position_;
+      while (position_ < next_waiting && !output_.kept(position_)) ++position_;
+    }
+  }
+  std::size_t position() const { return position_; }
+  std::size_t written() const { return written_; }
+  bool complete() const { return position_ >= count_; }
+
+ private:
+  void write_next() {
     while (position_ < count_) {
       if (output_.kept(position_)) {
         output_.write_kept(position_++);
@@ -363,21 +374,7 @@ class OrderedWriter {
       waiting_.erase(it);
     }
   }
-  /// After an interruption: every row there is, in order, past the missing ones.
-  void drain() {
-    for (;;) {
-      advance();
-      if (position_ >= count_) return;
-      const std::size_t next_waiting = waiting_.empty() ? count_ : waiting_.begin()->first;
-      ++position_;
-      while (position_ < next_waiting && !output_.kept(position_)) ++position_;
-    }
-  }
-  std::size_t position() const { return position_; }
-  std::size_t written() const { return written_; }
-  bool complete() const { return position_ >= count_; }
 
- private:
   SweepOutput& output_;
   const std::size_t count_;
   std::size_t position_ = 0, written_ = 0;
@@ -654,7 +651,8 @@ class RankSweep {
   std::size_t published_ = 0;
   int peers_finished_ = 0;
   bool abandoned_elsewhere_ = false;
-  ComputeTeam team_{rows_, rows_.threads};  // last: its threads stop before the state above goes
+  // Last: its threads stop before the state above goes.
+  ComputeTeam team_{rows_, rows_.threads, handover_period(threads_)};
 };
 
 }  // namespace

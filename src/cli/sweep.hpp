@@ -21,7 +21,11 @@
 // watches): no new rows start, rows running get `grace_seconds` to finish, then rank 0 writes
 // every finished row (in order, the missing ones left out) and the command ends; rows still
 // running are abandoned (the process exits at once after its output is complete). A rank that
-// fails outside its rows stops the sweep the same way, and names itself.
+// fails outside its rows stops the sweep the same way, and names itself. A process killed
+// outright (SIGKILL: no handler runs) keeps what rank 0 had written: rows go out as soon as they
+// are in order (SweepOutput::flush when rank 0 waits), a running chunk hands its finished rows
+// over every second, and --resume takes them from the dead writer's temporary (sweep_file.hpp);
+// rows finished out of order, waiting in the reorder buffer, are lost and computed again.
 #pragma once
 
 #include <cstddef>
@@ -68,6 +72,9 @@ class SweepOutput {
   /// (SweepRows::timing) or empty.
   virtual void write_rows(std::size_t first, std::size_t count, std::string_view text,
                           std::span<const double> row_us) = 0;
+  /// Rank 0 is about to wait: what is buffered goes out, so that a run killed outright
+  /// (SIGKILL) leaves every row written so far where --resume finds it.
+  virtual void flush() {}
 };
 
 struct SweepOutcome {

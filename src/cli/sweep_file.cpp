@@ -146,10 +146,7 @@ std::string fnv1a_hex(std::string_view text) {
 ResumedRows::ResumedRows(const std::string& path, std::string_view command,
                          const std::string& header, std::size_t count, std::size_t key_fields,
                          const std::function<std::string(std::size_t)>& key)
-    : path_(path), command_(command), kept_(count, false) {
-  const std::string where = command_ + ": --resume '" + path_ + "'";
-  file_ = std::fopen(path_.c_str(), "rb");
-  if (!file_) throw usage_error(where + ": cannot read it: " + std::strerror(errno));
+    : path_(path), command_(command), from_(count, 0) {
   // The header: every '#' line and the column line, as this run writes them.
   std::vector<std::string_view> expected;
   for (std::size_t begin = 0; begin < header.size();) {
@@ -157,52 +154,87 @@ ResumedRows::ResumedRows(const std::string& path, std::string_view command,
     expected.push_back(std::string_view(header).substr(begin, end - begin));
     begin = end == std::string::npos ? header.size() : end + 1;
   }
+  columns_ = expected.empty() ? 0 : 1 + static_cast<std::size_t>(std::ranges::count(
+                                            expected.back(), ','));
+  std::vector<std::string> paths;
+  if (std::FILE* file = std::fopen(path_.c_str(), "rb")) {
+    std::fclose(file);
+    paths.push_back(path_);
+  } else if (errno != ENOENT) {
+    throw usage_error(command_ + ": --resume '" + path_ + "': cannot read it: " +
+                      std::strerror(errno));
+  }
+  for (std::string& dead : dead_temporaries(resolved_path(path_, command_)))
+    if (paths.size() < 255) paths.push_back(std::move(dead));  // from_ counts 255 sources
+  for (std::string& source_path : paths) {
+    sources_.emplace_back().path = std::move(source_path);
+    if (!read_source(sources_.back(), sources_.size(), expected, key_fields, key))
+      sources_.pop_back();
+  }
+}
+
+bool ResumedRows::read_source(Source& source, std::size_t number,
+                              const std::vector<std::string_view>& expected,
+                              std::size_t key_fields,
+                              const std::function<std::string(std::size_t)>& key) {
+  const bool temporary = source.path != path_;
+  const std::string where = command_ + ": --resume '" + path_ + "'" +
+                            (temporary ? ": '" + source.path + "', left by a killed run," : "");
+  source.file.reset(std::fopen(source.path.c_str(), "rb"));
+  std::FILE* const file = source.file.get();
+  if (!file) {
+    if (temporary && errno == ENOENT) return false;  // removed since it was listed
+    throw usage_error(where + ": cannot read it: " + std::strerror(errno));
+  }
   std::string line;
+  bool ended = true;
   for (const std::string_view want : expected) {
-    if (!read_line(file_, line))
+    const bool read = read_line(file, line, &ended);
+    // A temporary killed before its header was out has no rows.
+    if (temporary && (!read || !ended)) return false;
+    if (!read)
       throw usage_error(where + ": not an output of this sweep (it ends before its header does)");
     if (!same_header_line(want, line))
       throw usage_error(where + " is not an output of this sweep: its line '" + shortened(line) +
                         "' differs from '" + shortened(want) + "' (same parameters, method, "
-                        "digits, version and columns are needed)");
+                        "digits, version and columns are needed)" +
+                        (temporary ? "; remove it, or write the file afresh with --output" : ""));
   }
+  const long rows_at = std::ftell(file);
   // The rows, matched to indices in order; a damaged one is left to be computed again.
-  columns_ = expected.empty() ? 0 : 1 + static_cast<std::size_t>(std::ranges::count(
-                                            expected.back(), ','));
   std::size_t index = 0, row_number = 0;
-  bool ended = false;
-  while (read_line(file_, line, &ended)) {
+  while (read_line(file, line, &ended)) {
     if (line.empty() || line.front() == '#') continue;
     ++row_number;
-    if (!intact_row(line, ended, columns_)) {
-      ++damaged_;
-      continue;
-    }
+    if (!intact_row(line, ended, columns_)) continue;
     const std::string_view found = leading_fields(line, key_fields);
-    while (index < count && key(index) != found) ++index;
-    if (index == count)
+    while (index < from_.size() && key(index) != found) ++index;
+    if (index == from_.size())
       throw usage_error(where + ": its data row " + std::to_string(row_number) + " ('" +
                         shortened(found) + ",...') is not a row of this sweep, or out of order");
-    kept_[index++] = true;
-    ++kept_count_;
+    const bool first = from_[index] == 0;  // rows held by two sources are the same
+    source.used.push_back(first);
+    if (first) {
+      from_[index] = static_cast<std::uint8_t>(number);
+      ++kept_count_;
+    }
+    ++index;
   }
-  // Back to the first row, for next_row().
-  std::rewind(file_);
-  for (std::size_t k = 0; k < expected.size(); ++k) read_line(file_, line);
+  std::fseek(file, rows_at, SEEK_SET);  // for row()
+  return true;
 }
 
-ResumedRows::~ResumedRows() {
-  if (file_) std::fclose(file_);
-}
-
-const std::string& ResumedRows::next_row() {
+const std::string& ResumedRows::row(std::size_t index) {
+  Source& source = sources_.at(from_.at(index) - 1u);
   bool ended = false;
-  while (read_line(file_, line_, &ended))
-    if (!line_.empty() && line_.front() != '#' && intact_row(line_, ended, columns_)) {
+  while (source.next < source.used.size() && read_line(source.file.get(), line_, &ended)) {
+    if (line_.empty() || line_.front() == '#' || !intact_row(line_, ended, columns_)) continue;
+    if (source.used[source.next++]) {
       line_ += '\n';
       return line_;
     }
-  throw usage_error(command_ + ": --resume '" + path_ + "' changed while it was being read");
+  }
+  throw usage_error(command_ + ": --resume '" + source.path + "' changed while it was being read");
 }
 
 SweepFile::SweepFile(const std::string& path, std::string_view command, const std::string& header,
@@ -213,7 +245,7 @@ SweepFile::SweepFile(const std::string& path, std::string_view command, const st
   append(header);
 }
 
-void SweepFile::write_kept(std::size_t) { append(resumed_->next_row()); }
+void SweepFile::write_kept(std::size_t index) { append(resumed_->row(index)); }
 
 void SweepFile::write_rows(std::size_t first, std::size_t, std::string_view text,
                            std::span<const double> row_us) {
@@ -234,6 +266,7 @@ void SweepFile::append(std::string_view text) {
 }
 
 void SweepFile::flush() {
+  if (buffer_.empty()) return;
   write_out(buffer_);
   buffer_.clear();
 }

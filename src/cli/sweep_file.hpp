@@ -11,12 +11,15 @@
 // index from its leading fields (its parameters), in order, so rows missing anywhere are
 // computed and the finished file is the one an uninterrupted run writes. A row is kept only when
 // it is whole (its newline, the column line's number of fields, each a number, a word or empty);
-// a damaged one, and a '# failed:' line (a row that failed), are computed again.
+// a damaged one, and a '# failed:' line (a row that failed), are computed again. A run killed
+// outright (SIGKILL) leaves its rows in its temporary (files.hpp), written in order as they were
+// finished; --resume takes them from there too.
 #pragma once
 
 #include "files.hpp"
 #include "sweep.hpp"
 
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <memory>
@@ -27,33 +30,43 @@
 
 namespace pendavg::cli {
 
-/// The rows of an earlier output of the same sweep.
+/// The rows of earlier outputs of the same sweep: the file itself, and the temporaries of it
+/// that writers killed outright left on this host (files.hpp: dead_temporaries; a SIGKILL, the
+/// OOM killer: the rows they had written, in order, the last one possibly cut short). Each is
+/// checked as the file is (a temporary cut short within its header has no rows and is passed
+/// over); a row any of them holds whole is kept.
 class ResumedRows {
  public:
-  /// Reads `path` and checks it against `header` (this run's '#' lines and column line, as
-  /// written); `key(index)` is row `index`'s leading `key_fields` fields joined by commas (a
-  /// row that produces no line returns an empty key). Throws usage_error (one line, naming
-  /// `command` and the option) on a mismatch.
+  /// Reads `path` (when it exists) and its dead writers' temporaries and checks them against
+  /// `header` (this run's '#' lines and column line, as written); `key(index)` is row `index`'s
+  /// leading `key_fields` fields joined by commas (a row that produces no line returns an empty
+  /// key). Throws usage_error (one line, naming `command` and the option) on a mismatch.
   ResumedRows(const std::string& path, std::string_view command, const std::string& header,
               std::size_t count, std::size_t key_fields,
               const std::function<std::string(std::size_t)>& key);
-  ~ResumedRows();
   ResumedRows(const ResumedRows&) = delete;
   ResumedRows& operator=(const ResumedRows&) = delete;
 
-  bool kept(std::size_t index) const { return kept_[index]; }
+  bool kept(std::size_t index) const { return from_[index] != 0; }
   std::size_t kept_count() const { return kept_count_; }
-  /// Rows of the file that were not whole (cut short, damaged): computed again.
-  std::size_t damaged_count() const { return damaged_; }
-  /// The next kept row's line (with its newline); rows come back in file order.
-  const std::string& next_row();
+  /// Kept row `index`'s line (with its newline); asked for in index order.
+  const std::string& row(std::size_t index);
 
  private:
+  struct Source {
+    std::string path;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> file{nullptr, &std::fclose};
+    std::vector<bool> used;  ///< for each of its whole rows: kept from here
+    std::size_t next = 0;    ///< its whole rows read so far (row())
+  };
+  /// Reads one source's header and rows; false for a temporary cut short within its header.
+  bool read_source(Source& source, std::size_t number, const std::vector<std::string_view>& header,
+                   std::size_t key_fields, const std::function<std::string(std::size_t)>& key);
   std::string path_, command_;
-  std::vector<bool> kept_;
-  std::size_t kept_count_ = 0, damaged_ = 0;
+  std::vector<Source> sources_;
+  std::vector<std::uint8_t> from_;  ///< per row: 1 + the source it is kept from, 0: not kept
+  std::size_t kept_count_ = 0;
   std::size_t columns_ = 0;  ///< fields of a row (the column line's)
-  std::FILE* file_ = nullptr;
   std::string line_;
 };
 
@@ -72,13 +85,14 @@ class SweepFile : public SweepOutput {
   std::function<void(std::size_t first, std::span<const double> row_us)> on_timing;
 
   void append(std::string_view text);
+  /// Writes out what is buffered (SweepOutput: rank 0 is about to wait).
+  void flush() override;
   /// Flushes; a file is renamed into place.
   void commit();
   /// A file's temporary is removed (nothing is written); stdout keeps what it got.
   void discard();
 
  private:
-  void flush();
   void write_out(std::string_view text);
   std::optional<AtomicFile> file_;
   ResumedRows* resumed_ = nullptr;

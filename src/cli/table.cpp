@@ -29,7 +29,6 @@
 #include <cstring>
 #include <ctime>
 #include <exception>
-#include <filesystem>
 #include <functional>
 #include <optional>
 #include <type_traits>
@@ -92,7 +91,9 @@ const std::string_view table_usage =
     "computed' line. --resume FILE continues such a file: FILE's header must match this sweep\n"
     "(parameters, method, digits, version; not the date), its rows are kept and the missing\n"
     "ones computed, and FILE is rewritten as an uninterrupted run writes it (a FILE that does\n"
-    "not exist yet is simply written: a batch job can always pass --resume).\n"
+    "not exist yet is simply written: a batch job can always pass --resume). A run killed\n"
+    "outright (SIGKILL, the OOM killer) leaves the rows it had written in FILE's temporary\n"
+    "file; --resume FILE on the same host takes them too.\n"
     "A point that fails while it is computed becomes a '# failed: point (...): reason' line in\n"
     "its place; the sweep goes on and exits 3, naming the first; --resume computes it again\n"
     "(and any row cut short).\n"
@@ -847,7 +848,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
   if (is_root()) {
     try {
       if (!target.path.empty()) probe_output(target.path, "table");
-      if (!target.resume.empty() && std::filesystem::exists(target.resume))
+      if (!target.resume.empty())  // the file, or a killed run's temporary, or nothing yet
         resumed.emplace(target.resume, "table", header, row_count, 4 + 2 * plan.columns_particles,
                         [&](std::size_t k) {
                           return row_key(point(k), plan.columns_particles);

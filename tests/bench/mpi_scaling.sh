@@ -14,11 +14,14 @@
 # after (the machine is shared). Then the per-row costs of sweep77 go to mpi_model.py, the model
 # of a 10^6-row sweep on 1,000 ranks.
 #
-#   bash tests/bench/mpi_scaling.sh build/pendavg [REPEATS]     (REPEATS default 5)
+#   bash tests/bench/mpi_scaling.sh build/pendavg [REPEATS] [NAMES]
+# (REPEATS default 5; NAMES: the workloads to run, default "sweep77 torus4 transfer cases" --
+# transfer's N = 64 rows take ~1 s of a core each: 200 s for one 1-rank run)
 set -euo pipefail
 (($# >= 1)) || { echo "usage: $0 PENDAVG [REPEATS]" >&2; exit 2; }
 pendavg=$(realpath "$1")
 repeats=${2:-5}
+names=" ${3:-sweep77 torus4 transfer cases} "
 build=$(dirname "$pendavg")
 faulty=$build/tests/pendavg_row_faults
 writer=$build/tests/bench_double_pendulum
@@ -38,6 +41,7 @@ workloads=(
 echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the start ($(nproc) cores)"
 for workload in "${workloads[@]}"; do
   name=${workload%%|*}
+  [[ $names == *" $name "* ]] || continue
   read -r -a args <<<"${workload#*|}"
   for ((k = 0; k < repeats; ++k)); do
     for ranks in 1 2; do

@@ -50,3 +50,45 @@ check() { # NAME COMMAND...: the command succeeds
   if "$@"; then pass; else fail "$name"; fi
 }
 no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+# killed_and_resumed NAME REFERENCE OUT COMMAND...: runs COMMAND --output OUT in the background
+# (COMMAND: the test build pendavg_row_faults with its arguments, alone or under mpiexec), kills
+# it with SIGKILL once OUT's temporary holds a row and a random 0-1 s more (no handler runs: the
+# rows it had written are all that is left), then runs COMMAND --resume OUT. OUT must be REFERENCE
+# byte for byte, no temporary may be left, and the resumed run must have computed fewer rows than
+# the sweep has: it took the killed run's rows from its temporary (the test build's
+# PENDAVG_SWEEP_REPORT=1 says how many it computed).
+killed_and_resumed() {
+  local name=$1 reference=$2 out=$3 k rows computed delay
+  shift 3
+  rows=$(($(grep -vc '^#' "$reference") - 1))  # without the column line
+  rm -f "$out"
+  "$@" --output "$out" >/dev/null 2>&1 &
+  local pid=$!
+  for ((k = 0; k < 600; ++k)); do  # a data row after the header's '#' lines and column line
+    [ "$(cat "$out".tmp.* 2>/dev/null | grep -vc '^#')" -ge 2 ] && break
+    sleep 0.1
+  done
+  delay=$(/usr/bin/python3 -c 'import random; print(round(random.uniform(0, 1), 2))')
+  sleep "$delay"
+  { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null  # (no "Killed" job notice)
+  # The processes of the killed run (an orphaned rank) are gone before it is resumed.
+  for ((k = 0; k < 100; ++k)); do pgrep -f -- "--output $out" >/dev/null || break; sleep 0.1; done
+  if [ -e "$out" ] || [ -z "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
+    fail "$name: the run killed after $delay s finished or left no temporary (too fast a sweep?)"
+    return
+  fi
+  PENDAVG_SWEEP_REPORT=1 "$@" --resume "$out" >"$work/out" 2>"$work/err"
+  rc=$?
+  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
+  if [ "$rc" -ne 0 ]; then
+    fail "$name: killed (SIGKILL) after $delay s, the resumed run exited $rc"
+  elif ! cmp -s "$out" "$reference"; then
+    fail "$name: killed (SIGKILL) after $delay s and resumed: differs from an uninterrupted run"
+  elif [ -n "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
+    fail "$name: killed (SIGKILL) after $delay s and resumed: a temporary is left"
+  elif ! [ "${computed:-$rows}" -lt "$rows" ]; then
+    fail "$name: killed (SIGKILL) after $delay s: the resume computed ${computed:-?} of $rows rows (none taken from the temporary)"
+  else
+    pass
+  fi
+}

@@ -19,9 +19,8 @@ python=/usr/bin/python3
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-passed=0
-failed=0
-export SOURCE_DATE_EPOCH=1767225600
+# shellcheck source=sweep_harness.sh
+source "$here/sweep_harness.sh"
 
 # What OpenMPI needs in a CI container: running as root, more ranks than cores, shared memory
 # between the ranks only (no network), local launch without ssh, no CMA (ptrace may be
@@ -33,12 +32,6 @@ if "$mpiexec" --version 2>&1 | grep -q "Open MPI\|OpenRTE"; then
   launcher+=(--oversubscribe --bind-to none --mca btl self,vader --mca plm isolated)
 fi
 
-pass() { passed=$((passed + 1)); }
-fail() {
-  failed=$((failed + 1))
-  echo "FAIL: $1"
-  [ -s "$work/err" ] && sed 's/^/  stderr: /' "$work/err" | head -8
-}
 # on_ranks K OUT ARGS...: mpiexec -n K pendavg ARGS > OUT (K = 0: the plain serial run)
 on_ranks() {
   local ranks=$1 out=$2
@@ -110,7 +103,7 @@ same_on_ranks "limit on rank 0" limit --masses 0.5,0.5
 # A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
 # at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.
 export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
-sweep=(table --beta log:1:1000:40 --mu1 0.001,0.05 --digits 400)
+sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 1000)
 "$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
 delay=$("$python" -c 'import random; print(round(random.uniform(0.8, 2.0), 2))')
 "${launcher[@]}" -n 2 "$pendavg" "${sweep[@]}" --output "$work/resumed.csv" \
@@ -130,6 +123,12 @@ elif ! cmp -s "$work/resumed.csv" "$work/reference.csv"; then
   fail "killed under mpirun after $delay s (interrupted: $interrupted), resumed on 3 ranks: differs"
 else
   pass
+fi
+# The whole mpirun killed with SIGKILL (a node lost, the job's processes killed outright): rank
+# 0's temporary keeps the rows it had written, and --resume on 2 ranks takes them.
+if [ -n "$faulty" ]; then
+  killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed.csv" \
+    "${launcher[@]}" -n 2 "$faulty" "${sweep[@]}"
 fi
 
 # The test build: a resumed file with holes (every third row missing) completed, and a file

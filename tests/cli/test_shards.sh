@@ -4,12 +4,15 @@
 # by `pendavg merge`: for N = 1, 2 and 3 shards of a table (torus and transfer rows) and of an
 # `average --cases` run, the merged file is the serial run's, byte for byte, whatever order the
 # shards are given in; a shard stopped by SIGTERM at a random moment and resumed gives the same
-# merged file; merge refuses a missing shard, a shard given twice, shards of other sweeps, an
-# interrupted shard, and a file that is no shard; --shard refuses a malformed K/N.
+# merged file, and one killed by SIGKILL and resumed is the uninterrupted shard's file; merge
+# refuses a missing shard, a shard given twice, shards of other sweeps, an interrupted shard,
+# and a file that is no shard; --shard refuses a malformed K/N.
 #
-# Usage: test_shards.sh PATH/TO/pendavg       Prints "N passed, M failed" last.
+# Usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults   Prints "N passed, M failed"
+# last. (pendavg_row_faults, the test build, says how many rows a resumed shard computed.)
 set -u
-pendavg=${1:?usage: test_shards.sh PATH/TO/pendavg}
+pendavg=${1:?usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
+faulty=${2:?usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
 python=/usr/bin/python3
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -78,6 +81,11 @@ else
   pass
 fi
 bad "--resume a shard with another --shard" "${slow[@]}" --shard 1/3 --resume "$work/slow2.csv"
+# Shard 2/2 of a slower sweep killed outright (SIGKILL: a job array's task lost) and resumed:
+# the uninterrupted shard's file, its rows taken from the killed run's temporary.
+killed=(table --beta log:1:1000:60 --mu1 0.001,0.05 --digits 1000 --shard 2/2)
+"$pendavg" "${killed[@]}" --output "$work/killed_reference.csv" 2>/dev/null
+killed_and_resumed "shard 2/2" "$work/killed_reference.csv" "$work/killed.csv" "$faulty" "${killed[@]}"
 unset OMP_NUM_THREADS
 
 # Refusals: one error line, exit 2, nothing written.

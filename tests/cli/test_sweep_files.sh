@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # tests/cli/test_sweep_files.sh -- sweeps and their files never lose work (issues 26 and 28): a
 # row that fails while the sweep runs becomes a '# failed:' line and the others are kept (exit 3),
-# --resume keeps only whole rows, a full disk or a file size limit leaves one line and no
+# --resume keeps only whole rows and takes those of a run killed outright (SIGKILL) from its
+# temporary, a full disk or a file size limit leaves one line and no
 # temporary, long names, modes, hard links, FIFOs, the --timing-rows file, bounded cases reads,
 # progress while a long sweep is checked, error lines safe for a terminal, and cases files as
 # pandas writes them.
@@ -286,6 +287,35 @@ PY
   run average --cases "$work/pandas_real.csv"
   check "a file pandas wrote" test "$rc" -eq 0 -a "$(grep -c . "$work/out")" -eq 3
 fi
+
+# ---------------------------------------------------------------- killed outright
+# SIGKILL (the OOM killer, kill -9: no handler runs) at a random moment once rows are written,
+# then --resume: the killed run's rows are taken from its temporary (one thread: MPFR rows of
+# N = 2 vary in their last digits with two, a race outside the sweep).
+killed=(table --beta log:1:1000:30 --mu1 0.001,0.05 --digits 1000)
+OMP_NUM_THREADS=1 "$pendavg" "${killed[@]}" --output "$work/killed_reference.csv" 2>/dev/null
+OMP_NUM_THREADS=1 killed_and_resumed "table" "$work/killed_reference.csv" "$work/killed.csv" \
+  "$faulty" "${killed[@]}"
+# Temporaries of a writer that has ended (made here, named with the pid of a process that
+# exited): one cut within its header has no rows (the sweep is written, the temporary removed
+# once it is); one of another sweep is refused in one line that names it, and nothing is written.
+true &
+dead_pid=$!
+wait "$dead_pid"
+host=$(hostname | tr -cd 'A-Za-z0-9-' | cut -c1-64)
+quick=(table --beta log:0.1:10:20 --mu1 0.1,0.5)
+"$pendavg" "${quick[@]}" --output "$work/quick_reference.csv" 2>/dev/null
+head -c 30 "$work/quick_reference.csv" >"$work/quick.csv.tmp.$host.$dead_pid.aaaaaa"
+run "${quick[@]}" --resume "$work/quick.csv"
+check "a dead writer's temporary cut within its header: the sweep is written" \
+  cmp -s "$work/quick.csv" "$work/quick_reference.csv"
+check "... and that temporary removed" test ! -e "$work/quick.csv.tmp.$host.$dead_pid.aaaaaa"
+"$pendavg" table --beta log:0.1:10:20 --mu1 0.1,0.6 --output "$work/quick_other.csv" 2>/dev/null
+cp "$work/quick_other.csv" "$work/quick2.csv.tmp.$host.$dead_pid.bbbbbb"
+bad "a dead writer's temporary of another sweep" "${quick[@]}" --resume "$work/quick2.csv"
+check "... named in the refusal" grep -q "quick2.csv.tmp.$host.$dead_pid.bbbbbb', left by a killed run" "$work/err"
+check "... and nothing written" test ! -e "$work/quick2.csv"
+rm -f "$work/quick2.csv.tmp."*
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
