@@ -198,6 +198,18 @@ std::string more_digits_advice(const Chain<double>& chain, const double* beta,
   // the integral is the N = 2 default), nor are transfer and qmc (double only: check_average
   // refuses them at 17 digits).
   if (options.method == AverageMethod::series) return "";
+  // The MPFR checks below ask whether the double checks take the same chain (the stiffness
+  // message's "at 16 digits"), whose refusal asks for this advice again: without this guard the
+  // two recursed until the stack overflowed (once a cap of 64 nested working precisions ended
+  // it by accident). Inside, only whether double refuses matters: no advice.
+  thread_local bool advising = false;
+  if (advising) return "";
+  struct Advising {
+    Advising() { advising = true; }
+    ~Advising() { advising = false; }
+    Advising(const Advising&) = delete;
+    Advising& operator=(const Advising&) = delete;
+  } const inside;
   AverageOptions wider = options;
   wider.digits = min_digits + 1;
   wider.tolerance.reset();  // the torus' tolerance is 10^-digits in MPFR (may not be set)
