@@ -29,9 +29,8 @@ inline constexpr bool is_mpfr_v = std::is_same_v<Real, mpfr_real>;
 /// run): an operation computes at the largest precision among its operands and the default, and
 /// a copy keeps its source's precision. The series and the Fourier moments rely on that: their
 /// inputs keep the caller's precision while they run at another one. assume_uniform_precision
-/// (every operation at the default) rounds those inputs to it: it changed the last printed digit
-/// of `pendavg series` bounds at 38 digits, and measured no faster (bench_double_pendulum's
-/// MPFR distributions at 38 and 77 digits: +3% and +9% per-case median time).
+/// (every operation at the default) rounds them: it changed the last digit of 38-digit `pendavg
+/// series` bounds, and was no faster (bench_double_pendulum, MPFR: +3%/+9% at 38/77 digits).
 inline constexpr boost::multiprecision::variable_precision_options mpfr_precision_rule =
     boost::multiprecision::variable_precision_options::preserve_related_precision;
 
