@@ -881,12 +881,13 @@ interrupt_within "transfer N = 4096: SIGINT" 2 \
   average --masses "$(ones 4096)" --lengths "$(ones 4096)" --beta 1 --tol 1e-12
 interrupt_within "microcanonical N = 4 at 20 digits: SIGINT" 2 \
   average --masses 1,1,1,1 --lengths 1,1,1,1 --energy 0 --digits 20
-# A torus level at N = 9 takes seconds (its first: 8^8 nodes; at N = 8 the work cap now ends the
-# run after its first level of ~1 s) and its outermost slices ~1/16 of it: the stop request is
-# polled before every innermost row of nodes (it took 4-5 s, the end of the slice; now ~20 ms).
+# A torus level at N = 10 takes seconds (its first: 8^9 nodes; at N = 8 and 9 the work cap now
+# ends the run after a first level of ~1-2 s, before the signal) and its outermost slices ~1/16
+# of it: the stop request is polled before every innermost row of nodes (it took 4-5 s, the end
+# of the slice; now ~20 ms).
 for rule in torus-trapezoid torus-gauss; do
-  limit_tenths=20 interrupt_within "$rule N = 9, SIGINT inside a level of seconds" 2 \
-    average --masses "$(ones 9)" --lengths "$(ones 9)" --beta 1 --method "$rule" --tol 1e-12
+  limit_tenths=20 interrupt_within "$rule N = 10, SIGINT inside a level of seconds" 2 \
+    average --masses "$(ones 10)" --lengths "$(ones 10)" --beta 1 --method "$rule" --tol 1e-12
 done
 interrupt_within "microcanonical qmc N = 64: SIGINT" 2 \
   average --masses "$(ones 64)" --lengths "$(ones 64)" --energy 0 --samples 65536 --shifts 1024
