@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The transfer operator along the chain (engine/chain_transfer.hpp has the equations).
 #include "engine/chain_transfer.hpp"
+#include "engine/detail/legendre.hpp"
 
 #include "engine/estimates.hpp"
 #include "engine/parallel.hpp"
@@ -301,15 +302,9 @@ void gauss_legendre(std::size_t q, std::vector<Real>& x, std::vector<Real>& w) {
     Real z = cos(pi * (Real(static_cast<double>(i)) + Real(0.75)) / (qq + Real(0.5)));
     Real derivative = 1;
     for (int iteration = 0; iteration < 100; ++iteration) {
-      Real p_prev = 1, p = z;
-      for (std::size_t k = 1; k < q; ++k) {
-        const Real kk = Real(static_cast<double>(k));
-        const Real p_next = ((2 * kk + 1) * z * p - kk * p_prev) / (kk + 1);
-        p_prev = p;
-        p = p_next;
-      }
-      derivative = qq * (z * p - p_prev) / (z * z - 1);
-      const Real step = p / derivative;
+      const detail::LegendreAt<Real> legendre = detail::legendre_at(q, z);
+      derivative = legendre.derivative;
+      const Real step = legendre.value / derivative;
       z -= step;
       if (abs(step) <= 4 * std::numeric_limits<Real>::epsilon()) break;
     }

@@ -80,6 +80,7 @@
 #include "engine/estimates.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
+#include "engine/detail/legendre.hpp"
 #include "engine/detail/qmc_lattices.hpp"
 #include "engine/precision.hpp"
 #include "engine/parallel.hpp"
@@ -304,15 +305,9 @@ void gauss_legendre_nodes(std::size_t n, std::vector<Real>& x, std::vector<Real>
       const Real tiny = 4 * unit_roundoff<Real>();
       Real derivative = 0;
       for (int iteration = 0; iteration < 64; ++iteration) {
-        Real p_prev = 1, p = xk;
-        for (std::size_t j = 1; j < n; ++j) {
-          const Real jj = Real(static_cast<double>(j));
-          const Real p_next = ((2 * jj + 1) * xk * p - jj * p_prev) / (jj + 1);
-          p_prev = p;
-          p = p_next;
-        }
-        derivative = Real(static_cast<double>(n)) * (xk * p - p_prev) / (xk * xk - 1);
-        const Real step = p / derivative;
+        const detail::LegendreAt<Real> legendre = detail::legendre_at(n, xk);
+        derivative = legendre.derivative;
+        const Real step = legendre.value / derivative;
         if (2 * k + 1 != n) xk -= step;
         if (abs(step) <= tiny) break;
       }

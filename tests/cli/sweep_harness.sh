@@ -1,7 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-# tests/cli/sweep_harness.sh -- the checks test_sweeps.sh and test_sweep_files.sh share, sourced
-# after they set $pendavg and $work. progress_lines_allowed=1 lets "[command] ..." progress lines
-# stand before a refusal's one error line (sweeps whose check shows progress).
+# tests/cli/sweep_harness.sh -- the set-up and checks test_sweeps.sh, test_sweep_files.sh and
+# test_shards.sh share, sourced after they set $pendavg: $python, a scratch directory $work removed
+# on exit, and the checks. progress_lines_allowed=1 lets "[command] ..." progress lines stand
+# before a refusal's one error line (sweeps whose check shows progress).
+python=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
 passed=0
 failed=0
 export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare

@@ -13,9 +13,6 @@
 set -u
 pendavg=${1:?usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
 faulty=${2:?usage: test_shards.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
-python=/usr/bin/python3
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 source "$(dirname "$0")/sweep_harness.sh"
 
 table=(table --chain 3,8 --beta log:0.1:10:40 --g 1,2 --tol 1e-8)

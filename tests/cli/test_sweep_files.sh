@@ -17,9 +17,6 @@ set -u
 
 pendavg=${1:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
 faulty=${2:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
-python=/usr/bin/python3
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 progress_lines_allowed=1
 # shellcheck source=sweep_harness.sh
 source "$(cd "$(dirname "$0")" && pwd)/sweep_harness.sh"

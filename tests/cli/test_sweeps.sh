@@ -11,10 +11,7 @@
 set -u
 
 pendavg=${1:?usage: test_sweeps.sh PATH/TO/pendavg}
-python=/usr/bin/python3
 here=$(cd "$(dirname "$0")" && pwd)
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 # shellcheck source=sweep_harness.sh
 source "$here/sweep_harness.sh"
 # peak_rss_kb PID: the process' peak resident memory so far (kB)
