@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The CLI's fast scientific notation (src/cli/decimal.hpp) against std::to_chars: the same
+// The CLI's fast scientific notation (src/io/decimal_fast.hpp) against std::to_chars: the same
 // characters for every value it accepts (ties to even, powers of ten, rounding up to the next
 // power), and it accepts the values the CLI prints most (beta<K_i> ~ 1e-13..1, errors ~1e-17).
 #include <catch2/catch.hpp>
 
-#include "../src/cli/decimal.hpp"
+#include "io/decimal_fast.hpp"
 
 #include <bit>
 #include <charconv>
@@ -22,7 +22,7 @@ struct Counts {
 /// Compares one value; returns true when the fast path took it.
 bool compare(double x, int digits, Counts& counts) {
   char fast[64], reference[64];
-  const char* fast_end = pendavg::cli::detail::scientific_fast(fast, x, digits);
+  const char* fast_end = pendavg::io::detail::scientific_fast(fast, x, digits);
   const char* reference_end =
       std::to_chars(reference, reference + sizeof reference, x, std::chars_format::scientific,
                     digits - 1)
@@ -82,16 +82,16 @@ TEST_CASE("fast scientific notation matches std::to_chars", "[cli][format]") {
   // ...and for the CLI's typical values: 16 digits down to ~1e-12, errors with 3 digits.
   for (const double x : {0.3431834814709, 0.6568165185290, -0.98765, 1.5e-12, 7.25}) {
     char buffer[64];
-    CHECK(pendavg::cli::detail::scientific_fast(buffer, x, 16) != nullptr);
+    CHECK(pendavg::io::detail::scientific_fast(buffer, x, 16) != nullptr);
   }
   for (const double x : {1.2e-16, 3.4e-13, 2.2e-17, 0.5}) {
     char buffer[64];
-    CHECK(pendavg::cli::detail::scientific_fast(buffer, x, 3) != nullptr);
+    CHECK(pendavg::io::detail::scientific_fast(buffer, x, 3) != nullptr);
   }
   // Outside the fast range it declines (the caller falls back to std::to_chars).
   char buffer[64];
-  CHECK(pendavg::cli::detail::scientific_fast(buffer, 0.0, 16) == nullptr);
-  CHECK(pendavg::cli::detail::scientific_fast(buffer, 1e300, 16) == nullptr);
-  CHECK(pendavg::cli::detail::scientific_fast(buffer, 4.9e-324, 16) == nullptr);
-  CHECK(pendavg::cli::detail::scientific_fast(buffer, std::nan(""), 16) == nullptr);
+  CHECK(pendavg::io::detail::scientific_fast(buffer, 0.0, 16) == nullptr);
+  CHECK(pendavg::io::detail::scientific_fast(buffer, 1e300, 16) == nullptr);
+  CHECK(pendavg::io::detail::scientific_fast(buffer, 4.9e-324, 16) == nullptr);
+  CHECK(pendavg::io::detail::scientific_fast(buffer, std::nan(""), 16) == nullptr);
 }

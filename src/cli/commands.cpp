@@ -11,7 +11,6 @@
 #include "files.hpp"
 #include "format.hpp"
 #include "average_options.hpp"
-#include "case_columns.hpp"
 #include "interrupt.hpp"
 #include "simulate.hpp"
 #include "sweep.hpp"
@@ -19,6 +18,10 @@
 #include "sweep_file.hpp"
 #include "table.hpp"
 #include "version_info.hpp"
+
+#include "io/record.hpp"
+#include "io/report.hpp"
+#include "io/results.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -206,6 +209,8 @@ std::string with_number_type(int digits, Body&& body) {
   return body.template operator()<mpfr_real>();
 }
 
+constexpr std::array<std::string_view, 3> all_formats{"json", "csv", "text"};
+
 Format format_option(const Options& options, std::string_view fallback,
                      std::span<const std::string_view> allowed) {
   const std::string_view name = options.get("format", fallback);
@@ -253,133 +258,39 @@ AverageOptions average_settings(const Options& options) {
 
 // ---------------------------------------------------------------- average: output
 
-struct AverageReport {
-  std::size_t particles;
-  std::string_view beta;
-  int digits;
-  AveragesText values;
-  std::string run;  ///< the torus or qmc run as a JSON object, or "null"
-  double seconds;
-};
-
-std::string average_json(const AverageReport& r) {
-  const AveragesText& v = r.values;
-  JsonObject json;
-  json.integer("N", static_cast<long long>(r.particles))
-      .string("beta", r.beta)
-      .integer("digits", r.digits)
-      .string("method", v.method)
-      .strings("beta_K", v.beta_kinetic)
-      .strings("K", v.kinetic)
-      .strings("error", v.error)
-      .raw("ratio", json_nullable(v.ratio))  // <K1>/<K2> needs a second particle
-      .strings("cos_phi", v.cos_angle)
-      .strings("var_K", v.variance)
-      .integer("evaluations", static_cast<long long>(v.evaluations))
-      .raw("seconds", seconds_text(r.seconds))
-      .boolean("converged", v.converged)
-      .strings("diagonal_approx", v.diagonal_approximation)
-      .strings("beta_Kc", v.beta_kinetic_canonical)
-      .string("error_kind", v.error_kind)
-      .strings("K_error", v.kinetic_error)
-      .raw("ratio_error", json_nullable(v.ratio_error))
-      .strings("cos_phi_error", v.cos_angle_error)
-      .strings("var_K_error", v.variance_error)
-      .raw("error_kinds", JsonObject()
-                              .string("beta_K", v.error_kind)
-                              .string("ratio", v.error_kind)
-                              .string("cos_phi", v.cos_angle_error_kind)
-                              .string("var_K", v.variance_error_kind)
-                              .str())
-      .string("work_unit", v.work_unit)
-      .string("equipartition_residual", v.equipartition_residual)
-      .raw("run", r.run);
-  return json.str() + "\n";
-}
-
-/// One CSV line's column names and cells, built side by side.
-struct CsvLine {
-  std::vector<std::string> header, row;
-  void add(std::string name, std::string value) {
-    header.push_back(std::move(name));
-    row.push_back(std::move(value));
+/// The numbers of a chain's options as written (beta or the state first when given, then g,
+/// m1..mN, l1..lN): an MPFR run prints its inputs as written.
+std::vector<std::string_view> input_texts(const Options& options, std::string_view state,
+                                          std::size_t particles) {
+  std::vector<std::string_view> texts;
+  if (!state.empty()) texts.push_back(options.required(state));
+  texts.push_back(options.get("g", "1"));
+  for (const std::string_view list : {options.required("masses"), options.get("lengths", "")}) {
+    std::size_t count = 0;
+    for (std::size_t begin = 0; begin <= list.size() && !list.empty(); ++count) {
+      const std::size_t end = std::min(list.find(',', begin), list.size());
+      texts.push_back(list.substr(begin, end - begin));
+      begin = end + 1;
+    }
+    for (; count < particles; ++count) texts.push_back("1");  // lengths default to 1
   }
-  /// stem1..stem`count`; cells past the end of `values` are empty (an array a report does not
-  /// have, e.g. <K_i> of a limit).
-  void add_array(std::string_view stem, const std::vector<std::string>& values,
-                 std::size_t count) {
-    const auto names = indexed_names(stem, count);
-    header.insert(header.end(), names.begin(), names.end());
-    for (std::size_t i = 0; i < count; ++i) row.push_back(i < values.size() ? values[i] : "");
-  }
-};
-
-/// The columns of `average --format csv` for one report; `limit --format csv` writes the same
-/// for each limit (beta, <K_i> and Var K_i empty there) and adds its own after them.
-CsvLine average_csv_line(const AverageReport& r) {
-  const std::size_t n = r.particles;
-  const AveragesText& v = r.values;
-  CsvLine line;
-  line.add("N", std::to_string(n));
-  line.add("beta", std::string(r.beta));
-  line.add("digits", std::to_string(r.digits));
-  line.add("method", v.method);
-  line.add_array("beta_K", v.beta_kinetic, n);
-  line.add_array("K", v.kinetic, n);
-  line.add_array("error_K", v.error, n);
-  line.add("ratio", v.ratio);
-  line.add_array("cos_phi", v.cos_angle, n);
-  line.add_array("var_K", v.variance, n);
-  line.add("evaluations", std::to_string(v.evaluations));
-  line.add("seconds", seconds_text(r.seconds));
-  line.add("converged", v.converged ? "true" : "false");
-  line.add_array("diagonal_approx", v.diagonal_approximation, n);
-  line.add_array("beta_Kc", v.beta_kinetic_canonical, n);
-  line.add("error_kind", v.error_kind);
-  line.add_array("K_error", v.kinetic_error, n);
-  line.add("ratio_error", v.ratio_error);
-  line.add_array("cos_phi_error", v.cos_angle_error, n);
-  line.add_array("var_K_error", v.variance_error, n);
-  line.add("cos_phi_error_kind", v.cos_angle_error_kind);
-  line.add("var_K_error_kind", v.variance_error_kind);
-  line.add("work_unit", v.work_unit);
-  line.add("equipartition_residual", v.equipartition_residual);
-  return line;
+  return texts;
 }
 
-std::string average_csv(const AverageReport& r) {
-  const CsvLine line = average_csv_line(r);
-  std::string out;
-  append_csv_line(out, line.header);
-  append_csv_line(out, line.row);
-  return out;
+/// Where a command's output goes: stdout (returned), or with --output FILE written atomically
+/// to FILE (nothing on stdout).
+std::string deliver(const Options& options, std::string_view command, std::string text) {
+  if (!options.has("output") || !is_root()) return text;
+  write_atomically(std::string(options.get("output", "")), text, command);
+  return {};
 }
 
-/// The lines after a text table: what the errors promise, and the work done.
-std::string errors_and_work_text(const AveragesText& v, double seconds,
-                                 std::string_view variance) {
-  return "errors: beta<K_i> and <K1>/<K2> " + v.error_kind + ", <cos phi_i> " +
-         v.cos_angle_error_kind + ", " + std::string(variance) + " " + v.variance_error_kind +
-         "\n" + "evaluations = " + std::to_string(v.evaluations) + " " + v.work_unit +
-         ", seconds = " + seconds_text(seconds) +
-         ", converged = " + (v.converged ? "yes" : "no") + "\n";
-}
-
-std::string average_text(const AverageReport& r) {
-  const AveragesText& v = r.values;
-  std::vector<std::vector<std::string>> table{{"i", "beta<K_i>", "error", "<K_i>", "<cos phi_i>",
-                                               "error", "Var K_i", "error", "diagonal approx",
-                                               "beta<K_i^c>"}};
-  for (std::size_t i = 0; i < v.beta_kinetic.size(); ++i)
-    table.push_back({std::to_string(i + 1), v.beta_kinetic[i], v.error[i], v.kinetic[i],
-                     v.cos_angle[i], v.cos_angle_error[i], v.variance[i], v.variance_error[i],
-                     v.diagonal_approximation[i], v.beta_kinetic_canonical[i]});
-  return "N = " + std::to_string(r.particles) + ", beta = " + std::string(r.beta) +
-         ", digits = " + std::to_string(r.digits) + ", method = " + v.method + "\n" +
-         aligned_table(table) +
-         (r.particles >= 2 ? "<K1>/<K2> = " + v.ratio + " +- " + v.ratio_error + "\n"
-                           : std::string()) +
-         errors_and_work_text(v, r.seconds, "Var K_i");
+/// --output FILE of a single-result command: checked before any work.
+void check_output_option(const Options& options, std::string_view command) {
+  if (!options.has("output")) return;
+  const std::string path(options.get("output", ""));
+  if (path.empty()) throw usage_error(std::string(command) + ": --output needs a file name");
+  probe_output(path, command);
 }
 
 /// The torus grid, the qmc run or the transfer operator's resolution of `a` as a JSON object,
@@ -390,15 +301,15 @@ std::string run_json(const Averages<Real>& a) {
     return JsonObject()
         .integer("points_per_dim", static_cast<long long>(a.torus->points_per_dim))
         .integer("levels", static_cast<long long>(a.torus->levels))
-        .raw("grid_points", seconds_text(a.torus->grid_points))
+        .raw("grid_points", io::seconds_text(a.torus->grid_points))
         .str();
   if (a.qmc)
     return JsonObject()
         .integer("points", static_cast<long long>(a.qmc->points))
         .integer("shifts", static_cast<long long>(a.qmc->shifts))
-        .raw("sigmas", seconds_text(a.qmc->sigmas))
-        .string("effective_sample_fraction",
-                decimal(a.qmc->effective_sample_fraction, error_digits))
+        .raw("sigmas", io::seconds_text(a.qmc->sigmas))
+        .raw("effective_sample_fraction",
+             decimal(a.qmc->effective_sample_fraction, error_digits))
         .str();
   if (a.transfer)
     return JsonObject()
@@ -445,18 +356,14 @@ std::string average_one(const Options& options, const AverageOptions& settings, 
   if (result.interrupted)
     std::fprintf(stderr, "[average] interrupted: the last finished level (torus; transfer: "
                          "the last verified one; qmc: the shifts finished) is reported\n");
-  const AverageReport report{chain.size(), beta_text, digits,
-                             averages_text(result, digits, &beta), run_json(result), seconds};
-  switch (format) {
-    case Format::csv: return average_csv(report);
-    case Format::text:
-      return average_text(report) +
-             (result.interrupted ? "interrupted: the finished part of the run is reported\n" : "");
-    case Format::json: break;
-  }
-  std::string json = average_json(report);
-  if (result.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
-  return json;
+  const io::Printing printing{digits};
+  const auto texts = input_texts(options, "beta", chain.size());
+  io::Record inputs(io::canonical_input_fields(), chain.size());
+  io::append_canonical_inputs(inputs, chain, beta, printing, texts);
+  io::Record values(io::averages_fields(), chain.size());
+  io::append_averages(values, result, &beta, printing);
+  io::Report report{"average", {&inputs}, {{"", {&values}, run_json(result)}}, {}, seconds};
+  return io::format_report(report, format);
 }
 
 // ---------------------------------------------------------------- average --energy/--excitation
@@ -480,112 +387,6 @@ MicrocanonicalAverages<Real> microcanonical_at(const Chain<Real>& chain, std::st
                                                const Real& x, const MicrocanonicalOptions& options) {
   return state == "excitation" ? microcanonical_average_excitation(chain, x, options)
                                : microcanonical_average(chain, x, options);
-}
-
-struct MicrocanonicalReport {
-  std::size_t particles;
-  std::string_view state, state_text;  ///< the option given and its text as written
-  int digits;
-  MicrocanonicalText values;
-  double seconds;
-};
-
-std::string microcanonical_run_json(const MicrocanonicalText& v) {
-  if (v.proposal_beta.empty()) return "null";
-  return JsonObject()
-      .string("proposal_beta", v.proposal_beta)
-      .string("effective_sample_fraction", v.effective_sample_fraction)
-      .str();
-}
-
-std::string microcanonical_json(const MicrocanonicalReport& r) {
-  const MicrocanonicalText& v = r.values;
-  JsonObject json;
-  json.integer("N", static_cast<long long>(r.particles))
-      .string("energy", r.state == "energy" ? std::string(r.state_text) : v.energy)
-      .string("excitation", r.state == "excitation" ? std::string(r.state_text) : v.excitation)
-      .integer("digits", r.digits)
-      .string("ensemble", "microcanonical")
-      .string("method", v.method)
-      .strings("K", v.kinetic)
-      .strings("K_error", v.kinetic_error)
-      .string("Kc", v.kinetic_canonical)
-      .string("Kc_error", v.kinetic_canonical_error)
-      .strings("cos_phi", v.cos_angle)
-      .strings("cos_phi_error", v.cos_angle_error)
-      .strings("var_K", v.variance)
-      .strings("var_K_error", v.variance_error)
-      .string("K_total", v.kinetic_total)
-      .string("K_total_error", v.kinetic_total_error)
-      .string("density_of_states", v.density_of_states)
-      .string("density_of_states_error", v.density_of_states_error)
-      .string("error_kind", v.error_kind)
-      .integer("evaluations", static_cast<long long>(v.evaluations))
-      .string("work_unit", v.work_unit)
-      .raw("seconds", seconds_text(r.seconds))
-      .boolean("converged", v.converged)
-      .raw("run", microcanonical_run_json(v));
-  return json.str() + "\n";
-}
-
-std::string microcanonical_csv(const MicrocanonicalReport& r) {
-  const MicrocanonicalText& v = r.values;
-  std::vector<std::string> header{"N", "energy", "excitation", "digits", "ensemble", "method"};
-  std::vector<std::string> row{std::to_string(r.particles),
-                               r.state == "energy" ? std::string(r.state_text) : v.energy,
-                               r.state == "excitation" ? std::string(r.state_text) : v.excitation,
-                               std::to_string(r.digits), "microcanonical", v.method};
-  const auto add_array = [&](std::string_view stem, const std::vector<std::string>& values) {
-    const auto names = indexed_names(stem, values.size());
-    header.insert(header.end(), names.begin(), names.end());
-    row.insert(row.end(), values.begin(), values.end());
-  };
-  const auto add = [&](std::string name, std::string value) {
-    header.push_back(std::move(name));
-    row.push_back(std::move(value));
-  };
-  add_array("K", v.kinetic);
-  add_array("K_error", v.kinetic_error);
-  add("Kc", v.kinetic_canonical);
-  add("Kc_error", v.kinetic_canonical_error);
-  add_array("cos_phi", v.cos_angle);
-  add_array("cos_phi_error", v.cos_angle_error);
-  add_array("var_K", v.variance);
-  add_array("var_K_error", v.variance_error);
-  add("K_total", v.kinetic_total);
-  add("K_total_error", v.kinetic_total_error);
-  add("density_of_states", v.density_of_states);
-  add("density_of_states_error", v.density_of_states_error);
-  add("error_kind", v.error_kind);
-  add("evaluations", std::to_string(v.evaluations));
-  add("work_unit", v.work_unit);
-  add("seconds", seconds_text(r.seconds));
-  add("converged", v.converged ? "true" : "false");
-  std::string out;
-  append_csv_line(out, header);
-  append_csv_line(out, row);
-  return out;
-}
-
-std::string microcanonical_text_report(const MicrocanonicalReport& r) {
-  const MicrocanonicalText& v = r.values;
-  std::vector<std::vector<std::string>> table{
-      {"i", "<K_i>_E", "error", "<cos phi_i>_E", "error", "Var K_i", "error"}};
-  for (std::size_t i = 0; i < v.kinetic.size(); ++i)
-    table.push_back({std::to_string(i + 1), v.kinetic[i], v.kinetic_error[i], v.cos_angle[i],
-                     v.cos_angle_error[i], v.variance[i], v.variance_error[i]});
-  const std::string energy = r.state == "energy" ? std::string(r.state_text) : v.energy;
-  const std::string excitation =
-      r.state == "excitation" ? std::string(r.state_text) : v.excitation;
-  return "N = " + std::to_string(r.particles) + ", E = " + energy + ", E - E_min = " +
-         excitation + ", digits = " + std::to_string(r.digits) +
-         ", microcanonical, method = " + v.method + "\n" + aligned_table(table) +
-         "<K_i^(c)>_E = <K>_E/N = " + v.kinetic_canonical + " +- " + v.kinetic_canonical_error +
-         "\n<K>_E = " + v.kinetic_total + " +- " + v.kinetic_total_error +
-         "\nOmega(E) = " + v.density_of_states + " +- " + v.density_of_states_error +
-         "\nerrors: " + v.error_kind + "\nevaluations = " + std::to_string(v.evaluations) + " " +
-         v.work_unit + ", seconds = " + seconds_text(r.seconds) +
-         ", converged = " + (v.converged ? "yes" : "no") + "\n";
 }
 
 template <class Real>
@@ -618,14 +419,14 @@ std::string microcanonical_one(const Options& options, const AverageOptions& set
   micro.control.stop = &stop_flag();
   const MicrocanonicalAverages<Real> result = microcanonical_at(chain, state, x, micro);
   const double seconds = stopwatch.seconds();
-  const MicrocanonicalReport report{chain.size(), state, state_text, settings.digits,
-                                    microcanonical_text(result, settings.digits), seconds};
-  switch (format) {
-    case Format::csv: return microcanonical_csv(report);
-    case Format::text: return microcanonical_text_report(report);
-    case Format::json: break;
-  }
-  return microcanonical_json(report);
+  const io::Printing printing{settings.digits};
+  const auto texts = input_texts(options, state, chain.size());
+  io::Record inputs(io::microcanonical_input_fields(state), chain.size());
+  io::append_microcanonical_inputs(inputs, chain, x, printing, texts);
+  io::Record values(io::microcanonical_fields(state), chain.size());
+  io::append_microcanonical(values, result, printing);
+  io::Report report{"average", {&inputs}, {{"", {&values}, "null"}}, {}, seconds};
+  return io::format_report(report, format);
 }
 
 /// The chain of one cases row (masses, lengths and g in canonical order after the state).
@@ -643,39 +444,13 @@ Chain<Real> case_chain(const std::vector<std::string_view>& fields,
                           parse_real<Real>(fields[1], columns[1], Domain::nonnegative));
 }
 
-/// The output columns of `average --cases` with an energy or excitation column, after the input
-/// columns: K1..N, K_error1..N, Kc, cos_phi1..N, method, evaluations, Kc_error,
-/// cos_phi_error1..N, var_K1..N, var_K_error1..N, error_kind, converged, the other state
-/// (excitation for an energy column, energy for an excitation column), then K_total,
-/// K_total_error, density_of_states, density_of_states_error and work_unit.
-std::vector<std::string> microcanonical_case_columns(std::size_t n, std::string_view state) {
-  std::vector<std::string> header;
-  const auto add_names = [&](std::string_view stem) {
-    const auto names = indexed_names(stem, n);
-    header.insert(header.end(), names.begin(), names.end());
-  };
-  add_names("K");
-  add_names("K_error");
-  header.push_back("Kc");
-  add_names("cos_phi");
-  header.insert(header.end(), {"method", "evaluations", "Kc_error"});
-  add_names("cos_phi_error");
-  add_names("var_K");
-  add_names("var_K_error");
-  header.insert(header.end(),
-                {"error_kind", "converged", state == "energy" ? "excitation" : "energy",
-                 "K_total", "K_total_error", "density_of_states", "density_of_states_error",
-                 "work_unit"});
-  return header;
-}
-
 /// One row of `average --cases` with an energy or excitation column (the input fields as
-/// written, then the `chosen` positions of microcanonical_case_columns), appended to `line`.
+/// written, then the `chosen` cells of the microcanonical record), appended to `line`.
 template <class Real>
 void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow& row,
                          const std::vector<std::string>& columns,
                          std::span<const std::size_t> chosen, const MicrocanonicalOptions& micro,
-                         int digits) {
+                         int digits, io::Record& record) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
   std::vector<std::string_view> fields(columns.size());
@@ -685,29 +460,11 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
   const MicrocanonicalAverages<Real> r = microcanonical_at(
       chain, file.state, microcanonical_state(chain, file.state, fields[0], columns[0], micro),
       micro);
-  const MicrocanonicalText v = microcanonical_text(r, digits);
-  std::vector<std::string> out(fields.begin(), fields.end());
-  const auto add = [&](const std::vector<std::string>& values) {
-    out.insert(out.end(), values.begin(), values.end());
-  };
-  add(v.kinetic);
-  add(v.kinetic_error);
-  out.push_back(v.kinetic_canonical);
-  add(v.cos_angle);
-  out.push_back(v.method);
-  out.push_back(std::to_string(v.evaluations));
-  out.push_back(v.kinetic_canonical_error);
-  add(v.cos_angle_error);
-  add(v.variance);
-  add(v.variance_error);
-  out.push_back(v.error_kind);
-  out.push_back(v.converged ? "true" : "false");
-  out.push_back(file.state == "energy" ? v.excitation : v.energy);
-  out.insert(out.end(), {v.kinetic_total, v.kinetic_total_error, v.density_of_states,
-                         v.density_of_states_error, v.work_unit});
-  std::vector<std::string> selected(fields.begin(), fields.end());  // the input, then --columns'
-  for (const std::size_t k : chosen) selected.push_back(std::move(out[fields.size() + k]));
-  append_csv_line(line, selected);
+  record.reset(io::microcanonical_fields(file.state), file.particles);
+  io::append_microcanonical(record, r, io::Printing{digits});
+  for (const std::string_view field : fields) (line += field) += ',';
+  io::append_csv_cells(line, record, chosen);
+  line.back() = '\n';
 }
 
 /// Checks one microcanonical cases row (fields, numbers at the working precision, the chain, the
@@ -749,32 +506,23 @@ struct CaseScratch {
   std::vector<std::string_view> fields;  ///< the row's fields in canonical order
   std::vector<Real> masses, lengths;
   AverageWorkspace<Real> workspace;
-  std::string variance_text;  ///< a row's Var K_i and errors, "value,error" per particle
-  std::vector<std::size_t> variance_at;  ///< where each starts, its comma, then the end
+  io::Record record;  ///< the row's averages
 };
 
-/// Longest output line of a cases row: the row's text and a comma per field (at most one per
-/// character), 8N + 3 numbers and their commas, the method, the count, four error kinds and
-/// the work unit (<= 24 each, with their commas), "false" and a newline.
-std::size_t case_line_bound(const CaseRow& row, std::size_t particles, int digits) {
-  return 2 * row.size + 1 + (8 * particles + 3) * (decimal_max_length(digits) + 1) + 7 * 25 + 8;
-}
-
-/// One output row of `average --cases`: the input fields as written, then the averages.
-/// `columns` are the canonical column names (beta, g, m1..mN, l1..lN). The line is written at
-/// `p` (room for case_line_bound characters); returns its end.
+/// One output row of `average --cases`: the input fields as written, then the `chosen` cells of
+/// the averages' record, appended to `line`. `columns` are the canonical column names (beta, g,
+/// m1..mN, l1..lN).
 template <class Real>
-char* write_case(char* p, const CasesFile& file, const CaseRow& row,
-                 const std::vector<std::string>& columns, std::span<const CaseColumn> output,
-                 const AverageOptions& options, CaseScratch<Real>& scratch,
-                 std::span<const double> checked = {}) {
+void write_case(std::string& line, const CasesFile& file, const CaseRow& row,
+                const std::vector<std::string>& columns, std::span<const std::size_t> chosen,
+                const AverageOptions& options, CaseScratch<Real>& scratch,
+                std::span<const double> checked = {}) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
   auto& fields = scratch.fields;
   fields.resize(columns.size());
   case_fields(file, row, fields);
   const std::size_t n = file.particles;
-  const int digits = options.digits;
   Real beta;
   std::optional<Chain<Real>> parsed;
   if constexpr (std::is_same_v<Real, double>) {
@@ -789,92 +537,12 @@ char* write_case(char* p, const CasesFile& file, const CaseRow& row,
     beta = parse_real<Real>(fields[0], columns[0], Domain::positive);
     parsed.emplace(case_chain<Real>(fields, columns, n, scratch.masses, scratch.lengths));
   }
-  const Chain<Real>& chain = *parsed;
-  const Averages<Real> averages = average(chain, beta, options, scratch.workspace);
-  const auto put = [&p](std::string_view text) {
-    std::memcpy(p, text.data(), text.size());
-    p += text.size();
-  };
-  for (const std::string_view field : fields) {
-    put(field);
-    *p++ = ',';
-  }
-  // An observable of particle i (an engine that left it out leaves the field empty).
-  const auto value = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
-    if (i < estimates.size()) p = write_decimal(p, estimates[i].value, digits);
-  };
-  const bool upward = upward_errors(averages);
-  const auto error = [&](const std::vector<Estimate<Real>>& estimates, std::size_t i) {
-    if (i < estimates.size())
-      p = write_decimal(p, printed_error(estimates[i].value, estimates[i].error, digits, upward),
-                        error_digits);
-  };
-  const auto kind_of = [&](const std::vector<Estimate<Real>>& estimates) {
-    return error_kind_name(estimates.empty() ? averages.error_kind : estimates.front().kind);
-  };
-  // Var K_i = beta^2 Var K_i / beta^2 and its error, printed as averages_text prints them
-  // (write_quotient), so that these columns equal table's and `average`'s: formed once a row,
-  // at the first of its columns, as "value,error" for each particle.
-  std::string& variance_text = scratch.variance_text;
-  std::vector<std::size_t>& variance_at = scratch.variance_at;  // start, comma of particle i
-  variance_at.clear();
-  const auto variance = [&](std::size_t i, bool of_error) {
-    if (variance_at.empty()) {
-      const quotient_t<Real> beta2 = quotient_t<Real>(beta) * quotient_t<Real>(beta);
-      variance_text.resize(n * 2 * (decimal_max_length(digits) + 1));
-      char* v = variance_text.data();
-      for (const Estimate<Real>& e : averages.beta2_kinetic_variance) {
-        char* const first = v;
-        v = write_quotient(v, e.value, e.error, beta2, digits, ',', upward);
-        variance_at.push_back(static_cast<std::size_t>(first - variance_text.data()));
-        variance_at.push_back(
-            static_cast<std::size_t>(std::find(first, v, ',') - variance_text.data()));
-      }
-      variance_at.push_back(static_cast<std::size_t>(v - variance_text.data()));
-    }
-    if (2 * i + 2 >= variance_at.size()) return;
-    const std::size_t begin = of_error ? variance_at[2 * i + 1] + 1 : variance_at[2 * i];
-    const std::size_t end = of_error ? variance_at[2 * i + 2] : variance_at[2 * i + 1];
-    put(std::string_view(variance_text.data() + begin, end - begin));
-  };
-  for (const CaseColumn& column : output) {
-    const std::size_t i = column.particle;
-    switch (column.field) {
-      case CaseField::beta_kinetic: value(averages.beta_kinetic, i); break;
-      case CaseField::beta_kinetic_error: error(averages.beta_kinetic, i); break;
-      case CaseField::ratio:
-        if (averages.ratio) p = write_decimal(p, averages.ratio->value, digits);
-        break;
-      case CaseField::cos_angle: value(averages.cos_angle, i); break;
-      case CaseField::method: put(method_name(averages.method)); break;
-      case CaseField::evaluations: p = std::to_chars(p, p + 24, averages.evaluations).ptr; break;
-      case CaseField::ratio_error:
-        if (averages.ratio)
-          p = write_decimal(
-              p, printed_error(averages.ratio->value, averages.ratio->error, digits, upward),
-              error_digits);
-        break;
-      case CaseField::cos_angle_error: error(averages.cos_angle, i); break;
-      case CaseField::variance: variance(i, false); break;
-      case CaseField::variance_error: variance(i, true); break;
-      case CaseField::error_kind: put(error_kind_name(averages.error_kind)); break;
-      case CaseField::converged: put(averages.converged ? "true" : "false"); break;
-      case CaseField::cos_angle_error_kind: put(kind_of(averages.cos_angle)); break;
-      case CaseField::variance_error_kind: put(kind_of(averages.beta2_kinetic_variance)); break;
-      case CaseField::work_unit: put(work_unit_name(averages.work_unit)); break;
-      case CaseField::equipartition_residual:
-        p = write_decimal(p, averages.equipartition_residual, error_digits);
-        break;
-      case CaseField::kinetic_canonical: value(averages.beta_kinetic_canonical, i); break;
-      case CaseField::kinetic_canonical_error: error(averages.beta_kinetic_canonical, i); break;
-      case CaseField::kinetic_canonical_error_kind:
-        put(kind_of(averages.beta_kinetic_canonical));
-        break;
-    }
-    *p++ = ',';
-  }
-  p[-1] = '\n';
-  return p;
+  const Averages<Real> averages = average(*parsed, beta, options, scratch.workspace);
+  scratch.record.reset(io::averages_fields(), n);
+  io::append_averages(scratch.record, averages, &beta, io::Printing{options.digits});
+  for (const std::string_view field : fields) (line += field) += ',';
+  io::append_csv_cells(line, scratch.record, chosen);
+  line.back() = '\n';
 }
 
 /// Thread CPU time in microseconds (CLOCK_THREAD_CPUTIME_ID: a system call, ~0.5 us).
@@ -998,7 +666,7 @@ std::string cases_header(const CasesFile& file, const std::string& path,
                          const AverageOptions& settings, const std::vector<std::string>& columns,
                          const std::vector<std::string>& output_names, bool provenance) {
   const std::size_t n = file.particles;
-  std::string header;
+  std::string header = io::schema_line();
   if (provenance) {
     header += "# pendavg average --cases: " + std::to_string(file.rows.size()) +
               " rows of N = " + std::to_string(n) + ", cases file fnv1a-64 " +
@@ -1097,22 +765,20 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   const int threads = hardware_threads();
   const CasesPlan plan = plan_cases(file, settings, threads);
   // The output columns after the input ones: all of them, or --columns' choice.
-  const std::vector<std::string> all_names =
-      plan.microcanonical ? microcanonical_case_columns(n, file.state)
-                          : canonical_case_column_names(n);
+  const std::vector<std::string> all_names = io::column_names(
+      plan.microcanonical ? io::microcanonical_fields(file.state) : io::averages_fields(), n);
   std::vector<std::size_t> chosen;
+  std::vector<std::string> output_names;
   if (where.columns) {
-    chosen = select_case_columns(*where.columns, all_names, columns, n);
+    try {
+      chosen = io::select_columns(*where.columns, all_names, columns, n, output_names);
+    } catch (const std::invalid_argument& bad) {
+      throw usage_error("average: --columns: " + std::string(bad.what()));
+    }
   } else {
     chosen.resize(all_names.size());
     for (std::size_t k = 0; k < chosen.size(); ++k) chosen[k] = k;
-  }
-  std::vector<std::string> output_names;
-  for (const std::size_t k : chosen) output_names.push_back(all_names[k]);
-  std::vector<CaseColumn> printed;
-  if (!plan.microcanonical) {
-    const std::vector<CaseColumn> all = canonical_case_columns(n);
-    for (const std::size_t k : chosen) printed.push_back(all[k]);
+    output_names = all_names;
   }
 
   const auto line_context = [&](std::size_t k) {
@@ -1176,19 +842,18 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   sweep.progress = "average";
   sweep.row_bytes = 1;
   for (const CaseRow& row : rows)
-    sweep.row_bytes = std::max(sweep.row_bytes, case_line_bound(row, n, digits) +
-                                                     decimal_max_length(digits) + 1);
+    sweep.row_bytes = std::max(sweep.row_bytes, 2 * row.size + 1 + all_names.size() *
+                                                    (decimal_max_length(digits) + 1));
+  std::vector<std::optional<io::Record>> micro_records(static_cast<std::size_t>(threads));
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
     if (plan.microcanonical) {
-      microcanonical_case<Real>(text, file, rows[k], columns, chosen, plan.micro, digits);
+      auto& record = micro_records[static_cast<std::size_t>(thread)];
+      if (!record) record.emplace();
+      microcanonical_case<Real>(text, file, rows[k], columns, chosen, plan.micro, digits, *record);
       return;
     }
-    const std::size_t start = text.size();
-    text.resize(start + case_line_bound(rows[k], n, digits));
-    char* end = write_case<Real>(text.data() + start, file, rows[k], columns, printed,
-                                 plan.options, scratch_of(thread),
-                                 checked ? checked->row_if_stored(k) : std::span<const double>{});
-    text.resize(static_cast<std::size_t>(end - text.data()));
+    write_case<Real>(text, file, rows[k], columns, chosen, plan.options, scratch_of(thread),
+                     checked ? checked->row_if_stored(k) : std::span<const double>{});
   };
   // A row that fails once the sweep runs (the check above passed it) does not cost the others:
   // it becomes a '# failed:' line in its place, and the run ends with rows_failed (exit 3).
@@ -1223,23 +888,22 @@ std::string average_cases(const CasesFile& file, const std::string& path,
 std::string average_command(const Options& options) {
   const AverageOptions settings = average_settings(options);
   if (!options.has("cases")) {
-    for (const std::string_view cases_only :
-         {"timing", "timing-rows", "output", "resume", "columns"})
+    for (const std::string_view cases_only : {"timing", "timing-rows", "resume", "columns"})
       if (options.has(cases_only))
         throw usage_error("average: --" + std::string(cases_only) + " is for --cases only");
-    constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
-    const Format format = format_option(options, "json", formats);
+    const Format format = format_option(options, "csv", all_formats);
     const std::string_view state = state_option(options);
     if (state != "beta" && settings.certified)
       throw usage_error("average: --certified is for canonical averages (--beta), not --" +
                         std::string(state));
+    check_output_option(options, "average");
     if (state != "beta")
-      return with_number_type(settings.digits, [&]<class Real>() {
-        return microcanonical_one<Real>(options, settings, state, format);
-      });
-    return with_number_type(settings.digits, [&]<class Real>() {
-      return average_one<Real>(options, settings, format);
-    });
+      return deliver(options, "average", with_number_type(settings.digits, [&]<class Real>() {
+                       return microcanonical_one<Real>(options, settings, state, format);
+                     }));
+    return deliver(options, "average", with_number_type(settings.digits, [&]<class Real>() {
+                     return average_one<Real>(options, settings, format);
+                   }));
   }
   for (const std::string_view single : {"masses", "lengths", "g", "beta", "energy", "excitation"})
     if (options.has(single))
@@ -1276,100 +940,6 @@ std::string average_command(const Options& options) {
 
 // ---------------------------------------------------------------- limit
 
-/// One limit as `limit` reports it: its values as text, its run and its wall time.
-struct LimitReport {
-  std::string_view name;  ///< high_temperature or low_temperature (the JSON key)
-  std::string_view label; ///< "beta -> 0" or "beta -> inf" (text)
-  AveragesText values;
-  std::string run;  ///< the torus or transfer run as a JSON object, or "null"
-  double seconds;
-};
-
-std::string limit_json(const LimitReport& r) {
-  const AveragesText& limit = r.values;
-  return JsonObject()
-      .strings("beta_K", limit.beta_kinetic)
-      .strings("error", limit.error)
-      .raw("ratio", json_nullable(limit.ratio))
-      .strings("var_K_beta2", limit.beta2_variance)
-      .string("method", limit.method)
-      .string("error_kind", limit.error_kind)
-      .raw("ratio_error", json_nullable(limit.ratio_error))
-      .strings("cos_phi", limit.cos_angle)
-      .strings("cos_phi_error", limit.cos_angle_error)
-      .strings("var_K_beta2_error", limit.beta2_variance_error)
-      .raw("error_kinds", JsonObject()
-                              .string("beta_K", limit.error_kind)
-                              .string("ratio", limit.error_kind)
-                              .string("cos_phi", limit.cos_angle_error_kind)
-                              .string("var_K_beta2", limit.variance_error_kind)
-                              .string("beta_Kc", limit.beta_kinetic_canonical_error_kind)
-                              .str())
-      .integer("evaluations", static_cast<long long>(limit.evaluations))
-      .string("work_unit", limit.work_unit)
-      // as `average` prints them (the wall time of both limits is the top level's seconds)
-      .boolean("converged", limit.converged)
-      .raw("run", r.run)
-      .string("equipartition_residual", limit.equipartition_residual)
-      .strings("beta_Kc", limit.beta_kinetic_canonical)
-      .strings("beta_Kc_error", limit.beta_kinetic_canonical_error)
-      .str();
-}
-
-/// `limit --format csv`: a row per limit with `average --format csv`'s columns (beta, <K_i>
-/// and Var K_i empty: a limit has no finite beta), then limit (its JSON key), beta^2 Var K_i
-/// with its errors, and the errors of beta<K_i^(c)> with their kind.
-std::string limit_csv(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
-  std::string out;
-  for (const LimitReport& limit : limits) {
-    const AveragesText& v = limit.values;
-    CsvLine line = average_csv_line(AverageReport{particles, "", digits, v, limit.run,
-                                                  limit.seconds});
-    line.add("limit", std::string(limit.name));
-    line.add_array("beta2_var_K", v.beta2_variance, particles);
-    line.add_array("beta2_var_K_error", v.beta2_variance_error, particles);
-    line.add_array("beta_Kc_error", v.beta_kinetic_canonical_error, particles);
-    line.add("beta_Kc_error_kind", v.beta_kinetic_canonical_error_kind);
-    if (out.empty()) append_csv_line(out, line.header);
-    append_csv_line(out, line.row);
-  }
-  return out;
-}
-
-void add_limit_rows(std::vector<std::vector<std::string>>& table, std::string_view name,
-                    const AveragesText& limit) {
-  for (std::size_t i = 0; i < limit.beta_kinetic.size(); ++i)
-    table.push_back({std::string(name), std::to_string(i + 1), limit.beta_kinetic[i],
-                     limit.error[i], limit.beta2_variance[i], limit.beta2_variance_error[i],
-                     i == 0 ? limit.ratio : "", limit.error_kind});
-}
-
-/// `limit --format text`: both limits in one table, then per limit what its errors promise,
-/// the work done, the equipartition residual and beta<K_i^(c)>.
-std::string limit_text(std::size_t particles, int digits, const std::vector<LimitReport>& limits) {
-  std::vector<std::vector<std::string>> table{{"limit", "i", "beta<K_i>", "error",
-                                               "beta^2 Var K_i", "error", "<K1>/<K2>",
-                                               "error kind"}};
-  for (const LimitReport& limit : limits) add_limit_rows(table, limit.label, limit.values);
-  std::string out = "N = " + std::to_string(particles) + ", digits = " + std::to_string(digits) +
-                    "\n" + aligned_table(table);
-  for (const LimitReport& limit : limits) {
-    const AveragesText& v = limit.values;
-    const std::string prefix = std::string(limit.label) + ": ";
-    const std::string lines = errors_and_work_text(v, limit.seconds, "beta^2 Var K_i");
-    for (std::size_t begin = 0; begin < lines.size();) {
-      const std::size_t end = lines.find('\n', begin) + 1;
-      out += prefix + lines.substr(begin, end - begin);
-      begin = end;
-    }
-    out += prefix + "|sum_i beta<K_i> - N/2| = " + v.equipartition_residual +
-           ", beta<K_i^(c)> = " +
-           (v.beta_kinetic_canonical.empty() ? "" : v.beta_kinetic_canonical.front()) + " (" +
-           v.beta_kinetic_canonical_error_kind + ")\n";
-  }
-  return out;
-}
-
 template <class Real>
 std::string limit_report(const Options& options, int digits, Format format) {
   const Chain<Real> chain = chain_option<Real>(options, false);
@@ -1392,34 +962,28 @@ std::string limit_report(const Options& options, int digits, Format format) {
   const Averages<Real> low_values = low_temperature_limit(chain, settings);
   const double low_seconds = low_watch.seconds();
   const Real* no_beta = nullptr;
-  const std::vector<LimitReport> limits{
-      {"high_temperature", "beta -> 0", averages_text(high_values, digits, no_beta),
-       run_json(high_values), high_seconds},
-      {"low_temperature", "beta -> inf", averages_text(low_values, digits, no_beta),
-       run_json(low_values), low_seconds}};
-  if (format == Format::text)
-    return limit_text(chain.size(), digits, limits) +
-           (high_values.interrupted
-                ? "interrupted: the beta -> 0 limit's last finished level is reported\n"
-                : "");
-  if (format == Format::csv) return limit_csv(chain.size(), digits, limits);
-  std::string json = JsonObject()
-                         .integer("N", static_cast<long long>(chain.size()))
-                         .integer("digits", digits)
-                         .raw("high_temperature", limit_json(limits[0]))
-                         .raw("low_temperature", limit_json(limits[1]))
-                         .raw("seconds", seconds_text(high_seconds + low_seconds))
-                         .str();
-  if (high_values.interrupted) json.insert(json.rfind('}'), ", \"interrupted\": true");
-  return json + "\n";
+  const io::Printing printing{digits};
+  io::Record inputs(io::chain_input_fields(), chain.size());
+  io::append_chain_inputs(inputs, chain, printing, input_texts(options, "", chain.size()));
+  io::Record high(io::averages_fields(), chain.size()), low(io::averages_fields(), chain.size());
+  io::append_averages(high, high_values, no_beta, printing);
+  io::append_averages(low, low_values, no_beta, printing);
+  const io::Report report{"limit",
+                          {&inputs},
+                          {{"high_temperature", {&high}, run_json(high_values)},
+                           {"low_temperature", {&low}, run_json(low_values)}},
+                          "limit",
+                          high_seconds + low_seconds};
+  return io::format_report(report, format);
 }
 
 std::string limit_command(const Options& options) {
   const int digits = parse_digits(options.get("digits", "16"));
-  constexpr std::array<std::string_view, 3> formats{"json", "csv", "text"};
-  const Format format = format_option(options, "json", formats);
-  return with_number_type(
-      digits, [&]<class Real>() { return limit_report<Real>(options, digits, format); });
+  const Format format = format_option(options, "csv", all_formats);
+  check_output_option(options, "limit");
+  return deliver(options, "limit", with_number_type(digits, [&]<class Real>() {
+                   return limit_report<Real>(options, digits, format);
+                 }));
 }
 
 // ---------------------------------------------------------------- series
@@ -1513,8 +1077,8 @@ constexpr std::array<std::string_view, 19> average_options{
 constexpr std::array<std::string_view, 1> merge_options{"output"};
 constexpr std::array<std::string_view, 2> average_flags{"timing", "certified"};
 constexpr std::array<std::string_view, 1> limit_flags{"certified"};
-constexpr std::array<std::string_view, 5> limit_options{"masses", "lengths", "g", "digits",
-                                                        "format"};
+constexpr std::array<std::string_view, 6> limit_options{"masses", "lengths", "g", "digits",
+                                                        "format", "output"};
 constexpr std::array<std::string_view, 7> series_options{"masses", "lengths", "g",     "beta",
                                                          "digits", "terms",   "format"};
 

@@ -6,6 +6,8 @@
 
 #include "pendavg/microcanonical.hpp"
 #include "pendavg/result.hpp"
+#include "io/number_text.hpp"
+#include "io/report.hpp"
 
 #include <cstddef>
 #include <span>
@@ -16,75 +18,18 @@
 
 namespace pendavg::cli {
 
-enum class Format { json, csv, text };
+using io::append_decimal;
+using io::check_printed_quotients;
+using io::decimal;
+using io::decimal_max_length;
+using io::error_digits;
+using io::printed_error;
+using io::quotient_t;
+using io::upward_errors;
+using io::write_decimal;
+using io::write_quotient;
 
-/// Significant digits of an error estimate.
-inline constexpr int error_digits = 3;
-
-/// Appends x in scientific notation with `digits` significant digits, e.g. 3.43e-01 for 3.
-template <class Real>
-void append_decimal(std::string& out, const Real& x, int digits);
-
-/// Longest text write_decimal produces for `digits` significant digits.
-inline constexpr std::size_t decimal_max_length(int digits) {
-  return static_cast<std::size_t>(digits) + 24;  // sign, point, e, exponent sign and digits
-}
-
-/// Writes append_decimal's text of x at `out` (room for decimal_max_length(digits) chars) and
-/// returns its end.
-template <class Real>
-char* write_decimal(char* out, const Real& x, int digits);
-
-/// The printed error of a value printed with `digits` digits (printed_errors, one value).
-/// `upward` (certified results, Method::certified_integral): the error is a proven bound and
-/// stays one when printed -- it also covers the rounding of a quotient formed from the value
-/// (write_quotient: 2^(1-p) |value|, p the value's bits) and is enlarged by 1/64 so that its
-/// error_digits-digit decimal, rounded to nearest, is not below it.
-template <class Real>
-Real printed_error(const Real& value, const Real& error, int digits, bool upward = false);
-
-/// Whether a result's printed errors must stay bounds (printed_error's `upward`).
-template <class Real>
-bool upward_errors(const Averages<Real>& averages) {
-  return averages.method == Method::certified_integral;
-}
-
-
-/// Where a quotient value / divisor (<K_i> = beta<K_i>/beta, Var K_i = beta^2 Var K_i/beta^2) is
-/// formed: long double for a double run (beta < 1e-154 leaves double's range), MPFR for MPFR.
-template <class Real>
-using quotient_t = std::conditional_t<std::is_same_v<Real, double>, long double, Real>;
-
-/// Writes value / divisor (`digits` digits) and, after `separator`, its printed error (error /
-/// divisor plus the printing's rounding, error_digits digits); returns the end. For a double run
-/// both quotients are rounded to double when they are normal doubles (or 0), so that nearly
-/// every row takes the fast double printer; every front end prints quotients through here.
-/// A double run prints <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i / beta^2 beside the
-/// beta-scaled values: refused before any work (invalid_input) where beta^2 is not a normal
-/// double (beta outside 1.5e-154..1.3e154), since Var K_i would then overflow or underflow.
-/// Nothing to check in MPFR.
-template <class Real>
-void check_printed_quotients(const Real& beta) {
-  if constexpr (std::is_same_v<Real, double>) {
-    if (!(beta >= 1.5e-154 && beta <= 1.3e154))
-      throw invalid_input("at beta outside 1.5e-154..1.3e154 a double run's Var K_i = beta^2 "
-                          "Var K_i / beta^2 leaves double's range");
-  } else {
-    (void)beta;
-  }
-}
-
-template <class Real>
-char* write_quotient(char* out, const Real& value, const Real& error,
-                     const quotient_t<Real>& divisor, int digits, char separator,
-                     bool upward = false);
-
-template <class Real>
-std::string decimal(const Real& x, int digits) {
-  std::string out;
-  append_decimal(out, x, digits);
-  return out;
-}
+using io::Format;
 
 /// The averages of one run as decimal strings, converted once and shared by every format. Every
 /// printed error covers its printed value: the computed error plus half a unit in the value's
@@ -165,7 +110,6 @@ std::string aligned_table(const std::vector<std::vector<std::string>>& rows);
 /// {"stem1", "stem2", ...}: column names for a per-particle array.
 std::vector<std::string> indexed_names(std::string_view stem, std::size_t count);
 
-/// A wall time in seconds as a JSON number with 6 significant digits.
-std::string seconds_text(double seconds);
+using io::seconds_text;
 
 }  // namespace pendavg::cli

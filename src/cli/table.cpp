@@ -11,6 +11,9 @@
 #include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
+
+#include "io/record.hpp"
+#include "io/results.hpp"
 #include "interrupt.hpp"
 #include "sweep.hpp"
 #include "shard.hpp"
@@ -283,103 +286,60 @@ struct Point {
   }
 };
 
-/// Appends `values` and then empty cells up to `width` (a row shorter than the largest N).
-void add_padded(std::vector<std::string>& fields, const std::vector<std::string>& values,
-                std::size_t width) {
-  fields.insert(fields.end(), values.begin(), values.end());
-  fields.insert(fields.end(), width - values.size(), std::string());
-}
-
-/// One row of a microcanonical sweep (see the usage text for its columns).
+/// The chain of a row, read from its decimal strings (exactly, also in MPFR).
 template <class Real>
-std::string microcanonical_row(const Point& point, const TablePlan& plan) {
-  std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
-  if constexpr (!std::is_same_v<Real, double>)
-    precision.emplace(point.options.digits + guard_digits);
-  const std::size_t n = point.particles;
-  const int digits = point.options.digits;
+Chain<Real> point_chain(const Point& point) {
   const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
   std::vector<Real> masses, lengths;
   for (const std::string& mass : point.masses)
     masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
   for (const std::string& length : point.lengths)
     lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
-  const Chain<Real> chain(std::move(masses), std::move(lengths), g);
-  const MicrocanonicalOptions options = microcanonical_options(point.options, n);
-  const Real state =
-      microcanonical_state(chain, plan.state, point.beta, "--" + plan.state, options);
-  const MicrocanonicalAverages<Real> averages =
-      plan.state == "excitation" ? microcanonical_average_excitation(chain, state, options)
-                                 : microcanonical_average(chain, state, options);
-  const MicrocanonicalText text = microcanonical_text(averages, digits);
-
-  const std::size_t width = plan.columns_particles;
-  std::vector<std::string> fields{std::to_string(n), std::to_string(digits), point.beta, point.g};
-  add_padded(fields, point.masses, width);
-  add_padded(fields, point.lengths, width);
-  add_padded(fields, text.kinetic, width);
-  add_padded(fields, text.kinetic_error, width);
-  fields.push_back(text.kinetic_canonical);
-  add_padded(fields, text.cos_angle, width);
-  add_padded(fields, text.variance, width);
-  fields.push_back(text.method);
-  fields.push_back(std::to_string(text.evaluations));
-  fields.push_back(text.converged ? "true" : "false");
-  fields.push_back(text.error_kind);
-  fields.push_back(text.kinetic_canonical_error);
-  add_padded(fields, text.cos_angle_error, width);
-  add_padded(fields, text.variance_error, width);
-  fields.push_back(plan.state == "energy" ? text.excitation : text.energy);
-  fields.insert(fields.end(), {text.kinetic_total, text.kinetic_total_error,
-                               text.density_of_states, text.density_of_states_error,
-                               text.work_unit});
-  std::string out;
-  append_csv_line(out, fields);
-  return out;
+  return Chain<Real>(std::move(masses), std::move(lengths), g);
 }
 
+/// A row's inputs as written: the state (beta, energy or excitation), g, m1..mN, l1..lN.
+std::vector<std::string_view> point_texts(const Point& point, bool with_state) {
+  std::vector<std::string_view> texts;
+  if (with_state) texts.push_back(point.beta);
+  texts.push_back(point.g);
+  for (const std::string& mass : point.masses) texts.push_back(mass);
+  for (const std::string& length : point.lengths) texts.push_back(length);
+  return texts;
+}
+
+/// One row of a table: the inputs, then the averages, as table_columns names them.
 template <class Real>
 std::string table_row(const Point& point, const TablePlan& plan) {
-  if (plan.microcanonical()) return microcanonical_row<Real>(point, plan);
   std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
-  const std::size_t n = point.particles;
-  const int digits = point.options.digits;
-  const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
-  const Real g = parse_real<Real>(point.g, "--g", Domain::nonnegative);
-  std::vector<Real> masses, lengths;
-  for (const std::string& mass : point.masses)
-    masses.push_back(parse_real<Real>(mass, "mass", Domain::positive));
-  for (const std::string& length : point.lengths)
-    lengths.push_back(parse_real<Real>(length, "length", Domain::positive));
-  const Chain<Real> chain(std::move(masses), std::move(lengths), g);
-  const Averages<Real> averages = average(chain, beta, point.options);
-  const AveragesText text = averages_text(averages, digits, &beta);
-
+  const io::Printing printing{point.options.digits};
   const std::size_t width = plan.columns_particles;
-  std::vector<std::string> fields{std::to_string(n), std::to_string(digits), point.beta, point.g};
-  add_padded(fields, point.masses, width);
-  add_padded(fields, point.lengths, width);
-  add_padded(fields, text.beta_kinetic, width);
-  add_padded(fields, text.error, width);
-  fields.push_back(text.ratio);
-  add_padded(fields, text.cos_angle, width);
-  add_padded(fields, text.variance, width);
-  add_padded(fields, text.diagonal_approximation, width);
-  fields.push_back(text.method);
-  fields.push_back(std::to_string(text.evaluations));
-  fields.push_back(text.converged ? "true" : "false");
-  fields.push_back(text.error_kind);
-  fields.push_back(text.ratio_error);
-  add_padded(fields, text.cos_angle_error, width);
-  add_padded(fields, text.variance_error, width);
-  fields.insert(fields.end(), {text.cos_angle_error_kind, text.variance_error_kind,
-                               text.work_unit, text.equipartition_residual});
-  add_padded(fields, text.beta_kinetic_canonical, width);
-  add_padded(fields, text.beta_kinetic_canonical_error, width);
-  fields.push_back(text.beta_kinetic_canonical_error_kind);
+  const Chain<Real> chain = point_chain<Real>(point);
+  io::Record inputs, values;
+  if (plan.microcanonical()) {
+    const MicrocanonicalOptions options = microcanonical_options(point.options, point.particles);
+    const Real state =
+        microcanonical_state(chain, plan.state, point.beta, "--" + plan.state, options);
+    const MicrocanonicalAverages<Real> averages =
+        plan.state == "excitation" ? microcanonical_average_excitation(chain, state, options)
+                                   : microcanonical_average(chain, state, options);
+    inputs.reset(io::microcanonical_input_fields(plan.state), width);
+    io::append_microcanonical_inputs(inputs, chain, state, printing, point_texts(point, true));
+    values.reset(io::microcanonical_fields(plan.state), width);
+    io::append_microcanonical(values, averages, printing);
+  } else {
+    const Real beta = parse_real<Real>(point.beta, "--beta", Domain::positive);
+    const Averages<Real> averages = average(chain, beta, point.options);
+    inputs.reset(io::canonical_input_fields(), width);
+    io::append_canonical_inputs(inputs, chain, beta, printing, point_texts(point, true));
+    values.reset(io::averages_fields(), width);
+    io::append_averages(values, averages, &beta, printing);
+  }
   std::string out;
-  append_csv_line(out, fields);
+  io::append_csv_cells(out, inputs);
+  io::append_csv_cells(out, values);
+  out.back() = '\n';
   return out;
 }
 
@@ -471,8 +431,12 @@ void check_point(const Point& point) {
 std::string row_key(const Point& point, std::size_t width) {
   std::vector<std::string> fields{std::to_string(point.particles),
                                   std::to_string(point.options.digits), point.beta, point.g};
-  add_padded(fields, point.masses, width);
-  add_padded(fields, point.lengths, width);
+  const auto add_padded = [&](const std::vector<std::string>& values) {
+    fields.insert(fields.end(), values.begin(), values.end());
+    fields.insert(fields.end(), width - values.size(), std::string());
+  };
+  add_padded(point.masses);
+  add_padded(point.lengths);
   std::string key;
   append_csv_line(key, fields);
   key.pop_back();
@@ -717,42 +681,17 @@ TableTarget parse_table_target(const Options& options) {
   return t;
 }
 
-/// The column names of a table's rows (see the usage text).
+/// The column names of a table's rows: the inputs, then the averages (src/io/results.hpp).
 std::vector<std::string> table_columns(const TablePlan& plan) {
-  std::vector<std::string> header{"N", "digits"};
-  const std::vector<std::string> cases = case_columns(plan.columns_particles, plan.state);
-  header.insert(header.end(), cases.begin(), cases.end());
-  const auto add_names = [&](std::string_view stem) {
-    const auto names = indexed_names(stem, plan.columns_particles);
-    header.insert(header.end(), names.begin(), names.end());
-  };
-  if (plan.microcanonical()) {
-    add_names("K");
-    add_names("K_error");
-    header.push_back("Kc");
-    add_names("cos_phi");
-    add_names("var_K");
-    header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "Kc_error"});
-    add_names("cos_phi_error");
-    add_names("var_K_error");
-    header.push_back(plan.state == "energy" ? "excitation" : "energy");
-    header.insert(header.end(), {"K_total", "K_total_error", "density_of_states",
-                                 "density_of_states_error", "work_unit"});
-    return header;
-  }
-  for (const std::string_view stem : {"beta_K", "error_K", "", "cos_phi", "var_K",
-                                      "diagonal_approx"}) {
-    if (stem.empty()) header.push_back("ratio");
-    else add_names(stem);
-  }
-  header.insert(header.end(), {"method", "evaluations", "converged", "error_kind", "ratio_error"});
-  add_names("cos_phi_error");
-  add_names("var_K_error");
-  header.insert(header.end(), {"cos_phi_error_kind", "var_K_error_kind", "work_unit",
-                               "equipartition_residual"});
-  add_names("beta_Kc");
-  add_names("beta_Kc_error");
-  header.push_back("beta_Kc_error_kind");
+  const std::size_t n = plan.columns_particles;
+  std::vector<std::string> header = io::column_names(
+      plan.microcanonical() ? io::microcanonical_input_fields(plan.state)
+                            : io::canonical_input_fields(),
+      n);
+  for (std::string& name : io::column_names(
+           plan.microcanonical() ? io::microcanonical_fields(plan.state) : io::averages_fields(),
+           n))
+    header.push_back(std::move(name));
   return header;
 }
 
@@ -761,7 +700,7 @@ std::vector<std::string> table_columns(const TablePlan& plan) {
 std::string table_header(const TableRequest& request, const TableMethods& m,
                          std::size_t row_count) {
   const TablePlan& plan = request.plan;
-  std::string out;
+  std::string out = io::schema_line();
   if (plan.chain) {
     out += "# pendavg table: chains of N = " + request.sweep_named("chain")->spec +
            " unit masses on unit links (m_i = l_i = 1)\n";

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/decimal.hpp -- fast exact scientific notation for doubles: the same characters as
+// src/io/decimal_fast.hpp -- fast exact scientific notation for doubles: the same characters as
 // std::to_chars(first, last, x, std::chars_format::scientific, digits - 1) (and printf's
 // "%.*e"), i.e. x correctly rounded to `digits` significant digits, ties to even.
 //
@@ -17,7 +17,7 @@
 #include <cstdint>
 #include <cstring>
 
-namespace pendavg::cli::detail {
+namespace pendavg::io::detail {
 
 /// Writes x with `digits` (1..17) significant digits in scientific notation to `out` (at
 /// least 26 chars); returns the end, or nullptr when x is outside the fast path's range.
@@ -144,4 +144,4 @@ inline char* scientific_fast(char* out, double x, int digits) {
   return p;
 }
 
-}  // namespace pendavg::cli::detail
+}  // namespace pendavg::io::detail

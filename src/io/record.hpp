@@ -1,0 +1,155 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// src/io/record.hpp -- one result as a record of named cells, and the writers that turn records
+// into JSON, CSV and text. Every result type has ONE field table (src/io/results.hpp); its
+// record is filled in that table's order, and every output -- JSON keys, CSV columns, the text
+// report, the Python result objects -- is generated from the table, so a name is spelled once.
+//
+// The schema (README "Output schema"): a value X has X_error (an absolute error) and
+// X_error_kind (bound | estimate | statistical); a per-particle field X is a JSON array and
+// the CSV columns X1..XN (its error X1_error..XN_error: the error of X1); JSON numbers are
+// JSON numbers when the run is in double (the shortest text that reads back as the same
+// double) and decimal strings when it is in MPFR (more digits or range than a double).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace pendavg::io {
+
+/// Version of the output schema: the `schema` key of JSON, the `# schema:` line of CSV.
+inline constexpr int schema_version = 1;
+
+/// What a field holds.
+enum class Kind : unsigned char {
+  real,   ///< a real number (a value, an input)
+  error,  ///< an absolute error: error_digits significant digits, rounded up
+  count,  ///< a non-negative integer
+  text,   ///< a name: a method, an error kind, a unit
+  flag,   ///< true or false
+};
+
+enum class Shape : unsigned char { scalar, per_particle };
+
+/// One field of a result type's table.
+struct Field {
+  std::string_view name;     ///< the JSON key, the CSV column (per particle: its stem), Python's name
+  Kind kind;
+  Shape shape;
+  std::string_view meaning;  ///< one line, for the naming table and the Python docs
+};
+
+/// One cell of a record.
+struct Cell {
+  enum class Tag : unsigned char {
+    none,     ///< no value (a limit's <K_i>; <K1>/<K2> for N = 1): JSON null, empty CSV cell
+    number,   ///< a double (values: shortest text; errors: error_digits up)
+    decimal,  ///< decimal text (MPFR values and errors; inputs as written)
+    integer,
+    text,
+    flag,
+    input,    ///< a double run's input: CSV and text print it as written, JSON the double read
+  };
+  Tag tag = Tag::none;
+  bool flag = false;
+  std::uint32_t begin = 0, size = 0;  ///< decimal and text: where in Record::text
+  double number = 0;
+  long long integer = 0;
+};
+
+/// One result: its table's cells in order (a per-particle field gives `particles` consecutive
+/// cells). Filled by a result type's builder; reused from row to row without reallocating.
+class Record {
+ public:
+  Record() = default;
+  Record(std::span<const Field> fields, std::size_t particles) { reset(fields, particles); }
+
+  /// Empties the record for `fields` of a chain of `particles`.
+  void reset(std::span<const Field> fields, std::size_t particles);
+
+  std::span<const Field> fields() const { return fields_; }
+  std::size_t particles() const { return particles_; }
+  std::span<const Cell> cells() const { return cells_; }
+  /// The cells of the k-th field (one, or `particles` for a per-particle field).
+  std::span<const Cell> cells_of(std::size_t field) const;
+  /// The index of the field called `name`, or fields().size().
+  std::size_t find(std::string_view name) const;
+  /// A cell's text (decimal or text cells).
+  std::string_view text_of(const Cell& cell) const {
+    return {text_.data() + cell.begin, cell.size};
+  }
+
+  // Appenders, in the table's order (checked at the end of a builder by complete()).
+  void none();
+  void number(double x);
+  void decimal(std::string_view text);
+  /// Room for `size` characters of decimal text, then commit_decimal with its end.
+  char* decimal_room(std::size_t size);
+  void commit_decimal(const char* end);
+  void integer(long long n);
+  /// An input of a double run: `written` in CSV and text, x (shortest) in JSON.
+  void input(double x, std::string_view written);
+  void text(std::string_view name);
+  void flag(bool value);
+  /// Throws std::logic_error unless every field got its cells (a builder out of step with its
+  /// table is a bug, caught by every test that prints).
+  void complete() const;
+
+ private:
+  std::span<const Field> fields_;
+  std::size_t particles_ = 0;
+  std::vector<Cell> cells_;
+  std::vector<std::uint32_t> first_cell_;  ///< per field
+  std::string text_;
+  std::size_t pending_ = 0;  ///< decimal_room's start
+};
+
+/// The number of cells of `fields` for `particles`.
+std::size_t cell_count(std::span<const Field> fields, std::size_t particles);
+
+/// A field's CSV column for particle i (0-based): stem + (i + 1), the index before a trailing
+/// "_error" (beta_K_error -> beta_K1_error); a scalar field's name.
+std::string column_name(const Field& field, std::size_t i);
+
+/// The CSV columns of `fields` for `particles`, cell by cell.
+std::vector<std::string> column_names(std::span<const Field> fields, std::size_t particles);
+
+// ---------------------------------------------------------------- writers
+
+/// Appends `"name": value` for every field of `record`, separated by ", " (and one leading
+/// ", " when `out` already holds a member): a per-particle field is a JSON array.
+void append_json_members(std::string& out, const Record& record);
+/// Appends one JSON member `"key": value` (value already JSON).
+void append_json_member(std::string& out, std::string_view key, std::string_view json);
+/// A JSON string literal.
+std::string json_string(std::string_view text);
+
+/// Appends the cells `selection` (indices into record.cells(); all cells when empty) as CSV
+/// fields, each followed by a comma (the caller ends the line).
+void append_csv_cells(std::string& out, const Record& record,
+                      std::span<const std::size_t> selection = {});
+/// Writes one cell as CSV/JSON text (without quotes) at `out`; returns the end. Room:
+/// max_cell_length(record, cell).
+char* write_cell(char* out, const Record& record, const Cell& cell);
+std::size_t max_cell_length(const Record& record, const Cell& cell);
+
+/// The text report of records of one table: the per-particle fields as an aligned table (one
+/// row per particle, the field names as headers), then every scalar field as `name = value`,
+/// a value X with X_error and X_error_kind as `X = v +- e (kind)`.
+std::string text_report(const Record& record);
+
+/// --columns LIST: the cells of `columns` (a row's CSV column names) that LIST selects, in
+/// LIST's order. An item is a column name (cos_phi2), a per-particle stem (cos_phi: cos_phi1..N;
+/// cos_phi_error: cos_phi1_error..N) or a name of schema 0 (migration_name: error_K1). Throws
+/// std::invalid_argument (the message without a flag name) for an empty list or item, an unknown
+/// name, one of `inputs`, or a column selected twice. `headers` receives each selected column's
+/// header: the name as LIST gave it (an old name keeps its old header).
+std::vector<std::size_t> select_columns(std::string_view list,
+                                        const std::vector<std::string>& columns,
+                                        const std::vector<std::string>& inputs,
+                                        std::size_t particles, std::vector<std::string>& headers);
+
+}  // namespace pendavg::io

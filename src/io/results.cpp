@@ -1,0 +1,398 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// src/io/results.cpp -- the result types' field tables and record builders.
+#include "io/results.hpp"
+
+#include "io/number_text.hpp"
+
+#include "engine/precision.hpp"
+#include "engine/text.hpp"
+#include "pendavg/average.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+namespace pendavg::io {
+
+namespace {
+
+using K = Kind;
+constexpr Shape one = Shape::scalar, each = Shape::per_particle;
+
+constexpr Field canonical_inputs[] = {
+    {"N", K::count, one, "the number of particles (links) of the chain"},
+    {"digits", K::count, one, "significant digits requested (16: a double run; more: MPFR)"},
+    {"beta", K::real, one, "the inverse temperature beta = 1/(k_B T)"},
+    {"g", K::real, one, "the gravitational acceleration"},
+    {"m", K::real, each, "the masses m_i"},
+    {"l", K::real, each, "the link lengths l_i"},
+};
+
+constexpr Field chain_inputs[] = {
+    canonical_inputs[0], canonical_inputs[1], canonical_inputs[3], canonical_inputs[4],
+    canonical_inputs[5],
+};
+
+constexpr Field averages_table[] = {
+    {"method", K::text, one, "the method that computed the averages"},
+    {"beta_K", K::real, each, "beta<K_i>: the mean kinetic energy of particle i in units of k_B T"},
+    {"beta_K_error", K::error, each, "its absolute error"},
+    {"beta_K_error_kind", K::text, one, "what beta_K_error promises: bound, estimate or statistical"},
+    {"K", K::real, each, "<K_i> = beta<K_i>/beta, in energy units (empty for a limit)"},
+    {"K_error", K::error, each, "its absolute error"},
+    {"K_error_kind", K::text, one, "what K_error promises"},
+    {"ratio", K::real, one, "<K_1>/<K_2> (empty for N = 1)"},
+    {"ratio_error", K::error, one, "its absolute error"},
+    {"ratio_error_kind", K::text, one, "what ratio_error promises"},
+    {"cos_phi", K::real, each, "<cos phi_i>: the mean cosine of link i's angle from the vertical"},
+    {"cos_phi_error", K::error, each, "its absolute error"},
+    {"cos_phi_error_kind", K::text, one, "what cos_phi_error promises"},
+    {"var_K", K::real, each, "Var K_i = <K_i^2> - <K_i>^2, in energy units squared (empty for a limit)"},
+    {"var_K_error", K::error, each, "its absolute error"},
+    {"var_K_error_kind", K::text, one, "what var_K_error promises"},
+    {"beta2_var_K", K::real, each, "beta^2 Var K_i (dimensionless; finite in the limits)"},
+    {"beta2_var_K_error", K::error, each, "its absolute error"},
+    {"beta2_var_K_error_kind", K::text, one, "what beta2_var_K_error promises"},
+    {"beta_Kc", K::real, each,
+     "beta<K_i^(c)>, K_i^(c) = p_i phidot_i / 2: 1/2 exactly (generalized equipartition), a built-in check"},
+    {"beta_Kc_error", K::error, each, "its absolute error"},
+    {"beta_Kc_error_kind", K::text, one, "what beta_Kc_error promises (bound)"},
+    {"diagonal_approx", K::real, each,
+     "the paper's diagonal approximation of beta<K_i> (an approximation: no error)"},
+    {"equipartition_residual", K::error, one, "|sum_i beta<K_i> - N/2| after the computation"},
+    {"evaluations", K::count, one, "work done, in work_unit"},
+    {"work_unit", K::text, one, "what evaluations counts: terms, nodes, samples or steps"},
+    {"converged", K::flag, one, "false: the requested accuracy was not reached (the errors still hold)"},
+    {"interrupted", K::flag, one, "true: stopped early by a signal; the finished part is reported"},
+};
+
+// The microcanonical averages after the state given (energy or excitation): the other one first.
+#define PENDAVG_MICROCANONICAL_FIELDS \
+  {"ensemble", K::text, one, "microcanonical: averages on the energy shell H = E"}, \
+  {"method", K::text, one, "the quadrature of the microcanonical averages"}, \
+  {"K", K::real, each, "<K_i>_E: the mean kinetic energy of particle i at energy E"}, \
+  {"K_error", K::error, each, "its absolute error"}, \
+  {"K_error_kind", K::text, one, "what K_error promises"}, \
+  {"Kc", K::real, one, "<K_i^(c)>_E = <K>_E / N (the same for every particle)"}, \
+  {"Kc_error", K::error, one, "its absolute error"}, \
+  {"Kc_error_kind", K::text, one, "what Kc_error promises"}, \
+  {"cos_phi", K::real, each, "<cos phi_i>_E"}, \
+  {"cos_phi_error", K::error, each, "its absolute error"}, \
+  {"cos_phi_error_kind", K::text, one, "what cos_phi_error promises"}, \
+  {"var_K", K::real, each, "Var K_i on the energy shell"}, \
+  {"var_K_error", K::error, each, "its absolute error"}, \
+  {"var_K_error_kind", K::text, one, "what var_K_error promises"}, \
+  {"K_total", K::real, one, "<K>_E = E - <U>_E"}, \
+  {"K_total_error", K::error, one, "its absolute error"}, \
+  {"K_total_error_kind", K::text, one, "what K_total_error promises"}, \
+  {"density_of_states", K::real, one, "Omega(E), the normalizer of the shell average"}, \
+  {"density_of_states_error", K::error, one, "its absolute error"}, \
+  {"density_of_states_error_kind", K::text, one, "what density_of_states_error promises"}, \
+  {"proposal_beta", K::real, one, "qmc: beta* of the von Mises proposal (empty otherwise)"}, \
+  {"effective_sample_fraction", K::real, one, "qmc: (sum w)^2 / (n sum w^2) (empty otherwise)"}, \
+  {"evaluations", K::count, one, "work done, in work_unit"}, \
+  {"work_unit", K::text, one, "what evaluations counts"}, \
+  {"converged", K::flag, one, "false: the tolerance was not reached (the errors still hold)"}, \
+
+constexpr Field energy_field{"energy", K::real, one, "the energy E"};
+constexpr Field excitation_field{
+    "excitation", K::real, one, "D = E - E_min, E_min = -sum_j g S_j l_j the bottom of the well"};
+
+constexpr Field microcanonical_after_energy[] = {excitation_field, PENDAVG_MICROCANONICAL_FIELDS};
+constexpr Field microcanonical_after_excitation[] = {energy_field, PENDAVG_MICROCANONICAL_FIELDS};
+#undef PENDAVG_MICROCANONICAL_FIELDS
+
+constexpr Field energy_inputs[] = {canonical_inputs[0], canonical_inputs[1], energy_field,
+                                   canonical_inputs[3], canonical_inputs[4], canonical_inputs[5]};
+constexpr Field excitation_inputs[] = {canonical_inputs[0], canonical_inputs[1], excitation_field,
+                                       canonical_inputs[3], canonical_inputs[4],
+                                       canonical_inputs[5]};
+
+constexpr NamedTable tables[] = {
+    {"canonical inputs", canonical_inputs},
+    {"chain inputs (limit)", chain_inputs},
+    {"microcanonical inputs (--energy)", energy_inputs},
+    {"microcanonical inputs (--excitation)", excitation_inputs},
+    {"canonical averages", averages_table},
+    {"microcanonical averages (after --energy)", microcanonical_after_energy},
+    {"microcanonical averages (after --excitation)", microcanonical_after_excitation},
+};
+
+// ---------------------------------------------------------------- cells
+
+template <class Real>
+void put_value(Record& r, const Real& v, Printing p) {
+  if constexpr (std::is_same_v<Real, double>) {
+    r.number(v);
+  } else {
+    char* at = r.decimal_room(decimal_max_length(p.digits));
+    r.commit_decimal(write_decimal(at, v, p.digits));
+  }
+}
+
+/// The error of a value printed by put_value: a double run prints the value exactly, an MPFR
+/// run with p.digits digits (printed_error adds what that moves it by).
+template <class Real>
+void put_error(Record& r, const Real& value, const Real& e, Printing p) {
+  if constexpr (std::is_same_v<Real, double>) {
+    (void)value;
+    r.number(e);
+  } else {
+    char* at = r.decimal_room(decimal_max_length(error_digits));
+    r.commit_decimal(write_error(at, printed_error(value, e, p.digits)));
+  }
+}
+
+/// Values of a per-particle field (none past the end: an engine that left it out).
+template <class Real>
+void put_values(Record& r, const std::vector<Estimate<Real>>& es, std::size_t n, Printing p) {
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i < es.size()) put_value(r, es[i].value, p);
+    else r.none();
+  }
+}
+
+template <class Real>
+void put_errors(Record& r, const std::vector<Estimate<Real>>& es, std::size_t n, Printing p) {
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i < es.size()) put_error(r, es[i].value, es[i].error, p);
+    else r.none();
+  }
+}
+
+/// value / divisor and its error (error / divisor plus the quotient's rounding): a double run
+/// divides in long double (beta < 1e-154 leaves double's range for Var K_i's divisor) and rounds
+/// to double; a quotient outside double's normal range is refused rather than printed as 0.
+template <class Real>
+void put_quotients(Record& r, const std::vector<Estimate<Real>>& es, std::size_t n,
+                   const quotient_t<Real>& divisor, Printing p, bool errors) {
+  using Wide = quotient_t<Real>;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i >= es.size()) {
+      r.none();
+      continue;
+    }
+    const Wide q = Wide(es[i].value) / divisor;
+    Wide e = Wide(es[i].error) / divisor;
+    if constexpr (std::is_same_v<Real, double>) {
+      const double qd = static_cast<double>(q);
+      if (es[i].value != 0 && !std::isnormal(qd))
+        throw invalid_input("<K_i> = beta<K_i>/beta or Var K_i = beta^2 Var K_i/beta^2 is " +
+                            short_decimal(q) +
+                            ", outside double's normal range (2.2e-308..1.8e308) at this beta");
+      if (!errors) {
+        r.number(qd);
+        continue;
+      }
+      // the division in long double and the rounding to double: < 2^-52 |qd|
+      e += std::fabs(static_cast<long double>(qd)) * std::ldexp(1.0L, -52);
+      double ed = static_cast<double>(e);
+      if (static_cast<long double>(ed) < e) ed = std::nextafter(ed, HUGE_VAL);
+      r.number(ed);
+    } else {
+      if (!errors) {
+        put_value(r, q, p);
+        continue;
+      }
+      // the quotient's rounding in MPFR: <= 2^(1-prec) |q|
+      Real rounding = abs(q);
+      mpfr_mul_2si(rounding.backend().data(), rounding.backend().data(),
+                   1 - static_cast<long>(mpfr_get_prec(q.backend().data())), MPFR_RNDU);
+      put_error(r, q, Real(e + rounding), p);
+    }
+  }
+}
+
+template <class Real>
+ErrorKind kind_of(const std::vector<Estimate<Real>>& es, ErrorKind fallback) {
+  return es.empty() ? fallback : es.front().kind;
+}
+
+/// An input: as written in an MPFR run (when given), else the number it was read as.
+template <class Real>
+void put_input(Record& r, const Real& value, std::span<const std::string_view> texts,
+               std::size_t k, Printing p) {
+  if (k < texts.size()) {
+    if constexpr (std::is_same_v<Real, double>) r.input(value, texts[k]);
+    else r.decimal(texts[k]);
+    return;
+  }
+  put_value(r, value, p);
+}
+
+/// g, m_i, l_i; cells past the chain's N (a table row shorter than its widest) are empty.
+template <class Real>
+void put_chain(Record& r, const Chain<Real>& chain, std::span<const std::string_view> texts,
+               std::size_t first, Printing p) {
+  const std::size_t n = chain.size();
+  put_input(r, chain.gravity(), texts, first, p);
+  for (std::size_t i = 0; i < r.particles(); ++i) {
+    if (i < n) put_input(r, chain.mass(i), texts, first + 1 + i, p);
+    else r.none();
+  }
+  for (std::size_t i = 0; i < r.particles(); ++i) {
+    if (i < n) put_input(r, chain.length(i), texts, first + 1 + n + i, p);
+    else r.none();
+  }
+}
+
+}  // namespace
+
+std::span<const Field> canonical_input_fields() { return canonical_inputs; }
+std::span<const Field> chain_input_fields() { return chain_inputs; }
+std::span<const Field> averages_fields() { return averages_table; }
+std::span<const Field> microcanonical_input_fields(std::string_view state) {
+  if (state == "energy") return energy_inputs;
+  if (state == "excitation") return excitation_inputs;
+  throw std::logic_error("pendavg internal error: microcanonical state " + std::string(state));
+}
+std::span<const Field> microcanonical_fields(std::string_view state) {
+  return state == "energy" ? std::span<const Field>(microcanonical_after_energy)
+                           : std::span<const Field>(microcanonical_after_excitation);
+}
+std::span<const NamedTable> all_tables() { return tables; }
+
+template <class Real>
+void append_canonical_inputs(Record& r, const Chain<Real>& chain, const Real& beta,
+                             Printing p, std::span<const std::string_view> texts) {
+  r.integer(static_cast<long long>(chain.size()));
+  r.integer(p.digits);
+  put_input(r, beta, texts, 0, p);
+  put_chain(r, chain, texts, 1, p);
+}
+
+template <class Real>
+void append_chain_inputs(Record& r, const Chain<Real>& chain, Printing p,
+                                  std::span<const std::string_view> texts) {
+  r.integer(static_cast<long long>(chain.size()));
+  r.integer(p.digits);
+  put_chain(r, chain, texts, 0, p);
+}
+
+template <class Real>
+void append_microcanonical_inputs(Record& r, const Chain<Real>& chain, const Real& state,
+                                  Printing p, std::span<const std::string_view> texts) {
+  r.integer(static_cast<long long>(chain.size()));
+  r.integer(p.digits);
+  put_input(r, state, texts, 0, p);
+  put_chain(r, chain, texts, 1, p);
+}
+
+template <class Real>
+void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Printing p) {
+  const std::size_t n = r.particles();  // cells per particle field; beyond the chain's N, empty
+  // An error is printed rounded up, after printed_error added what printing the value moved it
+  // by: a bound (certified, Method::certified_integral) stays a bound.
+  const auto errors = [&](const std::vector<Estimate<Real>>& es) { put_errors(r, es, n, p); };
+  const auto kind = [&](ErrorKind k) { r.text(error_kind_name(k)); };
+  r.text(method_name(a.method));
+  put_values(r, a.beta_kinetic, n, p);
+  errors(a.beta_kinetic);
+  kind(a.error_kind);
+  using Wide = quotient_t<Real>;
+  if (beta) {
+    const Wide b = Wide(*beta);
+    put_quotients(r, a.beta_kinetic, n, b, p, false);
+    put_quotients(r, a.beta_kinetic, n, b, p, true);
+  } else {
+    for (std::size_t i = 0; i < 2 * n; ++i) r.none();
+  }
+  if (beta) kind(a.error_kind);
+  else r.none();
+  if (a.ratio) {
+    put_value(r, a.ratio->value, p);
+    put_error(r, a.ratio->value, a.ratio->error, p);
+  } else {
+    r.none();
+    r.none();
+  }
+  if (a.ratio) kind(a.error_kind);
+  else r.none();
+  put_values(r, a.cos_angle, n, p);
+  errors(a.cos_angle);
+  kind(kind_of(a.cos_angle, a.error_kind));
+  if (beta) {
+    const Wide b2 = Wide(*beta) * Wide(*beta);
+    put_quotients(r, a.beta2_kinetic_variance, n, b2, p, false);
+    put_quotients(r, a.beta2_kinetic_variance, n, b2, p, true);
+  } else {
+    for (std::size_t i = 0; i < 2 * n; ++i) r.none();
+  }
+  if (beta) kind(kind_of(a.beta2_kinetic_variance, a.error_kind));
+  else r.none();
+  put_values(r, a.beta2_kinetic_variance, n, p);
+  errors(a.beta2_kinetic_variance);
+  kind(kind_of(a.beta2_kinetic_variance, a.error_kind));
+  put_values(r, a.beta_kinetic_canonical, n, p);
+  errors(a.beta_kinetic_canonical);
+  kind(kind_of(a.beta_kinetic_canonical, ErrorKind::bound));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i < a.diagonal_approximation.size()) put_value(r, a.diagonal_approximation[i], p);
+    else r.none();
+  }
+  if constexpr (std::is_same_v<Real, double>) {
+    r.number(a.equipartition_residual);
+  } else {
+    char* at = r.decimal_room(decimal_max_length(error_digits));
+    r.commit_decimal(write_error(at, a.equipartition_residual));
+  }
+  r.integer(static_cast<long long>(a.evaluations));
+  r.text(work_unit_name(a.work_unit));
+  r.flag(a.converged);
+  r.flag(a.interrupted);
+  r.complete();
+}
+
+template <class Real>
+void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Printing p) {
+  const std::size_t n = r.particles();  // cells per particle field; beyond the chain's N, empty
+  const auto kind = [&] { r.text(error_kind_name(a.error_kind)); };
+  const auto scalar = [&](const Estimate<Real>& e) {
+    put_value(r, e.value, p);
+    put_error(r, e.value, e.error, p);
+    kind();
+  };
+  const auto array = [&](const std::vector<Estimate<Real>>& es) {
+    put_values(r, es, n, p);
+    put_errors(r, es, n, p);
+    kind();
+  };
+  // the state not given (the table's first field)
+  put_value(r, r.fields()[0].name == "energy" ? a.energy : a.excitation, p);
+  r.text("microcanonical");
+  r.text(method_name(a.quadrature));
+  array(a.kinetic);
+  scalar(a.kinetic_canonical);
+  array(a.cos_angle);
+  array(a.kinetic_variance);
+  scalar(a.kinetic_total);
+  scalar(a.density_of_states);
+  if (a.quadrature == Method::qmc) {
+    put_value(r, a.proposal_beta, p);
+    put_value(r, a.effective_sample_fraction, p);
+  } else {
+    r.none();
+    r.none();
+  }
+  r.integer(static_cast<long long>(a.evaluations));
+  r.text(work_unit_name(a.work_unit));
+  r.flag(a.converged);
+  r.complete();
+}
+
+#define PENDAVG_IO_RESULTS(Real)                                                                 \
+  template void append_canonical_inputs<Real>(Record&, const Chain<Real>&, const Real&, Printing, \
+                                              std::span<const std::string_view>);                \
+  template void append_chain_inputs<Real>(Record&, const Chain<Real>&, Printing,        \
+                                                   std::span<const std::string_view>);           \
+  template void append_microcanonical_inputs<Real>(Record&, const Chain<Real>&, const Real&,      \
+                                                   Printing, std::span<const std::string_view>); \
+  template void append_averages<Real>(Record&, const Averages<Real>&, const Real*, Printing);    \
+  template void append_microcanonical<Real>(Record&, const MicrocanonicalAverages<Real>&, Printing);
+PENDAVG_IO_RESULTS(double)
+PENDAVG_IO_RESULTS(mpfr_real)
+#undef PENDAVG_IO_RESULTS
+
+}  // namespace pendavg::io
