@@ -2,6 +2,8 @@
 // src/cli/shard.cpp -- see shard.hpp.
 #include "shard.hpp"
 
+#include "common.hpp"
+
 #include "files.hpp"
 #include "sweep.hpp"
 #include "sweep_file.hpp"
@@ -108,7 +110,7 @@ std::optional<Shard> shard_option(const Options& options, std::string_view comma
   return Shard(fraction->first, fraction->second, rows);
 }
 
-const std::string_view merge_usage =
+constexpr std::string_view merge_usage =
     "usage: pendavg merge --output FILE SHARD...\n"
     "\n"
     "Joins the files of the shards of one sweep (pendavg table or average with a cases file, run\n"
@@ -120,7 +122,7 @@ const std::string_view merge_usage =
     "or has extra rows. A '# failed:' line (a row that failed) is kept in its place; the merge\n"
     "then exits 3.\n";
 
-std::string merge_command(const Options& options) {
+std::string run_merge(const Options& options) {
   const std::string output(options.required("output"));
   if (output.empty()) refuse("--output needs a file name");
   const std::vector<std::string>& paths = options.operands();
@@ -186,5 +188,8 @@ std::string merge_command(const Options& options) {
                       "line in place of each; --resume the shards that have them, then merge again");
   return {};
 }
+
+constexpr std::array<std::string_view, 1> merge_options{"output"};
+const Command merge_command{"merge", merge_usage, merge_options, run_merge, {}, false, true};
 
 }  // namespace pendavg::cli

@@ -40,10 +40,4 @@ class Shard {
 std::optional<Shard> shard_option(const Options& options, std::string_view command,
                                   std::size_t rows);
 
-extern const std::string_view merge_usage;
-/// `pendavg merge --output FILE SHARD...`: the shards' rows in the order of the whole sweep,
-/// after their common header, written atomically. Refuses shards of different sweeps, a shard
-/// given twice, one missing, and a shard with rows missing (interrupted) or in excess.
-std::string merge_command(const Options& options);
-
 }  // namespace pendavg::cli

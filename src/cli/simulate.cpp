@@ -4,10 +4,9 @@
 // Thin: parse, call the library (dynamics.hpp, microcanonical.hpp, the canonical engines),
 // format. Progress goes to stderr; SIGINT/SIGTERM end a run early and the averages so far are
 // still printed (with "interrupted": true); files are written atomically.
-#include "simulate.hpp"
+#include "common.hpp"
 
 #include "average_options.hpp"
-#include "commands.hpp"
 #include "distribute.hpp"
 #include "exact_values.hpp"
 #include "files.hpp"
@@ -36,7 +35,7 @@
 
 namespace pendavg::cli {
 
-const std::string_view simulate_usage =
+constexpr std::string_view simulate_usage =
     "usage: pendavg simulate --masses M1,...,MN --lengths L1,...,LN [--g G]\n"
     "                        (--theta A | --phi P1,...,PN [--phidot W1,...,WN])\n"
     "                        --time T [--dt H] [--burn-in T0] [--integrator I]\n"
@@ -87,7 +86,7 @@ const std::string_view simulate_usage =
     "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
 
-const std::string_view poincare_usage =
+constexpr std::string_view poincare_usage =
     "usage: pendavg poincare --masses M1,M2 --lengths L1,L2 [--g G] --energy E\n"
     "                        [--orbits K] [--points P] [--dt H] [--output FILE.csv]\n"
     "\n"
@@ -851,7 +850,7 @@ std::string simulate_json(const SimulateRequest& request, const SimulateOutcome&
 
 }  // namespace
 
-std::string simulate_command(const Options& options) {
+std::string run_simulate(const Options& options) {
   const Chain<double> chain = parse_chain(options);
   const SimulateRequest request = parse_simulate_request(options, chain.size());
   if (request.replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
@@ -862,7 +861,7 @@ std::string simulate_command(const Options& options) {
   return request.csv ? simulate_csv(request, *outcome) : simulate_json(request, *outcome);
 }
 
-std::string poincare_command(const Options& options) {
+std::string run_poincare(const Options& options) {
   const Chain<double> chain = parse_chain(options);
   if (chain.size() != 2) throw usage_error("poincare: the section is for N = 2 (two masses)");
   const double energy = parse_real<double>(options.required("energy"), "--energy", Domain::any);
@@ -902,5 +901,14 @@ std::string poincare_command(const Options& options) {
   }
   return out;
 }
+
+constexpr std::array<std::string_view, 20> simulate_options{
+    "masses",     "lengths", "g",    "theta",  "phi",      "phidot",     "time",
+    "dt",         "burn-in", "integrator", "thermostat", "beta", "friction", "seed",
+    "exact",      "format",  "trajectory", "every", "replicas", "perturb"};
+constexpr std::array<std::string_view, 8> poincare_options{
+    "masses", "lengths", "g", "energy", "orbits", "points", "dt", "output"};
+const Command simulate_command{"simulate", simulate_usage, simulate_options, run_simulate, {}, true};
+const Command poincare_command{"poincare", poincare_usage, poincare_options, run_poincare};
 
 }  // namespace pendavg::cli

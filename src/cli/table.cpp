@@ -4,14 +4,14 @@
 // the sweep engine (sweep.hpp: every rank and thread, one thread per row, so the numbers do not
 // depend on either), streamed in a fixed order to stdout or to a file written atomically
 // (temporary file + rename), and an interrupted sweep can be resumed from its file.
-#include "table.hpp"
+#include "common.hpp"
 
 #include "average_options.hpp"
-#include "commands.hpp"
 #include "distribute.hpp"
 #include "files.hpp"
 #include "format.hpp"
 
+#include "io/exact_decimal.hpp"
 #include "io/record.hpp"
 #include "io/results.hpp"
 #include "interrupt.hpp"
@@ -44,7 +44,7 @@
 
 namespace pendavg::cli {
 
-const std::string_view table_usage =
+constexpr std::string_view table_usage =
     "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g SPEC]\n"
     "                     [--digits LIST] [--method auto|integral|series]\n"
     "                     [--output FILE.csv | --resume FILE.csv] [--shard K/N]\n"
@@ -118,9 +118,17 @@ const std::string_view table_usage =
 
 namespace {
 
+/// 1 - mu1 as an exact decimal (src/io/exact_decimal.hpp), refused as bad input.
+std::string one_minus_decimal(std::string_view x, std::string_view what) {
+  try {
+    return io::one_minus_decimal(x, what);
+  } catch (const std::invalid_argument& bad) {
+    throw usage_error(bad.what());
+  }
+}
+
 constexpr long max_sweep_points = 100000;         // values of one swept variable
 constexpr std::size_t max_sweep_rows = 100000000;  // rows of a table (they are streamed)
-constexpr int max_decimal_scale = 4000;  // digits after the point in one_minus_decimal
 
 /// Shortest round-trip decimal of a double.
 std::string shortest(double x) {
@@ -445,48 +453,6 @@ std::string row_key(const Point& point, std::size_t width) {
 
 }  // namespace
 
-std::string one_minus_decimal(std::string_view x, std::string_view what) {
-  const std::string name(what);
-  const auto fail = [&] { return usage_error(name + ": '" + std::string(x) + "' must be < 1"); };
-  std::string_view text = x;
-  if (text.starts_with('+')) text.remove_prefix(1);
-  long exponent = 0;
-  if (const auto e = text.find_first_of("eE"); e != std::string_view::npos) {
-    std::string_view exponent_text = text.substr(e + 1);
-    if (exponent_text.starts_with('+')) exponent_text.remove_prefix(1);
-    const auto [ptr, ec] = std::from_chars(exponent_text.data(),
-                                           exponent_text.data() + exponent_text.size(), exponent);
-    if (ec != std::errc() || ptr != exponent_text.data() + exponent_text.size() ||
-        exponent < -max_decimal_scale || exponent > max_decimal_scale)  // std::labs(LONG_MIN) is UB
-      throw usage_error(name + ": '" + std::string(x) + "' has too many digits for 1 - " + name);
-    text = text.substr(0, e);
-  }
-  std::string digits;
-  long scale = 0;  // x = digits * 10^-scale
-  const auto point = text.find('.');
-  digits = std::string(text.substr(0, point));
-  if (point != std::string_view::npos) {
-    digits += text.substr(point + 1);
-    scale = static_cast<long>(text.size() - point - 1);
-  }
-  scale -= exponent;
-  digits.erase(0, std::min(digits.find_first_not_of('0'), digits.size()));
-  if (digits.empty()) throw usage_error(name + ": '" + std::string(x) + "' must be > 0");
-  if (scale > max_decimal_scale)
-    throw usage_error(name + ": '" + std::string(x) + "' has too many digits for 1 - " + name);
-  if (scale <= 0 || static_cast<long>(digits.size()) > scale) throw fail();  // x >= 1
-  digits.insert(0, static_cast<std::size_t>(scale) - digits.size(), '0');
-  // 10^scale - D = (999...9 - D) + 1
-  std::string result(digits.size(), '0');
-  for (std::size_t i = 0; i < digits.size(); ++i) result[i] = static_cast<char>('9' - (digits[i] - '0'));
-  for (std::size_t i = result.size(); i-- > 0;) {
-    if (result[i] == '9') { result[i] = '0'; continue; }
-    ++result[i];
-    break;
-  }
-  result.erase(result.find_last_not_of('0') + 1);  // D > 0, so some digit is non-zero
-  return "0." + result;
-}
 
 namespace {
 
@@ -851,7 +817,7 @@ void run_table(const TableRequest& request, const PointSpace& space,
 
 }  // namespace
 
-std::string table_command(const Options& options) {
+std::string run_table(const Options& options) {
   TableRequest request = parse_table_request(options);
   const TableMethods methods = plan_table_methods(options, request);
   const TableTarget target = parse_table_target(options);
@@ -888,5 +854,10 @@ std::string table_command(const Options& options) {
             threads, shard);
   return {};
 }
+
+constexpr std::array<std::string_view, 17> table_options{
+    "beta",    "mu1",    "l1",   "l2",     "g",      "chain",  "digits",     "method",
+    "tol",     "samples", "shifts", "seed", "output", "resume", "energy", "excitation", "shard"};
+const Command table_command{"table", table_usage, table_options, run_table, {}, true};
 
 }  // namespace pendavg::cli

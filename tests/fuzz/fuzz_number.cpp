@@ -21,7 +21,7 @@
 
 #include "cli/args.hpp"
 #include "cli/format.hpp"
-#include "cli/table.hpp"
+#include "io/exact_decimal.hpp"
 
 #include "pendavg/mpfr.hpp"
 
@@ -127,8 +127,8 @@ void check_one_minus(std::string_view text, std::string_view input) {
   std::string result;
   std::string refusal;
   try {
-    result = pendavg::cli::one_minus_decimal(text, "--mu1");
-  } catch (const usage_error& refused) {
+    result = pendavg::io::one_minus_decimal(text, "--mu1");
+  } catch (const std::invalid_argument& refused) {
     pendavg::fuzz::check_message(refused.what(), input);
     refusal = refused.what();
   }

@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// src/cli/common.cpp -- what every command of the CLI shares.
+#include "common.hpp"
+
+#include "distribute.hpp"
+#include "files.hpp"
+
+#include <algorithm>
+
+namespace pendavg::cli {
+
+std::vector<std::string_view> input_texts(const Options& options, std::string_view state,
+                                          std::size_t particles) {
+  std::vector<std::string_view> texts;
+  if (!state.empty()) texts.push_back(options.required(state));
+  texts.push_back(options.get("g", "1"));
+  for (const std::string_view list : {options.required("masses"), options.get("lengths", "")}) {
+    std::size_t count = 0;
+    for (std::size_t begin = 0; begin <= list.size() && !list.empty(); ++count) {
+      const std::size_t end = std::min(list.find(',', begin), list.size());
+      texts.push_back(list.substr(begin, end - begin));
+      begin = end + 1;
+    }
+    for (; count < particles; ++count) texts.push_back("1");  // lengths default to 1
+  }
+  return texts;
+}
+
+std::string deliver(const Options& options, std::string_view command, std::string text) {
+  if (!options.has("output") || !is_root()) return text;
+  write_atomically(std::string(options.get("output", "")), text, command);
+  return {};
+}
+
+void check_output_option(const Options& options, std::string_view command) {
+  if (!options.has("output")) return;
+  const std::string path(options.get("output", ""));
+  if (path.empty()) throw usage_error(std::string(command) + ": --output needs a file name");
+  probe_output(path, command);
+}
+
+template <class Real>
+std::string run_json(const Averages<Real>& a) {
+  if (a.torus)
+    return JsonObject()
+        .integer("points_per_dim", static_cast<long long>(a.torus->points_per_dim))
+        .integer("levels", static_cast<long long>(a.torus->levels))
+        .raw("grid_points", io::seconds_text(a.torus->grid_points))
+        .str();
+  if (a.qmc)
+    return JsonObject()
+        .integer("points", static_cast<long long>(a.qmc->points))
+        .integer("shifts", static_cast<long long>(a.qmc->shifts))
+        .raw("sigmas", io::seconds_text(a.qmc->sigmas))
+        .raw("effective_sample_fraction",
+             decimal(a.qmc->effective_sample_fraction, error_digits))
+        .str();
+  if (a.transfer)
+    return JsonObject()
+        .integer("angle_nodes", static_cast<long long>(a.transfer->angle_nodes))
+        .integer("pivot_nodes", static_cast<long long>(a.transfer->pivot_nodes))
+        .integer("levels", static_cast<long long>(a.transfer->levels))
+        .str();
+  return "null";
+}
+
+template std::string run_json<double>(const Averages<double>&);
+template std::string run_json<mpfr_real>(const Averages<mpfr_real>&);
+
+}  // namespace pendavg::cli
