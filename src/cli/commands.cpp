@@ -8,6 +8,8 @@
 #include "distribute.hpp"
 #include "version_info.hpp"
 
+#include "io/results.hpp"
+
 #include <algorithm>
 #include <array>
 #include <functional>
@@ -34,6 +36,8 @@ constexpr std::string_view general_usage =
     "  pendavg poincare --masses M1,M2 --lengths L1,L2 --energy E [--orbits K] [--points P]\n"
     "  pendavg merge   --output FILE SHARD...: the files of table/average --cases --shard K/N\n"
     "  pendavg help [COMMAND]     pendavg COMMAND --help     pendavg --version\n"
+    "  pendavg help schema        every output field: names, kinds, meaning (output schema)\n"
+    "  pendavg help migration     the names that changed from pendavg 0.2 (schema 0)\n"
     "\n"
     "Numbers are plain decimals (0.5, 1e-3). --digits D (16..1000, default 16) is the number of\n"
     "significant digits requested: 16 runs in double, more in MPFR. Bad input exits with 2.\n";
@@ -70,6 +74,8 @@ std::string run(std::span<const std::string_view> args) {
   const auto rest = args.subspan(1);
   if (name == "--help" || name == "-h" || (name == "help" && rest.empty()))
     return std::string(general_usage);
+  if (name == "help" && rest.front() == "schema") return io::schema_text();
+  if (name == "help" && rest.front() == "migration") return io::migration_text();
   if (name == "help") return std::string(find_command(rest.front()).usage);
   if (name == "--version") return version_text();
   const Command& command = find_command(name);

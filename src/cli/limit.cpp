@@ -38,7 +38,7 @@ namespace {
 
 constexpr std::string_view limit_usage =
     "usage: pendavg limit --masses M1,...,MN [--lengths L1,...,LN] [--g G] [--digits D]\n"
-    "                     [--certified] [--format json|csv|text]\n"
+    "                     [--certified] [--format json|csv|text] [--output FILE]\n"
     "\n"
     "The high-temperature (beta -> 0) and low-temperature (beta -> infinity) limits of\n"
     "beta<K_i>, their error estimates, <K1>/<K2> and beta^2 Var K_i. Lengths default to 1.\n"
@@ -47,14 +47,11 @@ constexpr std::string_view limit_usage =
     "beta -> infinity is exact: beta<K_i> = 1/2, beta^2 Var K_i = tr(X_i(0)^2)/2.\n"
     "--certified (N = 2): beta -> 0 in ball arithmetic, every error a proven bound (as for\n"
     "`pendavg average`).\n"
-    "JSON (default): N, digits, and per limit (high_temperature, low_temperature) beta_K, error,\n"
-    "ratio, var_K_beta2, method, error_kind, ratio_error, cos_phi, cos_phi_error,\n"
-    "var_K_beta2_error, error_kinds, evaluations, work_unit, then converged, run (the torus\n"
-    "grid or the transfer operator's resolution, as `average` prints it, or null),\n"
-    "equipartition_residual, beta_Kc and beta_Kc_error; then seconds (both limits). --format\n"
-    "csv: one row per limit with the columns of `average --format csv` (beta, K_i and var_K_i\n"
-    "empty: no finite beta; seconds the limit's own), then limit, beta2_var_K1..N,\n"
-    "beta2_var_K_error1..N, beta_Kc_error1..N, beta_Kc_error_kind.\n";
+    "Output (--format csv, the default; json; text; --output FILE): the inputs N, digits, g, m,\n"
+    "l, then per limit the fields of `pendavg average` (K and var_K empty: no finite beta;\n"
+    "beta2_var_K = beta^2 Var K_i is finite): CSV one row per limit, its first column `limit`\n"
+    "(high_temperature, low_temperature); JSON one object per limit under those keys, each with\n"
+    "its run; seconds for both. `pendavg help schema` explains every field.\n";
 
 template <class Real>
 std::string limit_report(const Options& options, int digits, Format format) {

@@ -2,6 +2,7 @@
 // src/io/results.cpp -- the result types' field tables and record builders.
 #include "io/results.hpp"
 
+#include "io/migration.hpp"
 #include "io/number_text.hpp"
 
 #include "engine/precision.hpp"
@@ -380,6 +381,60 @@ void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Pri
   r.text(work_unit_name(a.work_unit));
   r.flag(a.converged);
   r.complete();
+}
+
+std::string schema_text() {
+  std::string out =
+      "Output schema " + std::to_string(schema_version) +
+      " of pendavg: one name per concept in JSON, CSV, text and Python.\n"
+      "- A value X has X_error (its absolute error, 3 significant digits rounded up: never\n"
+      "  below the computed error) and X_error_kind: bound (proven), estimate (from\n"
+      "  refinement, checked against independent methods) or statistical (qmc: the 99.9%\n"
+      "  Student-t interval over the random shifts; time averages: 1 standard error).\n"
+      "- A per-particle field X is a JSON array [X_1, ..., X_N] and the CSV columns X1..XN;\n"
+      "  its errors are X1_error..XN_error.\n"
+      "- JSON: a run in double (16 digits) writes every real as a JSON number, the shortest\n"
+      "  decimal that reads back as the same double; an MPFR run (more digits) writes reals as\n"
+      "  decimal strings with the digits asked for. A value that does not exist is null (an\n"
+      "  empty CSV cell). JSON starts with \"schema\": " +
+      std::to_string(schema_version) + ", CSV with the line `# schema: " +
+      std::to_string(schema_version) +
+      "`.\n"
+      "- Inputs in CSV and text are printed as written; in JSON as read.\n";
+  constexpr const char* kinds[] = {"real", "error", "count", "text", "flag"};
+  for (const NamedTable& table : all_tables()) {
+    out += "\n## " + std::string(table.result) + "\n\n| name | kind | per particle | meaning |\n";
+    out += "|---|---|---|---|\n";
+    for (const Field& f : table.fields)
+      out += "| " + std::string(f.name) + " | " + kinds[static_cast<int>(f.kind)] + " | " +
+             (f.shape == Shape::per_particle ? "yes" : "") + " | " + std::string(f.meaning) +
+             " |\n";
+  }
+  return out;
+}
+
+std::string migration_text() {
+  std::string out = "Schema 0 (pendavg 0.2) -> schema " + std::to_string(schema_version) +
+                    ": renamed keys and columns. `average --cases --columns` still accepts the "
+                    "old column names (printed under their old headers).\n\n"
+                    "Also: every command's default --format is csv (average and limit wrote json);\n"
+                    "JSON reals of a double run are numbers (they were strings); a double run\n"
+                    "prints each value exactly, as the shortest decimal of the double (it printed\n"
+                    "16 significant digits), and its errors no longer add half a unit of that\n"
+                    "16th digit; every error is rounded up to 3 digits (it was rounded to\n"
+                    "nearest); new fields: K_error_kind, ratio_error_kind, beta2_var_K (in\n"
+                    "average, table, --cases), beta_Kc_error (average JSON), interrupted, g, m, l\n"
+                    "(average, limit).\n\n"
+                    "| schema 0 | schema 1 | where |\n|---|---|---|\n";
+  for (const Rename& r : schema0_renames()) {
+    const std::string old_name =
+        std::string(r.old_name) + (r.per_particle ? std::string("1..N") : std::string());
+    std::string new_name(r.new_name);
+    if (r.per_particle)
+      new_name = column_name(Field{r.new_name, Kind::real, Shape::per_particle, {}}, 0) + "..";
+    out += "| " + old_name + " | " + new_name + " | " + std::string(r.where) + " |\n";
+  }
+  return out;
 }
 
 #define PENDAVG_IO_RESULTS(Real)                                                                 \

@@ -12,6 +12,7 @@
 
 #include <optional>
 #include <span>
+#include <string>
 #include <string_view>
 
 namespace pendavg::io {
@@ -77,5 +78,12 @@ struct NamedTable {
   std::span<const Field> fields;
 };
 std::span<const NamedTable> all_tables();
+
+/// The naming table as Markdown: every table's fields (name, kind, per particle, meaning), the
+/// naming rules first. `pendavg help schema` prints it; src/io/README.md holds it.
+std::string schema_text();
+
+/// The renames of schema 0 -> 1 as Markdown (`pendavg help migration`).
+std::string migration_text();
 
 }  // namespace pendavg::io

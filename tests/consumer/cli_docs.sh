@@ -89,5 +89,18 @@ done
   fail "completion of average --format: $(complete_words pendavg average --format "" | tr '\n' ' ')"
 [ "$(complete_words pendavg average --ma)" = "--masses" ] || fail "completion of --ma"
 
+# ---------------------------------------------------------------- the output schema's document
+# src/io/README.md holds the naming and migration tables as `pendavg help schema` and
+# `pendavg help migration` print them (both generated from the field tables).
+for topic in schema migration; do
+  "$pendavg" help "$topic" >"$work/$topic" 2>"$work/err" || fail "help $topic exits $?"
+  [ -s "$work/$topic" ] || fail "help $topic printed nothing"
+  python3 - "$source/src/io/README.md" "$work/$topic" <<'PY' || fail "src/io/README.md lacks \`pendavg help $topic\`'s text (regenerate that part of it)"
+import sys
+readme, text = (open(p, encoding="utf-8").read() for p in sys.argv[1:3])
+sys.exit(0 if text.strip() in readme else 1)
+PY
+done
+
 [ "$failures" = 0 ] || exit 1
-echo "--version, pendavg.1 and the bash completion agree with the usage text ($(echo $commands))"
+echo "--version, pendavg.1, the bash completion and src/io/README.md agree with the usage text ($(echo $commands))"
