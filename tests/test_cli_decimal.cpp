@@ -5,6 +5,9 @@
 #include <catch2/catch.hpp>
 
 #include "io/decimal_fast.hpp"
+#include "io/number_text.hpp"
+
+#include "pendavg/mpfr.hpp"
 
 #include <bit>
 #include <charconv>
@@ -94,4 +97,47 @@ TEST_CASE("fast scientific notation matches std::to_chars", "[cli][format]") {
   CHECK(pendavg::io::detail::scientific_fast(buffer, 1e300, 16) == nullptr);
   CHECK(pendavg::io::detail::scientific_fast(buffer, 4.9e-324, 16) == nullptr);
   CHECK(pendavg::io::detail::scientific_fast(buffer, std::nan(""), 16) == nullptr);
+}
+
+TEST_CASE("errors are printed rounded up: never below the error, at most one unit above",
+          "[io][format]") {
+  // io::write_error (the fast path's `upward` mode, and std::to_chars with a correction where
+  // it does not apply: zero, subnormals, MPFR) against exact decimal arithmetic in MPFR.
+  std::mt19937_64 rng(20261128);
+  long checked = 0;
+  const auto check = [&](double e) {
+    char text[64];
+    const char* end = pendavg::io::write_error(text, e);
+    const std::string printed(static_cast<const char*>(text), end);
+    // the printed decimal, exactly (MPFR at 400 bits holds a 3-digit decimal times 10^-330 to
+    // far below its last unit) against e
+    pendavg::mpfr_real shown, value(e), unit;
+    {
+      const pendavg::working_precision precision(120);
+      shown = pendavg::mpfr_real(printed);
+      value = pendavg::mpfr_real(e);
+      const std::size_t ep = printed.find('e');
+      unit = pow(pendavg::mpfr_real(10), std::stoi(printed.substr(ep + 1)) - 2);
+      INFO("e = " << e << " printed " << printed);
+      REQUIRE(shown >= value);
+      REQUIRE(shown - unit < value + unit * pendavg::mpfr_real("1e-20"));
+      REQUIRE(printed.size() <= pendavg::io::decimal_max_length(pendavg::io::error_digits));
+    }
+    ++checked;
+  };
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int i = 0; i < 20000; ++i)
+    check(unit(rng) * std::pow(10.0, static_cast<int>(rng() % 60) - 40));
+  for (int i = 0; i < 5000; ++i) {  // any positive double, subnormals included
+    const double x = std::fabs(std::bit_cast<double>(rng()));
+    if (std::isfinite(x)) check(x);
+  }
+  // exactly representable 3-digit values stay themselves; 9.99.. carries to the next power
+  for (const double x : {0.0, 1.0, 0.5, 0.125, 1e-300, 9.995e-7, 9.999999e22, 4.9e-324, 1.04e-15})
+    check(x);
+  char text[64];
+  CHECK(std::string(text, pendavg::io::write_error(text, 0.125)) == "1.25e-01");
+  CHECK(std::string(text, pendavg::io::write_error(text, 9.9951)) == "1.00e+01");
+  CHECK(std::string(text, pendavg::io::write_error(text, 0.0)) == "0.00e+00");
+  CHECK(checked > 25000);
 }

@@ -21,7 +21,8 @@ namespace pendavg::io::detail {
 
 /// Writes x with `digits` (1..17) significant digits in scientific notation to `out` (at
 /// least 26 chars); returns the end, or nullptr when x is outside the fast path's range.
-inline char* scientific_fast(char* out, double x, int digits) {
+/// `upward` (for x > 0: an error printed as a bound) rounds up instead of to nearest.
+inline char* scientific_fast(char* out, double x, int digits, bool upward = false) {
   if (digits < 1 || digits > 17) return nullptr;
   const std::uint64_t bits = std::bit_cast<std::uint64_t>(x);
   const int biased = static_cast<int>((bits >> 52) & 0x7ff);
@@ -96,7 +97,11 @@ inline char* scientific_fast(char* out, double x, int digits) {
   if (q >= top) return nullptr;  // d was not found in two attempts (cannot happen)
   // Before rounding: fewer digits means d one too high (the 5^28 case above).
   if (q < pow10[digits - 1]) return nullptr;
-  if (!exact_shift && (rem > half || (rem == half && (q & 1)))) ++q;  // ties to even
+  if (upward) {
+    if (!exact_shift && rem != 0) ++q;
+  } else if (!exact_shift && (rem > half || (rem == half && (q & 1)))) {
+    ++q;  // ties to even
+  }
   if (q == top) {  // rounded up to the next power of ten
     q = pow10[digits - 1];
     ++d;

@@ -224,42 +224,32 @@ char* write_shortest(char* out, double x) {
 
 namespace {
 
-/// Adds one unit in the last mantissa digit of scientific text [first, end) ("9.99e-03" ->
-/// "1.00e-02"); returns the new end.
-char* bump_last_digit(char* first, char* end) {
-  char* e = std::find(first, end, 'e');
-  char* d = e - 1;
-  for (;; --d) {
-    if (*d == '.') continue;
-    if (*d != '9') {
-      ++*d;
-      return end;
-    }
-    *d = '0';
-    if (d == first) break;
+/// error_digits significant digits of x >= 0 rounded up, exactly (mpfr_get_str with MPFR_RNDU;
+/// no locale's radix character).
+char* write_error_exact(char* out, mpfr_srcptr x) {
+  if (mpfr_zero_p(x)) {
+    std::memcpy(out, "0.00e+00", 8);
+    return out + 8;
   }
-  // every digit carried: 9.99e-03 -> 0.00e-03 -> 1.00e-02
-  *first = '1';
-  int exponent = 0;
-  std::from_chars(e + 1 + (e[1] == '+'), end, exponent);
-  const int shown = exponent + 1;
-  char* out = e + 1;
-  *out++ = shown < 0 ? '-' : '+';
-  const int magnitude = shown < 0 ? -shown : shown;
-  if (magnitude < 10) *out++ = '0';
-  return std::to_chars(out, out + 8, magnitude).ptr;
+  mpfr_exp_t exponent = 0;
+  char digits[error_digits + 2];
+  mpfr_get_str(digits, &exponent, 10, error_digits, x, MPFR_RNDU);
+  char* p = out;
+  *p++ = digits[0];
+  *p++ = '.';
+  for (int i = 1; i < error_digits; ++i) *p++ = digits[i];
+  *p++ = 'e';
+  const long shown = static_cast<long>(exponent) - 1;
+  *p++ = shown < 0 ? '-' : '+';
+  const long magnitude = shown < 0 ? -shown : shown;
+  if (magnitude < 10) *p++ = '0';
+  return std::to_chars(p, p + 24, magnitude).ptr;
 }
 
-template <class Real>
-char* write_error_binary(char* out, const Real& e) {
-  if (!(e >= 0) || !std::isfinite(e))
+void refuse_error(bool ok) {
+  if (!ok)
     throw std::logic_error("pendavg internal error: an error that is negative or not finite "
                            "reached the printer");
-  char* end = std::to_chars(out, out + decimal_max_length(error_digits), e,
-                            std::chars_format::scientific, error_digits - 1).ptr;
-  Real back{};
-  std::from_chars(out, end, back);
-  return back >= e ? end : bump_last_digit(out, end);
 }
 
 }  // namespace
@@ -267,29 +257,22 @@ char* write_error_binary(char* out, const Real& e) {
 template <class Real>
 char* write_error(char* out, const Real& e) {
   if constexpr (is_mpfr_v<Real>) {
-    if (!(e >= 0) || !mpfr_number_p(e.backend().data()))
-      throw std::logic_error("pendavg internal error: an error that is negative or not finite "
-                             "reached the printer");
-    if (e == 0) {
-      std::memcpy(out, "0.00e+00", 8);
-      return out + 8;
-    }
-    // error_digits digits rounded up, from mpfr_get_str (no locale's radix character)
-    mpfr_exp_t exponent = 0;
-    char digits[error_digits + 2];
-    mpfr_get_str(digits, &exponent, 10, error_digits, e.backend().data(), MPFR_RNDU);
-    char* p = out;
-    *p++ = digits[0];
-    *p++ = '.';
-    for (int i = 1; i < error_digits; ++i) *p++ = digits[i];
-    *p++ = 'e';
-    const long shown = static_cast<long>(exponent) - 1;
-    *p++ = shown < 0 ? '-' : '+';
-    const long magnitude = shown < 0 ? -shown : shown;
-    if (magnitude < 10) *p++ = '0';
-    return std::to_chars(p, p + 24, magnitude).ptr;
+    refuse_error(e >= 0 && mpfr_number_p(e.backend().data()));
+    return write_error_exact(out, e.backend().data());
   } else {
-    return write_error_binary(out, e);
+    refuse_error(e >= 0 && std::isfinite(e));
+    if constexpr (std::is_same_v<Real, double>) {
+      if (e > 0)
+        if (char* end = detail::scientific_fast(out, e, error_digits, true)) return end;
+    }
+    // zero, subnormals, magnitudes outside the fast path, long double: exactly, in MPFR
+    mpfr_t x;
+    mpfr_init2(x, 64);  // holds a double or an x87 long double exactly
+    if constexpr (std::is_same_v<Real, double>) mpfr_set_d(x, e, MPFR_RNDN);
+    else mpfr_set_ld(x, e, MPFR_RNDN);
+    char* end = write_error_exact(out, x);
+    mpfr_clear(x);
+    return end;
   }
 }
 

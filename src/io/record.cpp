@@ -20,15 +20,24 @@ std::size_t cell_count(std::span<const Field> fields, std::size_t particles) {
 }
 
 void Record::reset(std::span<const Field> fields, std::size_t particles) {
+  if (fields.data() == fields_.data() && fields.size() == fields_.size() &&
+      particles == particles_ && !first_cell_.empty()) {  // the same table: reuse its layout
+    cells_.clear();
+    text_.clear();
+    return;
+  }
   fields_ = fields;
   particles_ = particles;
   cells_.clear();
   cells_.reserve(cell_count(fields, particles));
   first_cell_.clear();
+  cell_kinds_.clear();
   std::uint32_t k = 0;
   for (const Field& f : fields) {
     first_cell_.push_back(k);
-    k += static_cast<std::uint32_t>(f.shape == Shape::per_particle ? particles : 1);
+    const std::uint32_t n = static_cast<std::uint32_t>(f.shape == Shape::per_particle ? particles : 1);
+    cell_kinds_.insert(cell_kinds_.end(), n, f.kind);
+    k += n;
   }
   first_cell_.push_back(k);
   text_.clear();
@@ -96,6 +105,14 @@ void Record::text(std::string_view name) {
   cells_.back().tag = Cell::Tag::text;
 }
 
+void Record::name(const char* static_name) {
+  Cell c;
+  c.tag = Cell::Tag::text;
+  c.literal = static_name;
+  c.size = static_cast<std::uint32_t>(std::strlen(static_name));
+  cells_.push_back(c);
+}
+
 void Record::flag(bool value) {
   Cell c;
   c.tag = Cell::Tag::flag;
@@ -133,17 +150,6 @@ std::vector<std::string> column_names(std::span<const Field> fields, std::size_t
 // ---------------------------------------------------------------- cells as text
 
 namespace {
-
-/// The field a cell belongs to (cells are in field order).
-const Field& field_of(const Record& record, std::size_t cell) {
-  std::size_t k = 0;
-  for (const Field& f : record.fields()) {
-    const std::size_t n = f.shape == Shape::per_particle ? record.particles() : 1;
-    if (cell < k + n) return f;
-    k += n;
-  }
-  throw std::logic_error("pendavg internal error: a cell past its record's table");
-}
 
 char* write_number(char* out, double x, Kind kind) {
   if (kind == Kind::error) return write_error(out, x);
@@ -214,7 +220,7 @@ void append_json_cell(std::string& out, const Record& record, const Cell& cell, 
 
 char* write_cell(char* out, const Record& record, const Cell& cell) {
   const std::size_t k = static_cast<std::size_t>(&cell - record.cells().data());
-  return write_cell_as(out, record, cell, field_of(record, k).kind);
+  return write_cell_as(out, record, cell, record.kind_of_cell(k));
 }
 
 std::string json_string(std::string_view text) {
@@ -275,7 +281,7 @@ void append_csv_cells(std::string& out, const Record& record,
     return;
   }
   for (const std::size_t c : selection) {
-    append_cell(out, record, cells[c], field_of(record, c).kind);
+    append_cell(out, record, cells[c], record.kind_of_cell(c));
     out += ',';
   }
 }

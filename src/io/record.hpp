@@ -56,6 +56,7 @@ struct Cell {
   Tag tag = Tag::none;
   bool flag = false;
   std::uint32_t begin = 0, size = 0;  ///< decimal and text: where in Record::text
+  const char* literal = nullptr;       ///< text: a static name (method, kind, unit), not copied
   double number = 0;
   long long integer = 0;
 };
@@ -79,8 +80,10 @@ class Record {
   std::size_t find(std::string_view name) const;
   /// A cell's text (decimal or text cells).
   std::string_view text_of(const Cell& cell) const {
-    return {text_.data() + cell.begin, cell.size};
+    return {cell.literal ? cell.literal : text_.data() + cell.begin, cell.size};
   }
+  /// What cell c holds (its field's kind).
+  Kind kind_of_cell(std::size_t c) const { return cell_kinds_[c]; }
 
   // Appenders, in the table's order (checked at the end of a builder by complete()).
   void none();
@@ -93,6 +96,8 @@ class Record {
   /// An input of a double run: `written` in CSV and text, x (shortest) in JSON.
   void input(double x, std::string_view written);
   void text(std::string_view name);
+  /// A text cell of a static name (method_name(), error_kind_name(), ...): not copied.
+  void name(const char* static_name);
   void flag(bool value);
   /// Throws std::logic_error unless every field got its cells (a builder out of step with its
   /// table is a bug, caught by every test that prints).
@@ -103,6 +108,7 @@ class Record {
   std::size_t particles_ = 0;
   std::vector<Cell> cells_;
   std::vector<std::uint32_t> first_cell_;  ///< per field
+  std::vector<Kind> cell_kinds_;           ///< per cell
   std::string text_;
   std::size_t pending_ = 0;  ///< decimal_room's start
 };

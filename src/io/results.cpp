@@ -287,8 +287,8 @@ void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Print
   // An error is printed rounded up, after printed_error added what printing the value moved it
   // by: a bound (certified, Method::certified_integral) stays a bound.
   const auto errors = [&](const std::vector<Estimate<Real>>& es) { put_errors(r, es, n, p); };
-  const auto kind = [&](ErrorKind k) { r.text(error_kind_name(k)); };
-  r.text(method_name(a.method));
+  const auto kind = [&](ErrorKind k) { r.name(error_kind_name(k)); };
+  r.name(method_name(a.method));
   put_values(r, a.beta_kinetic, n, p);
   errors(a.beta_kinetic);
   kind(a.error_kind);
@@ -340,7 +340,7 @@ void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Print
     r.commit_decimal(write_error(at, a.equipartition_residual));
   }
   r.integer(static_cast<long long>(a.evaluations));
-  r.text(work_unit_name(a.work_unit));
+  r.name(work_unit_name(a.work_unit));
   r.flag(a.converged);
   r.flag(a.interrupted);
   r.complete();
@@ -349,7 +349,7 @@ void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Print
 template <class Real>
 void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Printing p) {
   const std::size_t n = r.particles();  // cells per particle field; beyond the chain's N, empty
-  const auto kind = [&] { r.text(error_kind_name(a.error_kind)); };
+  const auto kind = [&] { r.name(error_kind_name(a.error_kind)); };
   const auto scalar = [&](const Estimate<Real>& e) {
     put_value(r, e.value, p);
     put_error(r, e.value, e.error, p);
@@ -362,8 +362,8 @@ void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Pri
   };
   // the state not given (the table's first field)
   put_value(r, r.fields()[0].name == "energy" ? a.energy : a.excitation, p);
-  r.text("microcanonical");
-  r.text(method_name(a.quadrature));
+  r.name("microcanonical");
+  r.name(method_name(a.quadrature));
   array(a.kinetic);
   scalar(a.kinetic_canonical);
   array(a.cos_angle);
@@ -378,7 +378,7 @@ void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Pri
     r.none();
   }
   r.integer(static_cast<long long>(a.evaluations));
-  r.text(work_unit_name(a.work_unit));
+  r.name(work_unit_name(a.work_unit));
   r.flag(a.converged);
   r.complete();
 }
