@@ -141,3 +141,44 @@ TEST_CASE("errors are printed rounded up: never below the error, at most one uni
   CHECK(std::string(text, pendavg::io::write_error(text, 0.0)) == "0.00e+00");
   CHECK(checked > 25000);
 }
+
+TEST_CASE("a double's printed text lies within its printing gap, which is 0 only when exact",
+          "[io][format]") {
+  // io::printing_gap against MPFR: |text - x| <= gap for write_shortest's text, and gap == 0
+  // exactly when the text is x's exact decimal value (0.5 is; 0.1 is not).
+  std::mt19937_64 rng(20261129);
+  const pendavg::working_precision precision(4000);  // holds any double's decimal exactly
+  long exact = 0, checked = 0;
+  const auto check = [&](double x) {
+    char text[40];
+    const char* end = pendavg::io::write_shortest(text, x);
+    const std::string_view written(text, static_cast<std::size_t>(end - text));
+    const double gap = pendavg::io::printing_gap(x, written);
+    const pendavg::mpfr_real shown{std::string(written)}, value(x);
+    const pendavg::mpfr_real distance = abs(shown - value);
+    INFO("x = " << written << " gap " << gap);
+    REQUIRE(distance <= pendavg::mpfr_real(gap));
+    REQUIRE((gap == 0) == (distance == 0));
+    exact += gap == 0;
+    ++checked;
+  };
+  for (int i = 0; i < 20000; ++i) {
+    const double x = std::bit_cast<double>(rng());
+    if (std::isfinite(x)) check(x);
+  }
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (int i = 0; i < 20000; ++i) check(unit(rng));
+  // exact decimals: dyadic values with short expansions, integers, and their neighbours
+  for (const double x : {0.5, -0.5, 0.25, 0.125, 3.0, 1.5, 0.75, 1024.0, 1e22, 0.1, 1.0 / 3,
+                         9007199254740992.0, 4.9e-324, 0.8749999999999999, 6.103515625e-05})
+    check(x);
+  for (int i = 0; i < 5000; ++i) {
+    const double x = std::ldexp(static_cast<double>(rng() % 100000), -static_cast<int>(rng() % 40));
+    check(x);
+    check(std::nextafter(x, 2.0));
+  }
+  CHECK(exact > 1000);  // the dyadic values with short expansions (2,660 of the 10,000 here)
+  CHECK(checked > 50000);
+  CHECK(pendavg::io::printing_gap(0.5, "0.5") == 0);
+  CHECK(pendavg::io::printing_gap(0.1, "0.1") > 0);
+}

@@ -12,6 +12,7 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -215,6 +216,70 @@ template mpfr_real printed_error<mpfr_real>(const mpfr_real&, const mpfr_real&, 
 template long double printed_error<long double>(const long double&, const long double&, int,
                                                 bool);
 template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
+
+double printing_gap(double x, std::string_view text) {
+  if (x == 0) return 0;
+  // the text as D * 10^q (D < 10^38: a long integer's fixed notation has up to 39 digits)
+  using u128 = unsigned __int128;
+  u128 digits = 0;
+  int significant = 0, fraction = 0, exponent = 0;
+  bool point = false;
+  std::size_t i = text.starts_with('-') ? 1 : 0;
+  for (; i < text.size() && text[i] != 'e' && text[i] != 'E'; ++i) {
+    if (text[i] == '.') {
+      point = true;
+      continue;
+    }
+    if (digits == 0 && text[i] == '0') {  // leading zeros
+      if (point) ++fraction;
+      continue;
+    }
+    if (++significant > 38) return std::max(std::ldexp(1.0, std::ilogb(x) - 53),
+                                            std::numeric_limits<double>::denorm_min());
+    digits = digits * 10 + static_cast<u128>(text[i] - '0');
+    if (point) ++fraction;
+  }
+  if (i < text.size()) {
+    const char* first = text.data() + i + 1;
+    if (*first == '+') ++first;
+    std::from_chars(first, text.data() + text.size(), exponent);
+  }
+  const int q = exponent - fraction;
+  const double half_unit = std::max(std::ldexp(1.0, std::ilogb(x) - 53),
+                                    std::numeric_limits<double>::denorm_min());
+  // |x| = m 2^e; exact iff m 2^e == D 10^q
+  int e = 0;
+  const double mantissa = std::frexp(std::fabs(x), &e);  // in [0.5, 1)
+  const auto m = static_cast<std::uint64_t>(std::ldexp(mantissa, 53));
+  e -= 53;
+  if (q >= 0) {
+    // an integer: D 10^q == m 2^e, compared below 2^127 (beyond, shortest text has <= 17
+    // digits and an exponent, and no double above 2^127 is a 17-digit decimal times 10^q
+    // without being compared here as well: D 10^q < 10^38 holds it)
+    if (e < -53) return half_unit;
+    u128 lhs = digits;
+    for (int k = 0; k < q; ++k) {
+      if (lhs > (~static_cast<u128>(0)) / 10) return half_unit;
+      lhs *= 10;
+    }
+    if (e >= 0) return e <= 74 && lhs == (static_cast<u128>(m) << e) ? 0.0 : half_unit;
+    const int t = -e;
+    if (m & ((std::uint64_t{1} << t) - 1)) return half_unit;  // x is not an integer
+    return lhs == (m >> t) ? 0.0 : half_unit;
+  }
+  // D = x 10^k = m 5^k 2^(e + k), k = -q; a fraction's shortest text has D < 10^17 < 5^25,
+  // so k > 27 cannot be exact
+  const int k = -q;
+  if (k > 27) return half_unit;
+  u128 product = m;
+  for (int j = 0; j < k; ++j) product *= 5;
+  const int s = e + k;
+  if (s >= 0) return s <= 64 && (product << s) == digits ? 0.0 : half_unit;
+  const int t = -s;
+  if (t >= 127) return half_unit;
+  if (product & ((static_cast<u128>(1) << t) - 1)) return half_unit;
+  return (product >> t) == digits ? 0.0 : half_unit;
+}
 
 char* write_shortest(char* out, double x) {
   if (!std::isfinite(x))

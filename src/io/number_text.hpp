@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <string>
+#include <string_view>
 #include <type_traits>
 
 namespace pendavg::io {
@@ -90,6 +91,12 @@ std::string decimal(const Real& x, int digits) {
 /// a precision: 0.7, 1e-300, 3.873103991523665e-01 -> 0.3873103991523665) at `out` (room for 25
 /// characters); returns the end. A non-finite x is an internal error (fails closed).
 char* write_shortest(char* out, double x);
+
+/// How far the text `written` of x (write_shortest's) lies from x: 0 when it is x's exact
+/// decimal value (0.5, 3, 1.25e-3 are; 0.1 is not), else half a unit in x's last binary place,
+/// a bound of |text - x| for any text that reads back as x. A double run adds it to the errors
+/// of what it prints, so that a printed error covers the printed value, not only the double.
+double printing_gap(double x, std::string_view written);
 
 /// Writes an error e >= 0 with error_digits significant digits, rounded up (the text's value is
 /// never below e): 1.04e-15. Room: decimal_max_length(error_digits). Double or MPFR.

@@ -63,6 +63,20 @@ void Record::number(double x) {
   cells_.push_back(c);
 }
 
+void Record::shortest(double x) {
+  Cell c;
+  c.tag = Cell::Tag::number;
+  c.number = x;
+  c.begin = static_cast<std::uint32_t>(text_.size());
+  text_.resize(text_.size() + 32);
+  char* const first = text_.data() + c.begin;
+  char* const end = write_shortest(first, x);
+  c.size = static_cast<std::uint32_t>(end - first);
+  c.gap = printing_gap(x, std::string_view(first, c.size));
+  text_.resize(c.begin + c.size);
+  cells_.push_back(c);
+}
+
 void Record::decimal(std::string_view text) {
   Cell c;
   c.tag = Cell::Tag::decimal;
@@ -177,7 +191,12 @@ namespace {
 char* write_cell_as(char* out, const Record& record, const Cell& cell, Kind kind) {
   switch (cell.tag) {
     case Cell::Tag::none: return out;
-    case Cell::Tag::number: return write_number(out, cell.number, kind);
+    case Cell::Tag::number:
+      if (cell.size > 0) {  // a value's text, written once by Record::shortest
+        std::memcpy(out, record.text_of(cell).data(), cell.size);
+        return out + cell.size;
+      }
+      return write_number(out, cell.number, kind);
     case Cell::Tag::decimal:
     case Cell::Tag::input:
     case Cell::Tag::text: {

@@ -58,6 +58,8 @@ struct Cell {
   std::uint32_t begin = 0, size = 0;  ///< decimal and text: where in Record::text
   const char* literal = nullptr;       ///< text: a static name (method, kind, unit), not copied
   double number = 0;
+  /// number cells of values: how far the printed text may lie from `number` (printing_gap)
+  double gap = 0;
   long long integer = 0;
 };
 
@@ -88,6 +90,9 @@ class Record {
   // Appenders, in the table's order (checked at the end of a builder by complete()).
   void none();
   void number(double x);
+  /// A double value, printed as its shortest round-trip text (kept in the record) with its
+  /// printing gap.
+  void shortest(double x);
   void decimal(std::string_view text);
   /// Room for `size` characters of decimal text, then commit_decimal with its end.
   char* decimal_room(std::size_t size);

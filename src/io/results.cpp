@@ -126,20 +126,23 @@ constexpr NamedTable tables[] = {
 template <class Real>
 void put_value(Record& r, const Real& v, Printing p) {
   if constexpr (std::is_same_v<Real, double>) {
-    r.number(v);
+    r.shortest(v);
   } else {
     char* at = r.decimal_room(decimal_max_length(p.digits));
     r.commit_decimal(write_decimal(at, v, p.digits));
   }
 }
 
-/// The error of a value printed by put_value: a double run prints the value exactly, an MPFR
-/// run with p.digits digits (printed_error adds what that moves it by).
+/// The error of a value printed by put_value, covering the printed text: a double run adds
+/// `gap` (printing_gap of the value's shortest text: 0 when it is the double's exact decimal),
+/// an MPFR run what printing with p.digits digits moves the value by (printed_error).
 template <class Real>
-void put_error(Record& r, const Real& value, const Real& e, Printing p) {
+void put_error(Record& r, const Real& value, const Real& e, Printing p, double gap = 0) {
   if constexpr (std::is_same_v<Real, double>) {
     (void)value;
-    r.number(e);
+    double covering = e + gap;
+    if (gap > 0) covering = std::nextafter(covering, HUGE_VAL);  // the sum rounded up
+    r.number(covering);
   } else {
     char* at = r.decimal_room(decimal_max_length(error_digits));
     r.commit_decimal(write_error(at, printed_error(value, e, p.digits)));
@@ -155,10 +158,16 @@ void put_values(Record& r, const std::vector<Estimate<Real>>& es, std::size_t n,
   }
 }
 
+/// The printing gap of the value k cells back (put_value's, just before its error).
+double gap_back(const Record& r, std::size_t k) {
+  return r.cells()[r.cells().size() - k].gap;
+}
+
+/// The errors of the n values put_values wrote just before.
 template <class Real>
 void put_errors(Record& r, const std::vector<Estimate<Real>>& es, std::size_t n, Printing p) {
   for (std::size_t i = 0; i < n; ++i) {
-    if (i < es.size()) put_error(r, es[i].value, es[i].error, p);
+    if (i < es.size()) put_error(r, es[i].value, es[i].error, p, gap_back(r, n));
     else r.none();
   }
 }
@@ -184,14 +193,15 @@ void put_quotients(Record& r, const std::vector<Estimate<Real>>& es, std::size_t
                             short_decimal(q) +
                             ", outside double's normal range (2.2e-308..1.8e308) at this beta");
       if (!errors) {
-        r.number(qd);
+        r.shortest(qd);
         continue;
       }
-      // the division in long double and the rounding to double: < 2^-52 |qd|
+      // the division in long double and the rounding to double: < 2^-52 |qd|; then the
+      // printing of qd (its value cell is n cells back)
       e += std::fabs(static_cast<long double>(qd)) * std::ldexp(1.0L, -52);
       double ed = static_cast<double>(e);
       if (static_cast<long double>(ed) < e) ed = std::nextafter(ed, HUGE_VAL);
-      r.number(ed);
+      put_error(r, qd, ed, p, gap_back(r, n));
     } else {
       if (!errors) {
         put_value(r, q, p);
@@ -304,7 +314,7 @@ void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Print
   else r.none();
   if (a.ratio) {
     put_value(r, a.ratio->value, p);
-    put_error(r, a.ratio->value, a.ratio->error, p);
+    put_error(r, a.ratio->value, a.ratio->error, p, gap_back(r, 1));
   } else {
     r.none();
     r.none();
@@ -352,7 +362,7 @@ void append_microcanonical(Record& r, const MicrocanonicalAverages<Real>& a, Pri
   const auto kind = [&] { r.name(error_kind_name(a.error_kind)); };
   const auto scalar = [&](const Estimate<Real>& e) {
     put_value(r, e.value, p);
-    put_error(r, e.value, e.error, p);
+    put_error(r, e.value, e.error, p, gap_back(r, 1));
     kind();
   };
   const auto array = [&](const std::vector<Estimate<Real>>& es) {
