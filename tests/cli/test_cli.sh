@@ -534,7 +534,7 @@ OMP_NUM_THREADS=2 "$pendavg" average --cases "$work/many.csv" >"$work/many2.csv"
 check_any_n_json() { # N
   py - "$1" "$work/out" <<'PY'
 import sys
-from schema1 import load, D, AVERAGE_JSON, KINDS
+from schema1 import load, D, real, AVERAGE_JSON, KINDS
 n = int(sys.argv[1])
 o = load(sys.argv[2])
 assert list(o) == AVERAGE_JSON, list(o)
@@ -552,6 +552,9 @@ for k in ("beta_K", "K", "beta_K_error", "cos_phi", "var_K", "beta2_var_K", "dia
           "beta_Kc", "beta_Kc_error", "m", "l"):
     assert isinstance(o[k], list) and len(o[k]) == n, k
 assert all(D(v) == D("0.5") for v in o["beta_Kc"]), o["beta_Kc"]
+for k in ("beta_K", "K", "cos_phi", "var_K", "beta2_var_K", "beta_Kc", "diagonal_approx"):
+    for v in o[k]:
+        real(v, o["digits"])  # JSON numbers (every digit of the double) or MPFR strings
 assert abs(sum(map(D, o["beta_K"])) - D(n) / 2) < D("1e-12"), "sum_i beta<K_i> = N/2"
 PY
 }
