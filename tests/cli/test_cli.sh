@@ -62,6 +62,192 @@ good() {
   fi
 }
 
+# Schema 1 of the outputs (issue 27): schema1.py reads them for the checks below (run them with
+# `py`); `data FILE` prints a CSV output's header and rows ('#' lines skipped) and
+# `cols FILE NAME...` the named cells of each row, comma-joined (MISSING:NAME for a column the
+# header does not have).
+cat >"$work/schema1.py" <<'PY'
+"""Schema 1 of pendavg's outputs, for the checks of test_cli.sh."""
+import csv
+import json
+from decimal import Decimal
+
+KINDS = {"bound", "estimate", "statistical"}
+
+
+class Number(Decimal):
+    """A JSON number with a fraction or exponent: its value, and its text as printed (.text)."""
+
+    def __new__(cls, text):
+        self = Decimal.__new__(cls, text)
+        self.text = text
+        return self
+
+
+def _refuse(token):
+    raise ValueError("bare " + token)
+
+
+def load(path):
+    """The one JSON line of PATH: numbers kept exact (Number, int), a bare NaN/Infinity refused."""
+    lines = open(path).read().splitlines()
+    assert len(lines) == 1, "one JSON line"
+    return json.loads(lines[0], parse_float=Number, parse_constant=_refuse)
+
+
+def D(v):
+    """The value of a JSON number (a double run) or of a decimal string (an MPFR run, a CSV cell)."""
+    assert v is not None and not isinstance(v, bool) and v != "", repr(v)
+    return v if isinstance(v, Decimal) else Decimal(v)
+
+
+def text(v):
+    """A JSON value as a CSV cell prints it."""
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, Number):
+        return v.text
+    return str(v)
+
+
+def significant(s):
+    return sum(c.isdigit() for c in s.lower().split("e")[0].lstrip("0.-"))
+
+
+def real(v, digits, cell=False):
+    """A real as a run at DIGITS prints it: in double a JSON number (CELL: a CSV cell's text)
+    whose text is the shortest that round-trips (every digit of the double, exactly); in MPFR a
+    decimal string of DIGITS significant digits. Returns its value."""
+    if digits <= 16:
+        if cell:
+            assert isinstance(v, str), repr(v)
+        else:
+            assert isinstance(v, (Number, int)) and not isinstance(v, bool), repr(v)
+        x = D(v)
+        assert x == Decimal(repr(float(x))), ("not the shortest round trip of a double", v)
+        return x
+    assert isinstance(v, str) and significant(v) == digits, (v, digits)
+    return D(v)
+
+
+def has_prefix(v, prefix):
+    """v lies in [prefix, prefix + one unit of its last digit): the digits of the old prefix checks."""
+    p = Decimal(prefix)
+    return p <= D(v) < p + Decimal(1).scaleb(p.as_tuple().exponent)
+
+
+def per(stem, n):
+    return ["%s%d" % (stem, i) for i in range(1, n + 1)]
+
+
+def per_error(stem, n):
+    return ["%s%d_error" % (stem, i) for i in range(1, n + 1)]
+
+
+def with_errors(stem, n):
+    """A per-particle quantity's CSV columns: X1..XN, X1_error..XN_error, X_error_kind."""
+    return per(stem, n) + per_error(stem, n) + [stem + "_error_kind"]
+
+
+def with_error(name):
+    return [name, name + "_error", name + "_error_kind"]
+
+
+def canonical_columns(n):
+    """The canonical results' CSV columns (average, --cases, table, limit) after the inputs."""
+    return (["method"] + with_errors("beta_K", n) + with_errors("K", n) + with_error("ratio") +
+            with_errors("cos_phi", n) + with_errors("var_K", n) + with_errors("beta2_var_K", n) +
+            with_errors("beta_Kc", n) + per("diagonal_approx", n) +
+            ["equipartition_residual", "evaluations", "work_unit", "converged", "interrupted"])
+
+
+def other_state(state):
+    return {"energy": "excitation", "excitation": "energy"}[state]
+
+
+def micro_columns(n, state):
+    """The microcanonical results' CSV columns after the inputs (STATE: energy or excitation)."""
+    return ([other_state(state), "ensemble", "method"] + with_errors("K", n) + with_error("Kc") +
+            with_errors("cos_phi", n) + with_errors("var_K", n) + with_error("K_total") +
+            with_error("density_of_states") +
+            ["proposal_beta", "effective_sample_fraction", "evaluations", "work_unit", "converged"])
+
+
+def header(kind, n, state="beta"):
+    """The CSV header of KIND (average: one result; cases; table; limit) for N particles."""
+    results = canonical_columns(n) if state == "beta" else micro_columns(n, state)
+    inputs = [state, "g"] + per("m", n) + per("l", n)
+    if kind == "average":
+        return ["N", "digits"] + inputs + results + ["seconds"]
+    if kind == "cases":
+        return inputs + results
+    if kind == "table":
+        return ["N", "digits"] + inputs + results
+    assert kind == "limit" and state == "beta"
+    return ["limit", "N", "digits", "g"] + per("m", n) + per("l", n) + results + ["seconds"]
+
+
+CANONICAL_JSON = (["method"] + with_error("beta_K") + with_error("K") + with_error("ratio") +
+                  with_error("cos_phi") + with_error("var_K") + with_error("beta2_var_K") +
+                  with_error("beta_Kc") + ["diagonal_approx", "equipartition_residual",
+                                           "evaluations", "work_unit", "converged",
+                                           "interrupted", "run"])
+AVERAGE_JSON = ["schema", "command", "N", "digits", "beta", "g", "m", "l"] + CANONICAL_JSON + [
+    "seconds"]
+LIMIT_JSON = ["schema", "command", "N", "digits", "g", "m", "l", "high_temperature",
+              "low_temperature", "seconds"]
+
+
+def micro_json(state):
+    return (["schema", "command", "N", "digits", state, "g", "m", "l", other_state(state),
+             "ensemble", "method"] + with_error("K") + with_error("Kc") + with_error("cos_phi") +
+            with_error("var_K") + with_error("K_total") + with_error("density_of_states") +
+            ["proposal_beta", "effective_sample_fraction", "evaluations", "work_unit",
+             "converged", "run", "seconds"])
+
+
+def columns_of(obj):
+    """A JSON object's values under their CSV column names (per-particle X[i] as X{i+1} and
+    X_error[i] as X{i+1}_error); schema, command, run and the limits' objects left out."""
+    out = {}
+    for key, value in obj.items():
+        if key in ("schema", "command", "run", "high_temperature", "low_temperature"):
+            continue
+        if isinstance(value, list):
+            stem, suffix = (key[:-6], "_error") if key.endswith("_error") else (key, "")
+            for i, v in enumerate(value):
+                out["%s%d%s" % (stem, i + 1, suffix)] = v
+        else:
+            out[key] = value
+    return out
+
+
+def read_csv(path, text=None):
+    """(comment lines, header, rows as dicts) of a CSV output; every row as long as the header."""
+    lines = (open(path).read() if text is None else text).splitlines()
+    comments = [l for l in lines if l.startswith("#")]
+    data = [l for l in lines if not l.startswith("#")]
+    assert data, "no CSV header"
+    head = data[0].split(",")
+    assert all(len(l.split(",")) == len(head) for l in data), "ragged rows"
+    return comments, head, list(csv.DictReader(data))
+PY
+py() { PYTHONPATH="$work" "$python" "$@"; }
+data() { grep -v '^#' "$1"; }
+cols() { # FILE NAME...
+  local file=$1
+  shift
+  awk -F, -v names="$*" '
+    BEGIN { n = split(names, want, " ") }
+    /^#/ { next }
+    !seen { for (i = 1; i <= NF; ++i) at[$i] = i; seen = 1; next }
+    { line = ""
+      for (j = 1; j <= n; ++j) line = line (j > 1 ? "," : "") (want[j] in at ? $(at[want[j]]) : "MISSING:" want[j])
+      print line }' "$file"
+}
+
 pendulum=(--masses 0.5,0.5 --lengths 1,1)
 
 # ---------------------------------------------------------------- bad input
@@ -152,66 +338,90 @@ bad "cases is a directory"   average --cases "$work"
 bad "cases --format json"    average --cases "$work/bad_row.csv" --format json
 
 # ---------------------------------------------------------------- good input
-json_keys='N beta digits method beta_K K error ratio cos_phi var_K evaluations seconds converged'
-# Keys added after the original ones (issue 10: every error the library computes, and its kind).
-json_added='error_kind K_error ratio_error cos_phi_error var_K_error error_kinds work_unit equipartition_residual run'
+# average --format json: one line, schema 1's keys in their order, reals as JSON numbers with every
+# digit of the double (shortest round trip) or, in MPFR, decimal strings of --digits digits.
 check_average_json() { # DIGITS
-  "$python" -c '
-import json, sys
-keys, digits = sys.argv[1].split(), int(sys.argv[2])
-lines = open(sys.argv[3]).read().splitlines()
-assert len(lines) == 1, "one JSON line"
-o = json.loads(lines[0])
-assert list(o)[:len(keys) - 1] == keys[:-1] and set(keys) <= set(o), list(o)
+  py - "$1" "$work/out" <<'PY'
+import sys
+from schema1 import load, real, D, AVERAGE_JSON, KINDS
+digits = int(sys.argv[1])
+o = load(sys.argv[2])
+assert list(o) == AVERAGE_JSON, list(o)
+assert o["schema"] == 1 and o["command"] == "average", o
 assert o["N"] == 2 and o["digits"] == digits and isinstance(o["converged"], bool)
-for k in ("beta_K", "K", "error", "cos_phi", "var_K"):
+assert o["interrupted"] is False and o["beta_K_error_kind"] in KINDS, o
+for k in ("beta_K", "K", "beta_K_error", "cos_phi", "var_K", "m", "l"):
     assert isinstance(o[k], list) and len(o[k]) == 2, k
-significant = sum(c.isdigit() for c in o["beta_K"][0].lower().split("e")[0].lstrip("0.-"))
-assert significant == digits, (o["beta_K"][0], significant)
-assert abs(float(o["beta_K"][0]) + float(o["beta_K"][1]) - 1) < 1e-12, "beta<K1> + beta<K2> = 1"
-' "$json_keys" "$1" "$work/out"
+for k in ("beta_K", "K", "cos_phi", "var_K", "beta2_var_K", "beta_Kc", "diagonal_approx"):
+    for v in o[k]:
+        real(v, digits)
+real(o["ratio"], digits)
+assert abs(D(o["beta_K"][0]) + D(o["beta_K"][1]) - 1) < D("1e-12"), "beta<K1> + beta<K2> = 1"
+PY
 }
-good "average json"          'check_average_json 16' average "${pendulum[@]}" --beta 1
-good "average json, digits 30" 'check_average_json 30' average "${pendulum[@]}" --beta 0.1 --digits 30
-good "average series json"   'check_average_json 16' average "${pendulum[@]}" --beta 1 --method series
-good "average csv" \
-  '[ "$(wc -l <"$work/out")" -eq 2 ] && [ "$(head -1 "$work/out" | tr , "\n" | wc -l)" -eq "$(tail -1 "$work/out" | tr , "\n" | wc -l)" ]' \
-  average "${pendulum[@]}" --beta 1 --format csv
-good "average text"          'grep -q "beta<K_i>" "$work/out"' average "${pendulum[@]}" --beta 1 --format text
+good "average json"          'check_average_json 16' average "${pendulum[@]}" --beta 1 --format json
+good "average json, digits 30" 'check_average_json 30' average "${pendulum[@]}" --beta 0.1 --digits 30 --format json
+good "average series json"   'check_average_json 16' average "${pendulum[@]}" --beta 1 --method series --format json
+# CSV: '# schema: 1', '# pendavg average', the header, one row as long as the header.
+check_average_csv() { # N [STATE]
+  py - "$work/out" "$1" "${2:-beta}" <<'PY'
+import sys
+from schema1 import read_csv, header
+comments, head, rows = read_csv(sys.argv[1])
+assert comments == ["# schema: 1", "# pendavg average"], comments
+assert open(sys.argv[1]).read().splitlines()[:2] == comments, "the '#' lines come first"
+assert head == header("average", int(sys.argv[2]), sys.argv[3]), head
+assert len(rows) == 1, len(rows)
+PY
+}
+good "average csv"           'check_average_csv 2' average "${pendulum[@]}" --beta 1 --format csv
+# csv is every command's default format: the same output as --format csv, but for the run time
+strip_csv_seconds() { sed 's/,[^,]*$//' "$1"; }
+run average "${pendulum[@]}" --beta 1 --format csv
+cp "$work/out" "$work/average_csv.csv"
+good "average: csv by default" \
+  '[ "$(strip_csv_seconds "$work/out")" = "$(strip_csv_seconds "$work/average_csv.csv")" ]' \
+  average "${pendulum[@]}" --beta 1
+run limit --masses 0.5,0.5 --format csv
+cp "$work/out" "$work/limit_csv.csv"
+good "limit: csv by default" \
+  '[ "$(strip_csv_seconds "$work/out")" = "$(strip_csv_seconds "$work/limit_csv.csv")" ]' \
+  limit --masses 0.5,0.5
+good "average text"          'grep -Eq "^i +beta_K +beta_K_error " "$work/out"' average "${pendulum[@]}" --beta 1 --format text
 
 printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
-# Columns added after the original ones (issue 10): the kinds of the other errors, the work unit,
-# the equipartition residual and beta<K_i^(c)> with its errors.
-canonical_added() { # N
-  local i out=',cos_phi_error_kind,var_K_error_kind,work_unit,equipartition_residual'
-  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc$i"; done
-  for ((i = 1; i <= $1; ++i)); do out+=",beta_Kc_error$i"; done
-  echo "$out,beta_Kc_error_kind"
+# The canonical CSV header of schema 1: the inputs, then the results.
+canonical_header() { # KIND (average | cases | table | limit) N [STATE]
+  py -c 'import sys, schema1; print(",".join(schema1.header(sys.argv[1], int(sys.argv[2]), sys.argv[3])))' \
+    "$1" "$2" "${3:-beta}"
 }
-cases_header='beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged'"$(canonical_added 2)"
+cases_header=$(canonical_header cases 2)
 good "cases shuffled" \
-  '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$cases_header" ] && [ "$(sed -n 3p "$work/out" | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
+  '[ "$(head -1 "$work/out")" = "# schema: 1" ] && [ "$(data "$work/out" | wc -l)" -eq 4 ] &&
+   [ "$(data "$work/out" | head -1)" = "$cases_header" ] && [ "$(data "$work/out" | sed -n 3p | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
   average --cases "$work/cases.csv"
-good "cases shuffled, digits 20" '[ "$(wc -l <"$work/out")" -eq 4 ]' \
+good "cases shuffled, digits 20" '[ "$(data "$work/out" | wc -l)" -eq 4 ]' \
   average --cases "$work/cases.csv" --digits 20
 
 # Every --cases column equals `average --format csv` of the same point: var_K is Var K_i (not
 # beta^2 Var K_i) and each error and kind as printed there; in double and in MPFR.
 check_cases_as_average() { # DIGITS
   "$pendavg" average --cases "$work/cases.csv" --digits "$1" >"$work/cases_cmp.csv" 2>/dev/null || return 1
-  "$python" - "$pendavg" "$work/cases_cmp.csv" "$1" <<'PY'
-import csv, subprocess, sys
+  py - "$pendavg" "$work/cases_cmp.csv" "$1" <<'PY'
+import subprocess, sys
+from schema1 import read_csv
 pendavg, path, digits = sys.argv[1], sys.argv[2], sys.argv[3]
-rows = list(csv.DictReader(line for line in open(path) if not line.startswith("#")))
+_, _, rows = read_csv(path)
 assert len(rows) == 3
 for row in rows:
     args = [pendavg, "average", "--masses", row["m1"] + "," + row["m2"], "--lengths",
             row["l1"] + "," + row["l2"], "--g", row["g"], "--beta", row["beta"],
             "--digits", digits, "--format", "csv"]
-    single = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True,
-                                                check=True).stdout.splitlines()))
-    for key in ("beta_K1", "beta_K2", "error_K1", "var_K1", "var_K2", "var_K_error1",
-                "var_K_error2", "cos_phi1", "cos_phi_error2", "ratio", "ratio_error", "method"):
+    single = read_csv(None, subprocess.run(args, capture_output=True, text=True,
+                                           check=True).stdout)[2][0]
+    for key in ("beta_K1", "beta_K2", "beta_K1_error", "var_K1", "var_K2", "var_K1_error",
+                "var_K2_error", "cos_phi1", "cos_phi2_error", "ratio", "ratio_error", "method",
+                "beta2_var_K1", "beta2_var_K2_error", "K_error_kind", "interrupted"):
         assert row[key] == single[key], (key, row[key], single[key])
 PY
 }
@@ -220,29 +430,49 @@ if check_cases_as_average 25; then pass; else fail "cases columns = average --fo
 
 # --columns LIST: the listed output columns (names or per-particle stems), in that order, each
 # with the same text as in the full output; the input columns stay in front. Bad lists exit 2.
+# The names of schema 0 are still taken, printed under their old names (error_K2: the column
+# beta_K2_error).
 check_columns() { # DIGITS LIST EXPECTED-NAMES(comma separated)
   "$pendavg" average --cases "$work/cases.csv" --digits "$1" >"$work/cols_all.csv" 2>/dev/null &&
     "$pendavg" average --cases "$work/cases.csv" --digits "$1" --columns "$2" >"$work/cols_some.csv" 2>/dev/null &&
-    "$python" - "$work/cols_all.csv" "$work/cols_some.csv" "$3" <<'PY'
-import csv, sys
-full = list(csv.reader(open(sys.argv[1])))
-some = list(csv.reader(open(sys.argv[2])))
+    py - "$work/cols_all.csv" "$work/cols_some.csv" "$3" <<'PY'
+import csv, re, sys
+from schema1 import read_csv
+full_comments, full_head, _ = read_csv(sys.argv[1])
+some_comments, some_head, _ = read_csv(sys.argv[2])
+assert some_comments == full_comments == ["# schema: 1"], (some_comments, full_comments)
+full = [r for r in csv.reader(open(sys.argv[1])) if not r[0].startswith("#")]
+some = [r for r in csv.reader(open(sys.argv[2])) if not r[0].startswith("#")]
 expected = ["beta", "g", "m1", "m2", "l1", "l2"] + sys.argv[3].split(",")
 assert some[0] == expected, (some[0], expected)
 assert len(some) == len(full) == 4
+def schema1_name(name):  # error_K2, K_error2, cos_phi_error2, ... -> beta_K2_error, K2_error, ...
+    m = re.fullmatch(r"error_K(\d+)", name)
+    if m:
+        return "beta_K%s_error" % m.group(1)
+    m = re.fullmatch(r"(K|cos_phi|var_K|beta_Kc)_error(\d+)", name)
+    if m:
+        return "%s%s_error" % m.groups()
+    return {"error_kind": "beta_K_error_kind"}.get(name, name)
 for a, b in zip(full[1:], some[1:]):
     row = dict(zip(full[0], a))
-    assert b == [row[name] for name in expected], (a, b)
+    assert b == [row[schema1_name(name)] for name in expected], (a, b)
 PY
 }
 check_columns 16 beta_K,error_K,ratio,cos_phi,method,evaluations \
   beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations &&
   pass || fail "cases --columns: the original seven numbers"
+check_columns 16 beta_K,beta_K_error,ratio,cos_phi,method,evaluations \
+  beta_K1,beta_K2,beta_K1_error,beta_K2_error,ratio,cos_phi1,cos_phi2,method,evaluations &&
+  pass || fail "cases --columns: the original seven numbers, schema 1's names"
 check_columns 16 var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 \
   var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 &&
   pass || fail "cases --columns: any order, variance errors before values"
+check_columns 16 var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted \
+  var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted &&
+  pass || fail "cases --columns: any order, schema 1's names"
 check_columns 25 cos_phi_error,ratio_error,equipartition_residual,work_unit \
-  cos_phi_error1,cos_phi_error2,ratio_error,equipartition_residual,work_unit &&
+  cos_phi1_error,cos_phi2_error,ratio_error,equipartition_residual,work_unit &&
   pass || fail "cases --columns at 25 digits"
 bad "cases --columns unknown"          average --cases "$work/cases.csv" --columns beta_K,foo
 grep -q "unknown column 'foo'" "$work/err" && pass || fail "cases --columns unknown: message"
@@ -254,7 +484,7 @@ bad "cases --columns input column"     average --cases "$work/cases.csv" --colum
 bad "--columns without --cases"        average "${pendulum[@]}" --beta 1 --columns beta_K
 printf 'excitation,g,m1,m2,l1,l2\n1,1,1,1,1,1\n' >"$work/micro_cases.csv"
 good "cases --columns, microcanonical" \
-  '[ "$(head -1 "$work/out")" = "excitation,g,m1,m2,l1,l2,K2,density_of_states,energy" ] && [ "$(tail -1 "$work/out" | tr , "\n" | wc -l)" -eq 9 ]' \
+  '[ "$(data "$work/out" | head -1)" = "excitation,g,m1,m2,l1,l2,K2,density_of_states,energy" ] && [ "$(data "$work/out" | tail -1 | tr , "\n" | wc -l)" -eq 9 ]' \
   average --cases "$work/micro_cases.csv" --columns K2,density_of_states,energy
 
 # --cases --timing: stdout unchanged, one summary line on stderr (its presence and format, not
@@ -297,119 +527,135 @@ with open(sys.argv[1], "w") as f:
 PY
 OMP_NUM_THREADS=1 "$pendavg" average --cases "$work/many.csv" >"$work/many1.csv" 2>/dev/null
 OMP_NUM_THREADS=2 "$pendavg" average --cases "$work/many.csv" >"$work/many2.csv" 2>/dev/null
-[ "$(wc -l <"$work/many1.csv")" -eq 601 ] && cmp -s "$work/many1.csv" "$work/many2.csv" && pass ||
+[ "$(data "$work/many1.csv" | wc -l)" -eq 601 ] && cmp -s "$work/many1.csv" "$work/many2.csv" && pass ||
   fail "cases 600 rows: 1 and 2 threads differ"
 
 # ---------------------------------------------------------------- any N
 check_any_n_json() { # N
-  "$python" -c '
-import json, sys
-keys = sys.argv[1].split() + ["diagonal_approx", "beta_Kc"] + sys.argv[4].split()
-n = int(sys.argv[2])
-o = json.loads(open(sys.argv[3]).read())
-assert list(o) == keys, list(o)
-assert o["error_kind"] in ("bound", "estimate", "statistical"), o["error_kind"]
-for k in ("K_error", "cos_phi_error", "var_K_error"):
-    assert isinstance(o[k], list) and len(o[k]) == n and all(float(e) >= 0 for e in o[k]), k
+  py - "$1" "$work/out" <<'PY'
+import sys
+from schema1 import load, D, real, AVERAGE_JSON, KINDS
+n = int(sys.argv[1])
+o = load(sys.argv[2])
+assert list(o) == AVERAGE_JSON, list(o)
+assert o["beta_K_error_kind"] in KINDS, o["beta_K_error_kind"]
+for k in ("K_error", "cos_phi_error", "var_K_error", "beta2_var_K_error"):
+    assert isinstance(o[k], list) and len(o[k]) == n and all(D(e) >= 0 for e in o[k]), k
 assert (o["ratio_error"] is None) == (n == 1), o["ratio_error"]
-assert set(o["error_kinds"]) == {"beta_K", "ratio", "cos_phi", "var_K"}, o["error_kinds"]
-assert o["N"] == n and o["converged"] is True
-for k in ("beta_K", "K", "error", "cos_phi", "var_K", "diagonal_approx", "beta_Kc"):
+# every error's kind (none for the ratio of a single particle); beta<K_i^c> = 1/2 is exact
+for q in ("beta_K", "K", "ratio", "cos_phi", "var_K", "beta2_var_K", "beta_Kc"):
+    kind = o[q + "_error_kind"]
+    assert kind in KINDS or (q == "ratio" and n == 1 and kind is None), (q, kind)
+assert o["beta_Kc_error_kind"] == "bound", o
+assert o["N"] == n and o["converged"] is True and o["interrupted"] is False
+for k in ("beta_K", "K", "beta_K_error", "cos_phi", "var_K", "beta2_var_K", "diagonal_approx",
+          "beta_Kc", "beta_Kc_error", "m", "l"):
     assert isinstance(o[k], list) and len(o[k]) == n, k
-assert all(v == "5.000000000000000e-01" for v in o["beta_Kc"]), o["beta_Kc"]
-assert abs(sum(map(float, o["beta_K"])) - n / 2) < 1e-12, "sum_i beta<K_i> = N/2"
-' "$json_keys" "$1" "$work/out" "$json_added"
+assert all(D(v) == D("0.5") for v in o["beta_Kc"]), o["beta_Kc"]
+for k in ("beta_K", "K", "cos_phi", "var_K", "beta2_var_K", "beta_Kc", "diagonal_approx"):
+    for v in o[k]:
+        real(v, o["digits"])  # JSON numbers (every digit of the double) or MPFR strings
+assert abs(sum(map(D, o["beta_K"])) - D(n) / 2) < D("1e-12"), "sum_i beta<K_i> = N/2"
+PY
 }
 # beta<K_i> of the unit 3-link chain at g = beta = 1 (published reference values)
 check_unit3() {
-  check_any_n_json 3 && "$python" -c '
-import json, sys
-o = json.loads(open(sys.argv[1]).read())
+  check_any_n_json 3 && py - "$work/out" <<'PY'
+import sys
+from schema1 import load, has_prefix
+o = load(sys.argv[1])
 assert o["method"] == "torus-trapezoid", o["method"]
-for value, prefix in zip(o["beta_K"], ("3.2908723613784", "4.8318092191398", "6.877318419481")):
-    assert value.startswith(prefix), (value, prefix)
-assert o["ratio"].startswith("6.81084912943"), o["ratio"]
-' "$work/out"
+for value, prefix in zip(o["beta_K"], ("0.32908723613784", "0.48318092191398", "0.6877318419481")):
+    assert has_prefix(value, prefix), (value, prefix)
+assert has_prefix(o["ratio"], "0.681084912943"), o["ratio"]
+PY
 }
-good "N = 3 unit chain"      check_unit3 average "${unit3[@]}" --beta 1
+good "N = 3 unit chain"      check_unit3 average "${unit3[@]}" --beta 1 --format json
 cp "$work/out" "$work/unit3.json"
+# 1/6 to the 16 digits the old check read (1.666666666666667e-01)
 good "N = 3 diagonal approx" \
-  'check_any_n_json 3 && "$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"diagonal_approx\"][0] == \"1.666666666666667e-01\", o" "$work/out"' \
-  average "${unit3[@]}" --beta 0.1
+  'check_any_n_json 3 && py -c "import sys; from schema1 import *; o = load(sys.argv[1]); assert round(D(o[\"diagonal_approx\"][0]), 16) == D(\"0.1666666666666667\"), o" "$work/out"' \
+  average "${unit3[@]}" --beta 0.1 --format json
 good "N = 3 torus-gauss, digits 20" \
-  '"$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"method\"] == \"torus-gauss\" and o[\"beta_K\"][0].startswith(\"3.29087236137842418\"), o" "$work/out"' \
-  average "${unit3[@]}" --beta 1 --method torus-gauss --digits 20
+  'py -c "import sys; from schema1 import *; o = load(sys.argv[1]); assert o[\"method\"] == \"torus-gauss\" and real(o[\"beta_K\"][0], 20) and o[\"beta_K\"][0].startswith(\"3.29087236137842418\"), o" "$work/out"' \
+  average "${unit3[@]}" --beta 1 --method torus-gauss --digits 20 --format json
 good "N = 1"                 \
-  'check_any_n_json 1 && "$python" -c "import json,sys; o = json.load(open(sys.argv[1])); assert o[\"ratio\"] is None and o[\"beta_K\"] == [\"5.000000000000000e-01\"], o" "$work/out"' \
-  average --masses 2 --lengths 3 --beta 0.7
-good "N = 4 csv"             '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",beta_Kc4,error_kind," && head -1 "$work/out" | grep -q ",equipartition_residual$"' \
+  'check_any_n_json 1 && py -c "import sys; from schema1 import *; o = load(sys.argv[1]); assert o[\"ratio\"] is None and o[\"beta_K\"] == [D(\"0.5\")] and isinstance(o[\"beta_K\"][0], Number), o" "$work/out"' \
+  average --masses 2 --lengths 3 --beta 0.7 --format json
+good "N = 4 csv"             'check_average_csv 4' \
   average --masses 1,2,3,4 --lengths 1,1,1,1 --beta 1 --format csv
-good "N = 3 text"            'grep -q "diagonal approx" "$work/out" && [ "$(grep -c "^ *[123]  " "$work/out")" -eq 3 ]' \
+# text: the per-particle table of the results (its header ends with diagonal_approx), one row per particle
+text_rows() { awk '/^i .*diagonal_approx$/ { on = 1; next } on && /^ *[0-9]+  / { ++rows; next } { on = 0 } END { print rows + 0 }' "$1"; }
+good "N = 3 text"            '[ "$(text_rows "$work/out")" -eq 3 ]' \
   average "${unit3[@]}" --beta 1 --format text
-good "N = 2 json extras"     'check_any_n_json 2' average "${pendulum[@]}" --beta 1
+good "N = 2 json extras"     'check_any_n_json 2' average "${pendulum[@]}" --beta 1 --format json
 
 # The any-N engines against the N = 2 engine: torus rules to 1e-12 relative, qmc within its bar.
 check_agree() { # REFERENCE CANDIDATE TOLERANCE ("bar": within the candidate's error bars)
-  "$python" -c '
-import json, sys
-a, b = (json.load(open(path)) for path in sys.argv[1:3])
+  py - "$1" "$work/out" "$2" <<'PY'
+import sys
+from decimal import Decimal
+from schema1 import load, D
+a, b = (load(path) for path in sys.argv[1:3])
 tolerance = sys.argv[3]
 assert a["N"] == b["N"] == 2 and a["method"] != b["method"], (a["method"], b["method"])
 for key in ("beta_K", "cos_phi", "var_K"):
-    for i, (x, y) in enumerate(zip(map(float, a[key]), map(float, b[key]))):
+    for i, (x, y) in enumerate(zip(map(D, a[key]), map(D, b[key]))):
         if tolerance == "bar" and key == "beta_K":
-            assert abs(x - y) <= float(b["error"][i]), (key, x, y, b["error"][i])
+            assert abs(x - y) <= D(b["beta_K_error"][i]), (key, x, y, b["beta_K_error"][i])
         elif tolerance != "bar":
-            assert abs(x - y) <= float(tolerance) * abs(x), (key, x, y)
-' "$1" "$work/out" "$2"
+            assert abs(x - y) <= Decimal(tolerance) * abs(x), (key, x, y)
+PY
 }
 for params in "0.5,0.5 1,1 1 1" "0.2,0.8 1,2 10 9.81" "3,0.01 2,0.5 0.05 1"; do
   read -r m l b g <<<"$params"
-  run average --masses "$m" --lengths "$l" --beta "$b" --g "$g"
+  run average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --format json
   cp "$work/out" "$work/reference.json"
   for method in torus-trapezoid torus-gauss; do
     good "N = 2 $method vs default ($params)" 'check_agree "$work/reference.json" 1e-12' \
-      average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method "$method"
+      average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method "$method" --format json
   done
   good "N = 2 qmc vs default ($params)" 'check_agree "$work/reference.json" bar' \
-    average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method qmc --samples 4096
+    average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method qmc --samples 4096 --format json
 done
 
 # qmc: deterministic for a seed (all but the wall time), and its bars cover the exact values.
-strip_seconds() { sed 's/"seconds": [^,]*,//' "$1"; }
-run average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
+strip_seconds() { sed 's/"seconds": [^,}]*//' "$1"; }
+run average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096 --format json
 cp "$work/out" "$work/qmc1.json"
 good "qmc N = 3 deterministic" '[ "$(strip_seconds "$work/out")" = "$(strip_seconds "$work/qmc1.json")" ]' \
-  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
-good "qmc N = 3 covers exact" '"$python" -c "
-import json, sys
-q, exact = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096 --format json
+good "qmc N = 3 covers exact" 'py -c "
+import sys
+from schema1 import load, D
+q, exact = load(sys.argv[1]), load(sys.argv[2])
 assert q[\"method\"] == \"qmc\" and q[\"evaluations\"] == 4096 * 16, q
-for x, y, e in zip(map(float, q[\"beta_K\"]), map(float, exact[\"beta_K\"]), map(float, q[\"error\"])):
-    assert abs(x - y) <= e and e < 1e-5, (x, y, e)
+for x, y, e in zip(map(D, q[\"beta_K\"]), map(D, exact[\"beta_K\"]), map(D, q[\"beta_K_error\"])):
+    assert abs(x - y) <= e and e < D(\"1e-5\"), (x, y, e)
 " "$work/out" "$work/unit3.json"' \
-  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096 --format json
 good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(strip_seconds "$work/qmc1.json")" ]' \
-  average "${unit3[@]}" --beta 1 --method qmc --seed 12346 --samples 4096 --shifts 8
+  average "${unit3[@]}" --beta 1 --method qmc --seed 12346 --samples 4096 --shifts 8 --format json
 
 # --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
 # match the single-case command.
 printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
-cases3_header='beta,g,m1,m2,m3,l1,l2,l3,beta_K1,beta_K2,beta_K3,error_K1,error_K2,error_K3,ratio,cos_phi1,cos_phi2,cos_phi3,method,evaluations,ratio_error,cos_phi_error1,cos_phi_error2,cos_phi_error3,var_K1,var_K2,var_K3,var_K_error1,var_K_error2,var_K_error3,error_kind,converged'"$(canonical_added 3)"
+cases3_header=$(canonical_header cases 3)
 check_cases3() {
-  [ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(head -1 "$work/out")" = "$cases3_header" ] &&
-    [ "$(sed -n 3p "$work/out" | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
-    "$python" -c '
-import csv, json, sys
-rows = list(csv.DictReader(open(sys.argv[1])))
-exact = json.load(open(sys.argv[2]))
+  [ "$(data "$work/out" | wc -l)" -eq 3 ] && [ "$(data "$work/out" | head -1)" = "$cases3_header" ] &&
+    [ "$(data "$work/out" | sed -n 3p | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
+    py - "$work/out" "$work/unit3.json" <<'PY'
+import sys
+from schema1 import load, read_csv, text
+rows = read_csv(sys.argv[1])[2]
+exact = load(sys.argv[2])
 assert rows[0]["method"] == "torus-trapezoid", rows[0]
-assert [rows[0]["beta_K%d" % i] for i in (1, 2, 3)] == exact["beta_K"], rows[0]
-assert rows[0]["ratio"] == exact["ratio"]
-' "$work/out" "$work/unit3.json"
+assert [rows[0]["beta_K%d" % i] for i in (1, 2, 3)] == [text(v) for v in exact["beta_K"]], rows[0]
+assert rows[0]["ratio"] == text(exact["ratio"])
+PY
 }
 good "cases N = 3 shuffled"  check_cases3 average --cases "$work/cases3.csv"
-good "cases N = 3 qmc"       '[ "$(wc -l <"$work/out")" -eq 3 ] && [ "$(sed -n 2p "$work/out" | cut -d, -f19)" = qmc ]' \
+good "cases N = 3 qmc"       '[ "$(data "$work/out" | wc -l)" -eq 3 ] && [ "$(cols "$work/out" method | head -1)" = qmc ]' \
   average --cases "$work/cases3.csv" --method qmc --samples 1024 --seed 3
 printf 'beta,g,m1,m2,m3,l1,l2\n1,1,1,1,1,1,1\n' >"$work/cases3_missing.csv"
 printf 'beta,g,m1,m3,l1,l2,l3\n1,1,1,1,1,1,1\n' >"$work/cases3_gap.csv"
@@ -423,33 +669,37 @@ bad "cases N = 3 seed, torus"   average --cases "$work/cases3.csv" --seed 4
 bad "cases N = 3 bad row"       average --cases "$work/cases3_bad_row.csv"
 grep -q 'line 3: m3' "$work/err" && pass || fail "cases N = 3 bad row: stderr does not name line 3, m3"
 
-check_limit() {
-  "$python" -c '
-import json, sys, decimal
-o = json.loads(open(sys.argv[1]).read())
+check_limit() { # DIGITS
+  py - "$work/out" "$1" <<'PY'
+import sys
+from schema1 import load, real, has_prefix, LIMIT_JSON, CANONICAL_JSON
+o, digits = load(sys.argv[1]), int(sys.argv[2])
+assert list(o) == LIMIT_JSON and o["command"] == "limit", list(o)
 for part in ("high_temperature", "low_temperature"):
-    assert list(o[part])[:4] == ["beta_K", "error", "ratio", "var_K_beta2"], list(o[part])
-    assert o[part]["error_kind"] == "bound", o[part]
-value = format(decimal.Decimal(o["high_temperature"]["beta_K"][0]), "f")
-assert value.startswith("0.3431834814709"), value
-' "$work/out"
-}
-good "limit paper value"     check_limit limit --masses 0.5,0.5
-good "limit paper value, digits 40" check_limit limit --masses 0.5,0.5 --digits 40
-good "limit text"            '[ -s "$work/out" ]' limit --masses 0.5,0.5 --format text
-check_limit_any() { # N: beta -> 0 sums to N/2; beta -> infinity is 1/2 each
-  "$python" - "$work/out" "$1" <<'PY'
-import json, sys
-d = json.load(open(sys.argv[1])); n = int(sys.argv[2])
-h, l = d["high_temperature"], d["low_temperature"]
-assert d["N"] == n and len(h["beta_K"]) == n
-total = sum(float(x) for x in h["beta_K"]); bars = sum(float(x) for x in h["error"])
-assert abs(total - n / 2) <= bars + 1e-13, (total, bars)
-assert all(float(x) == 0.5 for x in l["beta_K"])
+    assert list(o[part]) == CANONICAL_JSON, list(o[part])
+    assert o[part]["beta_K_error_kind"] == "bound", o[part]
+value = real(o["high_temperature"]["beta_K"][0], digits)
+assert has_prefix(value, "0.3431834814709"), value
 PY
 }
-good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --lengths 1,0.5,2
-good "limit N = 7 (transfer)"  'check_limit_any 7' limit --masses 1,1,1,1,1,1,1
+good "limit paper value"     'check_limit 16' limit --masses 0.5,0.5 --format json
+good "limit paper value, digits 40" 'check_limit 40' limit --masses 0.5,0.5 --digits 40 --format json
+good "limit text"            '[ -s "$work/out" ]' limit --masses 0.5,0.5 --format text
+check_limit_any() { # N: beta -> 0 sums to N/2; beta -> infinity is 1/2 each
+  py - "$work/out" "$1" <<'PY'
+import sys
+from decimal import Decimal
+from schema1 import load, D
+d = load(sys.argv[1]); n = int(sys.argv[2])
+h, l = d["high_temperature"], d["low_temperature"]
+assert d["N"] == n and len(h["beta_K"]) == n
+total = sum(D(x) for x in h["beta_K"]); bars = sum(D(x) for x in h["beta_K_error"])
+assert abs(total - Decimal(n) / 2) <= bars + Decimal("1e-13"), (total, bars)
+assert all(D(x) == Decimal("0.5") for x in l["beta_K"])
+PY
+}
+good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format json
+good "limit N = 7 (transfer)"  'check_limit_any 7' limit --masses 1,1,1,1,1,1,1 --format json
 bad "limit N = 6 at 20 digits" limit --masses 1,1,1,1,1,1 --digits 20
 
 good "series 5 terms text" \
@@ -459,14 +709,14 @@ good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header='N,digits,beta,g,m1,m2,l1,l2,beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,var_K1,var_K2,diagonal_approx1,diagonal_approx2,method,evaluations,converged,error_kind,ratio_error,cos_phi_error1,cos_phi_error2,var_K_error1,var_K_error2'"$(canonical_added 2)"
+table_header=$(canonical_header table 2)
 check_table() {
   "$python" -c '
 import csv, sys
 lines = open(sys.argv[1]).read().splitlines()
 comments = [l for l in lines if l.startswith("#")]
 data = [l for l in lines if not l.startswith("#")]
-assert lines[0].startswith("# pendavg table"), lines[0]
+assert lines[0] == "# schema: 1" and lines[1].startswith("# pendavg table"), lines[:2]
 assert all(not l.startswith("#") for l in lines[len(comments):]), "comments after data"
 text = "\n".join(comments)
 for needle in ("beta = log:1e-3:1e3:7", "mu1 = 0.05,0.95", "l2 = 0.5,2", "method = auto", "digits = 16", "pendavg 0.2", "UTC"):
@@ -486,13 +736,13 @@ good "table sweep to stdout"  'check_table "$work/out"' \
 good "table sweep to file"    '[ ! -s "$work/out" ] && check_table "$work/table.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
   table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 --output "$work/table.csv"
 good "table l2 range innermost" \
-  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f3,8 | tr "\n" " ")" = "1,0.1 1,1 1,10 2,0.1 2,1 2,10 " ]' \
+  '[ "$(cols "$work/out" beta l2 | tr "\n" " ")" = "1,0.1 1,1 1,10 2,0.1 2,1 2,10 " ]' \
   table --beta 1,2 --l2 log:0.1:10:3
 good "table same with 1 thread" \
   'OMP_NUM_THREADS=1 "$pendavg" table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2 | grep -v generated >"$work/t1" &&
    grep -v generated "$work/out" | cmp -s - "$work/t1"' \
   table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2
-good "table digits 30"        '[ "$(grep -v "^#" "$work/out" | sed -n 2p | cut -d, -f9 | wc -c)" -eq 36 ]' \
+good "table digits 30"        '[ "$(cols "$work/out" beta_K1 | wc -c)" -eq 36 ] && py -c "import sys; from schema1 import *; assert real(read_csv(sys.argv[1])[2][0][\"beta_K1\"], 30)" "$work/out"' \
   table --beta 1 --mu1 1e-4 --digits 30
 good "table chain 3"          '[ "$(grep -v "^#" "$work/out" | wc -l)" -eq 3 ] && grep -q "diagonal_approx3" "$work/out"' \
   table --chain 3 --beta 0.1,1
@@ -533,14 +783,14 @@ good "table chain torus-gauss" 'grep -q "^3,16," "$work/out"' table --chain 3 --
 good "table pendulum torus"   'grep -q "^2,16," "$work/out"' table --beta 1 --method torus-trapezoid --tol 1e-10
 # Microcanonical qmc runs as far as its lattices go (N <= 256), from the CLI as from the library.
 good "micro qmc N = 40"       'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert o[\"N\"] == 40 and len(o[\"K\"]) == 40" "$work/out"' \
-  average --masses "$(printf '1%.0s,' {1..39})1" --lengths "$(printf '1%.0s,' {1..39})1" --energy 0 --samples 1024 --shifts 8
+  average --masses "$(printf '1%.0s,' {1..39})1" --lengths "$(printf '1%.0s,' {1..39})1" --energy 0 --samples 1024 --shifts 8 --format json
 good "table --help"           'grep -q "usage" "$work/out"' table --help
 
 # table: lists of N, digits and g (issue 5). check_mixed_table FILE: a table of chains N = 3 and
 # 5 at digits 16 and 20 (N = 5 runs transfer: digits 16 only) and g = 1, 2, with the mixed-N
 # layout.
 check_mixed_table() {
-  "$python" - "$1" <<'PY'
+  py - "$1" <<'PY'
 import csv, sys
 from decimal import Decimal as D
 lines = open(sys.argv[1]).read().splitlines()
@@ -552,38 +802,34 @@ for needle in ("N = 3,5 (2 values)", "digits = 16,20 (2 values)", "g = 1,2 (2 va
                "transfer (tolerance 1e-10, double only) for N > 4", "cells beyond its N empty",
                "UTC"):
     assert needle in text, needle
-data = [l for l in lines if not l.startswith("#")]
-header = data[0].split(",")
-per = lambda stem: [f"{stem}{i}" for i in range(1, 6)]
-expected = (["N", "digits", "beta", "g"] + per("m") + per("l") + per("beta_K") + per("error_K") +
-            ["ratio"] + per("cos_phi") + per("var_K") + per("diagonal_approx") +
-            ["method", "evaluations", "converged", "error_kind", "ratio_error"] +
-            per("cos_phi_error") + per("var_K_error") +
-            ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual"] +
-            per("beta_Kc") + per("beta_Kc_error") + ["beta_Kc_error_kind"])
-assert header == expected, header
-assert all(len(l.split(",")) == len(header) for l in data), "ragged rows"
-rows = list(csv.DictReader(data))
+assert lines[0] == "# schema: 1", lines[0]
+from schema1 import read_csv, header as schema1_header, real
+_, header, rows = read_csv(sys.argv[1])  # (no ragged rows)
+assert header == schema1_header("table", 5), header
 assert [(r["N"], r["digits"], r["g"]) for r in rows] == [
     ("3", "16", "1"), ("3", "16", "2"), ("3", "20", "1"), ("3", "20", "2"),
     ("5", "16", "1"), ("5", "16", "2")], [(r["N"], r["digits"], r["g"]) for r in rows]
 for r in rows:
     n = int(r["N"])
     assert r["method"] == ("torus-trapezoid" if n == 3 else "transfer") and r["converged"] == "true", r
-    for stem in ("m", "l", "beta_K", "error_K", "cos_phi", "var_K", "diagonal_approx", "beta_Kc",
-                 "beta_Kc_error"):
-        cells = [r[f"{stem}{i}"] for i in range(1, 6)]
+    for stem in ("m", "l", "beta_K", "beta_K_error", "K", "K_error", "cos_phi", "cos_phi_error",
+                 "var_K", "var_K_error", "beta2_var_K", "beta2_var_K_error", "diagonal_approx",
+                 "beta_Kc", "beta_Kc_error"):
+        names = [stem.replace("_error", f"{i}_error") if stem.endswith("_error") else f"{stem}{i}"
+                 for i in range(1, 6)]
+        cells = [r[name] for name in names]
         assert all(cells[:n]) and not any(cells[n:]), (stem, cells)
-    # beta<K_i> has as many significant digits as the row's digits; equipartition sum = N/2.
-    assert len(r["beta_K1"].split("e")[0].replace(".", "")) == int(r["digits"]), r["beta_K1"]
+    # beta<K_i> as printed at the row's digits (every digit of the double, or --digits digits in
+    # MPFR); equipartition sum = N/2.
+    real(r["beta_K1"], int(r["digits"]), cell=True)
     total = sum(D(r[f"beta_K{i}"]) for i in range(1, n + 1))
-    bound = sum(D(r[f"error_K{i}"]) for i in range(1, n + 1))
+    bound = sum(D(r[f"beta_K{i}_error"]) for i in range(1, n + 1))
     assert abs(total - D(n) / 2) <= bound, (total, bound)
 # The 20-digit rows agree with the 16-digit rows within the 16-digit error bars.
 for lo, hi in ((rows[0], rows[2]), (rows[1], rows[3])):
     for i in range(1, 4):
-        assert abs(D(lo[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(lo[f"error_K{i}"]) + D(hi[f"error_K{i}"]), i
-        assert D(hi[f"error_K{i}"]) < D("1e-18"), hi[f"error_K{i}"]
+        assert abs(D(lo[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(lo[f"beta_K{i}_error"]) + D(hi[f"beta_K{i}_error"]), i
+        assert D(hi[f"beta_K{i}_error"]) < D("1e-18"), hi[f"beta_K{i}_error"]
 PY
 }
 mixed_table=(table --chain 3,5 --beta 0.5 --g 1,2 --digits 16,20)
@@ -615,6 +861,8 @@ for digits, tol in (("16", D("1e-14")), ("30", D("1e-29"))):
     for i in (1, 2):  # beta^2 Var K_i
         va, vb = 4 * D(a[f"var_K{i}"]), D(b[f"var_K{i}"])
         assert abs(va - vb) <= tol * abs(vb), (digits, i, va, vb)
+        va, vb = D(a[f"beta2_var_K{i}"]), D(b[f"beta2_var_K{i}"])
+        assert abs(va - vb) <= tol * abs(vb), (digits, i, va, vb)
     z1, z2 = at[(digits, "0", "1")], at[(digits, "0", "2")]
     for key in ("beta_K1", "beta_K2", "cos_phi1", "ratio"):
         assert abs(D(z1[key]) - D(z2[key])) <= tol, (digits, key, z1[key], z2[key])
@@ -625,7 +873,7 @@ for key, r in at.items():
     if key[0] == "16":
         hi = at[("30",) + key[1:]]
         for i in (1, 2):
-            assert abs(D(r[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(r[f"error_K{i}"]), (key, i)
+            assert abs(D(r[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(r[f"beta_K{i}_error"]), (key, i)
 PY
 }
 good "table beta g scaling"          'check_beta_g "$work/out"' \
@@ -637,7 +885,7 @@ rows = list(csv.DictReader(l for l in open(sys.argv[1]) if not l.startswith("#")
 at = {(r["g"], r["beta"]): r for r in rows}
 a, b = at[("1", "2")], at[("2", "1")]
 for i in (1, 2, 3):
-    err = float(a[f"error_K{i}"]) + float(b[f"error_K{i}"])
+    err = float(a[f"beta_K{i}_error"]) + float(b[f"beta_K{i}_error"])
     assert abs(float(a[f"beta_K{i}"]) - float(b[f"beta_K{i}"])) <= err, i
     assert abs(float(a[f"cos_phi{i}"]) - float(b[f"cos_phi{i}"])) <= 1e-12, i
 PY
@@ -645,29 +893,29 @@ PY
 good "table chain beta g scaling"    'check_chain_beta_g "$work/out"' \
   table --chain 3 --beta 1,2 --g 1,2
 good "table g range innermost" \
-  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f3,4 | tr "\n" " ")" = "1,0 1,0.5 1,1 2,0 2,0.5 2,1 " ]' \
+  '[ "$(cols "$work/out" beta g | tr "\n" " ")" = "1,0 1,0.5 1,1 2,0 2,0.5 2,1 " ]' \
   table --beta 1,2 --g lin:0:1:3
 good "table single N, no empty cells" \
   '! grep -v "^#" "$work/out" | grep -q ",," && ! grep -q "cells beyond" "$work/out" &&
-   [ "$(grep -v "^#" "$work/out" | head -1 | tr "," "\n" | grep -c "^beta_K[0-9]")" -eq 3 ]' \
+   [ "$(data "$work/out" | head -1 | tr "," "\n" | grep -cx "beta_K[0-9]*")" -eq 3 ]' \
   table --chain 3 --beta 1
 # qmc options are recorded and used: the table's row is the row of `average` with the same
 # options (qmc's numbers do not depend on the thread count).
 good "table qmc options" \
   'grep -q "^# qmc (N = 5): 2048 points x 8 shifts, seed 42" "$work/out" &&
-   [ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15-19,41-42)" = \
-     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --method qmc --samples 2048 --shifts 8 --seed 42 --format csv | sed 1d | cut -d, -f5-9),qmc,16384" ]' \
+   [ "$(cols "$work/out" beta_K1 beta_K2 beta_K3 beta_K4 beta_K5 method evaluations)" = \
+     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --method qmc --samples 2048 --shifts 8 --seed 42 --format csv | cols - beta_K1 beta_K2 beta_K3 beta_K4 beta_K5),qmc,16384" ]' \
   table --chain 5 --method qmc --beta 1 --samples 2048 --shifts 8 --seed 42
 good "table qmc seed changes values" \
-  '[ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15)" != \
-     "$("$pendavg" table --chain 5 --method qmc --beta 1 --samples 1024 --shifts 4 --seed 2 | grep -v "^#" | sed 1d | cut -d, -f15)" ]' \
+  '[ "$(cols "$work/out" beta_K1)" != \
+     "$("$pendavg" table --chain 5 --method qmc --beta 1 --samples 1024 --shifts 4 --seed 2 | cols - beta_K1)" ]' \
   table --chain 5 --method qmc --beta 1 --samples 1024 --shifts 4 --seed 1
 # transfer: the tolerance is recorded and used (the row is the row of `average` with the same
 # tolerance), and chains beyond qmc's 256 particles run.
 good "table transfer tolerance" \
   'grep -q "transfer (tolerance 1e-06, double only) for N > 4" "$work/out" &&
-   [ "$(grep -v "^#" "$work/out" | sed 1d | cut -d, -f15-19)" = \
-     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --tol 1e-6 --format csv | sed 1d | cut -d, -f5-9)" ]' \
+   [ "$(cols "$work/out" beta_K1 beta_K2 beta_K3 beta_K4 beta_K5)" = \
+     "$("$pendavg" average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1 --tol 1e-6 --format csv | cols - beta_K1 beta_K2 beta_K3 beta_K4 beta_K5)" ]' \
   table --chain 5 --beta 1 --tol 1e-6
 good "table chain 300 (transfer)" \
   '[ "$(grep -v "^#" "$work/out" | sed 1d | tr "," "\n" | grep -c "^transfer$")" -eq 1 ]' \
@@ -966,31 +1214,34 @@ if [ "$rc" -eq 2 ] && grep -q "(use --digits > 16)$" "$work/err"; then pass
 else fail "average --beta 1e400: the --digits advice"; fi
 
 # ---------------------------------------------------------------- microcanonical (issue 15)
-micro_keys='N energy excitation digits ensemble method K K_error Kc Kc_error cos_phi cos_phi_error var_K var_K_error K_total K_total_error density_of_states density_of_states_error error_kind evaluations work_unit seconds converged run'
-check_micro_json() { # N DIGITS [K1 reference: |K1 - reference| <= K_error1]
-  "$python" - "$micro_keys" "$1" "$2" "${3:-}" "$work/out" <<'PY'
-import json, sys
-keys, n, digits, prefix = sys.argv[1].split(), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
-lines = open(sys.argv[5]).read().splitlines()
-assert len(lines) == 1, "one JSON line"
-o = json.loads(lines[0])
-assert list(o) == keys, list(o)
+check_micro_json() { # N DIGITS [K1 reference: |K1 - reference| <= K1's error]
+  py - "$1" "$2" "${3:-}" "$work/out" <<'PY'
+import math, sys
+from decimal import Decimal, getcontext
+from schema1 import load, real, D, micro_json, other_state
+getcontext().prec = 60
+n, digits, prefix = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+o = load(sys.argv[4])  # (one JSON line, no bare NaN)
+state = "energy" if list(o)[4] == "energy" else "excitation"
+assert list(o) == micro_json(state), list(o)
 assert o["N"] == n and o["digits"] == digits and o["ensemble"] == "microcanonical", o
-assert o["converged"] is True and o["error_kind"] in ("estimate", "statistical"), o
+assert o["converged"] is True and o["K_error_kind"] in ("estimate", "statistical"), o
 for k in ("K", "K_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error"):
     assert isinstance(o[k], list) and len(o[k]) == n, k
-    assert all(v.lower().find("nan") < 0 for v in o[k]), (k, o[k])
-significant = sum(c.isdigit() for c in o["K"][0].lower().split("e")[0].lstrip("0.-"))
-assert significant == digits, (o["K"][0], significant)
+    assert all(math.isfinite(D(v)) for v in o[k]), (k, o[k])
+for k in ("K", "cos_phi", "var_K"):
+    for v in o[k]:
+        real(v, digits)  # every digit of the double, or --digits digits
+for k in ("Kc", "K_total", "density_of_states", other_state(state)):
+    real(o[k], digits)
 for value, error in zip(o["K"], o["K_error"]):
-    assert 0 < float(error) < 1e-8 * float(value) or o["error_kind"] == "statistical", (value, error)
-assert abs(sum(map(float, o["K"])) - float(o["K_total"])) <= 1e-12 * float(o["K_total"])
-assert abs(float(o["Kc"]) * n - float(o["K_total"])) <= 1e-12 * float(o["K_total"])
-if prefix:  # the printed value and its printed error (which includes the rounding to print)
-    from decimal import Decimal, getcontext
-    getcontext().prec = 60
-    deviation = abs(Decimal(o["K"][0]) - Decimal(prefix))
-    assert deviation <= Decimal(o["K_error"][0]), (o["K"][0], o["K_error"][0], prefix)
+    assert 0 < D(error) < Decimal("1e-8") * D(value) or o["K_error_kind"] == "statistical", (value, error)
+total = D(o["K_total"])
+assert abs(sum(map(D, o["K"])) - total) <= Decimal("1e-12") * total
+assert abs(D(o["Kc"]) * n - total) <= Decimal("1e-12") * total
+if prefix:  # the printed value and its printed error
+    deviation = abs(D(o["K"][0]) - Decimal(prefix))
+    assert deviation <= D(o["K_error"][0]), (o["K"][0], o["K_error"][0], prefix)
     assert deviation <= Decimal(10) ** (1 - digits) * Decimal(prefix), (o["K"][0], prefix)
 PY
 }
@@ -1001,27 +1252,28 @@ PY
 # 3e-9 relative); at D = 1e-8 (the double in double runs, the decimal in MPFR runs; they differ
 # by 2e-17 relative) <K_1>_E = 2.49999998359375020479329115840663e-9.
 good "micro --energy near the minimum" 'check_micro_json 2 16 2.4999999684000729769e-9' \
-  average --masses 1,1 --lengths 1,1 --energy -2.99999999
+  average --masses 1,1 --lengths 1,1 --energy -2.99999999 --format json
 good "micro --excitation"      'check_micro_json 2 16 2.49999998359375020479329115840663e-9' \
-  average --masses 1,1 --lengths 1,1 --excitation 1e-8
+  average --masses 1,1 --lengths 1,1 --excitation 1e-8 --format json
 good "micro --excitation digits 30" 'check_micro_json 2 30 2.49999998359375020479329115840663e-9' \
-  average --masses 1,1 --lengths 1,1 --excitation 1e-8 --digits 30
+  average --masses 1,1 --lengths 1,1 --excitation 1e-8 --digits 30 --format json
 good "micro N = 3 unit, E = 0" 'check_micro_json 3 16 && cp "$work/out" "$work/micro3.json"' \
-  average --masses 1,1,1 --lengths 1,1,1 --energy 0
+  average --masses 1,1,1 --lengths 1,1,1 --energy 0 --format json
 # the torus-trapezoid rule (a different quadrature of the same integrals) against the integral rule
-good "micro N = 3 torus-trapezoid agrees" '"$python" -c "
-import json, sys
-t, i = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+good "micro N = 3 torus-trapezoid agrees" 'py -c "
+import sys
+from schema1 import load
+t, i = load(sys.argv[1]), load(sys.argv[2])
 assert t[\"method\"] == \"torus-trapezoid\" and i[\"method\"] == \"integral\", (t, i)
 for key in (\"K\", \"cos_phi\", \"var_K\"):
     for a, ea, b, eb in zip(t[key], t[key + \"_error\"], i[key], i[key + \"_error\"]):
         assert abs(float(a) - float(b)) <= float(ea) + float(eb) and float(ea) < 1e-4 * abs(float(a)), (key, a, ea, b, eb)
-" "$work/out" "$work/micro3.json"' average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --tol 1e-5
+" "$work/out" "$work/micro3.json"' average --masses 1,1,1 --lengths 1,1,1 --energy 0 --method torus-trapezoid --tol 1e-5 --format json
 good "micro N = 5 qmc"         'check_micro_json 5 16' \
-  average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 1024 --shifts 8
-good "micro csv"               '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q "^N,energy,excitation,digits,ensemble,method,K1,K2,K_error1" && [ "$(head -1 "$work/out" | tr , "\n" | wc -l)" -eq "$(tail -1 "$work/out" | tr , "\n" | wc -l)" ]' \
+  average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 1024 --shifts 8 --format json
+good "micro csv"               'check_average_csv 2 energy' \
   average --masses 1,1 --lengths 1,1 --energy 0.5 --format csv
-good "micro text"              'grep -q "microcanonical" "$work/out" && grep -q "Var K_i" "$work/out"' \
+good "micro text"              'grep -qx "ensemble = microcanonical" "$work/out" && grep -Eq "^i +K +K_error +cos_phi +cos_phi_error +var_K +var_K_error$" "$work/out"' \
   average --masses 1,1 --lengths 1,1 --energy 0.5 --format text
 bad "micro energy below the minimum" average --masses 1,1 --lengths 1,1 --energy -4
 grep -q 'minimum energy E_min = -3' "$work/err" && pass || fail "micro energy below the minimum: no valid range"
@@ -1040,15 +1292,16 @@ bad "micro samples with integral" average --masses 1,1 --lengths 1,1 --energy 0 
 bad "micro samples 2^17"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 131072
 
 printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
-micro_added=',K_total,K_total_error,density_of_states,density_of_states_error,work_unit'  # issue 10
-micro_cases_header='energy,g,m1,m2,l1,l2,K1,K2,K_error1,K_error2,Kc,cos_phi1,cos_phi2,method,evaluations,Kc_error,cos_phi_error1,cos_phi_error2,var_K1,var_K2,var_K_error1,var_K_error2,error_kind,converged,excitation'"$micro_added"
+micro_cases_header=$(canonical_header cases 2 energy)
 good "cases energy column" \
-  '[ "$(wc -l <"$work/out")" -eq 4 ] && [ "$(head -1 "$work/out")" = "$micro_cases_header" ] && sed -n 3p "$work/out" | cut -d, -f7 | grep -q "^2.4999999684000"' \
+  '[ "$(data "$work/out" | wc -l)" -eq 4 ] && [ "$(data "$work/out" | head -1)" = "$micro_cases_header" ] &&
+   py -c "import sys; from schema1 import *; assert has_prefix(read_csv(sys.argv[1])[2][1][\"K1\"], \"2.4999999684000e-9\")" "$work/out"' \
   average --cases "$work/energy.csv"
 printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
 # the mpmath reference above, to 20 digits: 2.4999999835937502048e-9
 good "cases excitation column, digits 20" \
-  '[ "$(wc -l <"$work/out")" -eq 2 ] && head -1 "$work/out" | grep -q ",converged,energy$micro_added$" && sed -n 2p "$work/out" | cut -d, -f7 | grep -q "^2.4999999835937502"' \
+  '[ "$(data "$work/out" | wc -l)" -eq 2 ] && [ "$(data "$work/out" | head -1)" = "$(canonical_header cases 2 excitation)" ] &&
+   cols "$work/out" K1 | grep -q "^2.4999999835937502"' \
   average --cases "$work/excitation.csv" --digits 20
 printf 'beta,energy,g,m1,m2,l1,l2\n1,1,1,1,1,1,1\n' >"$work/beta_energy.csv"
 bad "cases beta and energy"    average --cases "$work/beta_energy.csv"
@@ -1065,23 +1318,21 @@ run average --cases "$work/energy.csv" --timing
 bad "cases energy and --energy" average --cases "$work/energy.csv" --energy 1
 
 check_micro_table() { # ROWS STATE
-  "$python" - "$work/out" "$1" "$2" <<'PY'
+  py - "$work/out" "$1" "$2" <<'PY'
 import csv, sys
-lines = [l for l in open(sys.argv[1]) if not l.startswith("#")]
-rows = list(csv.DictReader(lines))
+from schema1 import read_csv, header as schema1_header
+comments, header, rows = read_csv(sys.argv[1])
+assert comments[0] == "# schema: 1", comments
 assert len(rows) == int(sys.argv[2]), len(rows)
 state = sys.argv[3]
-other = "excitation" if state == "energy" else "energy"
-header = lines[0].strip().split(",")
-added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
-assert header[2] == state and header[-6:] == [other] + added, header
+assert header == schema1_header("table", max(int(r["N"]) for r in rows), state), header
 for r in rows:
     assert r["converged"] == "true", r
     n = int(r["N"])
     total = sum(float(r["K%d" % (i + 1)]) for i in range(n))
     assert abs(float(r["Kc"]) * n - total) <= 1e-12 * total, r
     for i in range(n):
-        assert float(r["K_error%d" % (i + 1)]) > 0, r
+        assert float(r["K%d_error" % (i + 1)]) > 0, r
 PY
 }
 good "table --excitation log sweep" 'check_micro_table 6 excitation' \
@@ -1111,17 +1362,19 @@ assert abs(o[\"exact_excitation\"] - (o[\"energy\"] + 3)) < 1e-8, o
 # qmc weights cannot underflow (issue 15: this run printed NaN with "converged": true); its
 # values within their bars of the tensor torus rule's
 good "torus beta 100 (reference)" 'cp "$work/out" "$work/torus100.json"' \
-  average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method torus-trapezoid
-good "qmc beta 100 seed 16 finite" '"$python" -c "
-import json, sys, math
-o, t = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
-for k in (\"beta_K\", \"error\", \"cos_phi\", \"cos_phi_error\", \"var_K\", \"var_K_error\"):
-    assert all(math.isfinite(float(v)) for v in o[k]), (k, o[k])
+  average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method torus-trapezoid --format json
+good "qmc beta 100 seed 16 finite" 'py -c "
+import sys, math
+from schema1 import load, D
+o, t = load(sys.argv[1]), load(sys.argv[2])
+for k in (\"beta_K\", \"beta_K_error\", \"cos_phi\", \"cos_phi_error\", \"var_K\", \"var_K_error\"):
+    assert all(math.isfinite(D(v)) for v in o[k]), (k, o[k])
 assert o[\"converged\"] is True and o[\"method\"] == \"qmc\", o
-for key, error in ((\"beta_K\", \"error\"), (\"cos_phi\", \"cos_phi_error\"), (\"var_K\", \"var_K_error\")):
+for key in (\"beta_K\", \"cos_phi\", \"var_K\"):
+    error = key + \"_error\"
     for a, ea, b, eb in zip(o[key], o[error], t[key], t[error]):
-        assert abs(float(a) - float(b)) <= float(ea) + float(eb), (key, a, ea, b, eb)
-" "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16
+        assert abs(D(a) - D(b)) <= D(ea) + D(eb), (key, a, ea, b, eb)
+" "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16 --format json
 # ---------------------------------------------------------------- issue 10: every error in every output
 # The keys and columns added after the original ones: present, finite (JSON never holds a bare
 # nan/inf: json.loads below refuses NaN and Infinity), errors positive, kinds valid, and equal to
@@ -1136,86 +1389,92 @@ KINDS = {"bound", "estimate", "statistical"}
 PY
 strict_python() { PYTHONPATH="$work" "$python" "$@"; }
 
-check_limit_added() { # N RUN_KEYS (the keys of high_temperature.run, "null" for none)
-  strict_python - "$work/out" "$1" "$2" <<'PY'
-from strict_json import strict, KINDS
+check_limit_added() { # N DIGITS RUN_KEYS (the keys of high_temperature.run, "null" for none)
+  py - "$work/out" "$1" "$2" "$3" <<'PY'
+from schema1 import load, real, D, KINDS, LIMIT_JSON, CANONICAL_JSON
 import math, sys
-from decimal import Decimal as D
-d = strict(sys.argv[1]); n = int(sys.argv[2])
-original = ["beta_K", "error", "ratio", "var_K_beta2", "method", "error_kind", "ratio_error",
-            "cos_phi", "cos_phi_error", "var_K_beta2_error", "error_kinds", "evaluations", "work_unit"]
-added = ["converged", "run", "equipartition_residual", "beta_Kc", "beta_Kc_error"]
-assert list(d) == ["N", "digits", "high_temperature", "low_temperature", "seconds"], list(d)
-assert isinstance(d["seconds"], float) and 0 <= d["seconds"] < 600, d["seconds"]
+from decimal import Decimal
+d = load(sys.argv[1]); n = int(sys.argv[2]); digits = int(sys.argv[3])
+assert list(d) == LIMIT_JSON, list(d)
+assert d["N"] == n and d["digits"] == digits and len(d["m"]) == len(d["l"]) == n, d
+assert isinstance(d["seconds"], Decimal) and 0 <= d["seconds"] < 600, d["seconds"]
 for part in ("high_temperature", "low_temperature"):
     o = d[part]
-    assert list(o) == original + added, list(o)
-    assert o["converged"] is True, o
-    assert [D(x) for x in o["beta_Kc"]] == [D("0.5")] * n, o["beta_Kc"]
-    assert len(o["beta_Kc_error"]) == n and all(0 < float(e) < 1e-14 for e in o["beta_Kc_error"]), o
-    assert set(o["error_kinds"]) == {"beta_K", "ratio", "cos_phi", "var_K_beta2", "beta_Kc"}, o
-    assert set(o["error_kinds"].values()) <= KINDS and o["error_kinds"]["beta_Kc"] == "bound", o
+    assert list(o) == CANONICAL_JSON, list(o)
+    assert o["converged"] is True and o["interrupted"] is False, o
+    # a limit has no <K_i> and no Var K_i (beta^2 Var K_i only)
+    for q in ("K", "var_K"):
+        assert o[q] == o[q + "_error"] == [None] * n and o[q + "_error_kind"] is None, (q, o)
+    # beta<K_i^c> = 1/2 exactly: as printed, within its error (0 where the print is exact) of 1/2
+    assert [real(x, digits) for x in o["beta_Kc"]] == [Decimal("0.5")] * n, o["beta_Kc"]
+    assert len(o["beta_Kc_error"]) == n and all(
+        abs(D(x) - Decimal("0.5")) <= D(e) < Decimal("1e-14")
+        for x, e in zip(o["beta_Kc"], o["beta_Kc_error"])), o
+    for q in ("beta_K", "ratio", "cos_phi", "beta2_var_K", "beta_Kc"):
+        assert o[q + "_error_kind"] in KINDS, (q, o)
+    assert o["beta_Kc_error_kind"] == "bound", o
     # the residual |sum_i beta<K_i> - N/2| against the printed values (within their errors and
     # the residual's own 3 digits)
     residual = D(o["equipartition_residual"])
     assert residual >= 0, residual
     total = sum(D(x) for x in o["beta_K"])
-    bars = sum(D(x) for x in o["error"])
-    assert abs(abs(total - D(n) / 2) - residual) <= bars + residual / 100, (total, residual, bars)
+    bars = sum(D(x) for x in o["beta_K_error"])
+    assert abs(abs(total - Decimal(n) / 2) - residual) <= bars + residual / 100, (total, residual, bars)
 run = d["high_temperature"]["run"]
-if sys.argv[3] == "null":
+if sys.argv[4] == "null":
     assert run is None, run
 else:
-    assert sorted(run) == sorted(sys.argv[3].split(",")) and all(v > 0 for v in run.values()), run
+    assert sorted(run) == sorted(sys.argv[4].split(",")) and all(v > 0 for v in run.values()), run
 assert d["low_temperature"]["run"] is None
 PY
 }
-good "limit json: converged, run, residual, beta_Kc, seconds (N = 2)" 'check_limit_added 2 null' \
-  limit --masses 0.5,0.5
-good "limit json: the torus run (N = 3)" 'check_limit_added 3 points_per_dim,levels,grid_points' \
-  limit --masses 1,2,0.5 --lengths 1,0.5,2
-good "limit json: the transfer run (N = 7)" 'check_limit_added 7 angle_nodes,pivot_nodes,levels' \
-  limit --masses 1,1,1,1,1,1,1
-good "limit json: digits 30" 'check_limit_added 2 null' limit --masses 0.2,0.8 --lengths 1,2 --digits 30
+good "limit json: converged, run, residual, beta_Kc, seconds (N = 2)" 'check_limit_added 2 16 null' \
+  limit --masses 0.5,0.5 --format json
+good "limit json: the torus run (N = 3)" 'check_limit_added 3 16 points_per_dim,levels,grid_points' \
+  limit --masses 1,2,0.5 --lengths 1,0.5,2 --format json
+good "limit json: the transfer run (N = 7)" 'check_limit_added 7 16 angle_nodes,pivot_nodes,levels' \
+  limit --masses 1,1,1,1,1,1,1 --format json
+good "limit json: digits 30" 'check_limit_added 2 30 null' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format json
 
-# limit --format csv: average's columns (the same writer), then the limit's own; its values are
-# the JSON's.
+# limit --format csv: average's columns (the same writer), the limit in front and no beta; its
+# values are the JSON's, as printed there.
 check_limit_csv() { # N MASSES LENGTHS DIGITS
-  "$pendavg" limit --masses "$2" --lengths "$3" --digits "$4" >"$work/limit.json" &&
+  "$pendavg" limit --masses "$2" --lengths "$3" --digits "$4" --format json >"$work/limit.json" &&
   "$pendavg" average --masses "$2" --lengths "$3" --beta 1 --digits "$4" --format csv >"$work/average.csv" &&
-  strict_python - "$work/out" "$work/limit.json" "$work/average.csv" "$1" "$4" <<'PY'
-from strict_json import strict, KINDS
-import csv, math, sys
-from decimal import Decimal as D
-lines = open(sys.argv[1]).read().splitlines()
-d = strict(sys.argv[2]); n = int(sys.argv[4])
-average_header = open(sys.argv[3]).readline().strip().split(",")
-per = lambda stem: [f"{stem}{i}" for i in range(1, n + 1)]
-assert lines[0].split(",") == (average_header + ["limit"] + per("beta2_var_K") + per("beta2_var_K_error")
-                               + per("beta_Kc_error") + ["beta_Kc_error_kind"]), lines[0]
-rows = list(csv.DictReader(lines))
+  py - "$work/out" "$work/limit.json" "$work/average.csv" "$1" "$4" <<'PY'
+from schema1 import load, read_csv, columns_of, text, per, KINDS
+import math, sys
+from decimal import Decimal
+comments, header, rows = read_csv(sys.argv[1])  # (no ragged rows)
+assert comments == ["# schema: 1", "# pendavg limit"], comments
+d = load(sys.argv[2]); n = int(sys.argv[4])
+average_header = read_csv(sys.argv[3])[1]
+assert header == ["limit"] + [c for c in average_header if c != "beta"], header
 assert [r["limit"] for r in rows] == ["high_temperature", "low_temperature"], rows
-assert all(len(l.split(",")) == len(average_header) + 3 * n + 2 for l in lines), "ragged"
+# beta<K_i> = 1/2 (beta -> inf), <cos phi_i> = 0 (beta -> 0) and 1 (beta -> inf) and
+# beta<K_i^c> = 1/2 are exact: only there an error may be 0
+exact = {("high_temperature", "cos_phi"): 0, ("low_temperature", "cos_phi"): 1,
+         ("low_temperature", "beta_K"): Decimal("0.5"), ("high_temperature", "beta_Kc"): Decimal("0.5"),
+         ("low_temperature", "beta_Kc"): Decimal("0.5")}
 for r in rows:
     o = d[r["limit"]]
-    assert r["N"] == str(n) and r["digits"] == sys.argv[5] and r["method"] == o["method"], r
-    assert r["beta"] == "" and not any(r[k] for k in per("K") + per("var_K") + per("K_error") + per("var_K_error")), r
-    assert [r[k] for k in per("beta_K")] == o["beta_K"] and [r[k] for k in per("error_K")] == o["error"]
-    assert [r[k] for k in per("cos_phi")] == o["cos_phi"] and [r[k] for k in per("cos_phi_error")] == o["cos_phi_error"]
-    assert [r[k] for k in per("beta2_var_K")] == o["var_K_beta2"]
-    assert [r[k] for k in per("beta2_var_K_error")] == o["var_K_beta2_error"]
-    assert [r[k] for k in per("beta_Kc")] == o["beta_Kc"] and [r[k] for k in per("beta_Kc_error")] == o["beta_Kc_error"]
-    assert r["ratio"] == (o["ratio"] or "") and r["ratio_error"] == (o["ratio_error"] or "")
-    assert r["equipartition_residual"] == o["equipartition_residual"] and r["converged"] == "true"
-    assert r["evaluations"] == str(o["evaluations"]) and r["work_unit"] == o["work_unit"]
-    assert r["error_kind"] == o["error_kind"] and r["cos_phi_error_kind"] == o["error_kinds"]["cos_phi"]
-    assert r["var_K_error_kind"] == o["error_kinds"]["var_K_beta2"] and r["beta_Kc_error_kind"] == "bound"
+    expected = dict(columns_of(d), **columns_of(o), limit=r["limit"])
+    for column in header:
+        if column != "seconds":
+            assert r[column] == text(expected[column]), (column, r[column], expected[column])
+    assert r["N"] == str(n) and r["digits"] == sys.argv[5] and r["converged"] == "true", r
+    assert not any(r[k] for k in per("K", n) + per("var_K", n) + ["K_error_kind", "var_K_error_kind"]), r
+    assert not any(r[k + "_error"] for k in per("K", n) + per("var_K", n)), r
+    assert r["beta_Kc_error_kind"] == "bound" and {r["beta_K_error_kind"], r["cos_phi_error_kind"],
+                                                  r["beta2_var_K_error_kind"]} <= KINDS, r
     assert math.isfinite(float(r["seconds"])) and float(r["seconds"]) >= 0
-    for k in per("error_K") + per("cos_phi_error") + per("beta2_var_K_error") + per("beta_Kc_error"):
-        # positive, or 0 beside an exact 0 (<cos phi_i> = 0 at beta -> 0: kind bound)
-        value = r[k.replace("_error", "").replace("error_K", "beta_K")]
-        assert math.isfinite(float(r[k])) and (float(r[k]) > 0 or float(value) == 0), (k, r[k])
-    for k in per("beta_K") + per("cos_phi") + per("beta2_var_K") + per("diagonal_approx"):
+    for stem in ("beta_K", "cos_phi", "beta2_var_K", "beta_Kc"):
+        for i in range(1, n + 1):
+            value, error = Decimal(r[f"{stem}{i}"]), Decimal(r[f"{stem}{i}_error"])
+            # positive, or 0 beside a value known exactly
+            assert math.isfinite(error) and (error > 0 or value == exact.get((r["limit"], stem))), \
+                (stem, i, r[f"{stem}{i}"], r[f"{stem}{i}_error"])
+    for k in per("beta_K", n) + per("cos_phi", n) + per("beta2_var_K", n) + per("diagonal_approx", n):
         assert math.isfinite(float(r[k])), (k, r[k])
 PY
 }
@@ -1223,9 +1482,12 @@ good "limit --format csv (N = 2)"            'check_limit_csv 2 0.5,0.5 1,1 16' 
 good "limit --format csv (N = 3, torus)"     'check_limit_csv 3 1,2,0.5 1,0.5,2 16' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format csv
 good "limit --format csv (N = 2, digits 30)" 'check_limit_csv 2 0.2,0.8 1,2 30' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format csv
 good "limit --format csv (N = 1)"            'check_limit_csv 1 2 3 16' limit --masses 2 --lengths 3 --format csv
+# text: per limit, its name, its errors' kinds, its work and its residual
 good "limit text: errors, work, residual per limit" \
-  '[ "$(grep -c "^beta -> 0: " "$work/out")" -eq 3 ] && [ "$(grep -c "^beta -> inf: " "$work/out")" -eq 3 ] &&
-   [ "$(grep -c "converged = yes" "$work/out")" -eq 2 ] && grep -q "^beta -> 0: |sum_i beta<K_i> - N/2| = " "$work/out"' \
+  '[ "$(grep -c "^limit = \(high\|low\)_temperature$" "$work/out")" -eq 2 ] &&
+   [ "$(grep -c "^beta_K_error_kind = bound$" "$work/out")" -eq 2 ] && [ "$(grep -c "^evaluations = [0-9]" "$work/out")" -eq 2 ] &&
+   [ "$(grep -c "^work_unit = " "$work/out")" -eq 2 ] && [ "$(grep -c "^converged = true$" "$work/out")" -eq 2 ] &&
+   [ "$(grep -c "^equipartition_residual = " "$work/out")" -eq 2 ] && [ "$(text_rows "$work/out")" -eq 4 ]' \
   limit --masses 0.5,0.5 --format text
 
 # simulate JSON: <K> and <U> over time, the energy trend, the work; Langevin: the canonical Var K_i.
@@ -1352,20 +1614,21 @@ PY
 }
 good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}"
 
-# table and --cases rows: the added columns equal `average --format csv`'s for the same point
-# (the same library call); a series row's beta_K error is a bound, its cos_phi and var_K errors
-# estimates.
-canonical_columns='cos_phi_error_kind var_K_error_kind work_unit equipartition_residual'
+# table and --cases rows: every column equals `average --format csv`'s for the same point (the
+# same library call; the inputs as given); a series row's beta_K error is a bound, its cos_phi and
+# var_K errors estimates.
 check_rows_as_average() { # FILE KIND (table | cases): every row against `average --format csv`
-  "$python" - "$1" "$2" "$pendavg" "$canonical_columns" <<'PY'
-import csv, math, subprocess, sys
-kind, pendavg, shared = sys.argv[2], sys.argv[3], sys.argv[4].split()
-lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
-rows = list(csv.DictReader(lines))
-assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
-kinds = {"bound", "estimate", "statistical"}
+  py - "$1" "$2" "$pendavg" <<'PY'
+import math, subprocess, sys
+from decimal import Decimal
+from schema1 import read_csv, header, KINDS
+kind, pendavg = sys.argv[2], sys.argv[3]
+comments, head, rows = read_csv(sys.argv[1])  # (no ragged rows)
+assert rows and comments[0] == "# schema: 1", comments
+n_max = sum(1 for k in head if k.startswith("m") and k[1:].isdigit())
+assert head == header(kind, n_max), head
 for r in rows:
-    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    n = int(r["N"]) if kind == "table" else n_max
     masses = ",".join(r[f"m{i}"] for i in range(1, n + 1))
     lengths = ",".join(r[f"l{i}"] for i in range(1, n + 1))
     args = [pendavg, "average", "--masses", masses, "--lengths", lengths, "--beta", r["beta"],
@@ -1374,17 +1637,22 @@ for r in rows:
         args += ["--digits", r["digits"]]
     if r["method"] == "series":
         args += ["--method", "series"]
-    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
-    names = shared + [f"beta_Kc{i}" for i in range(1, n + 1)]
-    names += ["beta_K1", "error_K1", "cos_phi1", "cos_phi_error1", "method", "evaluations", "error_kind"]
-    assert [r[k] for k in names] == [a[k] for k in names], [(k, r[k], a[k]) for k in names if r[k] != a[k]]
-    assert {r["cos_phi_error_kind"], r["var_K_error_kind"], r["beta_Kc_error_kind"]} <= kinds, r
+    _, a_head, (a,) = read_csv(None, subprocess.run(args, capture_output=True, text=True, check=True).stdout)
+    assert a_head == header("average", n), a_head
+    # (a shorter chain's row of a mixed-N table: the cells beyond its N empty)
+    names = [k for k in head if k != "seconds"]
+    assert [r[k] for k in names] == [a.get(k, "") for k in names], [(k, r[k], a.get(k)) for k in names if r[k] != a.get(k, "")]
+    for q in ("beta_K", "K", "ratio", "cos_phi", "var_K", "beta2_var_K", "beta_Kc"):
+        assert r[q + "_error_kind"] in KINDS, (q, r)
     assert r["beta_Kc_error_kind"] == "bound" and r["work_unit"] in ("terms", "nodes", "samples"), r
     assert math.isfinite(float(r["equipartition_residual"])) and float(r["equipartition_residual"]) >= 0
+    assert r["converged"] == "true" and r["interrupted"] == "false", r
     for i in range(1, n + 1):
-        assert float(r[f"beta_Kc{i}"]) == 0.5 and 0 < float(r[f"beta_Kc_error{i}"]) < 1e-14, r
+        # beta<K_i^c> = 1/2 exactly: within its error (0 where the print is exact) of 1/2
+        value, error = Decimal(r[f"beta_Kc{i}"]), Decimal(r[f"beta_Kc{i}_error"])
+        assert value == Decimal("0.5") and abs(value - Decimal("0.5")) <= error < Decimal("1e-14"), r
     if r["method"] == "series":
-        assert (r["error_kind"], r["cos_phi_error_kind"], r["var_K_error_kind"]) == ("bound", "estimate", "estimate"), r
+        assert (r["beta_K_error_kind"], r["cos_phi_error_kind"], r["var_K_error_kind"]) == ("bound", "estimate", "estimate"), r
 PY
 }
 good "table: error kinds, work_unit, residual, beta_Kc (series rows)" 'check_rows_as_average "$work/out" table' \
@@ -1400,19 +1668,19 @@ good "cases: the same for N = 3" 'check_rows_as_average "$work/out" cases' \
 good "cases: the same for series rows" 'check_rows_as_average "$work/out" cases' \
   average --cases "$work/cases.csv" --method series
 
-# microcanonical rows: K_total, density_of_states (each with its error) and work_unit, equal to
-# `average --energy/--excitation --format csv`'s.
+# microcanonical rows: every column (K_total, density_of_states, each with its error and kind,
+# work_unit, ...) equal to `average --energy/--excitation --format csv`'s.
 check_micro_added() { # FILE KIND (table | cases) STATE
-  "$python" - "$1" "$2" "$3" "$pendavg" <<'PY'
-import csv, math, subprocess, sys
+  py - "$1" "$2" "$3" "$pendavg" <<'PY'
+import math, subprocess, sys
+from schema1 import read_csv, header
 kind, state, pendavg = sys.argv[2], sys.argv[3], sys.argv[4]
-lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
-rows = list(csv.DictReader(lines))
-assert rows and all(len(l.split(",")) == len(lines[0].split(",")) for l in lines), "ragged"
-added = ["K_total", "K_total_error", "density_of_states", "density_of_states_error", "work_unit"]
-assert lines[0].split(",")[-5:] == added, lines[0]
+comments, head, rows = read_csv(sys.argv[1])  # (no ragged rows)
+assert rows and comments[0] == "# schema: 1", comments
+n_max = sum(1 for k in head if k.startswith("m") and k[1:].isdigit())
+assert head == header(kind, n_max, state), head
 for r in rows:
-    n = int(r["N"]) if kind == "table" else sum(1 for k in r if k.startswith("m") and k[1:].isdigit())
+    n = int(r["N"]) if kind == "table" else n_max
     args = [pendavg, "average", "--masses", ",".join(r[f"m{i}"] for i in range(1, n + 1)),
             "--lengths", ",".join(r[f"l{i}"] for i in range(1, n + 1)), f"--{state}", r[state],
             "--g", r["g"], "--format", "csv"]
@@ -1420,12 +1688,15 @@ for r in rows:
         args += ["--digits", r["digits"]]
     if r["method"] == "qmc":
         args += ["--samples", "1024", "--shifts", "8"]
-    a = next(csv.DictReader(subprocess.run(args, capture_output=True, text=True, check=True).stdout.splitlines()))
-    assert [r[k] for k in added] == [a[k] for k in added], [(k, r[k], a[k]) for k in added]
+    _, a_head, (a,) = read_csv(None, subprocess.run(args, capture_output=True, text=True, check=True).stdout)
+    assert a_head == header("average", n, state), a_head
+    # (a shorter chain's row of a mixed-N table: the cells beyond its N empty)
+    names = [k for k in head if k != "seconds"]
+    assert [r[k] for k in names] == [a.get(k, "") for k in names], [(k, r[k], a.get(k)) for k in names if r[k] != a.get(k, "")]
     for k in ("K_total", "K_total_error", "density_of_states", "density_of_states_error"):
         assert math.isfinite(float(r[k])) and float(r[k]) > 0, (k, r[k])
     total = sum(float(r[f"K{i}"]) for i in range(1, n + 1))
-    bars = sum(float(r[f"K_error{i}"]) for i in range(1, n + 1)) + float(r["K_total_error"])
+    bars = sum(float(r[f"K{i}_error"]) for i in range(1, n + 1)) + float(r["K_total_error"])
     assert abs(total - float(r["K_total"])) <= bars, (total, r["K_total"], bars)
     assert r["work_unit"] == ("samples" if r["method"] == "qmc" else "nodes"), r
 PY
@@ -1444,31 +1715,39 @@ good "cases excitation column: the same" 'check_micro_added "$work/out" cases ex
 # --certified (N = 2): every printed error a bound that covers the printed value; the JSON's
 # kinds are all "bound" and the printed value lies within its printed error of a 60-digit run.
 check_certified() { # FILE DIGITS REFERENCE-FILE
-  "$python" - "$1" "$2" "$3" <<'PY'
-import json, sys
+  py - "$1" "$2" "$3" <<'PY'
+import sys
 from decimal import Decimal, getcontext
+from schema1 import load, real, D
 getcontext().prec = 80
-run, digits, ref = json.load(open(sys.argv[1])), int(sys.argv[2]), json.load(open(sys.argv[3]))
-assert run["method"] == "certified-integral" and run["error_kind"] == "bound", run
+run, digits, ref = load(sys.argv[1]), int(sys.argv[2]), load(sys.argv[3])
+assert run["method"] == "certified-integral" and run["beta_K_error_kind"] == "bound", run
 assert run["converged"] is True, run
-assert all(k == "bound" for k in run["error_kinds"].values()), run["error_kinds"]
-for key, err in (("beta_K", "error"), ("K", "K_error"), ("cos_phi", "cos_phi_error"),
-                 ("var_K", "var_K_error")):
+kinds = {k: v for k, v in run.items() if k.endswith("_error_kind")}
+assert len(kinds) == 7 and all(k == "bound" for k in kinds.values()), kinds
+for key in ("beta_K", "K", "cos_phi", "var_K", "beta2_var_K"):
+    err = key + "_error"
     for v, e, r in zip(run[key], run[err], ref[key]):
-        assert abs(Decimal(v) - Decimal(r)) <= Decimal(e), (key, v, e, r)
-        assert Decimal(e) <= Decimal(10) ** (2 - digits) * abs(Decimal(v)) + Decimal("1e-300"), (key, v, e)
-assert abs(Decimal(run["ratio"]) - Decimal(ref["ratio"])) <= Decimal(run["ratio_error"])
+        real(v, digits)
+        assert abs(D(v) - D(r)) <= D(e), (key, v, e, r)
+        assert D(e) <= Decimal(10) ** (2 - digits) * abs(D(v)) + Decimal("1e-300"), (key, v, e)
+assert abs(D(run["ratio"]) - D(ref["ratio"])) <= D(run["ratio_error"])
 PY
 }
 if "$pendavg" --version | grep -q '^certified enclosures (--certified): Arb'; then
-  run average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 60
+  run average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 60 --format json
   cp "$work/out" "$work/certified_ref.json"
+  # SCHEMA1-BUG: a double's shortest round-trip text is not the double's value as a decimal (up
+  # to half a unit of its last digit away), and schema 1 no longer widens a double's error for
+  # printing: here beta_K[1] prints 0.5377756655277243 +- 1.65e-17 (bound) while the 60-digit
+  # value is 0.53777566552772428346..., 1.6537e-17 from the printed decimal (the double itself,
+  # 0.537775665527724267..., is 1.6462e-17 away: covered). A bound must cover the printed value.
   good "average --certified: bounds (double)" 'check_certified "$work/out" 16 "$work/certified_ref.json"' \
-    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified
+    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --format json
   good "average --certified --digits 30: bounds" 'check_certified "$work/out" 30 "$work/certified_ref.json"' \
-    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 30
+    average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 30 --format json
   good "limit --certified: beta -> 0 in balls" 'grep -q "\"certified-integral\"" "$work/out"' \
-    limit --masses 1,3 --certified
+    limit --masses 1,3 --certified --format json
   printf 'beta,g,m1,m2,l1,l2\n7,2,1,3,1,2\n' >"$work/certified.csv"
   good "average --cases --certified: kind bound" 'grep -q ",certified-integral," "$work/out" && ! grep -q estimate "$work/out"' \
     average --cases "$work/certified.csv" --certified
