@@ -124,7 +124,7 @@ std::string_view header_word(std::string_view text) {
 /// When `file` is an output of pendavg (its '#' lines before the column line hold the
 /// "# pendavg VERSION, generated DATE" line) of another output schema than this run's header
 /// `expected` names (its "# schema: S" line), the reason a resume cannot use it, e.g. "was
-/// written with output schema 0 (pendavg 0.2.0: no '# schema:' line); this pendavg writes
+/// written with output schema 0 (pendavg 0.2.0: it has no '# schema:' line); this pendavg writes
 /// schema 1"; empty otherwise (the same schema, or a file that is not recognisably pendavg's:
 /// the line-by-line comparison speaks for those). Leaves `file` at its start.
 std::string other_schema(std::FILE* file, const std::vector<std::string_view>& expected) {
