@@ -56,7 +56,7 @@ def inequality(rows, name):
     bad = 0
     for r in rows:
         a, b = float(r["beta_K1"]), float(r["beta_K2"])
-        e = float(r["error_K1"]) + float(r["error_K2"])
+        e = float(r["beta_K1_error"]) + float(r["beta_K2_error"])
         if not (0 <= a <= 0.5 <= b <= 1) or abs(a + b - 1) > 10 * e + 1e-15 or r["converged"] != "true":
             bad += 1
     check(bad == 0, f"{name}: 0 <= beta<K1> <= 1/2 <= beta<K2> <= 1, beta<K1> + beta<K2> = 1 and converged "

@@ -58,9 +58,12 @@ def configs(n, name):
 
 
 def run(masses, lengths, g, beta, method, options):
-    """pendavg.average on the same decimal strings the CLI would read: its strings and seconds."""
+    """pendavg.average on the same decimal strings the CLI would read: its strings and seconds.
+    (The error's strings under their output schema 1 name, beta_K_error, or "error" from a module
+    that still has the schema 0 name.)"""
     r = pendavg.average(masses.split(","), lengths.split(","), beta, g, method=method, **options)
-    return {"beta_K": r.decimal["beta_K"], "error": r.decimal["error"], "digits": r.digits,
+    error = r.decimal["beta_K_error"] if "beta_K_error" in r.decimal else r.decimal["error"]
+    return {"beta_K": r.decimal["beta_K"], "error": error, "digits": r.digits,
             "evaluations": r.evaluations, "seconds": r.seconds}
 
 

@@ -107,6 +107,60 @@ std::string shortened(std::string_view line) {
   return std::string(line.substr(0, 120)) + (line.size() > 120 ? "..." : "");
 }
 
+constexpr std::string_view schema_prefix = "# schema: ";
+constexpr std::string_view version_prefix = "# pendavg ";
+
+/// A short word as a file's header names a schema or a version by (letters, digits, '.', '-',
+/// '+', '_'; at most 40), or empty.
+std::string_view header_word(std::string_view text) {
+  if (text.empty() || text.size() > 40) return {};
+  for (const char c : text)
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+          c == '.' || c == '-' || c == '+' || c == '_'))
+      return {};
+  return text;
+}
+
+/// When `file` is an output of pendavg (its '#' lines before the column line hold the
+/// "# pendavg VERSION, generated DATE" line) of another output schema than this run's header
+/// `expected` names (its "# schema: S" line), the reason a resume cannot use it, e.g. "was
+/// written with output schema 0 (pendavg 0.2.0: it has no '# schema:' line); this pendavg writes
+/// schema 1"; empty otherwise (the same schema, or a file that is not recognisably pendavg's:
+/// the line-by-line comparison speaks for those). Leaves `file` at its start.
+std::string other_schema(std::FILE* file, const std::vector<std::string_view>& expected) {
+  std::string_view ours;
+  for (const std::string_view line : expected)
+    if (line.starts_with(schema_prefix)) {
+      ours = line.substr(schema_prefix.size());
+      break;
+    }
+  if (ours.empty()) return {};
+  std::string line, theirs, version;
+  bool has_schema = false, ended = true;
+  while (read_line(file, line, &ended) && ended && !line.empty() && line.front() == '#') {
+    if (!has_schema && line.starts_with(schema_prefix)) {
+      has_schema = true;
+      theirs = line.substr(schema_prefix.size());
+    } else if (version.empty() && line.starts_with(version_prefix)) {
+      const std::size_t cut = line.find(generated);
+      if (cut != std::string::npos)
+        version = header_word(std::string_view(line).substr(
+            version_prefix.size(), cut - version_prefix.size()));
+    }
+  }
+  std::rewind(file);
+  if (has_schema ? theirs == ours : version.empty()) return {};
+  std::string reason = "was written with output schema ";
+  if (has_schema) {
+    const std::string_view word = header_word(theirs);
+    reason += word.empty() ? "'" + shortened(theirs) + "'" : std::string(word);
+    if (!version.empty()) reason += " (pendavg " + version + ")";
+  } else {
+    reason += "0 (pendavg " + version + ": it has no '# schema:' line)";
+  }
+  return reason + "; this pendavg writes schema " + std::string(ours);
+}
+
 }  // namespace
 
 std::string failed_row_line(std::string_view context, std::string_view reason) {
@@ -186,6 +240,13 @@ bool ResumedRows::read_source(Source& source, std::size_t number,
     if (temporary && errno == ENOENT) return false;  // removed since it was listed
     throw usage_error(where + ": cannot read it: " + std::strerror(errno));
   }
+  // A file of another output schema (an older pendavg's: other columns, other number formats)
+  // is named as such, not as a line that differs.
+  if (const std::string reason = other_schema(file, expected); !reason.empty())
+    throw usage_error(where + " " + reason + " -- " +
+                      (temporary ? "remove it, or write the file afresh with --output"
+                                 : "start a new file with --output, or complete this one with "
+                                   "the pendavg that wrote it"));
   std::string line;
   bool ended = true;
   for (const std::string_view want : expected) {

@@ -22,7 +22,7 @@
 #                           build tree)
 # Environment: PENDAVG_BENCH_RUNS (default 5), PENDAVG_BENCH_REPLICATE (default 100),
 #              PENDAVG_BENCH_DIGITS (default 16, passed as --digits),
-#              PENDAVG_BENCH_COLUMNS (passed as --columns: e.g. beta_K,error_K,ratio,cos_phi,
+#              PENDAVG_BENCH_COLUMNS (passed as --columns: e.g. beta_K,beta_K_error,ratio,cos_phi,
 #              method,evaluations, the columns of 9ae1382; default: every column),
 #              PENDAVG_BENCH_NO_HYPERFINE=1 (use the date loop even when hyperfine is installed),
 #              PENDAVG_BENCH_TIMING_RUNS (default 3; 0 skips the per-row timing),
@@ -64,9 +64,10 @@ echo "cases file: $rows rows ($count cases x $replicate, $layout)" >&2
 cmd=("$pendavg" average --cases "$cases" --digits "$digits")
 if [ -n "${PENDAVG_BENCH_COLUMNS:-}" ]; then cmd+=(--columns "$PENDAVG_BENCH_COLUMNS"); fi
 
-# One checked run first: the command must succeed and print one line per row plus a header.
+# One checked run first: the command must succeed and print one line per row plus a header
+# (after its '#' lines: the schema line).
 "${cmd[@]}" >"$work/out.csv"
-out_rows=$(($(wc -l <"$work/out.csv") - 1))
+out_rows=$(($(grep -vc '^#' "$work/out.csv") - 1))
 if ((out_rows != rows)); then
   echo "pendavg printed $out_rows rows for $rows input rows" >&2
   exit 1

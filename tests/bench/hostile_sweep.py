@@ -21,7 +21,7 @@ for n in (1, 2, 3, 4, 6):
             if n == 1: m, l = masses, lengths
             else:
                 m = ",".join(["1"] * (n - 1) + [masses]); l = ",".join([lengths] + ["1"] * (n - 1))
-            base = ["average", "--masses", m, "--lengths", l, "--g", g, "--beta", beta]
+            base = ["average", "--masses", m, "--lengths", l, "--g", g, "--beta", beta, "--format", "json"]
             variants = [base]
             if n >= 5: variants.append(base + ["--method", "qmc", "--samples", "1024", "--shifts", "4"])
             for args in variants:

@@ -253,7 +253,7 @@ def separatrices(pendavg):
 
 def run(pendavg, masses, lengths, g, state, value):
     command = [pendavg, "average", "--masses", ",".join(masses), "--lengths", ",".join(lengths),
-               "--g", g, "--" + state, value]
+               "--g", g, "--" + state, value, "--format", "json"]
     return json.loads(subprocess.run(command, check=True, capture_output=True, text=True).stdout)
 
 

@@ -91,14 +91,15 @@ done
 same_on_ranks "table --chain 8 qmc" table --chain 3,8 --beta log:0.1:10:12 --g 1,2 --method qmc --samples 2048 --shifts 8
 same_on_ranks "table --chain 8 auto" table --chain 3,8 --beta log:0.1:10:6 --g 1,2 --tol 1e-8
 ONE_THREAD=1 same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
-# One qmc point at N = 64: its shifts shared by the ranks.
+# One qmc point at N = 64: its shifts shared by the ranks. (JSON, whose "seconds" without_timing
+# leaves out: the default CSV has it as a column.)
 unit64=$("$python" -c 'print(",".join(["1"] * 64))')
-same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --method qmc --samples 4096 --shifts 12
+same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --method qmc --samples 4096 --shifts 12 --format json
 # Trajectory replicas, N = 3: Langevin (noise streams) and NVE (perturbed starts).
-same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4
-same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no
+same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4 --format json
+same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no --format json
 # Commands that do not distribute run on rank 0 alone and print once.
-same_on_ranks "limit on rank 0" limit --masses 0.5,0.5
+same_on_ranks "limit on rank 0" limit --masses 0.5,0.5 --format json
 
 # A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
 # at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.

@@ -5,8 +5,8 @@
 # --resume keeps only whole rows and takes those of a run killed outright (SIGKILL) from its
 # temporary, a full disk or a file size limit leaves one line and no
 # temporary, long names, modes, hard links, FIFOs, the --timing-rows file, bounded cases reads,
-# progress while a long sweep is checked, error lines safe for a terminal, and cases files as
-# pandas writes them.
+# progress while a long sweep is checked, error lines safe for a terminal, cases files as
+# pandas writes them, and files of another output schema (refused by --resume).
 #
 # Usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults
 # pendavg_row_faults is the test build of the same command whose rows listed in
@@ -55,20 +55,22 @@ check "failed rows: every other row kept, in place" \
 check "failed rows: the 118 finished rows equal the full run's" \
   cmp -s <(data_rows "$work/cases_failed.csv") \
          <(data_rows "$work/cases_reference.csv" | sed -e '6d' -e '120d')
+head_lines=$(($(grep -c '^#' "$work/cases_reference.csv") + 1))  # the '#' lines and the column line
 check "failed rows: a '# failed:' line in each failed row's place, naming its line" \
   test "$(grep -n '^# failed: ' "$work/cases_failed.csv" | cut -d: -f1,3 | tr '\n' ' ')" = \
-       "10: $work/cases.csv line 7 124: $work/cases.csv line 121 "
+       "$((head_lines + 6)): $work/cases.csv line 7 $((head_lines + 120)): $work/cases.csv line 121 "
 check "failed rows: no temporary" no_temporaries
 run "${cases[@]}" --resume "$work/cases_failed.csv"
 check "failed rows resumed: exit 0" test "$rc" -eq 0
 check "failed rows resumed = a full run" cmp -s "$work/cases_failed.csv" "$work/cases_reference.csv"
 # To stdout: the same rows and lines, exit 3.
+first_row=$(($(grep -c '^#' "$work/cases_reference_stdout.csv") + 2))  # after the '#' and column lines
 faulty_run 0 "${cases[@]}"
 check "failed first row to stdout: exit 3" test "$rc" -eq 3
 check "failed first row to stdout: the other rows" \
-  cmp -s <(grep -v '^# failed: ' "$work/out") <(sed 2d "$work/cases_reference_stdout.csv")
+  cmp -s <(grep -v '^# failed: ' "$work/out") <(sed "${first_row}d" "$work/cases_reference_stdout.csv")
 check "failed first row to stdout: its line in place" \
-  test "$(sed -n 2p "$work/out" | cut -c1-10)" = "# failed: "
+  test "$(sed -n "${first_row}p" "$work/out" | cut -c1-10)" = "# failed: "
 # Every row failing: still a complete file of '# failed:' lines, exit 3.
 faulty_run "$(seq -s, 0 119)" "${cases[@]}" --output "$work/cases_all_failed.csv"
 check "every row failed: exit 3, 120 '# failed:' lines" \
@@ -282,7 +284,7 @@ pandas.DataFrame({"beta": [1, 2.5], "g": [1, 9.81], "m1": [1, 0.3], "m2": [1, 1]
                   "l1": [1, 2], "l2": [1, 0.5]}).to_csv(sys.argv[1])
 PY
   run average --cases "$work/pandas_real.csv"
-  check "a file pandas wrote" test "$rc" -eq 0 -a "$(grep -c . "$work/out")" -eq 3
+  check "a file pandas wrote" test "$rc" -eq 0 -a "$(grep -v '^#' "$work/out" | grep -c .)" -eq 3
 fi
 
 # ---------------------------------------------------------------- killed outright
@@ -313,6 +315,68 @@ bad "a dead writer's temporary of another sweep" "${quick[@]}" --resume "$work/q
 check "... named in the refusal" grep -q "quick2.csv.tmp.$host.$dead_pid.bbbbbb', left by a killed run" "$work/err"
 check "... and nothing written" test ! -e "$work/quick2.csv"
 rm -f "$work/quick2.csv.tmp."*
+
+# ---------------------------------------------------------------- 11. files of another output schema
+# Files pendavg 0.2.0 wrote with output schema 0 (tests/cli/schema0/: interrupted files of a
+# table and of average --cases, and the two shards of a table; other column names and number
+# formats, no '# schema:' line) are never completed with schema 1 rows: --resume refuses them in
+# one line that names the schemata, and leaves them as they were; so does a file of a later
+# schema, and a killed old run's temporary. merge joins shards of one schema only.
+schema0="$(cd "$(dirname "$0")" && pwd)/schema0"
+mkdir "$work/old" "$work/schema0" && cp "$schema0"/*.csv "$work/old/" && cp "$schema0"/*.csv "$work/schema0/"
+schema0_reason="was written with output schema 0 (pendavg 0.2.0: it has no '# schema:' line); this pendavg writes schema 1 -- "
+old_table=(table --beta log:0.1:10:3 --mu1 0.5 --l1 1,2 --g 1,9.81)
+bad "table --resume of a schema 0 file" "${old_table[@]}" --resume "$work/old/table.csv"
+check "table --resume of a schema 0 file: the line names the schemata" \
+  grep -qF "table: --resume '$work/old/table.csv' $schema0_reason" "$work/err"
+check "table --resume of a schema 0 file: the file is left as it was" cmp -s "$work/old/table.csv" "$work/schema0/table.csv"
+bad "average --cases --resume of a schema 0 file" average --cases "$work/old/cases_n2.csv" --resume "$work/old/cases.csv"
+check "average --cases --resume of a schema 0 file: the line names the schemata" \
+  grep -qF "average: --resume '$work/old/cases.csv' $schema0_reason" "$work/err"
+check "average --cases --resume of a schema 0 file: the file is left as it was" \
+  cmp -s "$work/old/cases.csv" "$work/schema0/cases.csv"
+old_shards=(table --beta 0.5,1,2 --mu1 0.25,0.5)
+bad "table --shard --resume of a schema 0 shard" "${old_shards[@]}" --shard 2/2 --resume "$work/old/table_shard2.csv"
+check "table --shard --resume of a schema 0 shard: the line names the schemata" \
+  grep -qF "table: --resume '$work/old/table_shard2.csv' $schema0_reason" "$work/err"
+check "table --shard --resume of a schema 0 shard: the file is left as it was" \
+  cmp -s "$work/old/table_shard2.csv" "$work/schema0/table_shard2.csv"
+# A later schema: the same sweep's file with another '# schema:' line.
+"$pendavg" "${old_table[@]}" --output "$work/old/later.csv" 2>/dev/null
+sed -i 's/^# schema: 1$/# schema: 2/' "$work/old/later.csv"
+cp "$work/old/later.csv" "$work/old/later_copy.csv"
+bad "table --resume of a schema 2 file" "${old_table[@]}" --resume "$work/old/later.csv"
+check "table --resume of a schema 2 file: the line names the schemata" \
+  grep -qF "table: --resume '$work/old/later.csv' was written with output schema 2 (pendavg " "$work/err"
+check "table --resume of a schema 2 file: ... this pendavg writes schema 1" grep -qF "; this pendavg writes schema 1 -- " "$work/err"
+check "table --resume of a schema 2 file: the file is left as it was" cmp -s "$work/old/later.csv" "$work/old/later_copy.csv"
+# A schema 0 run killed outright: its temporary is refused, named, and nothing is written.
+cp "$work/schema0/table.csv" "$work/old/old_run.csv.tmp.$host.$dead_pid.cccccc"
+bad "--resume with a killed schema 0 run's temporary" "${old_table[@]}" --resume "$work/old/old_run.csv"
+check "... the line names the temporary and the schemata" grep -qF \
+  "old_run.csv.tmp.$host.$dead_pid.cccccc', left by a killed run, was written with output schema 0 (pendavg 0.2.0" "$work/err"
+check "... and nothing written" test ! -e "$work/old/old_run.csv"
+rm -f "$work/old/old_run.csv.tmp."*
+# merge: a schema 0 shard with a schema 1 shard of the same sweep is refused; schema 0 shards
+# alone are joined as they are (a schema 0 file: its header without the shard line, the rows in
+# the sweep's order), never labelled schema 1.
+"$pendavg" "${old_shards[@]}" --shard 2/2 --output "$work/old/new_shard2.csv" 2>/dev/null
+bad "merge of a schema 0 shard and a schema 1 shard" merge --output "$work/old/mixed.csv" \
+  "$work/old/table_shard1.csv" "$work/old/new_shard2.csv"
+check "merge of mixed schemata: nothing written" test ! -e "$work/old/mixed.csv"
+run merge --output "$work/old/old_merged.csv" "$work/old/table_shard2.csv" "$work/old/table_shard1.csv"
+check "merge of schema 0 shards: the schema 0 file of the sweep" "$python" - "$work/old/old_merged.csv" "$rc" \
+  "$work/schema0/table_shard1.csv" "$work/schema0/table_shard2.csv" <<'PY'
+import sys
+assert sys.argv[2] == "0", sys.argv[2]
+shards = [open(p).read().splitlines(keepends=True)[1:] for p in sys.argv[3:5]]
+assert shards[0][:11] == shards[1][:11]  # the same header up to the column line
+rows = [shards[0][11:], shards[1][11:]]
+expected = shards[0][:11] + [rows[k % 2][k // 2] for k in range(6)]  # blocks of 1 row
+merged = open(sys.argv[1]).read().splitlines(keepends=True)
+assert not any(l.startswith("# schema:") for l in merged), "a schema line"
+assert merged == expected, merged
+PY
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

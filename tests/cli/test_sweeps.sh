@@ -164,7 +164,9 @@ bad "--output = the cases file (symlink)" average --cases "$work/cases_link.csv"
 bad "--output = the cases file (./)"      average --cases "$work/cases.csv" --output "$work/./cases.csv"
 bad "--timing-rows = --output"          average --cases "$work/cases.csv" --output "$work/o.csv" --timing-rows "$work/o.csv"
 bad "--resume and another --output"     table --beta 1 --resume "$work/r1.csv" --output "$work/r2.csv"
-bad "--output without --cases"          average --masses 1,1 --lengths 1,1 --beta 1 --output "$work/o.csv"
+# (--output is every command's since output schema 1; --resume stays a sweep's)
+bad "--resume without --cases"          average --masses 1,1 --lengths 1,1 --beta 1 --resume "$work/o.csv"
+check "--resume without --cases: no file" test ! -e "$work/o.csv"
 check "cases file untouched" grep -q '^2,1,0.2,0.8,1,2$' "$work/cases.csv"
 # SIGTERM at any moment of a table written to a file: no temporary file survives, and the file
 # is either absent (the signal came before it existed) or complete (all rows, or the finished
@@ -263,8 +265,9 @@ check "microcanonical cases with missing rows resumed = uninterrupted" \
 bad "microcanonical resume of a beta file" table --beta log:1e-9:1:10 --g 1,9.81 --chain 3 \
   --resume "$work/micro_reference.csv"
 
-# average --cases --output: '#' lines name the cases (by hash), digits, method, version; the
-# rows are stdout's; interrupted and resumed gives the uninterrupted file.
+# average --cases --output: the schema line, then '#' lines that name the cases (by hash),
+# digits, method, version; the rows are stdout's (stdout: the schema line, the column line, the
+# rows); interrupted and resumed gives the uninterrupted file.
 "$python" - "$work/cases300.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -277,10 +280,11 @@ PY
 check "cases --output: '#' lines, then stdout's CSV" "$python" - "$work/cases_reference.csv" "$work/cases_stdout.csv" <<'PY'
 import sys
 lines = open(sys.argv[1]).read().splitlines(keepends=True)
-assert lines[0].startswith("# pendavg average --cases: 300 rows of N = 2, cases file fnv1a-64 "), lines[0]
-assert lines[1] == "# digits = 250, method = auto\n", lines[1]
-assert lines[2].startswith("# pendavg ") and ", generated 2026-01-01T00:00:00Z (UTC) from " in lines[2], lines[2]
-assert "".join(lines[3:]) == open(sys.argv[2]).read()
+assert lines[0] == "# schema: 1\n", lines[0]
+assert lines[1].startswith("# pendavg average --cases: 300 rows of N = 2, cases file fnv1a-64 "), lines[1]
+assert lines[2] == "# digits = 250, method = auto\n", lines[2]
+assert lines[3].startswith("# pendavg ") and ", generated 2026-01-01T00:00:00Z (UTC) from " in lines[3], lines[3]
+assert "".join(lines[:1] + lines[4:]) == open(sys.argv[2]).read()
 PY
 # --columns: a resumed file keeps its columns (resumed = uninterrupted); other columns are refused.
 columns=(average --cases "$work/cases300.csv" --columns ratio,var_K_error,beta_K1)
@@ -302,17 +306,21 @@ sed '2s/^0.001,/0.002,/' "$work/cases300.csv" >"$work/cases300b.csv"
 cp "$work/cases_reference.csv" "$work/cases_other.csv"
 bad "cases resume with other cases" average --cases "$work/cases300b.csv" --digits 250 --resume "$work/cases_other.csv"
 bad "cases resume with another method" average --cases "$work/cases300.csv" --digits 250 --method series --resume "$work/cases_other.csv"
-# Issue 10 added columns at the end of the rows (the kinds of every error, work_unit, the
-# equipartition residual, beta<K_i^(c)>): the resumed files above carry them; a file written
-# with the columns before them (same version) is refused, not extended with ragged rows.
+# Issue 10 added columns (the kinds of every error, work_unit, the equipartition residual,
+# beta<K_i^(c)>), which output schema 1 places after cos_phi_error_kind: the resumed files above
+# carry them; a file written with the columns before them (same version and schema) is refused,
+# not extended with ragged rows.
 strip_added_columns() { # FILE OUT: the column line and rows cut before cos_phi_error_kind
   "$python" - "$1" "$2" <<'PY'
 import sys
 lines = open(sys.argv[1]).read().splitlines(keepends=True)
 columns = next(l for l in lines if not l.startswith("#")).rstrip("\n").split(",")
 keep = columns.index("cos_phi_error_kind")
-assert columns[keep:keep + 4] == ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual"]
-assert columns[-1] == "beta_Kc_error_kind" and "beta_Kc1" in columns and "beta_Kc_error1" in columns
+cut = columns[keep:]
+for added in ["cos_phi_error_kind", "var_K_error_kind", "work_unit", "equipartition_residual",
+              "beta_Kc1", "beta_Kc1_error", "beta_Kc_error_kind"]:
+    assert added in cut, added
+assert columns[-1] == "interrupted", columns[-1]
 out = [l if l.startswith("#") else ",".join(l.rstrip("\n").split(",")[:keep]) + "\n" for l in lines]
 open(sys.argv[2], "w").write("".join(out))
 PY
@@ -327,7 +335,7 @@ bad "cases resume of a file with the columns before issue 10" average --cases "$
   --resume "$work/cases_before_issue10.csv"
 
 # ---------------------------------------------------------------- simulate --replicas
-replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4)
+replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4 --format json)
 OMP_NUM_THREADS=1 "$pendavg" "${replicas[@]}" >"$work/rep1.json" 2>/dev/null
 OMP_NUM_THREADS=2 "$pendavg" "${replicas[@]}" >"$work/rep2.json" 2>/dev/null
 check "replicas: 1 and 2 threads give the same numbers" \
@@ -342,8 +350,8 @@ for i in range(2):
     assert d["K_error_replicas"][i] > 0 and d["K_error_blocking"][i] > 0
     assert abs(d["K"][i] - d["exact_K"][i]) <= 4 * math.hypot(d["K_error"][i], d["exact_K_error"][i]), i
 PY
-"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 >"$work/single.json" 2>/dev/null
-"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 >"$work/rep_one.json" 2>/dev/null
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --format json >"$work/single.json" 2>/dev/null
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 --format json >"$work/rep_one.json" 2>/dev/null
 check "--replicas 1 is the single run" \
   bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
 run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
@@ -353,7 +361,7 @@ bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 -
 bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
 bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3
 bad "seed, one NVE run"          simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --seed 3
-start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no
+start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no --format json
 check "replicas SIGINT: exit 0, interrupted averages of the replicas so far" "$python" - "$work/out" "$rc" <<'PY'
 import json, sys
 assert sys.argv[2] == "0", sys.argv[2]

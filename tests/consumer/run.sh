@@ -75,21 +75,24 @@ work, cli = sys.argv[1], sys.argv[2]
 lines = {l.split()[0]: l.split() for l in open(f"{work}/double.txt").read().splitlines()}
 lines.update({l.split()[0]: l.split() for l in open(f"{work}/mpfr.txt").read().splitlines()})
 def cli_json(*args):
-    return json.loads(subprocess.run([cli, "average", *args], capture_output=True, text=True, check=True).stdout)
+    return json.loads(subprocess.run([cli, "average", *args, "--format", "json"], capture_output=True, text=True,
+                                     check=True).stdout)
 cases = {
     "N2": ["--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1"],
     "N3": ["--masses", "1,2,0.5", "--lengths", "1,0.5,2", "--g", "9.81", "--beta", "0.3"],
     "N8": ["--masses", ",".join(["1"] * 8), "--lengths", ",".join(["1"] * 8), "--beta", "1", "--tol", "1e-8"],
 }
+# A double run's JSON numbers are its doubles exactly (shortest round trip): printed as the
+# consumers print them (%.15e), the same text.
 for label, args in cases.items():
     o = cli_json(*args)
     got = lines[label]
-    assert got[1] == o["method"] and got[2] == o["error_kind"], (label, got, o["method"], o["error_kind"])
-    assert got[3:] == o["beta_K"], (label, got[3:], o["beta_K"])
+    assert got[1] == o["method"] and got[2] == o["beta_K_error_kind"], (label, got, o["method"], o["beta_K_error_kind"])
+    assert got[3:] == [f"{v:.15e}" for v in o["beta_K"]], (label, got[3:], o["beta_K"])
 o = cli_json(*cases["N2"], "--digits", "30")
 got = lines["N2_30"]
-assert got[1] == o["method"] and got[2] == o["error_kind"], (got, o)
-for mine, theirs, err in zip(got[3:], o["beta_K"], o["error"]):
+assert got[1] == o["method"] and got[2] == o["beta_K_error_kind"], (got, o)
+for mine, theirs, err in zip(got[3:], o["beta_K"], o["beta_K_error"]):
     assert abs(Decimal(mine) - Decimal(theirs)) <= Decimal(err), (mine, theirs, err)
     assert Decimal(err) < Decimal("1e-29"), err
 assert lines["bad"][1:] and "beta" in " ".join(lines["bad"]), lines["bad"]
@@ -107,9 +110,10 @@ import pendavg
 cli, prefix = sys.argv[1], sys.argv[2]
 assert pendavg.__file__.startswith(prefix), pendavg.__file__
 r = pendavg.average([0.5, 0.5], [1, 1], 1.0)
-o = json.loads(subprocess.run([cli, "average", "--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1.0"],
-                              capture_output=True, text=True, check=True).stdout)
-assert r.decimal["beta_K"] == o["beta_K"] and r.method == o["method"], (r.decimal, o)
+o = json.loads(subprocess.run([cli, "average", "--masses", "0.5,0.5", "--lengths", "1,1", "--beta", "1.0",
+                               "--format", "json"], capture_output=True, text=True, check=True).stdout)
+# (the CLI's JSON numbers are the doubles exactly: the module's, bit for bit)
+assert list(r.beta_K) == o["beta_K"] and r.method == o["method"], (list(r.beta_K), o)
 print("consumer: the installed Python package imports from", pendavg.__file__.replace(prefix, "PREFIX"))
 PY
 fi
