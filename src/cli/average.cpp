@@ -712,7 +712,8 @@ std::string average_cases(const CasesFile& file, const std::string& path,
 std::string run_average(const Options& options) {
   const AverageOptions settings = average_settings(options);
   if (!options.has("cases")) {
-    for (const std::string_view cases_only : {"timing", "timing-rows", "resume", "columns"})
+    for (const std::string_view cases_only :
+         {"timing", "timing-rows", "resume", "columns", "shard"})
       if (options.has(cases_only))
         throw usage_error("average: --" + std::string(cases_only) + " is for --cases only");
     const Format format = format_option(options, "csv", all_formats);

@@ -143,6 +143,14 @@ std::string run_merge(const Options& options) {
              std::to_string(f->shards) + " of " + std::to_string(f->rows) + " rows, '" +
              first.path + "' of " + std::to_string(first.shards) + " shards of " +
              std::to_string(first.rows) + " rows: not shards of one sweep");
+    const auto schema = [](const ShardFile& shard) {  // "# schema: N", none before schema 1
+      for (const std::string& line : shard.header)
+        if (line.starts_with("# schema: ")) return line.substr(10);
+      return std::string("0");
+    };
+    if (schema(*f) != schema(first))
+      refuse("'" + f->path + "' has output schema " + schema(*f) + ", '" + first.path +
+             "' schema " + schema(first) + ": shards written by different pendavg versions");
     bool same = f->header.size() == first.header.size();
     for (std::size_t k = 0; same && k < first.header.size(); ++k)
       same = same_header_line(first.header[k], f->header[k]);
