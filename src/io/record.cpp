@@ -339,8 +339,13 @@ std::string text_report(const Record& record) {
   const auto fields = record.fields();
   std::vector<std::vector<std::string>> table;
   std::vector<std::size_t> per_particle;
-  for (std::size_t k = 0; k < fields.size(); ++k)
-    if (fields[k].shape == Shape::per_particle) per_particle.push_back(k);
+  for (std::size_t k = 0; k < fields.size(); ++k) {
+    if (fields[k].shape != Shape::per_particle) continue;
+    const auto cells = record.cells_of(k);  // a field with no value at all (a limit's K) is left out
+    if (std::any_of(cells.begin(), cells.end(),
+                    [](const Cell& c) { return c.tag != Cell::Tag::none; }))
+      per_particle.push_back(k);
+  }
   if (!per_particle.empty() && record.particles() > 0) {
     table.emplace_back(1, "i");
     for (const std::size_t k : per_particle) table[0].emplace_back(fields[k].name);
@@ -352,24 +357,37 @@ std::string text_report(const Record& record) {
     }
   }
   std::string out = aligned(table);
-  // scalars: X = v +- e (kind), pairing X with X_error and X_error_kind
+  // Scalars: a value with its error as `X = v +- e (kind)` on its own line; the kinds of the
+  // per-particle fields on one line; every other scalar on one line, comma separated.
   std::vector<bool> done(fields.size(), false);
+  std::string kinds, others;
+  constexpr std::string_view kind_suffix = "_error_kind";
   for (std::size_t k = 0; k < fields.size(); ++k) {
     if (done[k] || fields[k].shape != Shape::scalar) continue;
     const std::string name(fields[k].name);
-    out += name + " = " + cell_text(record, record.cells_of(k)[0], fields[k].kind);
+    const std::string value = cell_text(record, record.cells_of(k)[0], fields[k].kind);
     const std::size_t e = record.find(name + "_error");
     if (e < fields.size() && fields[e].shape == Shape::scalar) {
-      out += " +- " + cell_text(record, record.cells_of(e)[0], fields[e].kind);
+      out += name + " = " + value + " +- " +
+             cell_text(record, record.cells_of(e)[0], fields[e].kind);
       done[e] = true;
+      const std::size_t kind = record.find(name + std::string(kind_suffix));
+      if (kind < fields.size()) {
+        out += " (" + cell_text(record, record.cells_of(kind)[0], fields[kind].kind) + ")";
+        done[kind] = true;
+      }
+      out += '\n';
+    } else if (fields[k].name.ends_with(kind_suffix)) {
+      if (record.cells_of(k)[0].tag == Cell::Tag::none) continue;
+      (kinds += kinds.empty() ? "" : ", ") +=
+          std::string(fields[k].name.substr(0, fields[k].name.size() - kind_suffix.size())) +
+          " " + value;
+    } else {
+      (others += others.empty() ? "" : ", ") += name + " = " + value;
     }
-    const std::size_t kind = record.find(name + "_error_kind");
-    if (kind < fields.size()) {
-      out += " (" + cell_text(record, record.cells_of(kind)[0], fields[kind].kind) + ")";
-      done[kind] = true;
-    }
-    out += '\n';
   }
+  if (!kinds.empty()) out += "error kinds: " + kinds + "\n";
+  if (!others.empty()) out += others + "\n";
   return out;
 }
 
