@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 # tests/consumer/run.sh BUILD_DIR -- the package test of issue 10. Installs BUILD_DIR into a
 # temporary prefix, builds tests/consumer (a separate project) against it with CMake's
-# find_package(pendavg 0.2) and again with pkg-config, checks that a double-only program's
+# find_package(pendavg 0.3) and again with pkg-config, checks that a double-only program's
 # #include <pendavg/pendavg.hpp> pulls in no Boost.Multiprecision, GSL or omp.h, compares the
 # consumers' numbers with those the installed pendavg command prints, and imports the installed
 # Python package from the prefix's site directory.
@@ -26,7 +26,7 @@ awk '/<!-- readme-cpp-example/ { marked = 1; next }
      inside { print }' "$readme" >"$work/readme_example.cpp"
 grep -q 'int main' "$work/readme_example.cpp" || fail "no marked C++ example (<!-- readme-cpp-example -->) in README.md"
 
-# 1. find_package(pendavg 0.2) + target_link_libraries(... pendavg::pendavg), with the compiler's
+# 1. find_package(pendavg 0.3) + target_link_libraries(... pendavg::pendavg), with the compiler's
 # default language standard (the consumer project sets none)
 cmake -S "$here" -B "$work/build" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release \
   -DPENDAVG_README_EXAMPLE="$work/readme_example.cpp" \
