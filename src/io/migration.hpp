@@ -19,6 +19,9 @@ struct Rename {
   std::string_view new_name;  ///< schema 1's field
   bool per_particle;          ///< CSV: old_name + i -> column_name(new field, i)
   std::string_view where;     ///< the outputs that used the old name
+  /// pendavg 0.2's Python result objects had old_name as an attribute: the package keeps it as
+  /// a deprecated alias of new_name (where the result has that field).
+  bool python = false;
 };
 
 /// Every rename of schema 0 -> 1.

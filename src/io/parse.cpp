@@ -12,11 +12,17 @@
 namespace pendavg::io {
 
 namespace {
-bool digits_advice = true;  // set_digits_advice
+bool digits_advice_on = true;              // set_digits_advice
+std::string_view digits_option = "--digits";  // set_digits_option_name
 }  // namespace
 
-void set_digits_advice(bool command_takes_digits) { digits_advice = command_takes_digits; }
-bool command_takes_digits() { return digits_advice; }
+void set_digits_advice(bool command_takes_digits) { digits_advice_on = command_takes_digits; }
+bool command_takes_digits() { return digits_advice_on; }
+void set_digits_option_name(std::string_view name) { digits_option = name; }
+std::string digits_advice() {
+  if (!digits_advice_on) return {};
+  return " (use " + std::string(digits_option) + " > 16)";
+}
 
 std::string in_quotes(std::string_view text) {
   std::string quoted;  // appended piecewise: "'" + std::string(text) trips GCC 12's -Wrestrict
@@ -59,14 +65,14 @@ bool is_decimal_literal(std::string_view text) {
   return exponent_digits > 0 && exponent_digits == text.size();
 }
 
-double to_double(std::string_view text, std::string_view what) {
+double to_double(std::string_view text, std::string_view what, bool advise_digits) {
   if (text.front() == '+') text.remove_prefix(1);  // from_chars takes no '+'
   double value = 0;
   const auto [end, status] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (status == std::errc::result_out_of_range)  // MPFR helps physical inputs, not a tolerance
     throw bad_input(std::string(what) + ": " + in_quotes(text) +
                       " is out of the range of double" +
-                      (what == "--tol" || !digits_advice ? "" : " (use --digits > 16)"));
+                      (advise_digits ? digits_advice() : std::string()));
   if (status != std::errc() || end != text.data() + text.size())
     throw bad_input(std::string(what) + ": malformed number " + in_quotes(text));
   return value;
@@ -85,7 +91,8 @@ mpfr_real to_mpfr(std::string_view text, std::string_view what) {
 // ---------------------------------------------------------------- numbers
 
 template <class Real>
-Real parse_real(std::string_view text, std::string_view what, Domain domain) {
+Real parse_real(std::string_view text, std::string_view what, Domain domain,
+                bool advise_digits) {
   if (text.empty()) throw bad_input(std::string(what) + ": empty number");
   if (!is_decimal_literal(text))
     throw bad_input(std::string(what) + ": malformed number " + in_quotes(text) +
@@ -94,7 +101,7 @@ Real parse_real(std::string_view text, std::string_view what, Domain domain) {
   if constexpr (is_mpfr_v<Real>) {
     value = to_mpfr(text, what);
   } else {
-    value = to_double(text, what);
+    value = to_double(text, what, advise_digits);
   }
   using std::isfinite;
   if (!isfinite(value))
@@ -120,8 +127,8 @@ std::vector<Real> parse_real_list(std::string_view text, std::string_view what, 
   }
 }
 
-template double parse_real<double>(std::string_view, std::string_view, Domain);
-template mpfr_real parse_real<mpfr_real>(std::string_view, std::string_view, Domain);
+template double parse_real<double>(std::string_view, std::string_view, Domain, bool);
+template mpfr_real parse_real<mpfr_real>(std::string_view, std::string_view, Domain, bool);
 template std::vector<double> parse_real_list<double>(std::string_view, std::string_view, Domain);
 template std::vector<mpfr_real> parse_real_list<mpfr_real>(std::string_view, std::string_view,
                                                            Domain);

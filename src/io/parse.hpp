@@ -38,9 +38,18 @@ enum class Domain { positive, nonnegative, any };
 void set_digits_advice(bool command_takes_digits);
 /// What set_digits_advice was last given.
 bool command_takes_digits();
+/// How the advice spells the digits option: "--digits" (the CLI, the default) or "digits"
+/// (Python's argument). Set once by a front end before any parsing.
+void set_digits_option_name(std::string_view name);
+/// The advice a refusal of a number out of double's range ends with, " (use --digits > 16)"; empty
+/// when the running command takes no digits.
+std::string digits_advice();
 
+/// `advise_digits` false leaves the advice out for this number (a tolerance: more digits do not
+/// help it).
 template <class Real>
-Real parse_real(std::string_view text, std::string_view what, Domain domain);
+Real parse_real(std::string_view text, std::string_view what, Domain domain,
+                bool advise_digits = true);
 
 /// A comma-separated list of numbers, each parsed by parse_real; empty elements are errors.
 template <class Real>

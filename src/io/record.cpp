@@ -24,6 +24,8 @@ void Record::reset(std::span<const Field> fields, std::size_t particles) {
       particles == particles_ && !first_cell_.empty()) {  // the same table: reuse its layout
     cells_.clear();
     text_.clear();
+    exact_.clear();
+    pending_exact_ = ExactNumber{};
     return;
   }
   fields_ = fields;
@@ -41,6 +43,13 @@ void Record::reset(std::span<const Field> fields, std::size_t particles) {
   }
   first_cell_.push_back(k);
   text_.clear();
+  exact_.clear();
+  pending_exact_ = ExactNumber{};
+}
+
+void Record::push_exact() {
+  exact_.push_back(std::move(pending_exact_));
+  pending_exact_ = ExactNumber{};
 }
 
 std::span<const Cell> Record::cells_of(std::size_t field) const {
@@ -54,14 +63,6 @@ std::size_t Record::find(std::string_view name) const {
   return fields_.size();
 }
 
-void Record::none() { cells_.push_back(Cell{}); }
-
-void Record::number(double x) {
-  Cell c;
-  c.tag = Cell::Tag::number;
-  c.number = x;
-  cells_.push_back(c);
-}
 
 void Record::shortest(double x) {
   Cell c;
@@ -74,7 +75,7 @@ void Record::shortest(double x) {
   c.size = static_cast<std::uint32_t>(end - first);
   c.gap = printing_gap(x, std::string_view(first, c.size));
   text_.resize(c.begin + c.size);
-  cells_.push_back(c);
+  push(c);
 }
 
 void Record::decimal(std::string_view text) {
@@ -83,7 +84,7 @@ void Record::decimal(std::string_view text) {
   c.begin = static_cast<std::uint32_t>(text_.size());
   c.size = static_cast<std::uint32_t>(text.size());
   text_ += text;
-  cells_.push_back(c);
+  push(c);
 }
 
 char* Record::decimal_room(std::size_t size) {
@@ -98,15 +99,9 @@ void Record::commit_decimal(const char* end) {
   c.begin = static_cast<std::uint32_t>(pending_);
   c.size = static_cast<std::uint32_t>(end - (text_.data() + pending_));
   text_.resize(pending_ + c.size);
-  cells_.push_back(c);
+  push(c);
 }
 
-void Record::integer(long long n) {
-  Cell c;
-  c.tag = Cell::Tag::integer;
-  c.integer = n;
-  cells_.push_back(c);
-}
 
 void Record::input(double x, std::string_view written) {
   decimal(written);
@@ -124,15 +119,9 @@ void Record::name(const char* static_name) {
   c.tag = Cell::Tag::text;
   c.literal = static_name;
   c.size = static_cast<std::uint32_t>(std::strlen(static_name));
-  cells_.push_back(c);
+  push(c);
 }
 
-void Record::flag(bool value) {
-  Cell c;
-  c.tag = Cell::Tag::flag;
-  c.flag = value;
-  cells_.push_back(c);
-}
 
 void Record::complete() const {
   if (cells_.size() != first_cell_.back())
@@ -163,14 +152,10 @@ std::vector<std::string> column_names(std::span<const Field> fields, std::size_t
 
 // ---------------------------------------------------------------- cells as text
 
-namespace {
-
 char* write_number(char* out, double x, Kind kind) {
   if (kind == Kind::error) return write_error(out, x);
   return write_shortest(out, x);
 }
-
-}  // namespace
 
 std::size_t max_cell_length(const Record& record, const Cell& cell) {
   switch (cell.tag) {
@@ -196,7 +181,8 @@ char* write_cell_as(char* out, const Record& record, const Cell& cell, Kind kind
         std::memcpy(out, record.text_of(cell).data(), cell.size);
         return out + cell.size;
       }
-      return write_number(out, cell.number, kind);
+      return write_number(out, kind == Kind::error ? covering(cell.number, cell.gap) : cell.number,
+                          kind);
     case Cell::Tag::decimal:
     case Cell::Tag::input:
     case Cell::Tag::text: {

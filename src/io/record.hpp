@@ -11,11 +11,13 @@
 // double) and decimal strings when it is in MPFR (more digits or range than a double).
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace pendavg::io {
@@ -58,9 +60,20 @@ struct Cell {
   std::uint32_t begin = 0, size = 0;  ///< decimal and text: where in Record::text
   const char* literal = nullptr;       ///< text: a static name (method, kind, unit), not copied
   double number = 0;
-  /// number cells of values: how far the printed text may lie from `number` (printing_gap)
+  /// number cells of values: how far the printed text may lie from `number` (printing_gap);
+  /// of errors: their value's, which the printed error adds (covering)
   double gap = 0;
   long long integer = 0;
+};
+
+/// A number's exact binary value as plain data, usable without any MPFR precision (Python turns
+/// it into an mpmath.mpf): mantissa * 2^exponent, the mantissa a signed integer in hex.
+struct ExactNumber {
+  std::string mantissa;  ///< empty: no exact value kept for this cell
+  long exponent = 0;
+  double rounded = 0;    ///< the value rounded to the nearest double (also nan and inf)
+  bool finite = true;
+  bool kept() const { return !mantissa.empty(); }
 };
 
 /// One result: its table's cells in order (a per-particle field gives `particles` consecutive
@@ -88,8 +101,13 @@ class Record {
   Kind kind_of_cell(std::size_t c) const { return cell_kinds_[c]; }
 
   // Appenders, in the table's order (checked at the end of a builder by complete()).
-  void none();
-  void number(double x);
+  void none() { push(Cell{}); }
+  void number(double x) {
+    Cell c;
+    c.tag = Cell::Tag::number;
+    c.number = x;
+    push(c);
+  }
   /// A double value, printed as its shortest round-trip text (kept in the record) with its
   /// printing gap.
   void shortest(double x);
@@ -97,16 +115,45 @@ class Record {
   /// Room for `size` characters of decimal text, then commit_decimal with its end.
   char* decimal_room(std::size_t size);
   void commit_decimal(const char* end);
-  void integer(long long n);
+  /// A double run's error e of a value whose printed text lies up to `gap` from it: the cell
+  /// keeps e (what the library computed), its text covers the printed value (covering).
+  void error(double e, double gap) {
+    Cell c;
+    c.tag = Cell::Tag::number;
+    c.number = e;
+    c.gap = gap;
+    push(c);
+  }
+  void integer(long long n) {
+    Cell c;
+    c.tag = Cell::Tag::integer;
+    c.integer = n;
+    push(c);
+  }
   /// An input of a double run: `written` in CSV and text, x (shortest) in JSON.
   void input(double x, std::string_view written);
   void text(std::string_view name);
   /// A text cell of a static name (method_name(), error_kind_name(), ...): not copied.
   void name(const char* static_name);
-  void flag(bool value);
+  void flag(bool value) {
+    Cell c;
+    c.tag = Cell::Tag::flag;
+    c.flag = value;
+    push(c);
+  }
   /// Throws std::logic_error unless every field got its cells (a builder out of step with its
   /// table is a bug, caught by every test that prints).
   void complete() const;
+
+  /// Exact values (off by default: the CLI prints only; the Python result objects keep them).
+  /// When on, an MPFR run's builder hands the number behind each value and error cell -- what
+  /// it printed, before printing rounded it -- to set_exact before appending the cell, and
+  /// exact() then has one entry per cell (not kept(): a cell without one, e.g. a double run's,
+  /// whose Cell::number is exact already).
+  void keep_exact(bool on) { keep_exact_ = on; }
+  bool keeps_exact() const { return keep_exact_; }
+  void set_exact(ExactNumber x) { pending_exact_ = std::move(x); }
+  std::span<const ExactNumber> exact() const { return exact_; }
 
  private:
   std::span<const Field> fields_;
@@ -116,6 +163,14 @@ class Record {
   std::vector<Kind> cell_kinds_;           ///< per cell
   std::string text_;
   std::size_t pending_ = 0;  ///< decimal_room's start
+  bool keep_exact_ = false;
+  std::vector<ExactNumber> exact_;  ///< with keep_exact_: one per cell
+  ExactNumber pending_exact_;       ///< set_exact's, for the next cell
+  void push(const Cell& cell) {
+    cells_.push_back(cell);
+    if (keep_exact_) push_exact();
+  }
+  void push_exact();
 };
 
 /// The number of cells of `fields` for `particles`.
@@ -146,6 +201,16 @@ void append_csv_cells(std::string& out, const Record& record,
 /// max_cell_length(record, cell).
 char* write_cell(char* out, const Record& record, const Cell& cell);
 std::size_t max_cell_length(const Record& record, const Cell& cell);
+/// What a double run prints for an error e of a value printed up to `gap` from it: e + gap
+/// rounded up (e itself when the value's text is exact).
+inline double covering(double e, double gap) {
+  return gap > 0 ? std::nextafter(e + gap, HUGE_VAL) : e;
+}
+
+/// Writes a double of a field of `kind` as a number cell prints it: an error with error_digits
+/// significant digits rounded up, any other number as the shortest decimal that reads back as
+/// it. Room: 32 characters. Returns the end.
+char* write_number(char* out, double x, Kind kind);
 
 /// The text report of records of one table: the per-particle fields as an aligned table (one
 /// row per particle, the field names as headers), then every scalar field as `name = value`,

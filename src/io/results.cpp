@@ -9,7 +9,11 @@
 #include "engine/text.hpp"
 #include "pendavg/average.hpp"
 
+#include <gmp.h>
+#include <mpfr.h>
+
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -111,6 +115,23 @@ constexpr Field excitation_inputs[] = {canonical_inputs[0], canonical_inputs[1],
                                        canonical_inputs[3], canonical_inputs[4],
                                        canonical_inputs[5]};
 
+constexpr Field series_terms[] = {
+    {"n", K::count, one, "the term's index, from 0"},
+    {"R_n", K::real, one,
+     "R_n(a1, a2) = (1/pi) int_0^pi cos^{2n} t I0(R(t)) dt, scaled by exp(-(a1 + a2))"},
+    {"term", K::real, one, "c_n mu2^n R_n, the n-th term of the numerator (scaled)"},
+    {"numerator", K::real, one, "the numerator's partial sum up to n (scaled)"},
+    {"denominator", K::real, one, "the denominator's partial sum up to n (scaled)"},
+    {"value", K::real, one, "beta<K_1> after n terms: (mu1/2) numerator / denominator"},
+    {"bound", K::real, one, "a rigorous bound on |beta<K_1> - value| from both tails"},
+};
+
+constexpr Field series_summary[] = {
+    {"terms", K::count, one, "the terms taken"},
+    {"certified", K::flag, one, "true: the last bound is at most 10^-digits relative to its value"},
+    {"error_kind", K::text, one, "what each term's bound promises (bound)"},
+};
+
 constexpr NamedTable tables[] = {
     {"canonical inputs", canonical_inputs},
     {"chain inputs (limit)", chain_inputs},
@@ -119,15 +140,30 @@ constexpr NamedTable tables[] = {
     {"canonical averages", averages_table},
     {"microcanonical averages (after --energy)", microcanonical_after_energy},
     {"microcanonical averages (after --excitation)", microcanonical_after_excitation},
+    {"series terms", series_terms},
+    {"series", series_summary},
 };
 
 // ---------------------------------------------------------------- cells
+
+/// An MPFR run's number behind the next cell, when the record keeps them (a double run's cells
+/// hold their doubles).
+template <class Real>
+void keep_exact(Record& r, const Real& x) {
+  if constexpr (!std::is_same_v<Real, double>) {
+    if (r.keeps_exact()) r.set_exact(exact_number(x));
+  } else {
+    (void)r;
+    (void)x;
+  }
+}
 
 template <class Real>
 void put_value(Record& r, const Real& v, Printing p) {
   if constexpr (std::is_same_v<Real, double>) {
     r.shortest(v);
   } else {
+    keep_exact(r, v);
     char* at = r.decimal_room(decimal_max_length(p.digits));
     r.commit_decimal(write_decimal(at, v, p.digits));
   }
@@ -140,10 +176,9 @@ template <class Real>
 void put_error(Record& r, const Real& value, const Real& e, Printing p, double gap = 0) {
   if constexpr (std::is_same_v<Real, double>) {
     (void)value;
-    double covering = e + gap;
-    if (gap > 0) covering = std::nextafter(covering, HUGE_VAL);  // the sum rounded up
-    r.number(covering);
+    r.error(e, gap);  // printed as e + gap rounded up (covering)
   } else {
+    keep_exact(r, e);
     char* at = r.decimal_room(decimal_max_length(error_digits));
     r.commit_decimal(write_error(at, printed_error(value, e, p.digits)));
   }
@@ -226,6 +261,7 @@ template <class Real>
 void put_input(Record& r, const Real& value, std::span<const std::string_view> texts,
                std::size_t k, Printing p) {
   if (k < texts.size()) {
+    keep_exact(r, value);
     if constexpr (std::is_same_v<Real, double>) r.input(value, texts[k]);
     else r.decimal(texts[k]);
     return;
@@ -251,6 +287,32 @@ void put_chain(Record& r, const Chain<Real>& chain, std::span<const std::string_
 
 }  // namespace
 
+ExactNumber exact_number(const mpfr_real& x) {
+  ExactNumber out;
+  const mpfr_srcptr p = x.backend().data();
+  out.rounded = mpfr_get_d(p, MPFR_RNDN);
+  if (!mpfr_number_p(p)) {
+    out.finite = false;
+    out.mantissa.push_back('0');
+    return out;
+  }
+  if (mpfr_zero_p(p)) {
+    out.mantissa.push_back('0');
+    return out;
+  }
+  mpz_t mantissa;
+  mpz_init(mantissa);
+  out.exponent = static_cast<long>(mpfr_get_z_2exp(mantissa, p));
+  char* digits = mpz_get_str(nullptr, 16, mantissa);
+  const std::size_t length = std::strlen(digits);
+  out.mantissa.assign(digits, length);
+  void (*release)(void*, size_t) = nullptr;
+  mp_get_memory_functions(nullptr, nullptr, &release);
+  release(digits, length + 1);
+  mpz_clear(mantissa);
+  return out;
+}
+
 std::span<const Field> canonical_input_fields() { return canonical_inputs; }
 std::span<const Field> chain_input_fields() { return chain_inputs; }
 std::span<const Field> averages_fields() { return averages_table; }
@@ -264,6 +326,29 @@ std::span<const Field> microcanonical_fields(std::string_view state) {
                            : std::span<const Field>(microcanonical_after_excitation);
 }
 std::span<const NamedTable> all_tables() { return tables; }
+std::span<const Field> series_term_fields() { return series_terms; }
+std::span<const Field> series_fields() { return series_summary; }
+
+void append_series_term(Record& r, const SeriesRow<mpfr_real>& row, Printing p) {
+  r.integer(static_cast<long long>(row.n));
+  for (const mpfr_real* x : {&row.R_n, &row.term, &row.numerator, &row.denominator,
+                             &row.beta_kinetic1, &row.bound})
+    put_value(r, *x, p);
+  r.complete();
+}
+
+bool series_certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
+  if (rows.empty()) return false;
+  const SeriesRow<mpfr_real>& last = rows.back();
+  return last.bound <= abs(last.beta_kinetic1) * pow(mpfr_real(10), -digits);
+}
+
+void append_series(Record& r, const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
+  r.integer(static_cast<long long>(rows.size()));
+  r.flag(series_certifies(rows, digits));
+  r.text(error_kind_name(ErrorKind::bound));
+  r.complete();
+}
 
 template <class Real>
 void append_canonical_inputs(Record& r, const Chain<Real>& chain, const Real& beta,
@@ -346,6 +431,7 @@ void append_averages(Record& r, const Averages<Real>& a, const Real* beta, Print
   if constexpr (std::is_same_v<Real, double>) {
     r.number(a.equipartition_residual);
   } else {
+    keep_exact(r, a.equipartition_residual);
     char* at = r.decimal_room(decimal_max_length(error_digits));
     r.commit_decimal(write_error(at, a.equipartition_residual));
   }

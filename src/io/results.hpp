@@ -7,13 +7,16 @@
 #include "io/record.hpp"
 
 #include "pendavg/chain.hpp"
+#include "pendavg/mpfr.hpp"
 #include "pendavg/microcanonical.hpp"
 #include "pendavg/result.hpp"
+#include "pendavg/series.hpp"
 
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace pendavg::io {
 
@@ -23,6 +26,9 @@ struct Printing {
   int digits = 16;
   bool in_double() const { return digits <= 16; }
 };
+
+/// x's exact binary value (Record::keep_exact).
+ExactNumber exact_number(const mpfr_real& x);
 
 // ---------------------------------------------------------------- inputs
 
@@ -69,6 +75,20 @@ std::span<const Field> microcanonical_fields(std::string_view state);
 template <class Real>
 void append_microcanonical(Record& record, const MicrocanonicalAverages<Real>& averages,
                            Printing printing);
+
+// ---------------------------------------------------------------- the paper's series
+
+/// The series for beta<K_1> term by term (`series`, pendavg.series): one record per term.
+std::span<const Field> series_term_fields();
+/// Fills a term's record (always MPFR: `printing` digits).
+void append_series_term(Record& record, const SeriesRow<mpfr_real>& row, Printing printing);
+
+/// The series' summary after its inputs: the terms taken, whether they certify the digits, what
+/// each term's bound promises.
+std::span<const Field> series_fields();
+/// True when the last term's bound is at most 10^-digits relative to its value.
+bool series_certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits);
+void append_series(Record& record, const std::vector<SeriesRow<mpfr_real>>& rows, int digits);
 
 // ---------------------------------------------------------------- the naming table
 

@@ -13,8 +13,8 @@
 #include "inputs.hpp"
 #include "parallel.hpp"
 
-#include "cli/average_options.hpp"
 #include "cli/exact_values.hpp"
+#include "io/parse.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -30,6 +30,17 @@
 #include <string>
 #include <string_view>
 #include <vector>
+
+namespace pendavg::cli {
+// The front-end library's parsing under the names this file has used (the CLI's args.hpp spells
+// them so): src/python includes nothing from src/cli but exact_values.hpp.
+using io::Domain;
+using io::parse_choice;
+using io::parse_integer;
+using io::parse_real;
+using io::parse_unsigned;
+using usage_error = io::bad_input;
+}  // namespace pendavg::cli
 
 namespace pendavg::python {
 
@@ -403,7 +414,7 @@ auto without_digits_advice(Function function) {
     try {
       return function(arguments...);
     } catch (const invalid_input& bad) {
-      constexpr std::string_view advice = " (use --digits > 16)";
+      const std::string advice = io::digits_advice();  // " (use digits > 16)"
       const std::string_view message = bad.what();
       if (!message.ends_with(advice)) throw;
       throw invalid_input(std::string(message.substr(0, message.size() - advice.size())));

@@ -2,8 +2,6 @@
 // src/python/inputs.cpp -- see inputs.hpp.
 #include "inputs.hpp"
 
-#include "cli/average_options.hpp"
-
 #include <pybind11/numpy.h>
 
 #include "pendavg/mpfr.hpp"
@@ -15,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <optional>
 
 namespace pendavg::python {
 
@@ -217,15 +216,15 @@ std::string number_text(py::handle x, std::string_view what) {
   return float_repr(v);
 }
 
-double number_double(py::handle x, std::string_view what, cli::Domain domain) {
+double number_double(py::handle x, std::string_view what, io::Domain domain) {
   if (PyFloat_Check(x.ptr())) {
     const double v = PyFloat_AS_DOUBLE(x.ptr());
-    const bool inside = domain == cli::Domain::positive      ? v > 0
-                        : domain == cli::Domain::nonnegative ? v >= 0
-                                                             : true;
+    const bool inside = domain == io::Domain::positive      ? v > 0
+                        : domain == io::Domain::nonnegative ? v >= 0
+                                                            : true;
     if (std::isfinite(v) && inside) return v;
   }
-  return cli::parse_real<double>(number_text(x, what), what, domain);
+  return io::parse_real<double>(number_text(x, what), what, domain);
 }
 
 bool is_array_like(py::handle x) {
@@ -252,9 +251,9 @@ std::string choice_text(py::handle x, std::string_view what) {
 AverageOptions average_options(py::handle digits, py::handle method, py::handle tol,
                                py::handle samples, py::handle shifts, py::handle seed) {
   // digits and method have defaults in the Python signatures: None is not one of their values.
-  if (digits.is_none()) not_a_number(digits, "--digits");
-  if (method.is_none()) choice_text(method, "--method");
-  int overflow = 0;  // (an int beyond long is no default, and is refused by --digits below)
+  if (digits.is_none()) not_a_number(digits, "digits");
+  if (method.is_none()) choice_text(method, "method");
+  int overflow = 0;  // (an int beyond long is no default, and is refused by digits below)
   const bool default_digits = PyLong_CheckExact(digits.ptr()) &&
                               PyLong_AsLongAndOverflow(digits.ptr(), &overflow) == 16 && !overflow;
   const bool default_method =
@@ -262,26 +261,27 @@ AverageOptions average_options(py::handle digits, py::handle method, py::handle 
   if (default_digits && default_method && tol.is_none() && samples.is_none() && shifts.is_none() &&
       seed.is_none())
     return {};
-  // The CLI's own reader on the texts of the given options (--name=value: a value may start
-  // with "--").
-  std::vector<std::string> texts;
-  const auto add = [&](const char* name, py::handle value, bool as_choice) {
+  // The front-end library's reader on the texts of the given options, named as Python names them.
+  std::string texts[6];
+  io::AverageOptionTexts given;
+  const auto add = [&](std::optional<std::string_view>& slot, std::string& text, const char* name,
+                       py::handle value, bool as_choice) {
     if (value.is_none()) return;
-    const std::string option = std::string("--") + name;
-    texts.push_back(option + "=" + (as_choice ? choice_text(value, option) : number_text(value, option)));
+    text = as_choice ? choice_text(value, name) : number_text(value, name);
+    slot = text;
   };
-  add("digits", digits, false);
-  add("method", method, true);
-  add("tol", tol, false);
-  add("samples", samples, false);
-  add("shifts", shifts, false);
-  add("seed", seed, false);
-  const std::vector<std::string_view> args(texts.begin(), texts.end());
-  const cli::Options options("average", args, cli::average_option_names);
-  return cli::parse_average_options(options, cli::average_option_names);
+  add(given.digits, texts[0], "digits", digits, false);
+  add(given.method, texts[1], "method", method, true);
+  add(given.tol, texts[2], "tol", tol, false);
+  add(given.samples, texts[3], "samples", samples, false);
+  add(given.shifts, texts[4], "shifts", shifts, false);
+  add(given.seed, texts[5], "seed", seed, false);
+  return io::parse_average_options(given, "");
 }
 
-int digits_option(py::handle digits) { return cli::parse_digits(number_text(digits, "--digits")); }
+int digits_option(py::handle digits) {
+  return io::parse_digits(number_text(digits, "digits"), "digits");
+}
 
 std::string abbreviated(std::string_view message) {
   constexpr std::size_t longest = 80, head = 40, tail = 16;
@@ -336,7 +336,5 @@ std::string abbreviated(std::string_view message) {
   if (out.size() > 1000) out = out.substr(0, 600) + " ... (" + std::to_string(out.size()) + " characters)";
   return out;
 }
-
-int hardware_threads() { return cli::hardware_threads(); }
 
 }  // namespace pendavg::python

@@ -9,6 +9,10 @@
 #include "bindings.hpp"
 #include "inputs.hpp"
 
+#include "io/exact_decimal.hpp"
+#include "io/migration.hpp"
+#include "io/parse.hpp"
+
 #include "pendavg/mpfr.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/version.hpp"
@@ -19,13 +23,15 @@
 PYBIND11_MODULE(_pendavg, m) {
   m.doc() = "pendavg's C++ core; use the package pendavg (its __init__ documents the API).";
   m.attr("__version__") = pendavg::version();
+  // Messages name Python's arguments: "(use digits > 16)", as "beta: '0' must be > 0".
+  pendavg::io::set_digits_option_name("digits");
   // A run stopped on Ctrl-C before it finished anything it could report (RunControl).
   pybind11::register_exception_translator([](std::exception_ptr error) {
     try {
       if (error) std::rethrow_exception(error);
     } catch (const pendavg::interrupted& stopped) {
       PyErr_SetString(PyExc_KeyboardInterrupt, stopped.what());
-    } catch (const std::invalid_argument& bad) {  // pendavg::invalid_input, cli::usage_error
+    } catch (const std::invalid_argument& bad) {  // pendavg::invalid_input, io::bad_input
       PyErr_SetString(PyExc_ValueError, pendavg::python::abbreviated(bad.what()).c_str());
     }
   });
@@ -37,7 +43,7 @@ PYBIND11_MODULE(_pendavg, m) {
   // axis under the axis's own name before the grid runs).
   m.def("check_number", [](pybind11::handle x, const std::string& what, const std::string& domain,
                            pybind11::handle digits) {
-    using pendavg::cli::Domain;
+    using pendavg::io::Domain;
     const int d = pendavg::python::digits_option(digits);
     const Domain kind = domain == "positive"      ? Domain::positive
                         : domain == "nonnegative" ? Domain::nonnegative
@@ -48,7 +54,21 @@ PYBIND11_MODULE(_pendavg, m) {
     }
     const std::string text = pendavg::python::number_text(x, what);
     const pendavg::working_precision precision(d + pendavg::guard_digits);
-    pendavg::cli::parse_real<pendavg::mpfr_real>(text, what, kind);
+    pendavg::io::parse_real<pendavg::mpfr_real>(text, what, kind);
+  });
+  // 1 - x as an exact decimal (pendavg.sweep's m2 = 1 - mu1, as `pendavg table` forms it).
+  m.def("one_minus_decimal", [](const std::string& x, const std::string& what) {
+    return pendavg::io::one_minus_decimal(x, what);
+  });
+  // The names of schema 0 that schema 1 renamed (src/io/migration.cpp): (old, new,
+  // per_particle, python, where) tuples; `python`: pendavg 0.2's result objects had the old name
+  // as an attribute (the package keeps it as a deprecated alias).
+  m.def("renames", [] {
+    pybind11::list out;
+    for (const pendavg::io::Rename& r : pendavg::io::schema0_renames())
+      out.append(pybind11::make_tuple(std::string(r.old_name), std::string(r.new_name),
+                                      r.per_particle, r.python, std::string(r.where)));
+    return out;
   });
   pendavg::python::expose_average(m);
   pendavg::python::expose_series(m);

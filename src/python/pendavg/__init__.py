@@ -11,7 +11,7 @@ estimate, or a statistical bar), the method used and the work done.
 
     >>> import pendavg
     >>> r = pendavg.average([0.5, 0.5], [1, 1], beta=1.0)      # double pendulum, beta = 1
-    >>> r.beta_K, r.beta_K_error, r.error_kind                   # numpy arrays, 'estimate'
+    >>> r.beta_K, r.beta_K_error, r.beta_K_error_kind            # numpy arrays, 'estimate'
     >>> pendavg.average([0.5, 0.5], [1, 1], np.logspace(-3, 3, 61)).beta_K.shape   # (61, 2)
     >>> pendavg.average([0.5, 0.5], [1, 1], "1", digits=50).decimal["beta_K"]     # 50 digits
 
@@ -31,8 +31,15 @@ digits = 16 (the default) everything runs in double and the results are the C++ 
 bit for bit; with digits = 17..1000 it runs in MPFR at digits + 12 guard digits, and the results
 also come as the CLI's decimal strings (`.decimal`) and as mpmath.mpf values (`.mpf`).
 
+Results. The result objects are generated from the output schema's field tables (the CLI's
+JSON keys; Averages.fields() lists them): a value X comes with X_error (its absolute error) and
+X_error_kind ('bound', 'estimate' or 'statistical'), the inputs N, digits, beta, g, m, l with
+them. pendavg 0.2's names that schema 1 renamed (error, var_K_beta2, ...) still answer, with a
+DeprecationWarning naming the new one.
+
 Errors. Bad input raises ValueError with the CLI's one-line message, which names the argument
-(e.g. "--beta: '0.0' must be > 0"; a long number text is shortened in it); an argument of the
+as this package names it (e.g. "beta: '0.0' must be > 0"; a long number text is shortened in
+it); an argument of the
 wrong type (None, a complex, a non-str method, a non-callable progress) raises TypeError naming
 it. A result with a NaN or an infinity is refused (ValueError) rather than returned. Calls
 release the GIL and are thread-safe at any mix of digits; array calls run on all cores. Ctrl-C
@@ -45,16 +52,15 @@ Notebooks. Every result converts: .to_dict(), .to_dataframe() (pandas) and, for 
 
 Decimal strings (.decimal) do not depend on the locale: the radix character is always '.'.
 """
-import re as _re
 import sys as _sys
 import time as _time
+import warnings as _warnings
 from collections import namedtuple as _namedtuple
-from decimal import Decimal as _Decimal
 
 import numpy as _np
 
 from . import _pendavg as _core
-from ._pendavg import Averages
+from ._pendavg import Averages, MicrocanonicalResult
 
 __version__ = _core.__version__
 __all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
@@ -73,43 +79,38 @@ def _flag(value, name):
     raise TypeError(f"{name} must be True or False, not {type(value).__name__}")
 
 
+def _fields_doc(fields):
+    """The fields of a result as docstring lines: '    - name: meaning', wrapped."""
+    import textwrap
+    lines = []
+    for name, kind, per_particle, meaning, _ in fields:
+        text = f"- {name}{' (per particle)' if per_particle else ''}: {meaning}"
+        lines += textwrap.wrap(text, 96, initial_indent="    ", subsequent_indent="        ")
+    return "\n".join(lines) + "\n"
+
+
 def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, samples=None,
             shifts=None, seed=None, progress=None, certified=False):
     """Canonical (thermal) averages of an N-link pendulum at inverse temperature beta.
 
     The chain: point masses m_i on massless rigid links l_i, the first hanging from a fixed
     pivot, in uniform gravity g; angles phi_i from the downward vertical; canonical ensemble
-    exp(-beta H). Returns an Averages with, per particle i (index 0 is the paper's particle 1):
+    exp(-beta H). Returns an Averages (index 0 of a per-particle field is the paper's particle 1)
+    with the fields of `pendavg average --format json`:
 
-      beta_K, beta_K_error   beta<K_i> (dimensionless) and its absolute error (also `error`)
-      K, K_error             <K_i> = beta<K_i> / beta, in energy units (+-inf where it lies
-                             beyond double's range, beta < ~1e-300; .decimal holds it; so
-                             for var_K at beta < ~1e-150)
-      ratio, ratio_error     <K_1>/<K_2> (None for N = 1)
-      cos_phi, cos_phi_error <cos phi_i>
-      var_K, var_K_error     Var K_i = <K_i^2> - <K_i>^2; var_K_beta2 = beta^2 Var K_i
-      beta_Kc                beta<K_i^(c)>, K_i^(c) = p_i phidot_i / 2: exactly 1/2 (generalized
-                             equipartition), the built-in check
-      diagonal_approx        the paper's diagonal approximation (eq. ke-linear-tave-1), beside
-                             the exact values
-      method                 'integral' (N = 2: the exact 1-D reduced integral), 'series' (the
-                             paper's series), 'torus-trapezoid', 'torus-gauss', 'qmc',
-                             'transfer' (the transfer operator along the chain, N >= 5),
-                             'low-temperature-extrapolation' (any N, very stiff joints)
-      error_kind             what the errors of beta_K and ratio promise: 'bound' (rigorous),
-                             'estimate' (from quadrature refinement, checked against independent
-                             methods), 'statistical' (QMC: 99.9% Student-t bars); error_kinds per
-                             observable
-      evaluations, work_unit the work done ('terms', 'nodes' or 'samples')
-      converged              False when the requested accuracy was not reached (errors still hold)
-      interrupted            True when Ctrl-C stopped a torus run after a finished level: the
-                             values are that level's (converged False, errors still hold)
-      seconds, run           the library call's wall time; the torus grid, the qmc run or
-                             the transfer operator's final resolution
-      decimal                the CLI's strings (`pendavg average --format json`), `digits` digits
-      mpf                    mpmath.mpf values (exact binary values of the MPFR results)
-      dims, coords           a grid's axis names and values (pendavg.sweep: the swept
-                             arguments; a broadcast call: axis0, axis1, ... with positions)
+<fields>
+    and: seconds (the library call's wall time), run (the torus grid, the qmc run or the transfer
+    operator's final resolution), decimal (the CLI's strings, `digits` digits), mpf (mpmath.mpf
+    values: the exact binary values of the MPFR results), dims and coords (a grid's axis names
+    and values: pendavg.sweep's swept arguments; a broadcast call's axis0, axis1, ... with
+    positions). The methods: 'integral' (N = 2: the exact 1-D reduced integral), 'series' (the
+    paper's series), 'torus-trapezoid', 'torus-gauss', 'qmc', 'transfer' (the transfer operator
+    along the chain, N >= 5), 'low-temperature-extrapolation' (any N, very stiff joints). Error
+    kinds: 'bound' (rigorous), 'estimate' (from quadrature refinement, checked against
+    independent methods), 'statistical' (QMC: 99.9% Student-t bars). <K_i> and Var K_i of a double
+    run are beta<K_i>/beta and beta^2 Var K_i/beta^2 divided in long double and rounded, their
+    errors covering that rounding (a double run needs beta in 1.5e-154..1.3e154 for them; MPFR
+    has no such limit).
     Conversions: to_dict(), to_dataframe() (pandas: a row per particle and grid point) and
     to_xarray() (xarray: dims + ('particle',)).
 
@@ -134,7 +135,7 @@ def average(masses, lengths, beta, g=1.0, digits=16, method="auto", tol=None, sa
                f(fraction) called from this thread: for one point the fraction of the current
                torus level (torus methods), for a grid the fraction of points done.
       certified  N = 2 (method 'auto' or 'integral'): certified enclosures (as `pendavg average
-               --certified`): every error a proven bound (error_kind 'bound', method
+               --certified`): every error a proven bound (error kinds 'bound', method
                'certified-integral') for the inputs as converted (a float exactly; other
                numbers rounded to the working precision). Needs a build with Arb.
     An option the chosen method does not use is refused (ValueError), so a typo cannot silently
@@ -205,7 +206,8 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
     """
     names = ["beta", "mu1", "l1", "l2", "g"]
     axes = [beta, mu1, l1, l2, g]
-    domains = {"beta": "positive", "l1": "positive", "l2": "positive", "g": "nonnegative"}
+    domains = {"beta": "positive", "mu1": "positive", "l1": "positive", "l2": "positive",
+               "g": "nonnegative"}
     arrays = [i for i, a in enumerate(axes) if _is_array(a)]
     shaped, coords = [], {}
     for i, a in enumerate(axes):
@@ -221,17 +223,20 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
         view = [1] * len(arrays)
         view[arrays.index(i)] = a.shape[0]
         shaped.append(a.reshape(view))
-    # every value checked under its own name (a bad l1 is "--l1: ...", not "--lengths: ...")
+    # every value checked under its own name (a bad l1 is "l1: ...", not "lengths: ...")
     for name, axis in zip(names, axes):
-        if name in domains:
-            for value in (axis if _is_array(axis) else [axis]):
-                _core.check_number(value, "--" + name, domains[name], digits)
+        for value in (axis if _is_array(axis) else [axis]):
+            _core.check_number(value, name, domains[name], digits)
+    # m2 = 1 - mu1 in exact decimal, as `pendavg table` forms it (checked: 0 < mu1 < 1, at most
+    # 4000 digits after the point)
     mu = shaped[1]
     if _is_array(mu):
         m1 = _np.vectorize(_mass_text, otypes=[object])(mu) if mu.size else mu.astype(object)
-        m2 = _np.vectorize(_one_minus, otypes=[object])(mu) if mu.size else mu.astype(object)
+        m2 = _np.vectorize(lambda m: _core.one_minus_decimal(m, "mu1"), otypes=[object])(m1) \
+            if mu.size else mu.astype(object)
     else:
-        m1, m2 = _mass_text(mu), _one_minus(mu)
+        m1 = _mass_text(mu)
+        m2 = _core.one_minus_decimal(m1, "mu1")
     result = average([m1, m2], [shaped[2], shaped[3]], shaped[0], shaped[4], digits=digits,
                      method=method, progress=progress)
     result._dims, result._coords = tuple(coords), coords
@@ -240,7 +245,7 @@ def sweep(beta, mu1=0.5, l1=1, l2=1, g=1.0, digits=16, method="auto", progress=N
 
 class Limits(_namedtuple("Limits", ["high_temperature", "low_temperature"])):
     """The beta -> 0 and beta -> infinity limits of a chain (pendavg.limit): two Averages
-    (beta_K, var_K_beta2 = beta^2 Var K_i, ratio, cos_phi with their errors; no K or var_K)."""
+    without a beta (beta, and the fields divided by it, are None)."""
 
     __slots__ = ()
 
@@ -276,7 +281,8 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None, certified=False
       certified N = 2: the beta -> 0 limit in ball arithmetic, every error a proven bound (as
                 `pendavg limit --certified`; the beta -> infinity limit is exact).
     Ctrl-C stops the torus run of N >= 3 after a finished level. Returns
-    Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`).
+    Limits(high_temperature, low_temperature), two Averages without beta (as `pendavg limit`:
+    the fields divided by beta are None).
     """
     callback = _progress_callback(progress, "limit")
     high, low = _core.limit(masses, lengths, g, digits, _flag(certified, "certified"), callback)
@@ -336,63 +342,45 @@ class _Record:
 
 
 class SeriesResult(_Record):
-    """The paper's series for beta<K_1> term by term (pendavg.series).
+    """The paper's series for beta<K_1> term by term (pendavg.series), from the output schema's
+    series tables (SeriesResult.fields(): the call's, then its terms').
 
-    Arrays, one entry per term n = 0, 1, ...: n; R_n (R_n(a1, a2) = (1/pi) int_0^pi cos^{2n} t
-    I0(R(t)) dt, scaled by exp(-(a1 + a2))); term (c_n mu2^n R_n); numerator and denominator (the
-    partial sums); value (the partial beta<K_1>); bound (a rigorous bound on |beta<K_1> - value|
-    from both tails). certified: the last bound reaches 10^-digits relative. decimal: the CLI's
-    strings of each column (`pendavg series --format json`), mpf: exact mpmath values; terms,
-    digits, N, error_kind ('bound').
+    The call's fields (single values; m and l per particle):
+<call fields>
+    The terms' fields (arrays, one entry per term n = 0, 1, ...):
+<term fields>
+    decimal: the CLI's strings of each term field (`pendavg series --format json`), exact and
+    mpf: the exact MPFR values.
     """
 
     _rows = "n"
 
+    @staticmethod
+    def fields():
+        """(the call's fields, the terms' fields) as (name, kind, per_particle, meaning, input)
+        tuples."""
+        return _core.series_fields()
+
     @property
     def mpf(self):
-        """Every column as a list of mpmath.mpf (the exact MPFR values)."""
+        """Every term field as a list of mpmath.mpf (the exact MPFR values)."""
         return {name: [_to_mpf(x) for x in values] for name, values in self.exact.items()}
 
-
-class MicrocanonicalResult(_Record):
-    """Exact averages at fixed energy E (pendavg.microcanonical).
-
-    K, K_error: <K_i>_E (energy units); Kc, Kc_error: <K_i^(c)>_E = <K>_E / N (microcanonical
-    generalized equipartition, every i); K_total: <K>_E = E - <U>_E; cos_phi, cos_phi_error:
-    <cos phi_i>_E; var_K, var_K_error: Var K_i on the shell; energy and excitation (E - E_min);
-    density_of_states: Omega(E) = int delta(E - H) d^N phi d^N p (its Laplace
-    transform is the partition function), with its error; method ('microcanonical/<rule>'),
-    error_kind ('estimate', or 'statistical' for qmc), evaluations and work_unit ('nodes' or
-    'samples'), converged, proposal_beta and effective_sample_fraction (qmc), seconds, N,
-    digits. All numbers are floats (an MPFR run's rounded to double); decimal: the CLI's strings
-    (`pendavg average --energy E --digits D --format json`: values with `digits` digits, errors
-    with 3 that also cover the printed value's rounding); mpf: exact mpmath values.
-    """
-
-    @property
-    def mpf(self):
-        """The values and errors as mpmath.mpf: exact binary values (MPFR runs: at digits + 12
-        guard digits; double runs: the doubles exactly). Per-particle fields (K, cos_phi, var_K
-        and their errors) are lists, the others one mpf. Needs mpmath."""
-        import mpmath
-        out = {}
-        for name in _MICROCANONICAL_EXACT:
-            if self.exact is not None:
-                items = [_to_mpf(x) for x in self.exact[name]]
-            else:
-                value = getattr(self, name)
-                items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x)))
-                         for x in _np.atleast_1d(value)]
-            out[name] = items if name in _MICROCANONICAL_PER_PARTICLE else items[0]
-        return out
+    def to_dataframe(self):
+        """The terms as a pandas DataFrame indexed by n: a column per term field, then every
+        single value of the call repeated on each row. Needs pandas."""
+        pandas = _optional("pandas", "to_dataframe")
+        call, terms = self.fields()
+        columns = {f[0]: getattr(self, f[0]) for f in terms}
+        for name, _, per_particle, _, _ in call:
+            if not per_particle:
+                columns[name] = [getattr(self, name)] * len(self.n)
+        return pandas.DataFrame(columns).set_index("n")
 
 
-_MICROCANONICAL_EXACT = ("energy", "excitation", "K", "K_error", "Kc", "Kc_error", "K_total",
-                         "K_total_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
-                         "density_of_states", "density_of_states_error", "proposal_beta",
-                         "effective_sample_fraction")
-_MICROCANONICAL_PER_PARTICLE = ("K", "K_error", "cos_phi", "cos_phi_error", "var_K",
-                                "var_K_error")
+SeriesResult.__doc__ = SeriesResult.__doc__.replace(
+    "<call fields>\n", _fields_doc(_core.series_fields()[0])).replace(
+    "<term fields>\n", _fields_doc(_core.series_fields()[1]))
 
 
 def series(masses, lengths, beta, g=1.0, digits=16, terms=0, progress=None):
@@ -458,11 +446,13 @@ def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto"
     Progress and Ctrl-C: the library's microcanonical run reports no progress and cannot be
     stopped midway (its options take no RunControl); it runs with the GIL released, and a
     Ctrl-C raises KeyboardInterrupt when it returns.
-    Returns a MicrocanonicalResult (with .decimal, the CLI's strings, and .mpf, exact mpmath
-    values; both also in double).
+    Returns a MicrocanonicalResult with the fields of `pendavg average --energy E --format json`:
+
+<fields>
+    and seconds, decimal (the CLI's strings) and mpf (exact mpmath values; both also in double).
     """
-    return MicrocanonicalResult(_core.microcanonical(masses, lengths, energy, g, digits, method,
-                                                     tol, samples, shifts, seed, excitation))
+    return _core.microcanonical(masses, lengths, energy, g, digits, method, tol, samples, shifts,
+                                seed, excitation)
 
 
 # ---------------------------------------------------------------- dynamics
@@ -591,97 +581,93 @@ class _TextProgress:
               flush=True)
 
 
-# ---------------------------------------------------------------- Averages: mpf, repr
+# ---------------------------------------------------------------- result classes from the tables
+#
+# Averages and MicrocanonicalResult are made in C++ from the output schema's field tables: a
+# property per field (cls.fields(): name, kind, per_particle, meaning, input), .decimal,
+# .seconds, .shape. Everything below works from cls.fields() alone: no field is named here.
 
-_EXACT_FIELDS = {  # name in Averages.mpf -> attribute with the double value
-    "beta_K": "beta_K", "error": "beta_K_error", "cos_phi": "cos_phi",
-    "cos_phi_error": "cos_phi_error", "var_K_beta2": "var_K_beta2",
-    "var_K_beta2_error": "var_K_beta2_error", "beta_Kc": "beta_Kc",
-    "diagonal_approx": "diagonal_approx", "K": "K", "K_error": "K_error", "var_K": "var_K",
-    "var_K_error": "var_K_error", "ratio": "ratio", "ratio_error": "ratio_error",
-    "equipartition_residual": "equipartition_residual"}
-_PER_POINT = ("ratio", "ratio_error", "equipartition_residual")
+def _class_fields(result):
+    """(name, kind, per_particle, meaning, input) of every field of result's class."""
+    return type(result).fields()
 
 
-def _averages_mpf(self):
+def _call_wide(kind, is_input):
+    """The call's inputs that are counts (N, digits): one value for a whole grid."""
+    return is_input and kind == "count"
+
+
+def _result_mpf(self):
     """The values and errors as mpmath.mpf: exact binary values (MPFR runs: at digits + 12
-    guard digits, of which `digits` are asked for; errors as the library computed them, without
-    the printed strings' rounding allowance; double runs: the doubles exactly). For one point a
-    dict of lists (ratio, ratio_error, equipartition_residual: one mpf); for a grid numpy object
-    arrays. Needs mpmath."""
+    guard digits, of which `digits` are asked for; errors as computed, before printing rounded
+    them up; double runs: the doubles exactly). One point: a list per particle, else one mpf;
+    a grid: numpy object arrays. Fields without a value (None) are left out. Needs mpmath."""
     import mpmath
     exact = self._exact_values()
     out = {}
-    for name, attribute in _EXACT_FIELDS.items():
-        per_point = name in _PER_POINT
+    for name, kind, per_particle, _, _ in _class_fields(self):
+        if kind not in ("real", "error"):
+            continue
         if exact is not None:
-            points = [[_to_mpf(x) for x in values] for values in exact[name]]
-            if per_point:
-                points = [p[0] if p else None for p in points]
+            if name not in exact:
+                continue
+            items = [None if x is None else _to_mpf(x) for x in exact[name]]
         else:
-            value = getattr(self, attribute)
+            value = getattr(self, name)
             if value is None:
                 continue
-            flat = _np.asarray(value, dtype=float).reshape(-1)
-            items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x))) for x in flat]
-            n = 1 if per_point else self.N
-            points = [items[k] if per_point else items[k * n:(k + 1) * n]
-                      for k in range(len(items) // n)]
-        if not any(p is not None and (per_point or len(p)) for p in points):
-            continue  # K and var_K of the limits, ratio of N = 1
+            items = [mpmath.mp.make_mpf(mpmath.libmp.from_float(float(x)))
+                     for x in _np.asarray(value, dtype=float).reshape(-1)]
+        if not any(x is not None for x in items):
+            continue  # K and var_K of the limits, ratio of N = 1, an empty grid
         if self.shape == ():
-            out[name] = points[0]
+            out[name] = items if per_particle else items[0]
         else:
-            shape = self.shape if per_point else self.shape + (self.N,)
-            array = _np.empty(len(points) * (1 if per_point else self.N), dtype=object)
-            for k, p in enumerate(points):
-                if per_point:
-                    array[k] = p
-                else:
-                    array[k * self.N:(k + 1) * self.N] = p
-            out[name] = array.reshape(shape)
+            array = _np.empty(len(items), dtype=object)
+            array[:] = items
+            out[name] = array.reshape(self.shape + ((self.N,) if per_particle else ()))
     return out
 
 
-def _averages_repr(self):
-    if self.shape == ():
-        beta = "" if self.beta is None else f"beta={self.beta!r}, "
-        return (f"pendavg.Averages(N={self.N}, {beta}digits={self.digits}, method={self.method!r}, "
-                f"beta_K={_short(self.beta_K)}, beta_K_error={_short(self.beta_K_error)}, "
-                f"ratio={self.ratio!r}, error_kind={self.error_kind!r}, "
-                f"evaluations={self.evaluations}, converged={self.converged})")
-    return f"pendavg.Averages(shape={self.shape}, N={self.N}, digits={self.digits})"
-
-
-def _averages_as_dict(self):
-    """Every field as a dict (the CLI's JSON keys, numbers as floats / numpy arrays)."""
-    names = ["N", "shape", "digits", "beta", "method", "beta_K", "beta_K_error", "K", "K_error",
-             "ratio", "ratio_error", "cos_phi", "cos_phi_error", "var_K", "var_K_error",
-             "var_K_beta2", "var_K_beta2_error", "beta_Kc", "diagonal_approx",
-             "equipartition_residual", "error_kind", "error_kinds", "work_unit", "evaluations",
-             "converged", "interrupted", "seconds", "run"]
-    out = {name: getattr(self, name) for name in names}
+def _result_repr(self):
+    """The call's counts and, for one point, every value that is there (errors and their kinds
+    left out: .to_dict() has them)."""
+    name = type(self).__name__
+    fields = _class_fields(self)
+    call = ", ".join(f"{f[0]}={getattr(self, f[0])!r}" for f in fields if _call_wide(f[1], f[4]))
     if self.shape != ():
-        out["dims"], out["coords"] = self.dims, self.coords
+        return f"pendavg.{name}(shape={self.shape}, {call})"
+    shown = []
+    for field, kind, _, _, is_input in fields:
+        if _call_wide(kind, is_input) or kind == "error" or field.endswith("_error_kind"):
+            continue
+        value = getattr(self, field)
+        if value is not None:
+            shown.append(f"{field}={_short(value)}")
+    return f"pendavg.{name}({call}, {', '.join(shown)})"
+
+
+def _result_as_dict(self):
+    """Every field as a dict, in the output schema's order (the CLI's JSON keys; numbers as
+    floats or numpy arrays, None for a field without a value), then seconds (and run); a grid
+    adds shape, dims and coords."""
+    out = {f[0]: getattr(self, f[0]) for f in _class_fields(self)}
+    out["seconds"] = self.seconds
+    if hasattr(type(self), "run"):
+        out["run"] = self.run
+    if self.shape != ():
+        out["shape"], out["dims"], out["coords"] = self.shape, self.dims, self.coords
     return out
 
 
-_PER_PARTICLE_FIELDS = ("beta_K", "beta_K_error", "K", "K_error", "cos_phi", "cos_phi_error",
-                        "var_K", "var_K_error", "var_K_beta2", "var_K_beta2_error", "beta_Kc",
-                        "diagonal_approx")
-_PER_POINT_FIELDS = ("beta", "ratio", "ratio_error", "equipartition_residual", "method",
-                     "error_kind", "work_unit", "evaluations", "converged", "interrupted",
-                     "seconds")
-
-
-def _averages_dims(self):
+def _result_dims(self):
     """Names of the result's axes (before the particle axis): the swept arguments of
     pendavg.sweep, ('axis0', 'axis1', ...) for a broadcast pendavg.average, () for one point."""
     dims = self.__dict__.get("_dims")
     return dims if dims is not None else tuple(f"axis{k}" for k in range(len(self.shape)))
 
 
-def _averages_coords(self):
+def _result_coords(self):
     """{dim: the values along that axis}: pendavg.sweep's swept values (float64 where they are
     numbers); positions 0, 1, ... along the axes of a broadcast pendavg.average; {} for one
     point."""
@@ -691,21 +677,30 @@ def _averages_coords(self):
     return {dim: _np.arange(n) for dim, n in zip(self.dims, self.shape)}
 
 
-def _averages_fields(self):
-    """(per-particle fields, per-point fields) that this result has (no None)."""
-    particle = {name: getattr(self, name) for name in _PER_PARTICLE_FIELDS}
-    point = {name: getattr(self, name) for name in _PER_POINT_FIELDS
-             if name not in self.dims}  # a swept beta is the coordinate itself
-    return ({k: v for k, v in particle.items() if v is not None},
-            {k: v for k, v in point.items() if v is not None})
+def _result_columns(self):
+    """(per-particle fields, per-point fields, the call's counts) that this result has (no
+    None); seconds is per point. A swept argument's field is its coordinate, not a column."""
+    particle, point, call = {}, {}, {}
+    for name, kind, per_particle, _, is_input in _class_fields(self):
+        value = getattr(self, name)
+        if value is None or name in self.dims:
+            continue
+        if _call_wide(kind, is_input):
+            call[name] = value
+        elif per_particle:
+            particle[name] = value
+        else:
+            point[name] = value
+    point["seconds"] = self.seconds
+    return particle, point, call
 
 
-def _averages_to_dataframe(self):
+def _result_to_dataframe(self):
     """A pandas DataFrame with one row per particle (and grid point): index (particle,) for one
     point, (*dims, particle) for a grid, labelled with .coords; per-particle fields are columns,
     per-point fields (beta, ratio, method, ...) are repeated over the particles. Needs pandas."""
     pandas = _optional("pandas", "to_dataframe")
-    particle, point = _averages_fields(self)
+    particle, point, _ = _result_columns(self)
     n = self.N
     columns = {name: _np.asarray(v).reshape(-1) for name, v in particle.items()}
     for name, v in point.items():
@@ -720,29 +715,52 @@ def _averages_to_dataframe(self):
     return pandas.DataFrame(columns, index=index)
 
 
-def _averages_to_xarray(self):
+def _result_to_xarray(self):
     """An xarray.Dataset with dims (*dims, 'particle'), labelled with .coords and particle =
-    1..N; per-point fields have the grid dims only; digits, N and (if any) error kinds per
-    observable as attributes. Needs xarray."""
+    1..N; per-point fields have the grid dims only; the call's counts (N, digits) are
+    attributes. Needs xarray."""
     xarray = _optional("xarray", "to_xarray")
-    particle, point = _averages_fields(self)
+    particle, point, call = _result_columns(self)
     dims = self.dims
     data = {name: ((*dims, "particle"), _np.asarray(v)) for name, v in particle.items()}
     data.update({name: (dims, _np.asarray(v)) for name, v in point.items()})
     coords = {"particle": _np.arange(1, self.N + 1), **self.coords}
-    return xarray.Dataset(data, coords=coords, attrs={"N": self.N, "digits": self.digits})
+    return xarray.Dataset(data, coords=coords, attrs=call)
 
 
-Averages.dims = property(_averages_dims)
-Averages.coords = property(_averages_coords)
-Averages.to_dataframe = _averages_to_dataframe
-Averages.to_xarray = _averages_to_xarray
-Averages.mpf = property(_averages_mpf)
-Averages.error = property(lambda self: self.beta_K_error,
-                          doc="Absolute error of beta_K (the CLI's `error`).")
-Averages.as_dict = _averages_as_dict
-Averages.to_dict = _averages_as_dict
-Averages.__repr__ = _averages_repr
+def _deprecated_alias(old, new):
+    """A property `old` answering `new`'s value with a DeprecationWarning (schema 0's name)."""
+    def get(self):
+        _warnings.warn(f"{type(self).__name__}.{old} is deprecated (pendavg 0.2's name): use "
+                       f".{new}", DeprecationWarning, stacklevel=2)
+        return getattr(self, new)
+    return property(get, doc=f"Deprecated: pendavg 0.2's name of {new} (the migration table).")
+
+
+def _aliases(cls):
+    """{old name: new name} of the migration table's renames of pendavg 0.2's attributes that
+    cls has (src/io/migration.cpp)."""
+    names = {f[0] for f in cls.fields()}
+    return {old: new for old, new, _, python, _ in _core.renames()
+            if python and new in names and old not in names}
+
+
+for _cls in (Averages, MicrocanonicalResult):
+    _cls.dims = property(_result_dims)
+    _cls.coords = property(_result_coords)
+    _cls.to_dataframe = _result_to_dataframe
+    _cls.to_xarray = _result_to_xarray
+    _cls.mpf = property(_result_mpf)
+    _cls.as_dict = _result_as_dict
+    _cls.to_dict = _result_as_dict
+    _cls.__repr__ = _result_repr
+    for _old, _new in _aliases(_cls).items():
+        setattr(_cls, _old, _deprecated_alias(_old, _new))
+del _cls
+
+average.__doc__ = average.__doc__.replace("<fields>\n", _fields_doc(Averages.fields()))
+microcanonical.__doc__ = microcanonical.__doc__.replace("<fields>\n",
+                                                        _fields_doc(MicrocanonicalResult.fields()))
 
 
 # ---------------------------------------------------------------- helpers
@@ -805,48 +823,7 @@ def _as_array(x, name):
 
 def _mass_text(mu1):
     """The decimal mu1 is read as (see the module docstring), by the C++ reader's own rule."""
-    return _core.number_text(mu1.item() if isinstance(mu1, _np.generic) else mu1, "--mu1")
-
-
-def _quoted(text):
-    """'text' as the C++ messages quote it: a text over 80 characters shortened to its first 40
-    and last 16 with its length, control characters escaped (one line, whole)."""
-    if len(text) > 80:
-        text, length = f"{text[:40]}...{text[-16:]}", f" ({len(text)} characters)"
-    else:
-        length = ""
-    text = "".join(f"\\x{ord(c):02x}" if ord(c) < 0x20 or ord(c) == 0x7f else c for c in text)
-    return f"'{text}'{length}"
-
-
-_MAX_DECIMAL_SCALE = 4000  # digits after the point of 1 - mu1, as `pendavg table` allows
-
-
-def _one_minus(mu1):
-    """1 - mu1 in exact decimal (as `pendavg table` forms m2), refused outside (0, 1) and
-    beyond 4000 digits after the point with the CLI's messages."""
-    text = _mass_text(mu1)
-    shown = _quoted(text)
-    malformed = f"--mu1: malformed number {shown} (expected a finite decimal number)"
-    try:
-        value = _Decimal(text)
-    except Exception:
-        raise ValueError(malformed) from None
-    if not value.is_finite() or not _re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", text):
-        raise ValueError(malformed)
-    if not value > 0:
-        raise ValueError(f"--mu1: {shown} must be > 0")
-    # digits after the point, checked before any arithmetic (1 - 1e-100000000 is exact only
-    # with 10^8 digits)
-    scale = -value.as_tuple().exponent
-    if scale > _MAX_DECIMAL_SCALE or value.adjusted() < -_MAX_DECIMAL_SCALE:
-        raise ValueError(f"--mu1: {shown} has too many digits for 1 - --mu1")
-    if not value < 1:
-        raise ValueError(f"--mu1: {shown} must be < 1")
-    from decimal import localcontext
-    with localcontext() as context:
-        context.prec = 2 * _MAX_DECIMAL_SCALE + 10  # exact: at most 4000 digits after the point
-        return format(1 - value, "f")
+    return _core.number_text(mu1.item() if isinstance(mu1, _np.generic) else mu1, "mu1")
 
 
 def _to_mpf(x):
