@@ -140,8 +140,11 @@ constexpr NamedTable tables[] = {
     {"canonical averages", averages_table},
     {"microcanonical averages (after --energy)", microcanonical_after_energy},
     {"microcanonical averages (after --excitation)", microcanonical_after_excitation},
-    {"series terms", series_terms},
+};
+
+constexpr NamedTable series_named[] = {
     {"series", series_summary},
+    {"series terms", series_terms},
 };
 
 // ---------------------------------------------------------------- cells
@@ -326,6 +329,7 @@ std::span<const Field> microcanonical_fields(std::string_view state) {
                            : std::span<const Field>(microcanonical_after_excitation);
 }
 std::span<const NamedTable> all_tables() { return tables; }
+std::span<const NamedTable> series_tables() { return series_named; }
 std::span<const Field> series_term_fields() { return series_terms; }
 std::span<const Field> series_fields() { return series_summary; }
 

@@ -98,6 +98,10 @@ struct NamedTable {
   std::span<const Field> fields;
 };
 std::span<const NamedTable> all_tables();
+/// The series' tables (series_fields, series_term_fields): used by Python's pendavg.series; not
+/// yet in all_tables (`pendavg help schema`), since the CLI's `series` still prints its own
+/// columns (the same names).
+std::span<const NamedTable> series_tables();
 
 /// The naming table as Markdown: every table's fields (name, kind, per particle, meaning), the
 /// naming rules first. `pendavg help schema` prints it; src/io/README.md holds it.

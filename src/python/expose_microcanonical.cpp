@@ -49,15 +49,6 @@ const std::vector<ClassField>& microcanonical_class_fields() {
   return fields;
 }
 
-/// The library's options for the chain (the CLI's message when it refuses them).
-MicrocanonicalOptions rule_options(const AverageOptions& settings, std::size_t particles) {
-  try {
-    return microcanonical_options(settings, particles);
-  } catch (const invalid_input& bad) {
-    throw io::bad_input("microcanonical: " + std::string(bad.what()));
-  }
-}
-
 template <class Real>
 Chain<Real> parse_chain(const std::vector<std::string>& masses,
                         const std::vector<std::string>& lengths, const std::string& g) {
@@ -79,7 +70,9 @@ void run(MicrocanonicalResult& result, const AverageOptions& settings, std::stri
          const std::string& text, const std::vector<std::string>& masses,
          const std::vector<std::string>& lengths, const std::string& g) {
   const Chain<Real> chain = parse_chain<Real>(masses, lengths, g);
-  const MicrocanonicalOptions options = rule_options(settings, chain.size());
+  // the library's options for the chain (its message "microcanonical: ..." when it refuses them;
+  // the CLI prefixes its command, "average: ")
+  const MicrocanonicalOptions options = microcanonical_options(settings, chain.size());
   const Real x = io::microcanonical_state(chain, state, text, state, options, "");
   result.particles = chain.size();
   const bool mpfr = !std::is_same_v<Real, double>;

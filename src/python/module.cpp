@@ -8,10 +8,12 @@
 // MemoryError), never a crash.
 #include "bindings.hpp"
 #include "inputs.hpp"
+#include "table_result.hpp"
 
 #include "io/exact_decimal.hpp"
 #include "io/migration.hpp"
 #include "io/parse.hpp"
+#include "io/results.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/result.hpp"
@@ -19,6 +21,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 PYBIND11_MODULE(_pendavg, m) {
   m.doc() = "pendavg's C++ core; use the package pendavg (its __init__ documents the API).";
@@ -59,6 +62,25 @@ PYBIND11_MODULE(_pendavg, m) {
   // 1 - x as an exact decimal (pendavg.sweep's m2 = 1 - mu1, as `pendavg table` forms it).
   m.def("one_minus_decimal", [](const std::string& x, const std::string& what) {
     return pendavg::io::one_minus_decimal(x, what);
+  });
+  // Every field table of the output schema (io::all_tables, io::series_tables): {table: [(name, kind,
+  // per_particle, meaning)]}, what the result classes are generated from.
+  m.def("tables", [] {
+    pybind11::dict out;
+    std::vector<pendavg::io::NamedTable> tables(pendavg::io::all_tables().begin(),
+                                                pendavg::io::all_tables().end());
+    tables.insert(tables.end(), pendavg::io::series_tables().begin(),
+                  pendavg::io::series_tables().end());
+    for (const pendavg::io::NamedTable& t : tables) {
+      pybind11::list fields;
+      for (const pendavg::io::Field& f : t.fields) {
+        fields.append(pybind11::make_tuple(std::string(f.name), pendavg::python::kind_name(f.kind),
+                                           f.shape == pendavg::io::Shape::per_particle,
+                                           std::string(f.meaning)));
+      }
+      out[std::string(t.result).c_str()] = fields;
+    }
+    return out;
   });
   // The names of schema 0 that schema 1 renamed (src/io/migration.cpp): (old, new,
   // per_particle, python, where) tuples; `python`: pendavg 0.2's result objects had the old name

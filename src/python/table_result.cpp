@@ -18,6 +18,8 @@ namespace {
 
 constexpr double nan = std::numeric_limits<double>::quiet_NaN();
 
+}  // namespace
+
 const char* kind_name(io::Kind kind) {
   switch (kind) {
     case io::Kind::real: return "real";
@@ -28,8 +30,6 @@ const char* kind_name(io::Kind kind) {
   }
   return "?";
 }
-
-}  // namespace
 
 std::vector<ClassField> class_fields(std::initializer_list<Table> tables) {
   std::vector<ClassField> out;
@@ -139,6 +139,7 @@ void TableResult::layout(std::initializer_list<Table> tables, bool mpfr) {
   row_texts_ = layout_->row_texts;
   present_.assign(rows * row_present_, 0);
   numbers_.assign(rows * row_numbers_, nan);
+  gaps_.assign(mpfr ? 0 : rows * row_numbers_, 0.0);
   decimals_.assign(mpfr ? rows * row_numbers_ : 0, {});
   exact_.assign(mpfr ? rows * row_numbers_ : 0, {});
   integers_.assign(rows * row_integers_, 0);
@@ -169,7 +170,8 @@ void TableResult::put(std::size_t k, std::span<const io::Record* const> records,
         case io::Kind::real:
         case io::Kind::error:
           if (cell.tag == io::Cell::Tag::number || cell.tag == io::Cell::Tag::input) {
-            numbers[p.at] = cell.number;
+            numbers[p.at] = cell.number;  // (an error's: the library's; its text adds gap)
+            if (!mpfr_) gaps_[k * row_numbers_ + p.at] = cell.gap;
             finite = finite && std::isfinite(cell.number);
           } else {  // an MPFR run's decimal text, and the exact value behind it
             const std::span<const io::ExactNumber> exact = record.exact();
@@ -284,10 +286,13 @@ py::dict TableResult::decimal() const {
         } else if (mpfr_ && !decimals_[at].empty()) {
           items.append(py::str(decimals_[at]));
         } else {
+          // as the record prints it: a value's shortest text, an error covering its value's
           char text[40];
+          const double x = c.field.kind == io::Kind::error && !mpfr_
+                               ? io::covering(numbers_[at], gaps_[at])
+                               : numbers_[at];
           items.append(py::str(
-              text, static_cast<std::size_t>(io::write_number(text, numbers_[at], c.field.kind) -
-                                             text)));
+              text, static_cast<std::size_t>(io::write_number(text, x, c.field.kind) - text)));
         }
       }
     const std::string name(c.field.name);

@@ -131,6 +131,7 @@ class TableResult {
               row_texts_ = 0;
   std::vector<std::uint8_t> present_;  ///< 0: an empty cell (every column)
   std::vector<double> numbers_;        ///< real, error: the double (MPFR: exact, rounded)
+  std::vector<double> gaps_;           ///< error of a double run: its value's printing gap
   std::vector<std::string> decimals_;  ///< real, error of an MPFR run: the printed text
   std::vector<io::ExactNumber> exact_;  ///< real, error of an MPFR run
   std::vector<std::int64_t> integers_;  ///< count
@@ -144,6 +145,9 @@ class TableResult {
   }
   void put(std::size_t k, std::span<const io::Record* const> records, bool call_only);
 };
+
+/// real, error, count, text or flag.
+const char* kind_name(io::Kind kind);
 
 /// "index (i, j)" of flat index k in `shape` (C order).
 std::string index_text(std::size_t k, const std::vector<py::ssize_t>& shape);

@@ -16,17 +16,23 @@
 // reads them). Each call prints one JSON line: {"values": {field: [...]}, "decimal": {...},
 // "method": ..., ...} where every number is exact -- a double as printf's %a, an MPFR value as
 // mpfr's %Ra (its whole binary mantissa) -- and, for MPFR runs, "decimal" holds the CLI's decimal
-// strings of the same values (cli::averages_text, cli::microcanonical_text). Field names are the
-// Python attributes (Averages, MicrocanonicalResult). Threads: the CLI's hardware_threads(), as
-// the module gives one point. A call the library refuses prints {"error": message}.
-#include "cli/average_options.hpp"
-#include "cli/format.hpp"
+// strings of the same values (the records of the front-end library, io::append_averages and
+// io::append_microcanonical, which the CLI prints). Field names are the Python attributes
+// (Averages, MicrocanonicalResult: the schema's names). <K_i> and Var K_i are the library's
+// beta<K_i> and beta^2 Var K_i divided by beta and beta^2 here as io divides them (long double
+// rounded to double, or MPFR; the error enlarged by the quotient's rounding). Threads:
+// io::hardware_threads(), as the module gives one point. A call the library refuses prints
+// {"error": message}.
+#include "io/record.hpp"
+#include "io/requests.hpp"
+#include "io/results.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
 
 #include <mpfr.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -160,7 +166,7 @@ AverageOptions options_of(const Call& call) {
   if (call.has("samples")) o.samples = std::stoull(call.at("samples"));
   if (call.has("shifts")) o.shifts = std::stoull(call.at("shifts"));
   if (call.has("seed")) o.seed = std::stoull(call.at("seed"));
-  o.threads = cli::hardware_threads();
+  o.threads = io::hardware_threads();
   return o;
 }
 
@@ -187,36 +193,61 @@ std::string common(const std::string& method, const char* kind, std::size_t eval
          ", \"converged\": " + (converged ? "true" : "false");
 }
 
-/// <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i/beta^2 as the CLI divides them: in long
-/// double from a double run, at the working precision from an MPFR run.
+/// value / divisor and its error as the front end forms them (src/io/results.cpp,
+/// put_quotients): a double run divides in long double and rounds to double, the error divided
+/// and enlarged by 2^-52 |quotient| (the division and the rounding), rounded up; an MPFR run
+/// divides at the working precision, the error enlarged by 2^(1 - p) |quotient| (p its bits).
+void quotient(const Estimate<double>& e, long double divisor, double& q, double& error) {
+  const long double wide = static_cast<long double>(e.value) / divisor;
+  q = static_cast<double>(wide);
+  long double enlarged = static_cast<long double>(e.error) / divisor;
+  enlarged += std::fabs(static_cast<long double>(q)) * std::ldexp(1.0L, -52);
+  error = static_cast<double>(enlarged);
+  if (static_cast<long double>(error) < enlarged) error = std::nextafter(error, HUGE_VAL);
+}
+
+void quotient(const Estimate<mpfr_real>& e, const mpfr_real& divisor, mpfr_real& q,
+              mpfr_real& error) {
+  q = e.value / divisor;
+  mpfr_real rounding = abs(q);
+  mpfr_mul_2si(rounding.backend().data(), rounding.backend().data(),
+               1 - static_cast<long>(mpfr_get_prec(q.backend().data())), MPFR_RNDU);
+  error = mpfr_real(e.error / divisor + rounding);
+}
+
+/// <K_i> = beta<K_i>/beta and Var K_i = beta^2 Var K_i/beta^2 (quotient).
 template <class Real>
 void add_per_beta(Fields& f, const Averages<Real>& a, const Real& beta) {
   std::vector<Real> k, ke, v, ve;
-  if constexpr (std::is_same_v<Real, double>) {
-    const long double b = beta;
-    for (const auto& e : a.beta_kinetic) {
-      k.push_back(static_cast<double>(static_cast<long double>(e.value) / b));
-      ke.push_back(static_cast<double>(static_cast<long double>(e.error) / b));
-    }
-    for (const auto& e : a.beta2_kinetic_variance) {
-      v.push_back(static_cast<double>(static_cast<long double>(e.value) / (b * b)));
-      ve.push_back(static_cast<double>(static_cast<long double>(e.error) / (b * b)));
-    }
-  } else {
-    const Real b2 = beta * beta;
-    for (const auto& e : a.beta_kinetic) {
-      k.push_back(e.value / beta);
-      ke.push_back(e.error / beta);
-    }
-    for (const auto& e : a.beta2_kinetic_variance) {
-      v.push_back(e.value / b2);
-      ve.push_back(e.error / b2);
-    }
+  using Wide = std::conditional_t<std::is_same_v<Real, double>, long double, Real>;
+  const Wide b = static_cast<Wide>(beta), b2 = b * b;
+  for (const auto& e : a.beta_kinetic) {
+    quotient(e, b, k.emplace_back(), ke.emplace_back());
+  }
+  for (const auto& e : a.beta2_kinetic_variance) {
+    quotient(e, b2, v.emplace_back(), ve.emplace_back());
   }
   f.add("K", k);
   f.add("K_error", ke);
   f.add("var_K", v);
   f.add("var_K_error", ve);
+}
+
+/// The CLI's decimal strings of a record: {field: its cells' texts} for every value and error
+/// field with a value (the record's own table names them).
+void add_decimal(Fields& d, const io::Record& record) {
+  for (std::size_t k = 0; k < record.fields().size(); ++k) {
+    const io::Field& field = record.fields()[k];
+    if (field.kind != io::Kind::real && field.kind != io::Kind::error) continue;
+    std::vector<std::string> texts;
+    for (const io::Cell& cell : record.cells_of(k)) {
+      if (cell.tag == io::Cell::Tag::none) continue;
+      std::string text(io::max_cell_length(record, cell), '\0');
+      text.resize(static_cast<std::size_t>(io::write_cell(text.data(), record, cell) - text.data()));
+      texts.push_back(std::move(text));
+    }
+    if (!texts.empty()) d.add_strings(std::string(field.name), texts);
+  }
 }
 
 template <class Real>
@@ -226,9 +257,10 @@ std::string averages_json(const Averages<Real>& a, const Real* beta, int digits)
   f.add("beta_K_error", errors(a.beta_kinetic));
   f.add("cos_phi", values(a.cos_angle));
   f.add("cos_phi_error", errors(a.cos_angle));
-  f.add("var_K_beta2", values(a.beta2_kinetic_variance));
-  f.add("var_K_beta2_error", errors(a.beta2_kinetic_variance));
+  f.add("beta2_var_K", values(a.beta2_kinetic_variance));
+  f.add("beta2_var_K_error", errors(a.beta2_kinetic_variance));
   f.add("beta_Kc", values(a.beta_kinetic_canonical));
+  f.add("beta_Kc_error", errors(a.beta_kinetic_canonical));
   f.add("diagonal_approx", a.diagonal_approximation);
   if (a.ratio) {
     f.add("ratio", a.ratio->value);
@@ -238,27 +270,10 @@ std::string averages_json(const Averages<Real>& a, const Real* beta, int digits)
   if (beta) add_per_beta(f, a, *beta);
   std::string out = "{\"values\": " + f.str();
   if constexpr (!std::is_same_v<Real, double>) {
-    const cli::AveragesText t = cli::averages_text(a, digits, beta);
+    io::Record record(io::averages_fields(), a.beta_kinetic.size());
+    io::append_averages(record, a, beta, io::Printing{digits});
     Fields d;
-    d.add_strings("beta_K", t.beta_kinetic);
-    d.add_strings("error", t.error);
-    d.add_strings("cos_phi", t.cos_angle);
-    d.add_strings("cos_phi_error", t.cos_angle_error);
-    d.add_strings("var_K_beta2", t.beta2_variance);
-    d.add_strings("var_K_beta2_error", t.beta2_variance_error);
-    d.add_strings("beta_Kc", t.beta_kinetic_canonical);
-    d.add_strings("diagonal_approx", t.diagonal_approximation);
-    if (beta) {
-      d.add_strings("K", t.kinetic);
-      d.add_strings("K_error", t.kinetic_error);
-      d.add_strings("var_K", t.variance);
-      d.add_strings("var_K_error", t.variance_error);
-    }
-    if (a.ratio) {
-      d.add_strings("ratio", {t.ratio});
-      d.add_strings("ratio_error", {t.ratio_error});
-    }
-    d.add_strings("equipartition_residual", {t.equipartition_residual});
+    add_decimal(d, record);
     out += ", \"decimal\": " + d.str();
   }
   return out + common(method_name(a.method), error_kind_name(a.error_kind), a.evaluations,
@@ -267,7 +282,8 @@ std::string averages_json(const Averages<Real>& a, const Real* beta, int digits)
 }
 
 template <class Real>
-std::string microcanonical_json(const MicrocanonicalAverages<Real>& r, int digits) {
+std::string microcanonical_json(const MicrocanonicalAverages<Real>& r, int digits,
+                               std::string_view state) {
   Fields f;
   f.add("energy", r.energy);
   f.add("excitation", r.excitation);
@@ -283,30 +299,22 @@ std::string microcanonical_json(const MicrocanonicalAverages<Real>& r, int digit
   f.add("var_K_error", errors(r.kinetic_variance));
   f.add("density_of_states", r.density_of_states.value);
   f.add("density_of_states_error", r.density_of_states.error);
-  f.add("proposal_beta", r.proposal_beta);
-  f.add("effective_sample_fraction", r.effective_sample_fraction);
+  if (r.quadrature == Method::qmc) {  // the proposal's beta* and the weights' spread: qmc only
+    f.add("proposal_beta", r.proposal_beta);
+    f.add("effective_sample_fraction", r.effective_sample_fraction);
+  }
   std::string out = "{\"values\": " + f.str();
   if constexpr (!std::is_same_v<Real, double>) {
-    const cli::MicrocanonicalText t = cli::microcanonical_text(r, digits);
+    // the averages after the state given (the other state first)
+    io::Record record(io::microcanonical_fields(state), r.kinetic.size());
+    io::append_microcanonical(record, r, io::Printing{digits});
     Fields d;
-    d.add_strings("excitation", {t.excitation});
-    d.add_strings("K", t.kinetic);
-    d.add_strings("K_error", t.kinetic_error);
-    d.add_strings("Kc", {t.kinetic_canonical});
-    d.add_strings("Kc_error", {t.kinetic_canonical_error});
-    d.add_strings("K_total", {t.kinetic_total});
-    d.add_strings("K_total_error", {t.kinetic_total_error});
-    d.add_strings("cos_phi", t.cos_angle);
-    d.add_strings("cos_phi_error", t.cos_angle_error);
-    d.add_strings("var_K", t.variance);
-    d.add_strings("var_K_error", t.variance_error);
-    d.add_strings("density_of_states", {t.density_of_states});
-    d.add_strings("density_of_states_error", {t.density_of_states_error});
+    add_decimal(d, record);
     out += ", \"decimal\": " + d.str();
   }
-  return out + common(std::string(method_name(r.method)) + "/" + method_name(r.quadrature),
-                      error_kind_name(r.error_kind), r.evaluations, r.converged) +
-         "}";
+  return out + common(method_name(r.quadrature), error_kind_name(r.error_kind), r.evaluations,
+                      r.converged) +
+         ", \"ensemble\": " + quoted(method_name(r.method)) + "}";
 }
 
 template <class Real>
@@ -329,7 +337,7 @@ std::string run(const Call& call) {
         call.has("excitation")
             ? microcanonical_average_excitation(chain, number<Real>(call.at("excitation")), micro)
             : microcanonical_average(chain, number<Real>(call.at("energy")), micro);
-    return microcanonical_json(r, options.digits);
+    return microcanonical_json(r, options.digits, call.has("excitation") ? "excitation" : "energy");
   }
   throw std::invalid_argument("reference_values: unknown call " + call.kind);
 }
