@@ -7,6 +7,7 @@ import ast
 import os
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 
@@ -76,14 +77,33 @@ def test_every_public_name_has_a_stub_and_every_stub_a_name():
     assert top_level_names(stub("_pendavg.pyi")) == core
 
 
-def test_averages_stub_lists_every_field():
-    members = class_members(stub("_pendavg.pyi"), "Averages")
-    runtime = {n for n in dir(pendavg.Averages) if not n.startswith("__")}
-    assert set(members) - {"__init__"} == runtime
-    r = pendavg.average([0.5, 0.5], [1, 1], 1.0)
-    for name, kind in members.items():
-        if kind == "property":
-            getattr(r, name)  # every stubbed property answers
+def stub_order(tree, name):
+    """The members of class `name` in a stub, in the stub's order."""
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef) and node.name == name:
+            return [item.name if isinstance(item, ast.FunctionDef) else item.target.id
+                    for item in node.body if isinstance(item, (ast.FunctionDef, ast.AnnAssign))]
+    raise AssertionError(f"no class {name} in the stub")
+
+
+def test_table_class_stubs_list_every_field():
+    """Averages and MicrocanonicalResult (generated from the field tables): the stub has a
+    property per runtime attribute, the fields first and in the tables' order, and every stubbed
+    property answers."""
+    results = {"Averages": pendavg.average([0.5, 0.5], [1, 1], 1.0),
+               "MicrocanonicalResult": pendavg.microcanonical([1, 1], [1, 1], 0.5)}
+    for name, result in results.items():
+        cls = getattr(pendavg, name)
+        members = class_members(stub("_pendavg.pyi"), name)
+        runtime = {n for n in dir(cls) if not n.startswith("__")}
+        assert set(members) - {"__init__"} == runtime, name
+        fields = [f[0] for f in cls.fields()]
+        assert stub_order(stub("_pendavg.pyi"), name)[1:1 + len(fields)] == fields, name
+        with warnings.catch_warnings():  # (the deprecated aliases answer with a warning)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            for member, kind in members.items():
+                if kind == "property":
+                    getattr(result, member)  # every stubbed property answers
 
 
 def test_result_stubs_list_every_field():
@@ -91,7 +111,6 @@ def test_result_stubs_list_every_field():
     tree = stub("__init__.pyi")
     results = {
         "SeriesResult": pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20),
-        "MicrocanonicalResult": pendavg.microcanonical([1, 1], [1, 1], 0.5),
         "SimulationResult": pendavg.simulate([1, 1], [1, 1], theta=1, time=0.5),
         "PoincareSection": pendavg.poincare([1, 1], [1, 1], -2, orbits=1, points=2),
     }

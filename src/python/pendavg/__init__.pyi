@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ._pendavg import Averages as Averages
+from ._pendavg import MicrocanonicalResult as MicrocanonicalResult
 
 __version__: str
 __all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
@@ -46,6 +47,15 @@ class _Record:
     def to_dataframe(self) -> Any: ...
 
 class SeriesResult(_Record):
+    N: int
+    digits: int
+    beta: float
+    g: float
+    m: npt.NDArray[np.float64]
+    l: npt.NDArray[np.float64]
+    terms: int
+    certified: bool
+    error_kind: str
     n: npt.NDArray[np.int64]
     R_n: npt.NDArray[np.float64]
     term: npt.NDArray[np.float64]
@@ -55,43 +65,12 @@ class SeriesResult(_Record):
     bound: npt.NDArray[np.float64]
     decimal: dict[str, list[str]]
     exact: dict[str, list[Any]]
-    certified: bool
-    terms: int
-    digits: int
-    N: int
-    error_kind: str
+    @staticmethod
+    def fields() -> tuple[list[tuple[str, str, bool, str, bool]],
+                          list[tuple[str, str, bool, str, bool]]]: ...
     @property
     def mpf(self) -> dict[str, list[Any]]: ...
-
-class MicrocanonicalResult(_Record):
-    N: int
-    digits: int
-    energy: float
-    excitation: float
-    K: npt.NDArray[np.float64]
-    K_error: npt.NDArray[np.float64]
-    Kc: float
-    Kc_error: float
-    K_total: float
-    K_total_error: float
-    cos_phi: npt.NDArray[np.float64]
-    cos_phi_error: npt.NDArray[np.float64]
-    var_K: npt.NDArray[np.float64]
-    var_K_error: npt.NDArray[np.float64]
-    density_of_states: float
-    density_of_states_error: float
-    method: str
-    error_kind: str
-    evaluations: int
-    work_unit: str
-    converged: bool
-    proposal_beta: float
-    effective_sample_fraction: float
-    seconds: float
-    decimal: dict[str, Any]
-    exact: dict[str, list[Any]] | None
-    @property
-    def mpf(self) -> dict[str, Any]: ...
+    def to_dataframe(self) -> Any: ...
 
 def series(masses: _Numbers, lengths: _Numbers, beta: _Number, g: _Number = ..., digits: int = ...,
            terms: int = ..., progress: _Progress = ...) -> SeriesResult: ...
