@@ -63,9 +63,8 @@ std::size_t Record::find(std::string_view name) const {
   return fields_.size();
 }
 
-
 void Record::shortest(double x) {
-  Cell c;
+  Cell& c = add();
   c.tag = Cell::Tag::number;
   c.number = x;
   c.begin = static_cast<std::uint32_t>(text_.size());
@@ -75,16 +74,14 @@ void Record::shortest(double x) {
   c.size = static_cast<std::uint32_t>(end - first);
   c.gap = printing_gap(x, std::string_view(first, c.size));
   text_.resize(c.begin + c.size);
-  push(c);
 }
 
 void Record::decimal(std::string_view text) {
-  Cell c;
+  Cell& c = add();
   c.tag = Cell::Tag::decimal;
   c.begin = static_cast<std::uint32_t>(text_.size());
   c.size = static_cast<std::uint32_t>(text.size());
   text_ += text;
-  push(c);
 }
 
 char* Record::decimal_room(std::size_t size) {
@@ -94,14 +91,13 @@ char* Record::decimal_room(std::size_t size) {
 }
 
 void Record::commit_decimal(const char* end) {
-  Cell c;
+  const auto size = static_cast<std::uint32_t>(end - (text_.data() + pending_));
+  text_.resize(pending_ + size);
+  Cell& c = add();
   c.tag = Cell::Tag::decimal;
   c.begin = static_cast<std::uint32_t>(pending_);
-  c.size = static_cast<std::uint32_t>(end - (text_.data() + pending_));
-  text_.resize(pending_ + c.size);
-  push(c);
+  c.size = size;
 }
-
 
 void Record::input(double x, std::string_view written) {
   decimal(written);
@@ -115,13 +111,11 @@ void Record::text(std::string_view name) {
 }
 
 void Record::name(const char* static_name) {
-  Cell c;
+  Cell& c = add();
   c.tag = Cell::Tag::text;
   c.literal = static_name;
   c.size = static_cast<std::uint32_t>(std::strlen(static_name));
-  push(c);
 }
-
 
 void Record::complete() const {
   if (cells_.size() != first_cell_.back())
@@ -140,6 +134,17 @@ std::string column_name(const Field& field, std::size_t i) {
   return std::string(field.name) + index;
 }
 
+std::size_t value_of_error(std::span<const Field> fields, std::size_t k) {
+  constexpr std::string_view suffix = "_error";
+  const Field& error = fields[k];
+  if (error.kind != Kind::error || !error.name.ends_with(suffix)) return fields.size();
+  const std::string_view value = error.name.substr(0, error.name.size() - suffix.size());
+  for (std::size_t j = 0; j < fields.size(); ++j)
+    if (fields[j].name == value && fields[j].shape == error.shape && fields[j].kind == Kind::real)
+      return j;
+  return fields.size();
+}
+
 std::vector<std::string> column_names(std::span<const Field> fields, std::size_t particles) {
   std::vector<std::string> names;
   for (const Field& f : fields) {
@@ -151,6 +156,12 @@ std::vector<std::string> column_names(std::span<const Field> fields, std::size_t
 }
 
 // ---------------------------------------------------------------- cells as text
+
+double shortest_gap(double value) {
+  char text[32];
+  return printing_gap(value, std::string_view(text, static_cast<std::size_t>(
+                                                        write_shortest(text, value) - text)));
+}
 
 char* write_number(char* out, double x, Kind kind) {
   if (kind == Kind::error) return write_error(out, x);

@@ -101,12 +101,11 @@ class Record {
   Kind kind_of_cell(std::size_t c) const { return cell_kinds_[c]; }
 
   // Appenders, in the table's order (checked at the end of a builder by complete()).
-  void none() { push(Cell{}); }
+  void none() { add(); }
   void number(double x) {
-    Cell c;
+    Cell& c = add();
     c.tag = Cell::Tag::number;
     c.number = x;
-    push(c);
   }
   /// A double value, printed as its shortest round-trip text (kept in the record) with its
   /// printing gap.
@@ -118,17 +117,15 @@ class Record {
   /// A double run's error e of a value whose printed text lies up to `gap` from it: the cell
   /// keeps e (what the library computed), its text covers the printed value (covering).
   void error(double e, double gap) {
-    Cell c;
+    Cell& c = add();
     c.tag = Cell::Tag::number;
     c.number = e;
     c.gap = gap;
-    push(c);
   }
   void integer(long long n) {
-    Cell c;
+    Cell& c = add();
     c.tag = Cell::Tag::integer;
     c.integer = n;
-    push(c);
   }
   /// An input of a double run: `written` in CSV and text, x (shortest) in JSON.
   void input(double x, std::string_view written);
@@ -136,10 +133,9 @@ class Record {
   /// A text cell of a static name (method_name(), error_kind_name(), ...): not copied.
   void name(const char* static_name);
   void flag(bool value) {
-    Cell c;
+    Cell& c = add();
     c.tag = Cell::Tag::flag;
     c.flag = value;
-    push(c);
   }
   /// Throws std::logic_error unless every field got its cells (a builder out of step with its
   /// table is a bug, caught by every test that prints).
@@ -166,9 +162,10 @@ class Record {
   bool keep_exact_ = false;
   std::vector<ExactNumber> exact_;  ///< with keep_exact_: one per cell
   ExactNumber pending_exact_;       ///< set_exact's, for the next cell
-  void push(const Cell& cell) {
-    cells_.push_back(cell);
+  /// The next cell (an empty one, filled in place), and its exact value when kept.
+  Cell& add() {
     if (keep_exact_) push_exact();
+    return cells_.emplace_back();
   }
   void push_exact();
 };
@@ -179,6 +176,10 @@ std::size_t cell_count(std::span<const Field> fields, std::size_t particles);
 /// A field's CSV column for particle i (0-based): stem + (i + 1), the index before a trailing
 /// "_error" (beta_K_error -> beta_K1_error); a scalar field's name.
 std::string column_name(const Field& field, std::size_t i);
+
+/// The field whose error field k is (the schema's X for X_error, of the same shape), or
+/// fields.size() when k is not such an error (equipartition_residual).
+std::size_t value_of_error(std::span<const Field> fields, std::size_t k);
 
 /// The CSV columns of `fields` for `particles`, cell by cell.
 std::vector<std::string> column_names(std::span<const Field> fields, std::size_t particles);
@@ -206,6 +207,11 @@ std::size_t max_cell_length(const Record& record, const Cell& cell);
 inline double covering(double e, double gap) {
   return gap > 0 ? std::nextafter(e + gap, HUGE_VAL) : e;
 }
+
+/// The printing gap of a double value printed as its shortest text (what Record::shortest keeps
+/// in a value's cell, and its error's text adds): for records filled without texts
+/// (Printing::texts), printed later.
+double shortest_gap(double value);
 
 /// Writes a double of a field of `kind` as a number cell prints it: an error with error_digits
 /// significant digits rounded up, any other number as the shortest decimal that reads back as

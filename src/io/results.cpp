@@ -164,7 +164,8 @@ void keep_exact(Record& r, const Real& x) {
 template <class Real>
 void put_value(Record& r, const Real& v, Printing p) {
   if constexpr (std::is_same_v<Real, double>) {
-    r.shortest(v);
+    if (p.texts) r.shortest(v);
+    else r.number(v);
   } else {
     keep_exact(r, v);
     char* at = r.decimal_room(decimal_max_length(p.digits));
@@ -231,7 +232,8 @@ void put_quotients(Record& r, const std::vector<Estimate<Real>>& es, std::size_t
                             short_decimal(q) +
                             ", outside double's normal range (2.2e-308..1.8e308) at this beta");
       if (!errors) {
-        r.shortest(qd);
+        if (p.texts) r.shortest(qd);
+        else r.number(qd);
         continue;
       }
       // the division in long double and the rounding to double: < 2^-52 |qd|; then the

@@ -24,6 +24,10 @@ namespace pendavg::io {
 /// more is MPFR (`digits` significant digits, decimal text).
 struct Printing {
   int digits = 16;
+  /// false: a double run's values keep their number only, without their shortest text and its
+  /// printing gap (so their errors' cells carry no gap either), for a front end that prints
+  /// later, if at all (Python's .decimal: shortest_gap then gives what the text adds).
+  bool texts = true;
   bool in_double() const { return digits <= 16; }
 };
 

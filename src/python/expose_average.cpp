@@ -132,7 +132,8 @@ template <class Real>
 void keep_point(AveragesResult& result, std::size_t k, const Chain<Real>& chain, const Real* beta,
                 const Averages<Real>& a, double seconds, PointRecords& records,
                 std::span<const std::string_view> texts = {}) {
-  const io::Printing printing{result.digits};
+  // (a double run's texts are made when .decimal asks for them: TableResult::decimal)
+  const io::Printing printing{result.digits, false};
   const bool mpfr = !std::is_same_v<Real, double>;
   records.inputs.keep_exact(mpfr);
   records.values.keep_exact(mpfr);

@@ -97,7 +97,9 @@ std::shared_ptr<const TableResult::Layout> TableResult::layout_of(
   auto layout = std::make_shared<Layout>();
   for (const Table& table : tables) {
     std::vector<CellPlan>& plan = layout->plans.emplace_back();
-    for (const io::Field& f : table.fields) {
+    const std::size_t first_column = layout->columns.size();
+    for (std::size_t k = 0; k < table.fields.size(); ++k) {
+      const io::Field& f = table.fields[k];
       Column c;
       c.field = f;
       c.width = f.shape == io::Shape::per_particle ? particles : 1;
@@ -114,6 +116,8 @@ std::shared_ptr<const TableResult::Layout> TableResult::layout_of(
       for (std::size_t i = 0; i < c.width; ++i)
         plan.push_back({f.kind, c.call_wide, static_cast<std::uint32_t>(c.first + i),
                         static_cast<std::uint32_t>(c.present + i)});
+      if (const std::size_t v = io::value_of_error(table.fields, k); v < table.fields.size())
+        c.value = first_column + v;
       layout->columns.push_back(c);
     }
   }
@@ -139,7 +143,6 @@ void TableResult::layout(std::initializer_list<Table> tables, bool mpfr) {
   row_texts_ = layout_->row_texts;
   present_.assign(rows * row_present_, 0);
   numbers_.assign(rows * row_numbers_, nan);
-  gaps_.assign(mpfr ? 0 : rows * row_numbers_, 0.0);
   decimals_.assign(mpfr ? rows * row_numbers_ : 0, {});
   exact_.assign(mpfr ? rows * row_numbers_ : 0, {});
   integers_.assign(rows * row_integers_, 0);
@@ -170,8 +173,7 @@ void TableResult::put(std::size_t k, std::span<const io::Record* const> records,
         case io::Kind::real:
         case io::Kind::error:
           if (cell.tag == io::Cell::Tag::number || cell.tag == io::Cell::Tag::input) {
-            numbers[p.at] = cell.number;  // (an error's: the library's; its text adds gap)
-            if (!mpfr_) gaps_[k * row_numbers_ + p.at] = cell.gap;
+            numbers[p.at] = cell.number;  // (an error's: the library's; its text adds a gap)
             finite = finite && std::isfinite(cell.number);
           } else {  // an MPFR run's decimal text, and the exact value behind it
             const std::span<const io::ExactNumber> exact = record.exact();
@@ -286,11 +288,11 @@ py::dict TableResult::decimal() const {
         } else if (mpfr_ && !decimals_[at].empty()) {
           items.append(py::str(decimals_[at]));
         } else {
-          // as the record prints it: a value's shortest text, an error covering its value's
+          // as the CLI prints it: a value's shortest text, an error covering its value's
+          double x = numbers_[at];
+          if (c.field.kind == io::Kind::error && c.value < columns_.size())
+            x = io::covering(x, io::shortest_gap(numbers_[cell(columns_[c.value], row_numbers_, k, i)]));
           char text[40];
-          const double x = c.field.kind == io::Kind::error && !mpfr_
-                               ? io::covering(numbers_[at], gaps_[at])
-                               : numbers_[at];
           items.append(py::str(
               text, static_cast<std::size_t>(io::write_number(text, x, c.field.kind) - text)));
         }

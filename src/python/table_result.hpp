@@ -63,6 +63,8 @@ struct Column {
   bool call_wide = false;            ///< an input count (N, digits): the call's, not a point's
   std::size_t present = 0;
   std::size_t first = 0;
+  /// an error's: the column of its value (io::value_of_error), whose printing its text covers
+  std::size_t value = static_cast<std::size_t>(-1);
   bool numeric() const {
     return field.kind == io::Kind::real || field.kind == io::Kind::error;
   }
@@ -131,7 +133,6 @@ class TableResult {
               row_texts_ = 0;
   std::vector<std::uint8_t> present_;  ///< 0: an empty cell (every column)
   std::vector<double> numbers_;        ///< real, error: the double (MPFR: exact, rounded)
-  std::vector<double> gaps_;           ///< error of a double run: its value's printing gap
   std::vector<std::string> decimals_;  ///< real, error of an MPFR run: the printed text
   std::vector<io::ExactNumber> exact_;  ///< real, error of an MPFR run
   std::vector<std::int64_t> integers_;  ///< count
