@@ -95,8 +95,8 @@ ONE_THREAD=1 same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --m
 unit64=$("$python" -c 'print(",".join(["1"] * 64))')
 same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --method qmc --samples 4096 --shifts 12
 # Trajectory replicas, N = 3: Langevin (noise streams) and NVE (perturbed starts).
-same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4
-same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no
+same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4 --format json
+same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no --format json
 # Commands that do not distribute run on rank 0 alone and print once.
 same_on_ranks "limit on rank 0" limit --masses 0.5,0.5
 

@@ -327,7 +327,7 @@ bad "cases resume of a file with the columns before issue 10" average --cases "$
   --resume "$work/cases_before_issue10.csv"
 
 # ---------------------------------------------------------------- simulate --replicas
-replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4)
+replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4 --format json)
 OMP_NUM_THREADS=1 "$pendavg" "${replicas[@]}" >"$work/rep1.json" 2>/dev/null
 OMP_NUM_THREADS=2 "$pendavg" "${replicas[@]}" >"$work/rep2.json" 2>/dev/null
 check "replicas: 1 and 2 threads give the same numbers" \
@@ -342,18 +342,27 @@ for i in range(2):
     assert d["K_error_replicas"][i] > 0 and d["K_error_blocking"][i] > 0
     assert abs(d["K"][i] - d["exact_K"][i]) <= 4 * math.hypot(d["K_error"][i], d["exact_K_error"][i]), i
 PY
-"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 >"$work/single.json" 2>/dev/null
-"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 >"$work/rep_one.json" 2>/dev/null
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --format json >"$work/single.json" 2>/dev/null
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 --format json >"$work/rep_one.json" 2>/dev/null
 check "--replicas 1 is the single run" \
   bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
 run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
-check "NVE replicas (perturbed starts), csv" \
-  bash -c "[ $rc -eq 0 ] && grep -q '^# replicas 3 of 3' '$work/out' && grep -q ',K_autocorrelation_time,K_error_blocking,K_error_replicas,' '$work/out'"
+check "NVE replicas (perturbed starts), csv" "$python" - "$work/out" "$rc" <<'PY'
+import csv, sys
+assert sys.argv[2] == "0", sys.argv[2]
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[0] == "# schema: 1" and len(lines) == 4, lines[:2]
+r = next(csv.DictReader(lines[2:]))
+assert r["replicas"] == r["replicas_requested"] == "3", r
+for i in (1, 2, 3):
+    for column in (f"K_autocorrelation_time{i}", f"K{i}_error_blocking", f"K{i}_error_replicas"):
+        assert float(r[column]) > 0, column
+PY
 bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --trajectory "$work/t.csv" --every 1
 bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
 bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3
 bad "seed, one NVE run"          simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --seed 3
-start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no
+start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no --format json
 check "replicas SIGINT: exit 0, interrupted averages of the replicas so far" "$python" - "$work/out" "$rc" <<'PY'
 import json, sys
 assert sys.argv[2] == "0", sys.argv[2]
