@@ -121,8 +121,9 @@ class Record {
 /// The number of cells of `fields` for `particles`.
 std::size_t cell_count(std::span<const Field> fields, std::size_t particles);
 
-/// A field's CSV column for particle i (0-based): stem + (i + 1), the index before a trailing
-/// "_error" (beta_K_error -> beta_K1_error); a scalar field's name.
+/// A field's CSV column for particle i (0-based): stem + (i + 1), the index before "_error" at
+/// the end or before a qualifier (beta_K_error -> beta_K1_error, K_error_blocking ->
+/// K1_error_blocking); a scalar field's name.
 std::string column_name(const Field& field, std::size_t i);
 
 /// The CSV columns of `fields` for `particles`, cell by cell.
@@ -151,6 +152,12 @@ std::size_t max_cell_length(const Record& record, const Cell& cell);
 /// row per particle, the field names as headers), then every scalar field as `name = value`,
 /// a value X with X_error and X_error_kind as `X = v +- e (kind)`.
 std::string text_report(const Record& record);
+
+/// Each cell of `record` as the text report prints it ("-" for an absent value).
+std::vector<std::string> text_cells(const Record& record);
+
+/// Rows of cells as right-aligned columns separated by two spaces, one line per row.
+std::string aligned(const std::vector<std::vector<std::string>>& rows);
 
 /// --columns LIST: the cells of `columns` (a row's CSV column names) that LIST selects, in
 /// LIST's order. An item is a column name (cos_phi2), a per-particle stem (cos_phi: cos_phi1..N;
