@@ -4,7 +4,7 @@
 // builders fill agree with their tables in every format.
 #include <catch2/catch.hpp>
 
-#include "cli/exact_values.hpp"
+#include "io/exact_values.hpp"
 #include "io/migration.hpp"
 #include "io/number_text.hpp"
 #include "io/record.hpp"
@@ -164,8 +164,8 @@ SimulationResult<double> a_run(std::size_t n, double error) {
   return r;
 }
 
-cli::ExactValues exact_values(std::size_t n) {
-  cli::ExactValues e;
+io::ExactValues exact_values(std::size_t n) {
+  io::ExactValues e;
   for (std::size_t i = 0; i < n; ++i) {
     e.kinetic.push_back(0.4625006486855847);
     e.kinetic_error.push_back(2.47e-15);
@@ -239,7 +239,7 @@ TEST_CASE("io: simulate's records agree with their tables", "[io][schema]") {
     CHECK(cell(inputs, "beta") == "null");
     CHECK(cell(inputs, "friction") == "null");
     io::Record result(io::simulation_fields(), 2);
-    const cli::ExactValues exact = exact_values(2);
+    const io::ExactValues exact = exact_values(2);
     io::append_simulation(result, a_run(2, 4.187407670e-02), -1.8369701987210297e-16, &exact,
                           false);
     check_record(result);

@@ -8,7 +8,7 @@
 
 #include "average_options.hpp"
 #include "distribute.hpp"
-#include "exact_values.hpp"
+#include "io/exact_values.hpp"
 #include "files.hpp"
 #include "interrupt.hpp"
 #include "sweep.hpp"
@@ -490,7 +490,7 @@ class TrajectoryFile {
 struct SimulateOutcome {
   SimulationResult<double> result;
   std::optional<ReplicaSpread> spread;     ///< --replicas R > 1
-  std::optional<ExactValues> reference;    ///< --exact yes
+  std::optional<io::ExactValues> reference;    ///< --exact yes
   double energy = 0;                       ///< E of the initial state
   double seconds = 0;                      ///< the trajectories' wall time
 };
@@ -511,8 +511,8 @@ std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
     try {
       out.reference =
           request.langevin
-              ? canonical_values(chain, *request.run.beta)
-              : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
+              ? io::canonical_values(chain, *request.run.beta)
+              : io::microcanonical_values(chain, io::initial_excitation(chain, initial, request.phi));
     } catch (const invalid_input& e) {
       // The exact values' refusal, without its advice to request digits (simulate has no
       // --digits): the way out here is --exact no.

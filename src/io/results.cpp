@@ -5,7 +5,7 @@
 #include "io/migration.hpp"
 #include "io/number_text.hpp"
 
-#include "cli/exact_values.hpp"
+#include "io/exact_values.hpp"
 
 #include "engine/precision.hpp"
 #include "engine/text.hpp"
@@ -624,7 +624,7 @@ void append_simulation_inputs(Record& r, const Chain<double>& chain, const Simul
 }
 
 void append_simulation(Record& r, const SimulationResult<double>& s, double energy,
-                       const cli::ExactValues* exact, bool langevin) {
+                       const io::ExactValues* exact, bool langevin) {
   const std::size_t n = r.particles();
   const std::string_view statistical = error_kind_name(ErrorKind::statistical);
   const auto averages = [&](const std::vector<TimeAverage<double>>& xs) {
@@ -664,7 +664,7 @@ void append_simulation(Record& r, const SimulationResult<double>& s, double ener
     if (kind) r.text(*kind);
     else r.none();
   };
-  const cli::ExactValues* x = exact;
+  const io::ExactValues* x = exact;
   if (x) r.text(x->method);
   else r.none();
   if (x && !langevin) r.number(x->excitation);

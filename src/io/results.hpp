@@ -20,11 +20,9 @@
 #include <string_view>
 #include <vector>
 
-namespace pendavg::cli {
-struct ExactValues;  // src/cli/exact_values.hpp: the exact values beside a trajectory
-}
-
 namespace pendavg::io {
+
+struct ExactValues;  // src/io/exact_values.hpp: the exact values beside a trajectory
 
 /// How a run's reals are printed: `digits` = 16 is a double run (shortest round-trip numbers);
 /// more is MPFR (`digits` significant digits, decimal text).
@@ -99,7 +97,7 @@ std::span<const Field> simulation_fields();
 /// Fills `record` (reset to simulation_fields()): `energy` is E of the initial state, `exact`
 /// the exact values (null: none), `langevin` whether a thermostat ran.
 void append_simulation(Record& record, const SimulationResult<double>& result, double energy,
-                       const cli::ExactValues* exact, bool langevin);
+                       const io::ExactValues* exact, bool langevin);
 
 /// What --replicas R adds: the two error bars of every average (blocking within the replicas;
 /// the spread between them) and how far the replicas' energies lie apart.
