@@ -287,14 +287,15 @@ TEST_CASE("io: simulate's records agree with their tables", "[io][schema]") {
     io::ReplicaSpread spread;
     spread.replicas = 1;
     spread.requested = 4;
-    spread.kinetic_blocking = spread.canonical_blocking = spread.cosine_blocking = {0.1, 0.2, 0.3};
+    // errors exact in binary: printed rounded up, 0.1 (0.1000000000000000055...) would read 1.01e-01
+    spread.kinetic_blocking = spread.canonical_blocking = spread.cosine_blocking = {0.125, 0.25, 0.5};
     spread.kinetic_replicas = spread.canonical_replicas = spread.cosine_replicas = {unknown, unknown,
                                                                                    unknown};
     io::Record replicas(io::replica_fields(), 3);
     io::append_replicas(replicas, spread, 10);
     check_record(replicas);
     CHECK(cell(replicas, "K_error_replicas", 2) == "null");
-    CHECK(cell(replicas, "K_error_blocking", 2) == "3.00e-01");
+    CHECK(cell(replicas, "K_error_blocking", 2) == "5.00e-01");
     CHECK(cell(replicas, "replicas_error_reason") != "null");
     // the report: one CSV row under its header, every field a JSON key
     const io::Report report{"simulate", {&inputs}, {{"", {&result, &replicas}, ""}}, {}, 1.5};
@@ -305,7 +306,7 @@ TEST_CASE("io: simulate's records agree with their tables", "[io][schema]") {
     CHECK(json.starts_with("{\"schema\": 1, \"command\": \"simulate\", \"N\": 3,"));
     CHECK(json.find("\"run\"") == std::string::npos);
     CHECK(json.find("\"K1_error_blocking\"") == std::string::npos);
-    CHECK(json.find("\"K_error_blocking\": [1.00e-01, 2.00e-01, 3.00e-01]") != std::string::npos);
+    CHECK(json.find("\"K_error_blocking\": [1.25e-01, 2.50e-01, 5.00e-01]") != std::string::npos);
   }
 }
 
