@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // src/cli/commands.cpp -- the dispatch of the pendavg CLI: one table of the commands (each in its
-// own file: average.cpp, limit.cpp, series.cpp, table.cpp, simulate.cpp, poincare's in
-// simulate.cpp, merge's in shard.cpp), the general usage, --help and --version.
+// own file: average.cpp, limit.cpp, series.cpp, table.cpp, simulate.cpp, poincare.cpp, merge's
+// in shard.cpp), the general usage, --help and --version.
 #include "commands.hpp"
 
 #include "common.hpp"

@@ -26,6 +26,17 @@ std::vector<std::string_view> input_texts(const Options& options, std::string_vi
   return texts;
 }
 
+Chain<double> dynamics_chain_option(const Options& options) {
+  auto masses = parse_real_list<double>(options.required("masses"), "--masses", Domain::positive);
+  auto lengths =
+      parse_real_list<double>(options.required("lengths"), "--lengths", Domain::positive);
+  if (masses.size() != lengths.size())
+    throw usage_error(options.command() + ": " + std::to_string(masses.size()) + " masses but " +
+                      std::to_string(lengths.size()) + " lengths");
+  const double g = parse_real<double>(options.get("g", "1"), "--g", Domain::nonnegative);
+  return Chain<double>(std::move(masses), std::move(lengths), g);
+}
+
 std::string deliver(const Options& options, std::string_view command, std::string text) {
   if (!options.has("output") || !is_root()) return text;
   write_atomically(std::string(options.get("output", "")), text, command);

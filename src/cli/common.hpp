@@ -76,6 +76,10 @@ Chain<Real> chain_option(const Options& options, bool lengths_required) {
   return make_chain(std::move(masses), std::move(lengths), std::move(g));
 }
 
+/// The chain of `simulate` and `poincare` (double only): --masses, --lengths (both required)
+/// and --g (default 1).
+Chain<double> dynamics_chain_option(const Options& options);
+
 class Stopwatch {
  public:
   double seconds() const {

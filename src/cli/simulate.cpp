@@ -1,18 +1,21 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/simulate.cpp -- `pendavg simulate` (a trajectory's time averages beside the exact
-// microcanonical or canonical values) and `pendavg poincare` (the double pendulum's section).
-// Thin: parse, call the library (dynamics.hpp, microcanonical.hpp, the canonical engines),
-// format. Progress goes to stderr; SIGINT/SIGTERM end a run early and the averages so far are
-// still printed (with "interrupted": true); files are written atomically.
+// src/cli/simulate.cpp -- `pendavg simulate`: a trajectory's time averages beside the exact
+// microcanonical or canonical values. Thin: parse, call the library (dynamics.hpp,
+// microcanonical.hpp, the canonical engines), fill records (src/io) -> CSV, JSON or text.
+// Progress goes to stderr; SIGINT/SIGTERM end a run early and the averages so far are still
+// printed (interrupted true); files are written atomically.
 #include "common.hpp"
 
 #include "average_options.hpp"
 #include "distribute.hpp"
-#include "exact_values.hpp"
+#include "io/exact_values.hpp"
 #include "files.hpp"
-#include "format.hpp"
 #include "interrupt.hpp"
 #include "sweep.hpp"
+
+#include "io/record.hpp"
+#include "io/report.hpp"
+#include "io/results.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -29,18 +32,16 @@
 #include <string>
 #include <vector>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 namespace pendavg::cli {
+
+namespace {
 
 constexpr std::string_view simulate_usage =
     "usage: pendavg simulate --masses M1,...,MN --lengths L1,...,LN [--g G]\n"
     "                        (--theta A | --phi P1,...,PN [--phidot W1,...,WN])\n"
     "                        --time T [--dt H] [--burn-in T0] [--integrator I]\n"
     "                        [--thermostat none|langevin --beta B [--friction G] [--seed S]]\n"
-    "                        [--exact yes|no] [--format json|csv]\n"
+    "                        [--exact yes|no] [--format csv|json|text] [--output FILE]\n"
     "                        [--trajectory FILE.csv --every K]\n"
     "                        [--replicas R [--seed S] [--perturb EPS]]\n"
     "\n"
@@ -57,9 +58,10 @@ constexpr std::string_view simulate_usage =
     "                  suzuki4, kahan-li6 (6th order, 9 stages), rattle2\n"
     "  --thermostat langevin  constrained BAOAB at --beta B, friction --friction G (default 1)\n"
     "  --exact no      skip the exact values (N >= 5 uses QMC for them: a few seconds)\n"
-    "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file)\n"
+    "  --trajectory F  every K steps a CSV row t,E,phi_i...,phidot_i... (atomic file, after a\n"
+    "                  '# schema: 1' line)\n"
     "  --replicas R    R independent trajectories on all cores (and all MPI ranks under\n"
-    "                  mpirun/srun), combined: Langevin replicas differ by their noise (seeds\n"
+    "                  mpirun/srun), pooled: Langevin replicas differ by their noise (seeds\n"
     "                  mixed from --seed), NVE replicas by their start (every angle moved by up\n"
     "                  to --perturb EPS radians, default 1e-6, at most 0.1, from --seed; replica 0\n"
     "                  unmoved), then brought back to the run's energy (rates scaled, or the\n"
@@ -68,51 +70,25 @@ constexpr std::string_view simulate_usage =
     "                  standard error of the spread between replicas (both printed, as\n"
     "                  K_error_blocking and K_error_replicas); the result is the same for any\n"
     "                  number of ranks and threads.\n"
-    "Exact values (exact_*) carry 17 significant digits. The microcanonical ones are taken at\n"
-    "the initial state's excitation D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2) (no\n"
-    "cancellation near the bottom of the well; JSON key exact_excitation, with exact_var_K).\n"
-    "JSON also has, after seconds: K_total and potential (<K> and <U> over time) with their\n"
-    "errors, energy_trend (NVE: the least-squares change of E over the run / the energy scale;\n"
-    "null with energy_trend_reason under Langevin), unconverged_stages, samples, exact_var_K for\n"
-    "Langevin runs (canonical Var K_i), exact_error_kinds (what each exact error promises) and,\n"
-    "with --replicas, K_total_error_blocking/replicas and potential_error_blocking/replicas.\n"
-    "CSV columns: i, K, K_error, Kc, Kc_error, exact_K, exact_K_error, exact_Kc,\n"
-    "K_autocorrelation_time [, K_error_blocking, K_error_replicas], then cos_phi, cos_phi_error,\n"
-    "error_kind, exact_cos_phi, exact_cos_phi_error, exact_Kc_error, exact_var_K,\n"
-    "exact_var_K_error, exact_error_kind, exact_Kc_error_kind, exact_cos_phi_error_kind,\n"
-    "exact_var_K_error_kind [, Kc_error_blocking, Kc_error_replicas, cos_phi_error_blocking,\n"
-    "cos_phi_error_replicas] (cells that do not exist are empty).\n"
+    "Output (schema 1; names and meanings: README, Output schema): CSV (default: '# schema: 1',\n"
+    "'# pendavg simulate', a header, one row), JSON or text; --output FILE writes it atomically\n"
+    "(nothing on stdout). The inputs (N, g, m, l, ensemble, integrator, dt, beta, friction),\n"
+    "then the time averages X = K, Kc, cos_phi, K_total (<K>), potential (<U>) with X_error\n"
+    "(1 sigma) and X_error_kind, the exact values exact_X of the run's ensemble with theirs (NVE:\n"
+    "at exact_excitation, D = E - E_min = K + sum_j 2 g S_j l_j sin^2(phi_j/2)), the energy\n"
+    "diagnostics (energy_*, constraint_residual), the work (steps, samples, newton_solves) and,\n"
+    "with --replicas, X_error_blocking and X_error_replicas. A per-particle X is a JSON array\n"
+    "and the CSV columns X1..XN (errors X1_error..XN_error). Values are the shortest decimals\n"
+    "that read back as the same double, errors 3 digits rounded up; a value that does not exist\n"
+    "is null (an empty cell), with a *_reason key where the run can say why.\n"
     "Progress goes to stderr. Ctrl-C (SIGINT) or SIGTERM ends the run early; the averages so\n"
-    "far are printed with \"interrupted\": true. Energies use the paper's U = -sum_j g S_j l_j\n"
+    "far are printed with interrupted true. Energies use the paper's U = -sum_j g S_j l_j\n"
     "cos phi_j (the hanging chain has the lowest energy).\n";
-
-constexpr std::string_view poincare_usage =
-    "usage: pendavg poincare --masses M1,M2 --lengths L1,L2 [--g G] --energy E\n"
-    "                        [--orbits K] [--points P] [--dt H] [--output FILE.csv]\n"
-    "\n"
-    "The double pendulum's Poincare section phi_1 = 0, phidot_1 > 0 (paper Appendix E) at\n"
-    "energy E (paper's U convention; E > -(M l1 + m2 l2) g): K orbits (default 8) started on\n"
-    "the section, P crossings each (default 500), time step H (default 1e-3). Writes CSV rows\n"
-    "orbit,phi2,p2,time (p2 the canonical momentum) to stdout or atomically to FILE.\n";
-
-namespace {
 
 constexpr std::array<std::string_view, 5> integrator_names{"rattle2", "yoshida4", "suzuki4",
                                                            "kahan-li6", "yoshida6"};
 constexpr std::array<std::string_view, 2> thermostat_names{"none", "langevin"};
 constexpr std::array<std::string_view, 2> yes_no{"yes", "no"};
-constexpr std::array<std::string_view, 2> simulate_formats{"json", "csv"};
-
-Chain<double> parse_chain(const Options& options) {
-  auto masses = parse_real_list<double>(options.required("masses"), "--masses", Domain::positive);
-  auto lengths =
-      parse_real_list<double>(options.required("lengths"), "--lengths", Domain::positive);
-  if (masses.size() != lengths.size())
-    throw usage_error(options.command() + ": " + std::to_string(masses.size()) + " masses but " +
-                      std::to_string(lengths.size()) + " lengths");
-  const double g = parse_real<double>(options.get("g", "1"), "--g", Domain::nonnegative);
-  return Chain<double>(std::move(masses), std::move(lengths), g);
-}
 
 /// An angle: radians, or degrees with a "deg" suffix.
 double parse_angle(std::string_view text, std::string_view what) {
@@ -138,47 +114,6 @@ std::vector<double> parse_angle_list(std::string_view text, std::string_view wha
   }
 }
 
-/// A JSON number; null for a value that does not exist (an unknown error bar).
-std::string number(double x) { return std::isfinite(x) ? decimal(x, 10) : std::string("null"); }
-
-/// An error-sized JSON number (3 digits); null when it does not exist.
-std::string error_number(double x) {
-  return std::isfinite(x) ? decimal(x, 3) : std::string("null");
-}
-
-/// A CSV cell: empty for a value that does not exist.
-std::string cell(double x, int digits) { return std::isfinite(x) ? decimal(x, digits) : std::string(); }
-
-/// Exact values: every digit of the double (17 significant).
-std::string exact_number(double x) { return decimal(x, 17); }
-
-/// The error of an exact value printed with 17 digits (3 digits, half a unit in the value's
-/// last printed place included).
-std::string exact_error(double value, double error) {
-  return decimal(printed_error(value, error, 17), error_digits);
-}
-
-/// An exact value as a JSON number, null when it is not finite (e.g. Var K_i beyond double's
-/// range at a tiny beta).
-std::string exact_json(double x) { return std::isfinite(x) ? exact_number(x) : "null"; }
-
-/// An exact value's error as JSON (null beside a value that is not finite).
-std::string exact_error_json(double value, double error) {
-  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : "null";
-}
-
-/// CSV cells of an exact value and its error: empty when they do not exist.
-std::string exact_cell(double x) { return std::isfinite(x) ? exact_number(x) : std::string(); }
-std::string exact_error_cell(double value, double error) {
-  return std::isfinite(value) && std::isfinite(error) ? exact_error(value, error) : std::string();
-}
-
-std::string number_array(const std::vector<double>& values) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + number(values[i]);
-  return out + "]";
-}
-
 constexpr long max_replicas = 100000;
 constexpr double max_perturbation = 0.1;  ///< radians (--perturb)
 
@@ -192,16 +127,7 @@ std::uint64_t replica_seed(std::uint64_t seed, std::size_t replica) {
   return z ^ (z >> 31);
 }
 
-/// What --replicas adds to a run's report: the two error bars of every average (blocking within
-/// the replicas; the spread between them) and how far the replicas' energies lie apart.
-struct ReplicaSpread {
-  std::size_t replicas = 0, requested = 0;  ///< finished (also when interrupted), asked for
-  std::vector<double> kinetic_blocking, kinetic_replicas, canonical_blocking, canonical_replicas,
-      cosine_blocking, cosine_replicas;
-  double total_blocking = 0, total_replicas = 0;          ///< of <K>
-  double potential_blocking = 0, potential_replicas = 0;  ///< of <U>
-  double energy_spread = 0;  ///< largest |E_r - E| over the replicas (NVE perturbed starts)
-};
+using io::ReplicaSpread;
 
 /// Weighted mean over replicas in replica order (West's update: the same bits for any split of
 /// the replicas between ranks), with the blocking error of the mean and the standard error of
@@ -412,20 +338,6 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   return spread;
 }
 
-std::string exact_array(const std::vector<double>& values) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + exact_json(values[i]);
-  return out + "]";
-}
-
-std::string exact_error_array(const std::vector<double>& values,
-                              const std::vector<double>& errors) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < values.size(); ++i)
-    out += (i ? ", " : "") + exact_error_json(values[i], errors[i]);
-  return out + "]";
-}
-
 // ---------------------------------------------------------------- simulate_command's steps
 
 /// A `simulate` run as asked for: the start, the library's options and the CLI's own.
@@ -437,7 +349,7 @@ struct SimulateRequest {
   std::uint64_t seed = 1;     ///< --seed: the Langevin noise, or the replicas' perturbed starts
   double perturbation = 0;    ///< --perturb (NVE replicas)
   bool exact = true;          ///< --exact yes
-  bool csv = false;           ///< --format csv
+  Format format = Format::csv;  ///< --format
   std::size_t every = 0;      ///< --every K (with --trajectory)
 };
 
@@ -511,7 +423,7 @@ SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
   if (!(request.perturbation <= max_perturbation))
     throw usage_error("simulate: --perturb must be in (0, 0.1] radians");
   request.exact = parse_choice(options.get("exact", "yes"), "--exact value", yes_no) == 0;
-  request.csv = parse_choice(options.get("format", "json"), "format", simulate_formats) == 1;
+  request.format = format_option(options, "csv", all_formats);
   if (options.has("trajectory") != options.has("every"))
     throw usage_error("simulate: --trajectory and --every go together");
   if (request.replicas > 1 && options.has("trajectory"))
@@ -522,15 +434,16 @@ SimulateRequest parse_simulate_request(const Options& options, std::size_t n) {
   return request;
 }
 
-/// --trajectory FILE --every K: every K steps a CSV row t,E,phi_i...,phidot_i..., buffered and
-/// written atomically (commit() after the run).
+/// --trajectory FILE --every K: after the "# schema: 1" and "# pendavg simulate --trajectory"
+/// lines and the header, every K steps a CSV row t,E,phi_i...,phidot_i..., buffered and written
+/// atomically (commit() after the run).
 class TrajectoryFile {
  public:
   TrajectoryFile(const Options& options, std::size_t every, const Chain<double>& chain)
       : chain_(chain), every_(every) {
     if (!options.has("trajectory")) return;
     file_.emplace(std::string(options.required("trajectory")), "simulate");
-    buffer_ = "t,E";
+    buffer_ = io::schema_line() + "# pendavg simulate --trajectory\nt,E";
     for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phi" + std::to_string(i);
     for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phidot" + std::to_string(i);
     buffer_ += "\n";
@@ -577,7 +490,7 @@ class TrajectoryFile {
 struct SimulateOutcome {
   SimulationResult<double> result;
   std::optional<ReplicaSpread> spread;     ///< --replicas R > 1
-  std::optional<ExactValues> reference;    ///< --exact yes
+  std::optional<io::ExactValues> reference;    ///< --exact yes
   double energy = 0;                       ///< E of the initial state
   double seconds = 0;                      ///< the trajectories' wall time
 };
@@ -598,8 +511,8 @@ std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
     try {
       out.reference =
           request.langevin
-              ? canonical_values(chain, *request.run.beta)
-              : microcanonical_values(chain, initial_excitation(chain, initial, request.phi));
+              ? io::canonical_values(chain, *request.run.beta)
+              : io::microcanonical_values(chain, io::initial_excitation(chain, initial, request.phi));
     } catch (const invalid_input& e) {
       // The exact values' refusal, without its advice to request digits (simulate has no
       // --digits): the way out here is --exact no.
@@ -631,284 +544,52 @@ std::optional<SimulateOutcome> run_simulation(const Chain<double>& chain,
   return out;
 }
 
-/// The averages of a run as the formats print them, per particle.
-struct SimulateColumns {
-  std::vector<double> k, k_error, kc, kc_error, tau, cosine, cosine_error;
-  std::string ensemble, integrator;
-};
-
-SimulateColumns simulate_columns(const SimulateRequest& request, const SimulationResult<double>& r) {
-  const std::size_t n = r.kinetic.size();
-  SimulateColumns c;
-  for (std::vector<double>* v : {&c.k, &c.k_error, &c.kc, &c.kc_error, &c.tau, &c.cosine,
-                                 &c.cosine_error})
-    v->resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    c.cosine[i] = r.cos_angle[i].value;
-    c.cosine_error[i] = r.cos_angle[i].error;
-    c.k[i] = r.kinetic[i].value;
-    c.k_error[i] = r.kinetic[i].error;
-    c.kc[i] = r.kinetic_canonical[i].value;
-    c.kc_error[i] = r.kinetic_canonical[i].error;
-    c.tau[i] = r.kinetic[i].autocorrelation_time;
-  }
-  c.ensemble = request.langevin ? "canonical" : "microcanonical";
-  c.integrator = request.langevin
-                     ? "baoab-rattle"
-                     : std::string(integrator_names[static_cast<std::size_t>(
-                           request.run.integrator.value_or(default_integrator))]);
-  return c;
+/// The name of the scheme that ran.
+std::string_view integrator_name(const SimulateRequest& request) {
+  if (request.langevin) return "baoab-rattle";
+  return integrator_names[static_cast<std::size_t>(
+      request.run.integrator.value_or(default_integrator))];
 }
 
-/// Step 3, format (--format csv): '#' lines with the run, then one row per particle: the
-/// original columns, then (added later, at the end) <cos phi_i> and the other exact values with
-/// every error and what it promises.
-std::string simulate_csv(const SimulateRequest& request, const SimulateOutcome& outcome) {
-  const SimulationResult<double>& r = outcome.result;
-  const std::optional<ExactValues>& reference = outcome.reference;
-  const std::optional<ReplicaSpread>& spread = outcome.spread;
-  const SimulateColumns c = simulate_columns(request, r);
-  std::string out = "# pendavg simulate: ensemble " + c.ensemble + ", integrator " +
-                    c.integrator + ", dt " + number(request.run.time_step) + ", time " +
-                    number(r.simulated_time) + ", steps " + std::to_string(r.steps) +
-                    (r.interrupted ? " (interrupted)" : "") + "\n# energy " +
-                    number(outcome.energy) + ", energy_drift " + decimal(r.energy_drift, 3) +
-                    ", energy_error_max " + decimal(r.energy_error_max, 3) +
-                    ", constraint_residual " + decimal(r.constraint_residual, 3) +
-                    (reference ? ", exact " + reference->method : std::string()) + "\n";
-  if (spread)
-    out += "# replicas " + std::to_string(spread->replicas) + " of " +
-           std::to_string(spread->requested) + ": K_error is the larger of the blocking and the "
-           "replica-spread errors\n";
-  out += "i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time";
-  if (spread) out += ",K_error_blocking,K_error_replicas";
-  out += ",cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,"
-         "exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,"
-         "exact_cos_phi_error_kind,exact_var_K_error_kind";
-  if (spread)
-    out += ",Kc_error_blocking,Kc_error_replicas,cos_phi_error_blocking,cos_phi_error_replicas";
-  out += "\n";
-  for (std::size_t i = 0; i < c.k.size(); ++i) {
-    out += std::to_string(i + 1) + "," + cell(c.k[i], 10) + "," + cell(c.k_error[i], 3) + "," +
-           cell(c.kc[i], 10) + "," + cell(c.kc_error[i], 3) + "," +
-           (reference ? exact_number(reference->kinetic[i]) + "," +
-                            exact_error(reference->kinetic[i], reference->kinetic_error[i]) +
-                            "," + exact_number(reference->kinetic_canonical)
-                      : std::string(",,")) +
-           "," + cell(c.tau[i], 3);
-    if (spread)
-      out += "," + cell(spread->kinetic_blocking[i], 3) + "," +
-             cell(spread->kinetic_replicas[i], 3);
-    out += "," + cell(c.cosine[i], 10) + "," + cell(c.cosine_error[i], 3) + "," +
-           error_kind_name(ErrorKind::statistical);
-    if (reference) {
-      const ExactValues& e = *reference;
-      out += "," + exact_cell(e.cos_angle[i]) + "," +
-             exact_error_cell(e.cos_angle[i], e.cos_angle_error[i]) + "," +
-             exact_error_cell(e.kinetic_canonical, e.kinetic_canonical_error) + "," +
-             exact_cell(e.variance[i]) + "," + exact_error_cell(e.variance[i], e.variance_error[i]) +
-             "," + e.error_kind + "," + e.kinetic_canonical_error_kind + "," +
-             e.cos_angle_error_kind + "," + e.variance_error_kind;
-    } else {
-      out += ",,,,,,,,,";
-    }
-    if (spread)
-      out += "," + cell(spread->canonical_blocking[i], 3) + "," +
-             cell(spread->canonical_replicas[i], 3) + "," + cell(spread->cosine_blocking[i], 3) +
-             "," + cell(spread->cosine_replicas[i], 3);
-    out += "\n";
+/// Step 3, format: the inputs and the (pooled) result as records (src/io/results.hpp), one
+/// report in CSV, JSON or text.
+std::string simulate_report(const Options& options, const Chain<double>& chain,
+                            const SimulateRequest& request, const SimulateOutcome& outcome) {
+  const std::size_t n = chain.size();
+  io::Record inputs(io::simulation_input_fields(), n);
+  io::append_simulation_inputs(inputs, chain, request.run, integrator_name(request),
+                               input_texts(options, "", n));
+  io::Record result(io::simulation_fields(), n);
+  io::append_simulation(result, outcome.result, outcome.energy,
+                        outcome.reference ? &*outcome.reference : nullptr, request.langevin);
+  io::Report report{"simulate", {&inputs}, {{"", {&result}, ""}}, {}, outcome.seconds};
+  io::Record replicas;
+  if (outcome.spread) {
+    replicas.reset(io::replica_fields(), n);
+    io::append_replicas(replicas, *outcome.spread, request.run.duration);
+    report.rows[0].records.push_back(&replicas);
   }
-  return out;
+  return io::format_report(report, request.format);
 }
-
-/// The JSON keys added after the original ones (after seconds): <K> and <U> over time (the
-/// same blocking errors), the secular energy trend (NVE), the work, the canonical Var K_i beside
-/// a Langevin run, what each exact error promises, and the replicas' errors of <K> and <U>.
-void add_totals_and_kinds(JsonObject& json, const SimulateRequest& request,
-                          const SimulateOutcome& outcome) {
-  const SimulationResult<double>& r = outcome.result;
-  const std::optional<ExactValues>& reference = outcome.reference;
-  const std::optional<ReplicaSpread>& spread = outcome.spread;
-  json.raw("K_total", number(r.kinetic_total.value))
-      .raw("K_total_error", error_number(r.kinetic_total.error))
-      .raw("potential", number(r.potential.value))
-      .raw("potential_error", error_number(r.potential.error));
-  if (request.langevin)
-    json.raw("energy_trend", "null")
-        .string("energy_trend_reason",
-                "a Langevin run exchanges energy with its bath: the trend of E(t) is reported "
-                "for fixed-energy (NVE) runs only");
-  else
-    json.raw("energy_trend", error_number(r.energy_trend));
-  json.integer("unconverged_stages", static_cast<long long>(r.unconverged_stages))
-      .integer("samples", static_cast<long long>(r.samples));
-  if (reference) {
-    if (request.langevin)
-      json.raw("exact_var_K", exact_array(reference->variance))
-          .raw("exact_var_K_error",
-               exact_error_array(reference->variance, reference->variance_error));
-    if (std::ranges::any_of(reference->variance, [](double v) { return !std::isfinite(v); }))
-      json.string("exact_var_K_reason",
-                  "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
-    json.raw("exact_error_kinds", JsonObject()
-                                      .string("K", reference->error_kind)
-                                      .string("Kc", reference->kinetic_canonical_error_kind)
-                                      .string("cos_phi", reference->cos_angle_error_kind)
-                                      .string("var_K", reference->variance_error_kind)
-                                      .str());
-  }
-  if (spread)
-    json.raw("K_total_error_blocking", error_number(spread->total_blocking))
-        .raw("K_total_error_replicas", error_number(spread->total_replicas))
-        .raw("potential_error_blocking", error_number(spread->potential_blocking))
-        .raw("potential_error_replicas", error_number(spread->potential_replicas));
-}
-
-/// Step 3, format (JSON, the default): one object; the keys added after the original ones come
-/// last (after seconds).
-std::string simulate_json(const SimulateRequest& request, const SimulateOutcome& outcome) {
-  const SimulationResult<double>& r = outcome.result;
-  const std::optional<ExactValues>& reference = outcome.reference;
-  const std::optional<ReplicaSpread>& spread = outcome.spread;
-  const SimulationOptions& run = request.run;
-  const SimulateColumns c = simulate_columns(request, r);
-  const std::size_t n = c.k.size();
-  JsonObject json;
-  json.string("ensemble", c.ensemble)
-      .string("integrator", c.integrator)
-      .integer("particles", static_cast<long long>(n))
-      .raw("dt", number(run.time_step))
-      .raw("time", number(r.simulated_time))
-      .raw("energy", number(outcome.energy))
-      .raw("K", number_array(c.k))
-      .raw("K_error", number_array(c.k_error))
-      .raw("Kc", number_array(c.kc))
-      .raw("Kc_error", number_array(c.kc_error))
-      .raw("K_autocorrelation_time", number_array(c.tau))
-      .raw("cos_phi", number_array(c.cosine))
-      .raw("cos_phi_error", number_array(c.cosine_error))
-      .string("error_kind", error_kind_name(ErrorKind::statistical));
-  if (reference) {
-    std::vector<double> deviation(n);
-    for (std::size_t i = 0; i < n; ++i)
-      deviation[i] = (c.k[i] - reference->kinetic[i]) /
-                     std::hypot(c.k_error[i], reference->kinetic_error[i]);
-    json.raw("exact_K", exact_array(reference->kinetic))
-        .raw("exact_K_error", exact_error_array(reference->kinetic, reference->kinetic_error))
-        .raw("exact_Kc", exact_number(reference->kinetic_canonical))
-        .raw("exact_cos_phi", exact_array(reference->cos_angle))
-        .raw("K_deviation_sigmas", number_array(deviation))
-        .string("exact_method", reference->method)
-        .raw("exact_Kc_error",
-             exact_error(reference->kinetic_canonical, reference->kinetic_canonical_error))
-        .raw("exact_cos_phi_error",
-             exact_error_array(reference->cos_angle, reference->cos_angle_error))
-        .string("exact_error_kind", reference->error_kind);
-  } else {
-    json.raw("exact_K", "null");
-  }
-  if (std::any_of(c.k_error.begin(), c.k_error.end(), [](double e) { return !std::isfinite(e); }))
-    json.string("error_reason",
-                "fewer than 16 averaging blocks finished (interrupted early, or --time too short "
-                "for the block length): the error bars are unknown");
-  if (request.langevin)
-    json.raw("beta", number(*run.beta)).raw("friction", number(run.friction.value_or(1)));
-  json.raw("energy_drift", error_number(r.energy_drift))
-      .raw("energy_error_max", error_number(r.energy_error_max))
-      .raw("energy_error_rms", error_number(r.energy_error_rms))
-      .raw("constraint_residual", error_number(r.constraint_residual))
-      .integer("steps", static_cast<long long>(r.steps))
-      .integer("newton_solves", static_cast<long long>(r.newton_solves))
-      .boolean("interrupted", r.interrupted);
-  if (spread) {
-    // Replicas: K_error (and Kc_error, cos_phi_error) is the larger of the two below; time,
-    // steps and newton_solves add up over the replicas, the energy errors are the largest.
-    json.integer("replicas", static_cast<long long>(spread->replicas))
-        .integer("replicas_requested", static_cast<long long>(spread->requested))
-        .raw("K_error_blocking", number_array(spread->kinetic_blocking))
-        .raw("K_error_replicas", number_array(spread->kinetic_replicas))
-        .raw("Kc_error_blocking", number_array(spread->canonical_blocking))
-        .raw("Kc_error_replicas", number_array(spread->canonical_replicas))
-        .raw("cos_phi_error_blocking", number_array(spread->cosine_blocking))
-        .raw("cos_phi_error_replicas", number_array(spread->cosine_replicas))
-        .raw("replica_time", number(run.duration))
-        .raw("replica_energy_spread", decimal(spread->energy_spread, 3));
-    if (spread->replicas < 2)
-      json.string("replicas_error_reason", "fewer than two replicas finished");
-  }
-  if (reference && !request.langevin) {
-    // the microcanonical state as D = E - E_min (excitation form) and Var K_i
-    json.raw("exact_excitation", exact_number(reference->excitation))
-        .raw("exact_var_K", exact_array(reference->variance))
-        .raw("exact_var_K_error",
-             exact_error_array(reference->variance, reference->variance_error));
-  }
-  json.raw("seconds", seconds_text(outcome.seconds));
-  add_totals_and_kinds(json, request, outcome);
-  return json.str() + "\n";
-}
-
-}  // namespace
 
 std::string run_simulate(const Options& options) {
-  const Chain<double> chain = parse_chain(options);
+  const Chain<double> chain = dynamics_chain_option(options);
   const SimulateRequest request = parse_simulate_request(options, chain.size());
   if (request.replicas == 1 && !is_root()) return {};  // one trajectory: rank 0 alone
+  check_output_option(options, "simulate");
   input_checked("simulate");
   TrajectoryFile trajectory(options, request.every, chain);
   const std::optional<SimulateOutcome> outcome = run_simulation(chain, request, trajectory);
   if (!outcome) return {};  // another rank's share of the replicas
-  return request.csv ? simulate_csv(request, *outcome) : simulate_json(request, *outcome);
+  return deliver(options, "simulate", simulate_report(options, chain, request, *outcome));
 }
 
-std::string run_poincare(const Options& options) {
-  const Chain<double> chain = parse_chain(options);
-  if (chain.size() != 2) throw usage_error("poincare: the section is for N = 2 (two masses)");
-  const double energy = parse_real<double>(options.required("energy"), "--energy", Domain::any);
-  PoincareOptions run;
-  run.orbits = static_cast<std::size_t>(
-      parse_integer(options.get("orbits", "8"), "--orbits", 1, 10000));
-  run.points = static_cast<std::size_t>(
-      parse_integer(options.get("points", "500"), "--points", 1, 100000000));
-  run.time_step = parse_real<double>(options.get("dt", "1e-3"), "--dt", Domain::positive);
-  run.threads = hardware_threads();
-  std::optional<std::string> output;
-  if (options.has("output")) {
-    output = std::string(options.required("output"));
-    probe_output(*output, "poincare");
-  }
-  input_checked("poincare");
-  Progress progress("poincare");
-  DynamicsObserver<double> observer;
-  observer.progress = [&](double fraction) { progress(fraction, "of the section points "); };
-  StopOnSignal signals;
-  observer.stop = &stop_flag();
-  const PoincareSection<double> section = poincare_section(chain, energy, run, observer);
-  if (section.interrupted) std::fprintf(stderr, "[poincare] interrupted: points so far\n");
-  std::string out = "# pendavg poincare: section phi1 = 0, phidot1 > 0; energy " +
-                    number(energy) + ", orbits " + std::to_string(run.orbits) +
-                    ", dt " + number(run.time_step) + ", steps " +
-                    std::to_string(section.steps) + ", energy_error_max " +
-                    decimal(section.energy_error_max, 3) +
-                    (section.interrupted ? ", interrupted" : "") + "\n";
-  out += "orbit,phi2,p2,time\n";
-  for (const SectionPoint<double>& p : section.points)
-    out += std::to_string(p.orbit) + "," + decimal(p.phi2, 12) + "," + decimal(p.p2, 12) + "," +
-           decimal(p.time, 10) + "\n";
-  if (output) {
-    write_atomically(*output, out, "poincare");
-    return "";
-  }
-  return out;
-}
+}  // namespace
 
-constexpr std::array<std::string_view, 20> simulate_options{
+constexpr std::array<std::string_view, 21> simulate_options{
     "masses",     "lengths", "g",    "theta",  "phi",      "phidot",     "time",
     "dt",         "burn-in", "integrator", "thermostat", "beta", "friction", "seed",
-    "exact",      "format",  "trajectory", "every", "replicas", "perturb"};
-constexpr std::array<std::string_view, 8> poincare_options{
-    "masses", "lengths", "g", "energy", "orbits", "points", "dt", "output"};
+    "exact",      "format",  "output", "trajectory", "every", "replicas", "perturb"};
 const Command simulate_command{"simulate", simulate_usage, simulate_options, run_simulate, {}, true};
-const Command poincare_command{"poincare", poincare_usage, poincare_options, run_poincare};
 
 }  // namespace pendavg::cli

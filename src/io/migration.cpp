@@ -27,6 +27,21 @@ constexpr Rename renames[] = {
      true},
     {"particles", "N", false, "simulate"},
     {"exact_error_kinds", "exact_X_error_kind", false, "simulate JSON"},
+    // simulate (after the averages': --columns takes the first entry of an old name)
+    {"error_kind", "K_error_kind", false,
+     "simulate: the kind of K_error, Kc_error and cos_phi_error (now K_error_kind, Kc_error_kind, "
+     "cos_phi_error_kind, and the new K_total_error_kind and potential_error_kind)"},
+    {"exact_error_kind", "exact_K_error_kind", false, "simulate"},
+    {"i", "", false,
+     "simulate CSV: one row per particle i became one row per run (the '#' lines' values are "
+     "columns): a per-particle column X became X1..XN, its error X_error X1_error..XN_error and "
+     "K_error_blocking K1_error_blocking..KN_error_blocking"},
+    // series
+    {"value", "beta_K1", false, "series rows: beta<K1> summed to term n"},
+    {"bound", "beta_K1_error", false,
+     "series rows: the truncation bound, now 3 digits rounded up (null, not inf, while none "
+     "exists)"},
+    {"error_kind", "beta_K1_error_kind", false, "series JSON"},
 };
 
 }  // namespace
@@ -40,8 +55,12 @@ std::vector<std::pair<std::string, std::string>> schema0_columns(std::string_vie
     const Field field{r.new_name, Kind::real, r.per_particle ? Shape::per_particle : Shape::scalar,
                       {}};
     if (!r.per_particle) {
-      if (r.old_name == old_name && r.old_name != r.new_name && r.new_name != "X_error_kind")
+      // an old name of several commands: its first entry, the averages' (the CSV --columns reads)
+      if (r.old_name == old_name && r.old_name != r.new_name && !r.new_name.empty() &&
+          r.new_name != "X_error_kind") {
         columns.emplace_back(std::string(old_name), std::string(r.new_name));
+        return columns;
+      }
       continue;
     }
     // the old stem, or one old column stem + i

@@ -16,7 +16,7 @@ namespace pendavg::io {
 /// One renamed key or column family of schema 0.
 struct Rename {
   std::string_view old_name;  ///< schema 0's key, or its per-particle stem (error_K: error_K1..N)
-  std::string_view new_name;  ///< schema 1's field
+  std::string_view new_name;  ///< schema 1's field (empty: a column that went away)
   bool per_particle;          ///< CSV: old_name + i -> column_name(new field, i)
   std::string_view where;     ///< the outputs that used the old name
   /// pendavg 0.2's Python result objects had old_name as an attribute: the package keeps it as

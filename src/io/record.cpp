@@ -127,10 +127,15 @@ void Record::complete() const {
 std::string column_name(const Field& field, std::size_t i) {
   if (field.shape == Shape::scalar) return std::string(field.name);
   const std::string index = std::to_string(i + 1);
-  constexpr std::string_view suffix = "_error";
-  if (field.name.size() > suffix.size() && field.name.ends_with(suffix))
-    return std::string(field.name.substr(0, field.name.size() - suffix.size())) + index +
-           std::string(suffix);
+  // the index before "_error", at the end (K_error -> K1_error) or before a qualifier
+  // (K_error_blocking -> K1_error_blocking)
+  constexpr std::string_view error = "_error";
+  for (std::size_t at = field.name.find(error, 1); at != std::string_view::npos;
+       at = field.name.find(error, at + 1)) {
+    const std::size_t end = at + error.size();
+    if (end == field.name.size() || field.name[end] == '_')
+      return std::string(field.name.substr(0, at)) + index + std::string(field.name.substr(at));
+  }
   return std::string(field.name) + index;
 }
 
@@ -312,6 +317,17 @@ std::string cell_text(const Record& record, const Cell& cell, Kind kind) {
   return cell.tag == Cell::Tag::none ? std::string("-") : out;
 }
 
+}  // namespace
+
+std::vector<std::string> text_cells(const Record& record) {
+  std::vector<std::string> out;
+  out.reserve(record.cells().size());
+  for (std::size_t k = 0; k < record.fields().size(); ++k)
+    for (const Cell& cell : record.cells_of(k))
+      out.push_back(cell_text(record, cell, record.fields()[k].kind));
+  return out;
+}
+
 std::string aligned(const std::vector<std::vector<std::string>>& rows) {
   std::vector<std::size_t> widths;
   for (const auto& row : rows) {
@@ -329,8 +345,6 @@ std::string aligned(const std::vector<std::vector<std::string>>& rows) {
   }
   return out;
 }
-
-}  // namespace
 
 std::string text_report(const Record& record) {
   const auto fields = record.fields();

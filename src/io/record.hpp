@@ -115,7 +115,9 @@ class Record {
   char* decimal_room(std::size_t size);
   void commit_decimal(const char* end);
   /// A double run's error e of a value whose printed text lies up to `gap` from it: the cell
-  /// keeps e (what the library computed), its text covers the printed value (covering).
+  /// keeps e (what the library computed), its text covers the printed value (covering). A
+  /// record filled without texts (Printing::texts) has deferred_gap there: the value's
+  /// shortest_gap, for whoever prints it later (io's writers print records with texts).
   void error(double e, double gap) {
     Cell& c = add();
     c.tag = Cell::Tag::number;
@@ -173,8 +175,9 @@ class Record {
 /// The number of cells of `fields` for `particles`.
 std::size_t cell_count(std::span<const Field> fields, std::size_t particles);
 
-/// A field's CSV column for particle i (0-based): stem + (i + 1), the index before a trailing
-/// "_error" (beta_K_error -> beta_K1_error); a scalar field's name.
+/// A field's CSV column for particle i (0-based): stem + (i + 1), the index before "_error" at
+/// the end or before a qualifier (beta_K_error -> beta_K1_error, K_error_blocking ->
+/// K1_error_blocking); a scalar field's name.
 std::string column_name(const Field& field, std::size_t i);
 
 /// The field whose error field k is (the schema's X for X_error, of the same shape), or
@@ -202,6 +205,10 @@ void append_csv_cells(std::string& out, const Record& record,
 /// max_cell_length(record, cell).
 char* write_cell(char* out, const Record& record, const Cell& cell);
 std::size_t max_cell_length(const Record& record, const Cell& cell);
+/// Cell::gap of an error whose value was recorded without its text (Printing::texts): its
+/// value's shortest_gap, made when the error is printed.
+inline constexpr double deferred_gap = -1;
+
 /// What a double run prints for an error e of a value printed up to `gap` from it: e + gap
 /// rounded up (e itself when the value's text is exact).
 inline double covering(double e, double gap) {
@@ -222,6 +229,12 @@ char* write_number(char* out, double x, Kind kind);
 /// row per particle, the field names as headers), then every scalar field as `name = value`,
 /// a value X with X_error and X_error_kind as `X = v +- e (kind)`.
 std::string text_report(const Record& record);
+
+/// Each cell of `record` as the text report prints it ("-" for an absent value).
+std::vector<std::string> text_cells(const Record& record);
+
+/// Rows of cells as right-aligned columns separated by two spaces, one line per row.
+std::string aligned(const std::vector<std::vector<std::string>>& rows);
 
 /// --columns LIST: the cells of `columns` (a row's CSV column names) that LIST selects, in
 /// LIST's order. An item is a column name (cos_phi2), a per-particle stem (cos_phi: cos_phi1..N;

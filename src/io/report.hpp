@@ -8,7 +8,9 @@
 
 #include "io/record.hpp"
 
+#include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -26,7 +28,7 @@ struct Report {
   struct Row {
     std::string_view label;              ///< with several rows: the JSON key, the `row_key` cell
     std::vector<const Record*> records;  ///< the row's results
-    std::string run = "null";            ///< JSON only: the method's run diagnostics (an object)
+    std::string run = "null";  ///< JSON only: the method's run diagnostics (an object; empty: none)
   };
   std::vector<Row> rows;
   std::string_view row_key;        ///< with several rows: the CSV column naming each row's label
@@ -34,6 +36,25 @@ struct Report {
 };
 
 std::string format_report(const Report& report, Format format);
+
+/// A result that is a list of rows of one table (series' terms, poincare's section points):
+///   JSON: {"schema": 1, "command": C, <head>, "<list_key>": [{<row>}, ...], "seconds": s}
+///   CSV:  the "# schema: 1" and "# pendavg C" lines, a header, one line per row: the head's
+///         cells (the same on every line), then the row's
+///   text: the head, then the rows as an aligned table under their field names, then seconds
+/// The rows are filled one at a time into one record (a long list is never held as records).
+struct ListReport {
+  std::string_view command;
+  std::vector<const Record*> head;
+  std::string_view list_key;          ///< JSON: the key of the array of rows
+  std::span<const Field> row_fields;  ///< the rows' table (scalar fields)
+  std::size_t rows = 0;
+  /// Fills `record` (reset to row_fields) with row k.
+  std::function<void(std::size_t k, Record& record)> fill_row;
+  std::optional<double> seconds;  ///< wall time of the whole command
+};
+
+std::string format_list_report(const ListReport& report, Format format);
 
 /// A wall time in seconds with 6 significant digits.
 std::string seconds_text(double seconds);

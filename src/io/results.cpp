@@ -5,6 +5,8 @@
 #include "io/migration.hpp"
 #include "io/number_text.hpp"
 
+#include "io/exact_values.hpp"
+
 #include "engine/precision.hpp"
 #include "engine/text.hpp"
 #include "pendavg/average.hpp"
@@ -12,6 +14,7 @@
 #include <gmp.h>
 #include <mpfr.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -115,21 +118,126 @@ constexpr Field excitation_inputs[] = {canonical_inputs[0], canonical_inputs[1],
                                        canonical_inputs[3], canonical_inputs[4],
                                        canonical_inputs[5]};
 
-constexpr Field series_terms[] = {
-    {"n", K::count, one, "the term's index, from 0"},
-    {"R_n", K::real, one,
-     "R_n(a1, a2) = (1/pi) int_0^pi cos^{2n} t I0(R(t)) dt, scaled by exp(-(a1 + a2))"},
-    {"term", K::real, one, "c_n mu2^n R_n, the n-th term of the numerator (scaled)"},
-    {"numerator", K::real, one, "the numerator's partial sum up to n (scaled)"},
-    {"denominator", K::real, one, "the denominator's partial sum up to n (scaled)"},
-    {"value", K::real, one, "beta<K_1> after n terms: (mu1/2) numerator / denominator"},
-    {"bound", K::real, one, "a rigorous bound on |beta<K_1> - value| from both tails"},
+// ---------------------------------------------------------------- simulate and poincare
+
+constexpr Field simulation_inputs[] = {
+    canonical_inputs[0], canonical_inputs[3], canonical_inputs[4], canonical_inputs[5],
+    {"ensemble", K::text, one,
+     "microcanonical (no thermostat: the energy is conserved) or canonical (Langevin at beta)"},
+    {"integrator", K::text, one,
+     "the scheme: yoshida6, yoshida4, suzuki4, kahan-li6, rattle2 or baoab-rattle (Langevin)"},
+    {"dt", K::real, one, "the time step"},
+    {"beta", K::real, one, "Langevin: the bath's inverse temperature (empty without a thermostat)"},
+    {"friction", K::real, one, "Langevin: the friction gamma (empty without a thermostat)"},
 };
 
-constexpr Field series_summary[] = {
-    {"terms", K::count, one, "the terms taken"},
-    {"certified", K::flag, one, "true: the last bound is at most 10^-digits relative to its value"},
-    {"error_kind", K::text, one, "what each term's bound promises (bound)"},
+constexpr std::string_view statistical_kind = "what the error promises: statistical (1 sigma)";
+
+constexpr Field simulation_table[] = {
+    {"time", K::real, one, "the averaging time simulated (summed over replicas)"},
+    {"energy", K::real, one, "E of the initial state"},
+    {"K", K::real, each, "<K_i> over time: the mean kinetic energy of particle i"},
+    {"K_error", K::error, each, "its error bar (one standard error, from blocking)"},
+    {"K_error_kind", K::text, one, statistical_kind},
+    {"Kc", K::real, each, "<K_i^(c)> over time, K_i^(c) = p_i phidot_i / 2"},
+    {"Kc_error", K::error, each, "its error bar"},
+    {"Kc_error_kind", K::text, one, statistical_kind},
+    {"K_autocorrelation_time", K::real, each, "the integrated autocorrelation time of K_i"},
+    {"cos_phi", K::real, each, "<cos phi_i> over time"},
+    {"cos_phi_error", K::error, each, "its error bar"},
+    {"cos_phi_error_kind", K::text, one, statistical_kind},
+    {"K_total", K::real, one, "<K> over time"},
+    {"K_total_error", K::error, one, "its error bar"},
+    {"K_total_error_kind", K::text, one, statistical_kind},
+    {"potential", K::real, one, "<U> over time"},
+    {"potential_error", K::error, one, "its error bar"},
+    {"potential_error_kind", K::text, one, statistical_kind},
+    {"error_reason", K::text, one, "why error bars are empty (too few blocks finished)"},
+    {"exact_method", K::text, one, "the method of the exact values (empty with --exact no)"},
+    {"exact_excitation", K::real, one,
+     "microcanonical: D = E - E_min of the initial state, where the exact values are taken"},
+    {"exact_K", K::real, each, "the exact <K_i> of the run's ensemble"},
+    {"exact_K_error", K::error, each, "its absolute error"},
+    {"exact_K_error_kind", K::text, one, "what exact_K_error promises"},
+    {"exact_Kc", K::real, one, "the exact <K_i^(c)> (the same for every particle)"},
+    {"exact_Kc_error", K::error, one, "its absolute error"},
+    {"exact_Kc_error_kind", K::text, one, "what exact_Kc_error promises"},
+    {"exact_cos_phi", K::real, each, "the exact <cos phi_i>"},
+    {"exact_cos_phi_error", K::error, each, "its absolute error"},
+    {"exact_cos_phi_error_kind", K::text, one, "what exact_cos_phi_error promises"},
+    {"exact_var_K", K::real, each, "the exact Var K_i (energy units squared)"},
+    {"exact_var_K_error", K::error, each, "its absolute error"},
+    {"exact_var_K_error_kind", K::text, one, "what exact_var_K_error promises"},
+    {"exact_var_K_reason", K::text, one, "why exact_var_K is empty (outside double's range)"},
+    {"K_deviation_sigmas", K::real, each,
+     "(K_i - exact_K_i) / hypot(K_error_i, exact_K_error_i)"},
+    {"energy_drift", K::real, one, "(E(T) - E(0)) / the energy scale (sum m) g (sum l)"},
+    {"energy_error_max", K::error, one, "max_t |E(t) - E(0)| / the energy scale"},
+    {"energy_error_rms", K::error, one, "the root mean square of (E(t) - E(0)) / the energy scale"},
+    {"energy_trend", K::real, one,
+     "no thermostat: the least-squares change of E over the run / the energy scale"},
+    {"energy_trend_reason", K::text, one, "why energy_trend is empty (a Langevin run)"},
+    {"constraint_residual", K::error, one, "max over the run of max_i | |r_i| - l_i | / l_i"},
+    {"steps", K::count, one, "time steps taken (summed over replicas)"},
+    {"samples", K::count, one, "samples averaged (summed over replicas)"},
+    {"newton_solves", K::count, one, "Newton solves of the constraints (summed over replicas)"},
+    {"unconverged_stages", K::count, one, "constraint solves that did not converge"},
+    {"interrupted", K::flag, one, "true: stopped early by a signal; the averages so far"},
+};
+
+constexpr Field replica_table[] = {
+    {"replicas", K::count, one, "the replicas that finished (also when interrupted)"},
+    {"replicas_requested", K::count, one, "the replicas asked for (--replicas)"},
+    {"replica_time", K::real, one, "each replica's averaging time (--time)"},
+    {"replica_energy_spread", K::error, one, "the largest |E_r - E| over the replicas"},
+    {"K_error_blocking", K::error, each, "the blocking error of the pooled <K_i>"},
+    {"K_error_replicas", K::error, each, "the standard error of the spread between replicas"},
+    {"Kc_error_blocking", K::error, each, "the same for <K_i^(c)>"},
+    {"Kc_error_replicas", K::error, each, "the same for <K_i^(c)>"},
+    {"cos_phi_error_blocking", K::error, each, "the same for <cos phi_i>"},
+    {"cos_phi_error_replicas", K::error, each, "the same for <cos phi_i>"},
+    {"K_total_error_blocking", K::error, one, "the same for <K>"},
+    {"K_total_error_replicas", K::error, one, "the same for <K>"},
+    {"potential_error_blocking", K::error, one, "the same for <U>"},
+    {"potential_error_replicas", K::error, one, "the same for <U>"},
+    {"replicas_error_reason", K::text, one, "why the replicas' errors are empty"},
+};
+
+constexpr Field poincare_table[] = {
+    canonical_inputs[0], canonical_inputs[3], canonical_inputs[4], canonical_inputs[5],
+    {"energy", K::real, one, "the energy E of every orbit"},
+    {"orbits", K::count, one, "orbits started on the section"},
+    {"points_per_orbit", K::count, one, "crossings asked for per orbit"},
+    {"dt", K::real, one, "the time step"},
+    {"steps", K::count, one, "time steps taken (all orbits)"},
+    {"energy_error_max", K::error, one, "max over the orbits of |E(t) - E| / (sum m) g (sum l)"},
+    {"interrupted", K::flag, one, "true: stopped early by a signal; the points so far"},
+};
+
+constexpr Field section_point_table[] = {
+    {"orbit", K::count, one, "the orbit (0-based)"},
+    {"phi2", K::real, one, "phi_2 in (-pi, pi] where the orbit crosses phi_1 = 0 upward"},
+    {"p2", K::real, one, "the canonical momentum p_2 there"},
+    {"time", K::real, one, "the time of the crossing"},
+};
+
+// ---------------------------------------------------------------- series
+
+constexpr Field series_run_table[] = {
+    {"terms", K::count, one, "the rows (terms summed)"},
+    {"certified", K::flag, one, "true: the last bound certifies the requested digits"},
+    {"beta_K1_error_kind", K::text, one, "what beta_K1_error promises: bound"},
+};
+
+constexpr Field series_row_table[] = {
+    {"n", K::count, one, "the term's index"},
+    {"R_n", K::real, one, "R_n(a1, a2), scaled by exp(-(a1 + a2))"},
+    {"term", K::real, one, "c_n mu2^n R_n, the n-th numerator term (scaled)"},
+    {"numerator", K::real, one, "the numerator's partial sum (scaled)"},
+    {"denominator", K::real, one, "the denominator's partial sum (scaled)"},
+    {"beta_K1", K::real, one, "beta<K1> summed to term n: (mu1/2) numerator / denominator"},
+    {"beta_K1_error", K::error, one,
+     "the rigorous bound on |beta<K1> - beta_K1| from the tails (empty while none exists)"},
 };
 
 constexpr NamedTable tables[] = {
@@ -140,11 +248,13 @@ constexpr NamedTable tables[] = {
     {"canonical averages", averages_table},
     {"microcanonical averages (after --energy)", microcanonical_after_energy},
     {"microcanonical averages (after --excitation)", microcanonical_after_excitation},
-};
-
-constexpr NamedTable series_named[] = {
-    {"series", series_summary},
-    {"series terms", series_terms},
+    {"simulation inputs", simulation_inputs},
+    {"simulation", simulation_table},
+    {"simulation replicas", replica_table},
+    {"poincare section", poincare_table},
+    {"section point", section_point_table},
+    {"series run (after the canonical inputs)", series_run_table},
+    {"series row", series_row_table},
 };
 
 // ---------------------------------------------------------------- cells
@@ -180,7 +290,7 @@ template <class Real>
 void put_error(Record& r, const Real& value, const Real& e, Printing p, double gap = 0) {
   if constexpr (std::is_same_v<Real, double>) {
     (void)value;
-    r.error(e, gap);  // printed as e + gap rounded up (covering)
+    r.error(e, p.texts ? gap : deferred_gap);  // printed as e + gap rounded up (covering)
   } else {
     keep_exact(r, e);
     char* at = r.decimal_room(decimal_max_length(error_digits));
@@ -331,31 +441,6 @@ std::span<const Field> microcanonical_fields(std::string_view state) {
                            : std::span<const Field>(microcanonical_after_excitation);
 }
 std::span<const NamedTable> all_tables() { return tables; }
-std::span<const NamedTable> series_tables() { return series_named; }
-std::span<const Field> series_term_fields() { return series_terms; }
-std::span<const Field> series_fields() { return series_summary; }
-
-void append_series_term(Record& r, const SeriesRow<mpfr_real>& row, Printing p) {
-  r.integer(static_cast<long long>(row.n));
-  for (const mpfr_real* x : {&row.R_n, &row.term, &row.numerator, &row.denominator,
-                             &row.beta_kinetic1, &row.bound})
-    put_value(r, *x, p);
-  r.complete();
-}
-
-bool series_certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
-  if (rows.empty()) return false;
-  const SeriesRow<mpfr_real>& last = rows.back();
-  return last.bound <= abs(last.beta_kinetic1) * pow(mpfr_real(10), -digits);
-}
-
-void append_series(Record& r, const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
-  r.integer(static_cast<long long>(rows.size()));
-  r.flag(series_certifies(rows, digits));
-  r.text(error_kind_name(ErrorKind::bound));
-  r.complete();
-}
-
 template <class Real>
 void append_canonical_inputs(Record& r, const Chain<Real>& chain, const Real& beta,
                              Printing p, std::span<const std::string_view> texts) {
@@ -537,6 +622,251 @@ std::string migration_text() {
     out += "| " + old_name + " | " + new_name + " | " + std::string(r.where) + " |\n";
   }
   return out;
+}
+
+// ---------------------------------------------------------------- simulate and poincare
+
+std::span<const Field> simulation_input_fields() { return simulation_inputs; }
+std::span<const Field> simulation_fields() { return simulation_table; }
+std::span<const Field> replica_fields() { return replica_table; }
+std::span<const Field> poincare_fields() { return poincare_table; }
+std::span<const Field> section_point_fields() { return section_point_table; }
+
+namespace {
+
+/// A value of a trajectory: absent (null) when it does not exist (NaN: an unknown error bar).
+void put_finite(Record& r, double x) {
+  if (std::isfinite(x)) r.number(x);
+  else r.none();
+}
+
+/// An error beside `value`: absent when either does not exist.
+void put_error_of(Record& r, double value, double error) {
+  if (std::isfinite(value) && std::isfinite(error)) r.number(error);
+  else r.none();
+}
+
+void put_reason(Record& r, bool applies, std::string_view reason) {
+  if (applies) r.text(reason);
+  else r.none();
+}
+
+}  // namespace
+
+void append_simulation_inputs(Record& r, const Chain<double>& chain, const SimulationOptions& run,
+                              std::string_view integrator, std::span<const std::string_view> texts) {
+  const bool langevin = run.thermostat == Thermostat::langevin;
+  r.integer(static_cast<long long>(chain.size()));
+  put_chain(r, chain, texts, 0, Printing{});
+  r.text(langevin ? "canonical" : "microcanonical");
+  r.text(integrator);
+  r.number(run.time_step);
+  if (langevin && run.beta) r.number(*run.beta);
+  else r.none();
+  if (langevin) r.number(run.friction.value_or(1));
+  else r.none();
+  r.complete();
+}
+
+void append_simulation(Record& r, const SimulationResult<double>& s, double energy,
+                       const io::ExactValues* exact, bool langevin) {
+  const std::size_t n = r.particles();
+  const std::string_view statistical = error_kind_name(ErrorKind::statistical);
+  const auto averages = [&](const std::vector<TimeAverage<double>>& xs) {
+    for (std::size_t i = 0; i < n; ++i) put_finite(r, i < xs.size() ? xs[i].value : NAN);
+    for (std::size_t i = 0; i < n; ++i)
+      if (i < xs.size()) put_error_of(r, xs[i].value, xs[i].error);
+      else r.none();
+    r.text(statistical);
+  };
+  const auto average = [&](const TimeAverage<double>& x) {
+    put_finite(r, x.value);
+    put_error_of(r, x.value, x.error);
+    r.text(statistical);
+  };
+  r.number(s.simulated_time);
+  r.number(energy);
+  averages(s.kinetic);
+  averages(s.kinetic_canonical);
+  for (std::size_t i = 0; i < n; ++i)
+    put_finite(r, i < s.kinetic.size() ? s.kinetic[i].autocorrelation_time : NAN);
+  averages(s.cos_angle);
+  average(s.kinetic_total);
+  average(s.potential);
+  bool unknown = false;
+  for (const auto* list : {&s.kinetic, &s.kinetic_canonical, &s.cos_angle})
+    for (const TimeAverage<double>& x : *list) unknown = unknown || !std::isfinite(x.error);
+  put_reason(r, unknown,
+             "fewer than 16 averaging blocks finished (an early interrupt or a --time too short "
+             "for the block length): the error bars are unknown");
+  // the exact values (all empty with --exact no)
+  const auto values = [&](const std::vector<double>* v, const std::vector<double>* e,
+                          const std::string* kind) {
+    for (std::size_t i = 0; i < n; ++i) put_finite(r, v && i < v->size() ? (*v)[i] : NAN);
+    for (std::size_t i = 0; i < n; ++i)
+      if (v && i < v->size()) put_error_of(r, (*v)[i], (*e)[i]);
+      else r.none();
+    if (kind) r.text(*kind);
+    else r.none();
+  };
+  const io::ExactValues* x = exact;
+  if (x) r.text(x->method);
+  else r.none();
+  if (x && !langevin) r.number(x->excitation);
+  else r.none();
+  values(x ? &x->kinetic : nullptr, x ? &x->kinetic_error : nullptr,
+         x ? &x->error_kind : nullptr);
+  if (x) {
+    put_finite(r, x->kinetic_canonical);
+    put_error_of(r, x->kinetic_canonical, x->kinetic_canonical_error);
+    r.text(x->kinetic_canonical_error_kind);
+  } else {
+    r.none();
+    r.none();
+    r.none();
+  }
+  values(x ? &x->cos_angle : nullptr, x ? &x->cos_angle_error : nullptr,
+         x ? &x->cos_angle_error_kind : nullptr);
+  values(x ? &x->variance : nullptr, x ? &x->variance_error : nullptr,
+         x ? &x->variance_error_kind : nullptr);
+  put_reason(r, x && std::ranges::any_of(x->variance, [](double v) { return !std::isfinite(v); }),
+             "Var K_i = beta^2 Var K_i / beta^2 is outside the double range at this beta");
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!x || i >= s.kinetic.size()) {
+      r.none();
+      continue;
+    }
+    put_finite(r, (s.kinetic[i].value - x->kinetic[i]) /
+                      std::hypot(s.kinetic[i].error, x->kinetic_error[i]));
+  }
+  // the energy diagnostics and the work
+  put_finite(r, s.energy_drift);
+  put_error_of(r, 0.0, s.energy_error_max);
+  put_error_of(r, 0.0, s.energy_error_rms);
+  if (langevin) r.none();
+  else put_finite(r, s.energy_trend);
+  put_reason(r, langevin,
+             "a Langevin run exchanges energy with its bath: the trend of E(t) is reported for "
+             "fixed-energy (NVE) runs only");
+  put_error_of(r, 0.0, s.constraint_residual);
+  r.integer(static_cast<long long>(s.steps));
+  r.integer(static_cast<long long>(s.samples));
+  r.integer(static_cast<long long>(s.newton_solves));
+  r.integer(static_cast<long long>(s.unconverged_stages));
+  r.flag(s.interrupted);
+  r.complete();
+}
+
+void append_replicas(Record& r, const ReplicaSpread& spread, double replica_time) {
+  const std::size_t n = r.particles();
+  r.integer(static_cast<long long>(spread.replicas));
+  r.integer(static_cast<long long>(spread.requested));
+  r.number(replica_time);
+  put_error_of(r, 0.0, spread.energy_spread);
+  for (const std::vector<double>* v :
+       {&spread.kinetic_blocking, &spread.kinetic_replicas, &spread.canonical_blocking,
+        &spread.canonical_replicas, &spread.cosine_blocking, &spread.cosine_replicas})
+    for (std::size_t i = 0; i < n; ++i) put_error_of(r, 0.0, i < v->size() ? (*v)[i] : NAN);
+  for (const double e : {spread.total_blocking, spread.total_replicas, spread.potential_blocking,
+                         spread.potential_replicas})
+    put_error_of(r, 0.0, e);
+  put_reason(r, spread.replicas < 2, "fewer than two replicas finished");
+  r.complete();
+}
+
+void append_poincare(Record& r, const Chain<double>& chain, const PoincareOptions& options,
+                     const PoincareSection<double>& section,
+                     std::span<const std::string_view> texts) {
+  r.integer(static_cast<long long>(chain.size()));
+  // texts: the energy, then g, m1..mN, l1..lN (input_texts' order)
+  put_chain(r, chain, texts, 1, Printing{});
+  put_input(r, section.energy, texts, 0, Printing{});
+  r.integer(static_cast<long long>(options.orbits));
+  r.integer(static_cast<long long>(options.points));
+  r.number(options.time_step);
+  r.integer(static_cast<long long>(section.steps));
+  put_error_of(r, 0.0, section.energy_error_max);
+  r.flag(section.interrupted);
+  r.complete();
+}
+
+void append_section_point(Record& r, const SectionPoint<double>& p) {
+  r.integer(static_cast<long long>(p.orbit));
+  r.number(p.phi2);
+  r.number(p.p2);
+  r.number(p.time);
+  r.complete();
+}
+
+// ---------------------------------------------------------------- series
+
+std::span<const Field> series_run_fields() { return series_run_table; }
+std::span<const Field> series_row_fields() { return series_row_table; }
+
+bool series_certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits) {
+  if (rows.empty()) return false;
+  const SeriesRow<mpfr_real>& last = rows.back();
+  return last.bound <= abs(last.beta_kinetic1) * pow(mpfr_real(10), -digits);
+}
+
+void append_series_run(Record& r, std::size_t terms, bool certified) {
+  r.integer(static_cast<long long>(terms));
+  r.flag(certified);
+  r.text(error_kind_name(ErrorKind::bound));
+  r.complete();
+}
+
+namespace {
+
+/// x rounded to nearest double is 0 exactly when x is, and otherwise a normal double.
+bool fits_double(const mpfr_real& x) {
+  if (x == 0) return true;
+  const double d = mpfr_get_d(x.backend().data(), MPFR_RNDN);
+  return std::isnormal(d);
+}
+
+}  // namespace
+
+bool series_fits_double(const std::vector<SeriesRow<mpfr_real>>& rows,
+                        const Chain<mpfr_real>& chain, const mpfr_real& beta) {
+  if (!fits_double(beta) || !fits_double(chain.gravity())) return false;
+  for (std::size_t i = 0; i < chain.size(); ++i)
+    if (!fits_double(chain.mass(i)) || !fits_double(chain.length(i))) return false;
+  for (const SeriesRow<mpfr_real>& row : rows) {
+    for (const mpfr_real* x :
+         {&row.R_n, &row.term, &row.numerator, &row.denominator, &row.beta_kinetic1})
+      if (!fits_double(*x)) return false;
+    // the bound, rounded up (and enlarged by the value's rounding), must stay below DBL_MAX
+    if (isfinite(row.bound) && !(row.bound < mpfr_real(1e300))) return false;
+  }
+  return true;
+}
+
+void append_series_row(Record& r, const SeriesRow<mpfr_real>& row, Printing p, bool doubles) {
+  r.integer(static_cast<long long>(row.n));
+  const mpfr_real* values[] = {&row.R_n, &row.term, &row.numerator, &row.denominator,
+                               &row.beta_kinetic1};
+  for (const mpfr_real* x : values) {
+    if (doubles) {
+      keep_exact(r, *x);  // (for a front end that keeps them: the value before its rounding)
+      r.number(mpfr_get_d(x->backend().data(), MPFR_RNDN));
+    } else {
+      put_value(r, *x, p);
+    }
+  }
+  if (!isfinite(row.bound)) {
+    r.none();  // no bound yet
+  } else if (doubles) {
+    // the bound plus the rounding of beta_K1 to double, rounded up: it covers the printed value
+    const mpfr_real& v = row.beta_kinetic1;
+    const mpfr_real rounded(mpfr_get_d(v.backend().data(), MPFR_RNDN));
+    const mpfr_real e = row.bound + abs(v - rounded);
+    keep_exact(r, e);
+    r.number(mpfr_get_d(e.backend().data(), MPFR_RNDU));
+  } else {
+    put_error(r, row.beta_kinetic1, row.bound, p);
+  }
+  r.complete();
 }
 
 #define PENDAVG_IO_RESULTS(Real)                                                                 \

@@ -7,11 +7,13 @@
 #include "io/record.hpp"
 
 #include "pendavg/chain.hpp"
-#include "pendavg/mpfr.hpp"
+#include "pendavg/dynamics.hpp"
 #include "pendavg/microcanonical.hpp"
+#include "pendavg/mpfr.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/series.hpp"
 
+#include <cstddef>
 #include <optional>
 #include <span>
 #include <string>
@@ -19,6 +21,8 @@
 #include <vector>
 
 namespace pendavg::io {
+
+struct ExactValues;  // src/io/exact_values.hpp: the exact values beside a trajectory
 
 /// How a run's reals are printed: `digits` = 16 is a double run (shortest round-trip numbers);
 /// more is MPFR (`digits` significant digits, decimal text).
@@ -80,19 +84,85 @@ template <class Real>
 void append_microcanonical(Record& record, const MicrocanonicalAverages<Real>& averages,
                            Printing printing);
 
-// ---------------------------------------------------------------- the paper's series
+// ---------------------------------------------------------------- simulate
 
-/// The series for beta<K_1> term by term (`series`, pendavg.series): one record per term.
-std::span<const Field> series_term_fields();
-/// Fills a term's record (always MPFR: `printing` digits).
-void append_series_term(Record& record, const SeriesRow<mpfr_real>& row, Printing printing);
+/// A trajectory's inputs (`simulate`): N, g, m, l, ensemble, integrator, dt, beta, friction.
+std::span<const Field> simulation_input_fields();
 
-/// The series' summary after its inputs: the terms taken, whether they certify the digits, what
-/// each term's bound promises.
-std::span<const Field> series_fields();
-/// True when the last term's bound is at most 10^-digits relative to its value.
+/// Fills them: `integrator` is the name of the scheme that ran (baoab-rattle under Langevin);
+/// `texts` (when given) g, m1..mN, l1..lN as written; beta and friction only under Langevin.
+void append_simulation_inputs(Record& record, const Chain<double>& chain,
+                              const SimulationOptions& run, std::string_view integrator,
+                              std::span<const std::string_view> texts = {});
+
+/// SimulationResult<double> beside the exact values of its ensemble (`simulate`): the time
+/// averages with their statistical errors, the exact values with theirs, the energy diagnostics
+/// and the work. A value that does not exist (an error bar of too few blocks, the exact values
+/// of --exact no) is null, with a *_reason field where a run can say why.
+std::span<const Field> simulation_fields();
+
+/// Fills `record` (reset to simulation_fields()): `energy` is E of the initial state, `exact`
+/// the exact values (null: none), `langevin` whether a thermostat ran.
+void append_simulation(Record& record, const SimulationResult<double>& result, double energy,
+                       const io::ExactValues* exact, bool langevin);
+
+/// What --replicas R adds: the two error bars of every average (blocking within the replicas;
+/// the spread between them) and how far the replicas' energies lie apart.
+struct ReplicaSpread {
+  std::size_t replicas = 0, requested = 0;  ///< finished (also when interrupted), asked for
+  std::vector<double> kinetic_blocking, kinetic_replicas, canonical_blocking, canonical_replicas,
+      cosine_blocking, cosine_replicas;
+  double total_blocking = 0, total_replicas = 0;          ///< of <K>
+  double potential_blocking = 0, potential_replicas = 0;  ///< of <U>
+  double energy_spread = 0;  ///< largest |E_r - E| over the replicas (NVE perturbed starts)
+};
+
+/// The replicas' fields of a pooled run (after simulation_fields()).
+std::span<const Field> replica_fields();
+
+/// Fills them: `replica_time` is each replica's averaging time (--time).
+void append_replicas(Record& record, const ReplicaSpread& spread, double replica_time);
+
+// ---------------------------------------------------------------- poincare
+
+/// The section's inputs and run (`poincare`): N, g, m, l, energy, orbits, points_per_orbit, dt,
+/// then steps, energy_error_max, interrupted.
+std::span<const Field> poincare_fields();
+
+void append_poincare(Record& record, const Chain<double>& chain, const PoincareOptions& options,
+                     const PoincareSection<double>& section,
+                     std::span<const std::string_view> texts = {});
+
+/// One point of the section: orbit, phi2, p2, time.
+std::span<const Field> section_point_fields();
+
+void append_section_point(Record& record, const SectionPoint<double>& point);
+
+// ---------------------------------------------------------------- series
+
+/// The series run's own fields after the canonical inputs (`series`): terms, certified,
+/// beta_K1_error_kind.
+std::span<const Field> series_run_fields();
+
+void append_series_run(Record& record, std::size_t terms, bool certified);
+
+/// True when the last row's bound is at most 10^-digits relative to its value (`certified`).
 bool series_certifies(const std::vector<SeriesRow<mpfr_real>>& rows, int digits);
-void append_series(Record& record, const std::vector<SeriesRow<mpfr_real>>& rows, int digits);
+
+/// One term of the series: n, R_n, term, numerator, denominator, beta_K1 (the partial sum) and
+/// beta_K1_error (the rigorous truncation bound; null while none exists).
+std::span<const Field> series_row_fields();
+
+/// Whether every number of the rows and of the inputs rounds to a double without leaving
+/// double's normal range: a 16-digit series run then prints its values as doubles (the shortest
+/// text that reads back as the same double), else as 16-digit decimals (as MPFR runs print).
+bool series_fits_double(const std::vector<SeriesRow<mpfr_real>>& rows,
+                        const Chain<mpfr_real>& chain, const mpfr_real& beta);
+
+/// Fills `record` (reset to series_row_fields()) with `row`: as doubles (`doubles`: the value
+/// rounded to nearest, its error enlarged by that rounding) or as decimals of `printing.digits`.
+void append_series_row(Record& record, const SeriesRow<mpfr_real>& row, Printing printing,
+                       bool doubles);
 
 // ---------------------------------------------------------------- the naming table
 
@@ -102,10 +172,6 @@ struct NamedTable {
   std::span<const Field> fields;
 };
 std::span<const NamedTable> all_tables();
-/// The series' tables (series_fields, series_term_fields): used by Python's pendavg.series; not
-/// yet in all_tables (`pendavg help schema`), since the CLI's `series` still prints its own
-/// columns (the same names).
-std::span<const NamedTable> series_tables();
 
 /// The naming table as Markdown: every table's fields (name, kind, per particle, meaning), the
 /// naming rules first. `pendavg help schema` prints it; src/io/README.md holds it.

@@ -13,7 +13,7 @@
 #include "inputs.hpp"
 #include "parallel.hpp"
 
-#include "cli/exact_values.hpp"
+#include "io/exact_values.hpp"
 #include "io/parse.hpp"
 
 #include "pendavg/pendavg.hpp"
@@ -33,7 +33,7 @@
 
 namespace pendavg::cli {
 // The front-end library's parsing under the names this file has used (the CLI's args.hpp spells
-// them so): src/python includes nothing from src/cli but exact_values.hpp.
+// them so): src/python includes nothing from src/cli.
 using io::Domain;
 using io::parse_choice;
 using io::parse_integer;
@@ -47,7 +47,7 @@ namespace pendavg::python {
 namespace {
 
 using cli::Domain;
-using cli::ExactValues;
+using io::ExactValues;
 
 constexpr std::array<std::string_view, 5> integrator_names{"rattle2", "yoshida4", "suzuki4",
                                                            "kahan-li6", "yoshida6"};
@@ -168,9 +168,9 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   std::optional<ExactValues> reference;
   if (with_exact) {
     py::gil_scoped_release release;
-    reference = langevin ? cli::canonical_values(chain, *run.beta)
-                         : cli::microcanonical_values(
-                               chain, cli::initial_excitation(chain, initial, angles));
+    reference = langevin ? io::canonical_values(chain, *run.beta)
+                         : io::microcanonical_values(
+                               chain, io::initial_excitation(chain, initial, angles));
   }
   std::vector<double> t, e, phis, phidots;  // the trajectory, filled by the run's thread
   DynamicsObserver<double> observer;

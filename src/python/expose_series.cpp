@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // src/python/expose_series.cpp -- pendavg.series: the paper's series for beta<K_1> term by term
 // (eq. ave-K1-result; pendavg/series.hpp), as `pendavg series` computes it (src/cli/series.cpp):
-// always in MPFR at digits + guard digits, whatever the digits. The inputs, the summary and each
-// term are filled into records of the front-end library's series tables (io::series_fields,
-// io::series_term_fields), from which the result's fields are made (table_result.hpp): the
-// summary's as single values, the terms' as arrays with one entry per term.
+// always in MPFR at digits + guard digits, whatever the digits. The inputs, the run and each term
+// are filled into the records `pendavg series` prints (io::series_run_fields,
+// io::series_row_fields), from which the result's fields are made (table_result.hpp): the
+// call's as single values, the terms' as arrays with one entry per term.
 #include "bindings.hpp"
 #include "inputs.hpp"
 #include "parallel.hpp"
@@ -30,6 +30,12 @@ namespace {
 
 using io::Domain;
 
+/// The series' own fields after its inputs, and each term's (the CLI's tables).
+std::vector<ClassField> call_fields() {
+  return class_fields({{io::canonical_input_fields(), true}, {io::series_run_fields(), false}});
+}
+std::vector<ClassField> term_fields() { return class_fields({{io::series_row_fields(), false}}); }
+
 py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::handle g,
                 py::handle digits, py::handle terms, const py::object& progress) {
   const int d = digits_option(digits);
@@ -39,7 +45,7 @@ py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::hand
   for (const py::object& x : entries(masses)) mass_texts.push_back(number_text(x, "masses"));
   for (const py::object& x : entries(lengths)) length_texts.push_back(number_text(x, "lengths"));
   const std::string g_text = number_text(g, "g"), beta_text = number_text(beta, "beta");
-  // The call (its inputs and summary: one point) and the terms (a grid of one point per term).
+  // The call (its inputs and run: one point) and the terms (a grid of one point per term).
   TableResult call, rows;
   call.digits = rows.digits = d;
   // The Bessel table reports its progress and stops on Ctrl-C (RunControl; no row exists before
@@ -62,43 +68,59 @@ py::dict series(py::handle masses, py::handle lengths, py::handle beta, py::hand
                           " lengths");
     const Chain<mpfr_real> chain(std::move(m), std::move(l), std::move(gravity));
     const mpfr_real b = io::parse_real<mpfr_real>(beta_text, "beta", Domain::positive);
-    const auto terms_taken = series_convergence(chain, b, d, term_count, control);
+    const auto taken = series_convergence(chain, b, d, term_count, control);
+    // As `pendavg series` prints them: a 16-digit run whose numbers fit a double in double
+    // (the inputs as written read as doubles), else decimals of `digits` digits.
     const io::Printing printing{d};
+    const bool doubles = printing.in_double() && io::series_fits_double(taken, chain, b);
     const std::size_t n = chain.size();
     call.particles = rows.particles = n;
-    call.layout({{io::canonical_input_fields(), true}, {io::series_fields(), false}}, true);
-    io::Record inputs, summary, term;
-    for (io::Record* r : {&inputs, &summary, &term}) r->keep_exact(true);
+    call.layout({{io::canonical_input_fields(), true}, {io::series_run_fields(), false}}, true);
+    io::Record inputs, run, term;
+    for (io::Record* r : {&inputs, &run, &term}) r->keep_exact(true);
     inputs.reset(io::canonical_input_fields(), n);
-    std::vector<std::string_view> written{beta_text, g_text};
-    written.insert(written.end(), mass_texts.begin(), mass_texts.end());
-    written.insert(written.end(), length_texts.begin(), length_texts.end());
-    io::append_canonical_inputs(inputs, chain, b, printing, written);
-    summary.reset(io::series_fields(), n);
-    io::append_series(summary, terms_taken, d);
-    const std::array<const io::Record*, 2> call_records{&inputs, &summary};
+    if (doubles) {
+      const auto read = [](const std::string& x) {
+        return io::parse_real<double>(x, "", Domain::any);  // (fits: series_fits_double)
+      };
+      std::vector<double> md, ld;
+      for (const std::string& x : mass_texts) md.push_back(read(x));
+      for (const std::string& x : length_texts) ld.push_back(read(x));
+      io::append_canonical_inputs(inputs, Chain<double>(std::move(md), std::move(ld), read(g_text)),
+                                  read(beta_text), io::Printing{});
+    } else {
+      std::vector<std::string_view> written{beta_text, g_text};
+      written.insert(written.end(), mass_texts.begin(), mass_texts.end());
+      written.insert(written.end(), length_texts.begin(), length_texts.end());
+      io::append_canonical_inputs(inputs, chain, b, printing, written);
+    }
+    run.reset(io::series_run_fields(), n);
+    io::append_series_run(run, taken.size(), io::series_certifies(taken, d));
+    const std::array<const io::Record*, 2> call_records{&inputs, &run};
     call.store(0, call_records);
-    rows.shape = {static_cast<py::ssize_t>(terms_taken.size())};
-    rows.layout({{io::series_term_fields(), false}}, true);
-    for (std::size_t k = 0; k < terms_taken.size(); ++k) {
-      term.reset(io::series_term_fields(), n);
-      io::append_series_term(term, terms_taken[k], printing);
+    rows.shape = {static_cast<py::ssize_t>(taken.size())};
+    rows.layout({{io::series_row_fields(), false}}, true);
+    for (std::size_t k = 0; k < taken.size(); ++k) {
+      term.reset(io::series_row_fields(), n);
+      io::append_series_row(term, taken[k], printing, doubles);
       const std::array<const io::Record*, 1> row{&term};
       rows.store(k, row);
     }
   }, stop, fraction, progress);
   // No NaN or infinity reaches Python (ValueError, one line).
   rows.require_finite("series", "the series cannot be evaluated for this chain");
-  py::dict out;
-  for (const std::span<const io::Field> fields :
-       {io::canonical_input_fields(), io::series_fields()})
-    for (const io::Field& f : fields) out[std::string(f.name).c_str()] = call.value(f.name);
-  py::dict decimal, exact;
-  const py::dict row_decimal = rows.decimal();
+  py::dict out, decimal;
+  const py::dict call_decimal = call.decimal(), row_decimal = rows.decimal();
+  for (const ClassField& f : call_fields()) {
+    const std::string name(f.field.name);
+    out[name.c_str()] = call.value(f.field.name);
+    if (call_decimal.contains(name)) decimal[name.c_str()] = call_decimal[name.c_str()];
+  }
   const py::object row_exact = rows.exact();
-  for (const io::Field& f : io::series_term_fields()) {
-    const std::string name(f.name);
-    out[name.c_str()] = rows.value(f.name);
+  py::dict exact;
+  for (const ClassField& f : term_fields()) {
+    const std::string name(f.field.name);
+    out[name.c_str()] = rows.value(f.field.name);
     if (row_decimal.contains(name)) {
       decimal[name.c_str()] = row_decimal[name.c_str()].attr("tolist")();
       exact[name.c_str()] = row_exact[name.c_str()];
@@ -117,9 +139,7 @@ void expose_series(py::module_& m) {
         "progress"_a,
         "The paper's series term by term as a dict of arrays (see pendavg.series).");
   m.def("series_fields", [] {
-    return py::make_tuple(field_tuples(class_fields({{io::canonical_input_fields(), true},
-                                                     {io::series_fields(), false}})),
-                          field_tuples(class_fields({{io::series_term_fields(), false}})));
+    return py::make_tuple(field_tuples(call_fields()), field_tuples(term_fields()));
   }, "(the series' fields, its terms' fields) as (name, kind, per_particle, meaning, input) "
      "tuples.");
 }

@@ -63,15 +63,11 @@ PYBIND11_MODULE(_pendavg, m) {
   m.def("one_minus_decimal", [](const std::string& x, const std::string& what) {
     return pendavg::io::one_minus_decimal(x, what);
   });
-  // Every field table of the output schema (io::all_tables, io::series_tables): {table: [(name, kind,
+  // Every field table of the output schema (io::all_tables): {table: [(name, kind,
   // per_particle, meaning)]}, what the result classes are generated from.
   m.def("tables", [] {
     pybind11::dict out;
-    std::vector<pendavg::io::NamedTable> tables(pendavg::io::all_tables().begin(),
-                                                pendavg::io::all_tables().end());
-    tables.insert(tables.end(), pendavg::io::series_tables().begin(),
-                  pendavg::io::series_tables().end());
-    for (const pendavg::io::NamedTable& t : tables) {
+    for (const pendavg::io::NamedTable& t : pendavg::io::all_tables()) {
       pybind11::list fields;
       for (const pendavg::io::Field& f : t.fields) {
         fields.append(pybind11::make_tuple(std::string(f.name), pendavg::python::kind_name(f.kind),

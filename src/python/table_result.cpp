@@ -143,6 +143,7 @@ void TableResult::layout(std::initializer_list<Table> tables, bool mpfr) {
   row_texts_ = layout_->row_texts;
   present_.assign(rows * row_present_, 0);
   numbers_.assign(rows * row_numbers_, nan);
+  gaps_.assign(mpfr ? 0 : rows * row_numbers_, 0.0);
   decimals_.assign(mpfr ? rows * row_numbers_ : 0, {});
   exact_.assign(mpfr ? rows * row_numbers_ : 0, {});
   integers_.assign(rows * row_integers_, 0);
@@ -174,6 +175,9 @@ void TableResult::put(std::size_t k, std::span<const io::Record* const> records,
         case io::Kind::error:
           if (cell.tag == io::Cell::Tag::number || cell.tag == io::Cell::Tag::input) {
             numbers[p.at] = cell.number;  // (an error's: the library's; its text adds a gap)
+            if (!mpfr_) gaps_[k * row_numbers_ + p.at] = cell.gap;
+            else if (j < record.exact().size() && record.exact()[j].kept())
+              exact_[k * row_numbers_ + p.at] = record.exact()[j];  // (a double of an MPFR run)
             finite = finite && std::isfinite(cell.number);
           } else {  // an MPFR run's decimal text, and the exact value behind it
             const std::span<const io::ExactNumber> exact = record.exact();
@@ -290,8 +294,14 @@ py::dict TableResult::decimal() const {
         } else {
           // as the CLI prints it: a value's shortest text, an error covering its value's
           double x = numbers_[at];
-          if (c.field.kind == io::Kind::error && c.value < columns_.size())
-            x = io::covering(x, io::shortest_gap(numbers_[cell(columns_[c.value], row_numbers_, k, i)]));
+          if (c.field.kind == io::Kind::error && !mpfr_) {
+            double gap = gaps_[at];
+            if (gap == io::deferred_gap)
+              gap = c.value < columns_.size()
+                        ? io::shortest_gap(numbers_[cell(columns_[c.value], row_numbers_, k, i)])
+                        : 0;
+            x = io::covering(x, gap);
+          }
           char text[40];
           items.append(py::str(
               text, static_cast<std::size_t>(io::write_number(text, x, c.field.kind) - text)));

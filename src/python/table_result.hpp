@@ -133,6 +133,7 @@ class TableResult {
               row_texts_ = 0;
   std::vector<std::uint8_t> present_;  ///< 0: an empty cell (every column)
   std::vector<double> numbers_;        ///< real, error: the double (MPFR: exact, rounded)
+  std::vector<double> gaps_;           ///< error of a double run: what its text adds (Cell::gap)
   std::vector<std::string> decimals_;  ///< real, error of an MPFR run: the printed text
   std::vector<io::ExactNumber> exact_;  ///< real, error of an MPFR run
   std::vector<std::int64_t> integers_;  ///< count

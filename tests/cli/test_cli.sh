@@ -702,11 +702,13 @@ good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --leng
 good "limit N = 7 (transfer)"  'check_limit_any 7' limit --masses 1,1,1,1,1,1,1 --format json
 bad "limit N = 6 at 20 digits" limit --masses 1,1,1,1,1,1 --digits 20
 
+# series: the run, then one row per term (text: a table under the field names)
 good "series 5 terms text" \
-  '[ "$(sed "1d;\$d" "$work/out" | grep -c "^ *[0-9]")" -eq 5 ]' \
+  '[ "$(awk "/^n /{t=1; next} /^seconds = /{t=0} t" "$work/out" | grep -c "^ *[0-9]")" -eq 5 ] && grep -qx "terms = 5" "$work/out"' \
+  series "${pendulum[@]}" --beta 1 --terms 5 --format text
+good "series 5 terms csv" \
+  '[ "$(head -2 "$work/out")" = "$(printf "# schema: 1\n# pendavg series")" ] && [ "$(grep -vc "^#" "$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5
-good "series 5 terms csv"    '[ "$(wc -l <"$work/out")" -eq 6 ]' \
-  series "${pendulum[@]}" --beta 1 --terms 5 --format csv
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
 table_header=$(canonical_header table 2)
@@ -985,14 +987,37 @@ for i in range(n):
 PY
 }
 good "simulate nve json"    'check_simulate_json microcanonical 2' \
-  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300 --format json
 good "simulate langevin"    'check_simulate_json canonical 2' \
-  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3
-good "simulate csv"         'grep -q "^i,K,K_error,Kc,Kc_error,exact_K" "$work/out" && [ "$(grep -c "^[0-9]" "$work/out")" -eq 3 ]' \
-  simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 20 --format csv --exact no
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3 --format json
+# CSV (the default): one row with the per-particle columns K1..KN, K1_error..KN_error, ...
+check_simulate_csv_row() { # N
+  "$python" - "$work/out" "$1" <<'PY'
+import csv, sys
+lines = open(sys.argv[1]).read().splitlines(); n = int(sys.argv[2])
+assert lines[:2] == ["# schema: 1", "# pendavg simulate"], lines[:2]
+rows = list(csv.DictReader(lines[2:]))
+assert len(rows) == 1 and len(lines) == 4, len(lines)
+r = rows[0]
+for stem in ("K", "Kc", "cos_phi", "exact_K"):
+    for i in range(1, n + 1):
+        assert f"{stem}{i}" in r and f"{stem}{i}_error" in r, (stem, i)
+assert f"K{n + 1}" not in r and r["N"] == str(n)
+assert all(float(r[f"K{i}"]) > 0 and float(r[f"K{i}_error"]) > 0 for i in range(1, n + 1)), r
+assert all(r[f"exact_K{i}"] == "" for i in range(1, n + 1)), r  # --exact no
+PY
+}
+good "simulate csv"         'check_simulate_csv_row 3' \
+  simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 20 --exact no
 run simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work/traj.csv" --every 100 --exact no
-if [ "$rc" -eq 0 ] && [ "$(grep -c . "$work/traj.csv")" -eq 12 ] && head -1 "$work/traj.csv" | grep -q '^t,E,phi1,phi2,phidot1,phidot2$' \
+if [ "$rc" -eq 0 ] && [ "$(grep -c . "$work/traj.csv")" -eq 14 ] && head -1 "$work/traj.csv" | grep -qx '# schema: 1' \
+   && sed -n 3p "$work/traj.csv" | grep -q '^t,E,phi1,phi2,phidot1,phidot2$' \
    && [ -z "$(ls "$work" | grep 'traj.csv.tmp')" ]; then pass; else fail "simulate trajectory file"; fi
+# --output FILE: written atomically, nothing on stdout
+run simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --exact no --format json --output "$work/simulate.json"
+if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && "$python" -c "import json, sys; d = json.load(open(sys.argv[1])); assert d['schema'] == 1 and d['command'] == 'simulate' and len(d['K']) == 2" "$work/simulate.json" \
+   && [ -z "$(ls "$work" | grep 'simulate.json.tmp')" ]; then pass; else fail "simulate --output"; fi
+bad "simulate unwritable output" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --output /nonexistent/s.csv
 bad "simulate no time"         simulate --masses 1,1 --lengths 1,1 --theta 1
 bad "simulate theta and phi"   simulate --masses 1,1 --lengths 1,1 --theta 1 --phi 1,1 --time 1
 bad "simulate no angles"       simulate --masses 1,1 --lengths 1,1 --time 1
@@ -1013,7 +1038,7 @@ bad "simulate every alone"     simulate --masses 1,1 --lengths 1,1 --theta 1 --t
 bad "simulate unwritable traj" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory /nonexistent/t.csv --every 1
 bad "simulate traj directory"  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work" --every 1
 # SIGINT ends a run cleanly: exit 0, the averages so far, "interrupted": true.
-"$pendavg" simulate --masses 1,1,1,1 --lengths 1,1,1,1 --theta 90deg --time 1e6 --exact no >"$work/out" 2>"$work/err" &
+"$pendavg" simulate --masses 1,1,1,1 --lengths 1,1,1,1 --theta 90deg --time 1e6 --exact no --format json >"$work/out" 2>"$work/err" &
 pid=$!
 sleep 1
 kill -INT "$pid"
@@ -1023,7 +1048,7 @@ if [ "$rc" -eq 0 ] && "$python" -c "import json,sys; d=json.load(open(sys.argv[1
    && grep -q "interrupted" "$work/err"; then pass; else fail "simulate SIGINT"; fi
 # Issue 11: interrupted long before its blocks fill, a run reports unknown error bars (null and
 # a reason), never 0; the exact values are still printed.
-"$pendavg" simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --time 1e9 >"$work/out" 2>"$work/err" &
+"$pendavg" simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --time 1e9 --format json >"$work/out" 2>"$work/err" &
 pid=$!
 sleep 1
 kill -INT "$pid"
@@ -1032,7 +1057,7 @@ rc=$?
 if [ "$rc" -eq 0 ] && "$python" -c "
 import json, sys
 d = json.load(open(sys.argv[1]))
-assert d['interrupted'] and d['K_error'] == [None, None] and 'error_reason' in d, d
+assert d['interrupted'] and d['K_error'] == [None, None] and d['error_reason'], d
 assert d['K_deviation_sigmas'] == [None, None] and len(d['exact_K']) == 2
 assert 'nan' not in open(sys.argv[1]).read().lower()
 " "$work/out"; then pass; else fail "simulate SIGINT before the blocks fill"; fi
@@ -1169,11 +1194,14 @@ if [ "$rc" -eq 0 ] && grep -q '^# interrupted: [0-9]* of 60 points computed' "$w
 
 check_poincare() { # POINTS
   "$python" - "$work/out" "$1" <<'PY'
-import math, sys
-rows = [l.strip().split(",") for l in open(sys.argv[1]) if l.strip() and not l.startswith("#")]
-assert rows[0] == ["orbit", "phi2", "p2", "time"], rows[0]
-data = [[float(x) for x in r] for r in rows[1:]]
+import csv, math, sys
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[:2] == ["# schema: 1", "# pendavg poincare"], lines[:2]
+rows = list(csv.DictReader(lines[2:]))
+assert list(rows[0])[-5:] == ["orbit", "phi2", "p2", "time", "seconds"], list(rows[0])
+data = [[float(r[k]) for k in ("orbit", "phi2", "p2", "time")] for r in rows]
 assert len(data) == int(sys.argv[2]), len(data)
+assert all(r["energy"] == "-2.5" and r["interrupted"] == "false" for r in rows)
 assert all(-math.pi <= r[1] <= math.pi for r in data)
 # Inside the allowed region on the section: p2^2 <= 2 m2 l2^2 (E - U(0, phi2)), E = -2.5.
 assert all(r[2] ** 2 <= 2 * (-2.5 + 2 + math.cos(r[1])) + 1e-9 for r in data)
@@ -1181,7 +1209,15 @@ PY
 }
 good "poincare csv"            'check_poincare 40' poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 4 --points 10
 run poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 2 --points 5 --output "$work/section.csv"
-if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && [ "$(grep -c '^[0-9]' "$work/section.csv")" -eq 10 ]; then pass; else fail "poincare --output"; fi
+if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && [ "$(grep -c '^[0-9]' "$work/section.csv")" -eq 10 ] \
+   && head -1 "$work/section.csv" | grep -qx '# schema: 1'; then pass; else fail "poincare --output"; fi
+good "poincare json"           '"$python" -c "
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d[\"schema\"] == 1 and d[\"command\"] == \"poincare\" and d[\"orbits\"] == 2 and d[\"points_per_orbit\"] == 3
+assert len(d[\"points\"]) == 6 and all(set(p) == {\"orbit\", \"phi2\", \"p2\", \"time\"} for p in d[\"points\"])
+" "$work/out"' poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 2 --points 3 --format json
+bad "poincare bad format"      poincare --masses 1,1 --lengths 1,1 --energy 0 --format xml
 bad "poincare N = 3"           poincare --masses 1,1,1 --lengths 1,1,1 --energy 0
 bad "poincare below minimum"   poincare --masses 1,1 --lengths 1,1 --energy -3
 bad "poincare no energy"       poincare --masses 1,1 --lengths 1,1
@@ -1346,18 +1382,21 @@ bad "table energy below min"   table --energy -2,0 --l2 2
 bad "table energy method series" table --energy 0 --method series
 bad "table energy qmc digits 20" table --chain 5 --energy 0 --digits 20
 
-# simulate: exact values with every digit of the double
+# simulate: exact values with every digit of the double (the shortest text that reads back as
+# the same double, not rounded to fewer digits)
 good "simulate exact full digits" '"$python" -c "
 import json, sys
+from decimal import Decimal
 o = json.load(open(sys.argv[1]))
 digits = lambda v: sum(c.isdigit() for c in v.lower().split(\"e\")[0].lstrip(\"0.-\"))
 raw = open(sys.argv[1]).read()
 import re
 k = re.search(r\"\\\"exact_K\\\": \\[([^]]*)\\]\", raw).group(1).split(\", \")
-assert all(digits(v) == 17 for v in k), k
+assert all(Decimal(v) == Decimal(repr(float(v))) for v in k), k
+assert max(digits(v) for v in k) >= 15, k
 assert o[\"exact_excitation\"] > 0 and len(o[\"exact_var_K\"]) == 2, o
 assert abs(o[\"exact_excitation\"] - (o[\"energy\"] + 3)) < 1e-8, o
-" "$work/out"' simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 50
+" "$work/out"' simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 50 --format json
 
 # qmc weights cannot underflow (issue 15: this run printed NaN with "converged": true); its
 # values within their bars of the tensor torus rule's
@@ -1491,112 +1530,127 @@ good "limit text: errors, work, residual per limit" \
   limit --masses 0.5,0.5 --format text
 
 # simulate JSON: <K> and <U> over time, the energy trend, the work; Langevin: the canonical Var K_i.
-simulate_original='ensemble integrator particles dt time energy K K_error Kc Kc_error K_autocorrelation_time cos_phi cos_phi_error error_kind'
 check_simulate_added() { # ENSEMBLE [AVERAGE_JSON: the canonical values at the run's beta]
-  strict_python - "$work/out" "$1" "${2:-}" "$simulate_original" <<'PY'
+  strict_python - "$work/out" "$1" "${2:-}" <<'PY'
 from strict_json import strict, KINDS
 import math, sys
 from decimal import Decimal as D
-d = strict(sys.argv[1]); ensemble = sys.argv[2]; n = d["particles"]
-keys = list(d)
-assert keys[:14] == sys.argv[4].split(), keys
-after = keys[keys.index("seconds") + 1:]
-expected = ["K_total", "K_total_error", "potential", "potential_error", "energy_trend"]
-expected += ["energy_trend_reason"] if ensemble == "canonical" else []
-expected += ["unconverged_stages", "samples"]
-expected += ["exact_var_K", "exact_var_K_error"] if ensemble == "canonical" else []
-expected += ["exact_error_kinds"]
-assert after == expected, after
+d = strict(sys.argv[1]); ensemble = sys.argv[2]; n = d["N"]
+assert d["schema"] == 1 and d["command"] == "simulate" and d["ensemble"] == ensemble, d
+# every key of the schema's simulation table, null where the run has no value
+expected = ["K_total", "K_total_error", "K_total_error_kind", "potential", "potential_error",
+            "potential_error_kind", "energy_trend", "energy_trend_reason", "unconverged_stages",
+            "samples", "exact_var_K", "exact_var_K_error", "exact_K_error_kind", "exact_Kc_error_kind",
+            "exact_cos_phi_error_kind", "exact_var_K_error_kind", "exact_var_K_reason", "error_reason"]
+assert set(expected) <= set(d), set(expected) - set(d)
 for k in ("K_total", "K_total_error", "potential", "potential_error"):
     assert isinstance(d[k], float) and math.isfinite(d[k]), k
 assert d["K_total_error"] > 0 and d["potential_error"] > 0
-# <K> is the sum of the <K_i> (to the 10 printed digits)
+assert d["K_total_error_kind"] == d["potential_error_kind"] == d["K_error_kind"] == "statistical"
+assert d["error_reason"] is None and d["exact_var_K_reason"] is None
+# <K> is the sum of the <K_i>
 assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"], (d["K_total"], d["K"])
 assert isinstance(d["unconverged_stages"], int) and d["unconverged_stages"] >= 0
 assert isinstance(d["samples"], int) and 0 < d["samples"] <= d["steps"], d["samples"]
-kinds = d["exact_error_kinds"]
-assert set(kinds) == {"K", "Kc", "cos_phi", "var_K"} and set(kinds.values()) <= KINDS, kinds
-assert kinds["K"] == d["exact_error_kind"]
+kinds = {q: d[f"exact_{q}_error_kind"] for q in ("K", "Kc", "cos_phi", "var_K")}
+assert set(kinds.values()) <= KINDS, kinds
 for value, error in zip(d["exact_var_K"], d["exact_var_K_error"]):
     assert math.isfinite(value) and value > 0 and math.isfinite(error) and error > 0, (value, error)
 assert len(d["exact_var_K"]) == n
 if ensemble == "microcanonical":
+    assert d["energy_trend_reason"] is None and d["beta"] is None and d["exact_excitation"] > 0
     # <K> + <U> = E: every sample lies within energy_error_max x scale of E, scale = (sum m) g (sum l)
     scale = 2 * 2
-    # (energy_error_max is printed with 3 digits: 1.005 covers its rounding)
-    bound = 1.005 * d["energy_error_max"]
+    # (energy_error_max is printed with 3 digits, rounded up: it covers the computed one)
+    bound = d["energy_error_max"]
     assert abs(d["K_total"] + d["potential"] - d["energy"]) <= bound * scale + 1e-8
     # the least-squares change of E over the run is at most 6 x the largest deviation
     assert math.isfinite(d["energy_trend"]) and abs(d["energy_trend"]) <= 6 * bound, d
 else:
     assert d["energy_trend"] is None and d["energy_trend_reason"], d
+    assert d["exact_excitation"] is None
     # canonical <K> = N / (2 beta) exactly: within 4 error bars
     assert abs(d["K_total"] - n / (2 * d["beta"])) <= 4 * d["K_total_error"], (d["K_total"], d["K_total_error"])
     a = strict(sys.argv[3])  # average --format json at the same chain and beta
-    for i in range(n):  # Var K_i: 17 digits here, 16 there (its printed error covers the rounding)
-        assert abs(D(repr(d["exact_var_K"][i])) - D(a["var_K"][i])) <= D(a["var_K_error"][i]), i
-    assert kinds["K"] == a["error_kind"] and kinds["cos_phi"] == a["error_kinds"]["cos_phi"], (kinds, a["error_kinds"])
-    assert kinds["var_K"] == a["error_kinds"]["var_K"] and kinds["Kc"] == "bound"
+    for i in range(n):  # Var K_i: both the doubles computed (the printed error covers the rounding)
+        assert abs(D(repr(d["exact_var_K"][i])) - D(repr(a["var_K"][i]))) <= D(repr(a["var_K_error"][i])), i
+    assert kinds["K"] == a["beta_K_error_kind"] and kinds["cos_phi"] == a["cos_phi_error_kind"], (kinds, a)
+    assert kinds["var_K"] == a["var_K_error_kind"] and kinds["Kc"] == "bound"
 PY
 }
 good "simulate json: K_total, potential, energy_trend, samples (NVE)" 'check_simulate_added microcanonical' \
-  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300
-"$pendavg" average --masses 1,1 --lengths 1,1 --beta 0.5 >"$work/canonical.json" 2>/dev/null
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300 --format json
+"$pendavg" average --masses 1,1 --lengths 1,1 --beta 0.5 --format json >"$work/canonical.json" 2>/dev/null
 good "simulate json: exact_var_K and kinds (Langevin)" 'check_simulate_added canonical "$work/canonical.json"' \
-  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3
-"$pendavg" average --masses 1,2,1 --lengths 1,1,0.5 --beta 2 >"$work/canonical3.json" 2>/dev/null
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3 --format json
+"$pendavg" average --masses 1,2,1 --lengths 1,1,0.5 --beta 2 --format json >"$work/canonical3.json" 2>/dev/null
 good "simulate json: exact_var_K (Langevin, N = 3)" 'check_simulate_added canonical "$work/canonical3.json"' \
-  simulate --masses 1,2,1 --lengths 1,1,0.5 --theta 0 --time 200 --thermostat langevin --beta 2 --seed 5
+  simulate --masses 1,2,1 --lengths 1,1,0.5 --theta 0 --time 200 --thermostat langevin --beta 2 --seed 5 --format json
 
-# simulate CSV: the added columns hold the JSON's values (the same deterministic run).
-simulate_csv_original='i,K,K_error,Kc,Kc_error,exact_K,exact_K_error,exact_Kc,K_autocorrelation_time'
-simulate_csv_added='cos_phi,cos_phi_error,error_kind,exact_cos_phi,exact_cos_phi_error,exact_Kc_error,exact_var_K,exact_var_K_error,exact_error_kind,exact_Kc_error_kind,exact_cos_phi_error_kind,exact_var_K_error_kind'
+# simulate CSV (the default): every column holds the JSON's value (the same deterministic run):
+# a per-particle key X is the columns X1..XN (its error X_error X1_error..XN_error).
 check_simulate_csv() { # JSON_OF_THE_SAME_RUN [replicas]
-  strict_python - "$work/out" "$1" "$simulate_csv_original" "$simulate_csv_added" "${2:-}" <<'PY'
+  strict_python - "$work/out" "$1" "${2:-}" <<'PY'
 from strict_json import strict, KINDS
-import csv, math, sys
-lines = [l for l in open(sys.argv[1]).read().splitlines() if not l.startswith("#")]
-d = strict(sys.argv[2]); replicas = sys.argv[5] == "replicas"
-header = lines[0].split(",")
-expected = sys.argv[3].split(",") + (["K_error_blocking", "K_error_replicas"] if replicas else [])
-expected += sys.argv[4].split(",")
-expected += ["Kc_error_blocking", "Kc_error_replicas", "cos_phi_error_blocking", "cos_phi_error_replicas"] if replicas else []
-assert header == expected, header
-rows = list(csv.DictReader(lines))
-assert len(rows) == d["particles"] and all(len(l.split(",")) == len(header) for l in lines)
-exact = d["exact_K"] is not None
-# errors: 3 digits in the CSV, 10 in the JSON (the same double)
-same_error = lambda cell, value: abs(float(cell) - value) <= 5e-3 * value
-for i, r in enumerate(rows):
-    assert float(r["cos_phi"]) == d["cos_phi"][i] and same_error(r["cos_phi_error"], d["cos_phi_error"][i]), r
-    assert float(r["cos_phi_error"]) > 0 and r["error_kind"] == "statistical"
-    if not exact:
-        assert not any(r[k] for k in sys.argv[4].split(",")[3:]), r
+import csv, math, re, sys
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[:2] == ["# schema: 1", "# pendavg simulate"], lines[:2]
+rows = list(csv.DictReader(lines[2:]))
+d = strict(sys.argv[2]); replicas = sys.argv[3] == "replicas"; n = d["N"]
+assert len(rows) == 1 and len(lines) == 4 and len(lines[3].split(",")) == len(lines[2].split(","))
+r = rows[0]
+def column(key, i):  # the particle's index before "_error" (K_error_blocking -> K1_error_blocking)
+    m = re.search(r"_error(_|$)", key)
+    at = m.start() if m else len(key)
+    return key[:at] + str(i + 1) + key[at:]
+def same(cell, value):
+    if value is None:
+        return cell == ""
+    if isinstance(value, bool):
+        return cell == ("true" if value else "false")
+    if isinstance(value, (int, float)):
+        return cell != "" and float(cell) == value
+    return cell == value
+columns = set()
+for key, value in d.items():
+    if key in ("schema", "command", "seconds"):
         continue
-    assert float(r["exact_cos_phi"]) == d["exact_cos_phi"][i] and float(r["exact_cos_phi_error"]) == d["exact_cos_phi_error"][i]
-    assert float(r["exact_Kc_error"]) == d["exact_Kc_error"] and float(r["exact_Kc_error"]) > 0
-    assert float(r["exact_var_K"]) == d["exact_var_K"][i] and float(r["exact_var_K_error"]) == d["exact_var_K_error"][i]
-    assert float(r["exact_var_K"]) > 0 and float(r["exact_var_K_error"]) > 0 and float(r["exact_cos_phi_error"]) > 0
-    kinds = d["exact_error_kinds"]
-    assert (r["exact_error_kind"], r["exact_Kc_error_kind"], r["exact_cos_phi_error_kind"], r["exact_var_K_error_kind"]) == \
-        (kinds["K"], kinds["Kc"], kinds["cos_phi"], kinds["var_K"]), r
+    if isinstance(value, list):
+        assert len(value) == n, key
+        for i, v in enumerate(value):
+            columns.add(column(key, i))
+            assert same(r[column(key, i)], v), (key, i, r[column(key, i)], v)
+    else:
+        columns.add(key)
+        assert same(r[key], value), (key, r[key], value)
+assert set(r) == columns | {"seconds"}, set(r) ^ (columns | {"seconds"})
+exact = d["exact_method"] is not None
+for i in range(n):
+    assert float(r[f"cos_phi{i + 1}_error"]) > 0 and r["cos_phi_error_kind"] == "statistical"
+    if not exact:
+        assert not any(r[k] for k in r if k.startswith("exact_")), r
+        continue
+    for stem in ("exact_cos_phi", "exact_var_K"):
+        assert float(r[f"{stem}{i + 1}"]) > 0 and float(r[f"{stem}{i + 1}_error"]) > 0, stem
+    assert float(r["exact_Kc_error"]) > 0 or r["exact_Kc_error_kind"] == "bound"
+    assert {r[f"exact_{q}_error_kind"] for q in ("K", "Kc", "cos_phi", "var_K")} <= KINDS, r
     if replicas:
         for stem in ("Kc", "cos_phi"):
             for part in ("blocking", "replicas"):
-                assert same_error(r[f"{stem}_error_{part}"], d[f"{stem}_error_{part}"][i]), (stem, part)
-                assert d[f"{stem}_error_{part}"][i] > 0, (stem, part)
+                assert float(r[f"{stem}{i + 1}_error_{part}"]) > 0, (stem, part)
+assert ("replicas" in r) == replicas
 PY
 }
 nve3=(simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 50)
-"$pendavg" "${nve3[@]}" >"$work/nve3.json" 2>/dev/null
-good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}" --format csv
-"$pendavg" "${nve3[@]}" --exact no >"$work/nve3_no_exact.json" 2>/dev/null
+"$pendavg" "${nve3[@]}" --format json >"$work/nve3.json" 2>/dev/null
+good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}"
+"$pendavg" "${nve3[@]}" --exact no --format json >"$work/nve3_no_exact.json" 2>/dev/null
 good "simulate csv: --exact no leaves the exact cells empty" 'check_simulate_csv "$work/nve3_no_exact.json"' "${nve3[@]}" --exact no --format csv
 langevin2=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 0.5 --seed 3)
-"$pendavg" "${langevin2[@]}" >"$work/langevin2.json" 2>/dev/null
+"$pendavg" "${langevin2[@]}" --format json >"$work/langevin2.json" 2>/dev/null
 good "simulate csv: exact_var_K (Langevin)" 'check_simulate_csv "$work/langevin2.json"' "${langevin2[@]}" --format csv
 replicas3=(simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4)
-"$pendavg" "${replicas3[@]}" >"$work/replicas3.json" 2>/dev/null
+"$pendavg" "${replicas3[@]}" --format json >"$work/replicas3.json" 2>/dev/null
 good "simulate csv: the replicas' error columns" 'check_simulate_csv "$work/replicas3.json" replicas' "${replicas3[@]}" --format csv
 # --replicas: <K> and <U> combined like the other averages (the larger of the two errors)
 check_replicas_added() {
@@ -1609,10 +1663,10 @@ for stem in ("K_total", "potential"):
     b, r = d[stem + "_error_blocking"], d[stem + "_error_replicas"]
     assert b > 0 and r > 0 and d[stem + "_error"] == max(b, r), (stem, b, r, d[stem + "_error"])
 assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"]
-assert list(d)[-4:] == ["K_total_error_blocking", "K_total_error_replicas", "potential_error_blocking", "potential_error_replicas"]
+assert d["replicas_error_reason"] is None
 PY
 }
-good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}"
+good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}" --format json
 
 # table and --cases rows: every column equals `average --format csv`'s for the same point (the
 # same library call; the inputs as given); a series row's beta_K error is a bound, its cos_phi and

@@ -120,7 +120,7 @@ refused "average: a far stiffer last link" "request 17 or more digits" \
   average --masses 1,1,1 --lengths 1,1,1e24 --beta 1
 finite "average: ... and the advice works" average --masses 1,1,1 --lengths 1,1,1e24 --beta 1 --digits 17 --format csv
 finite "simulate: replicas on one energy shell" \
-  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 2 --replicas 3 --perturb 1e-3
+  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 2 --replicas 3 --perturb 1e-3 --format json
 spread=$(grep -oE '"replica_energy_spread": "?[0-9.e+-]+' "$work/out" | grep -oE '[0-9.e+-]+$')
 if ! awk -v s="${spread:-1}" 'BEGIN { exit !(s < 1e-13) }'; then
   fail=$((fail + 1))

@@ -355,8 +355,17 @@ PY
 check "--replicas 1 is the single run" \
   bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
 run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
-check "NVE replicas (perturbed starts), csv" \
-  bash -c "[ $rc -eq 0 ] && grep -q '^# replicas 3 of 3' '$work/out' && grep -q ',K_autocorrelation_time,K_error_blocking,K_error_replicas,' '$work/out'"
+check "NVE replicas (perturbed starts), csv" "$python" - "$work/out" "$rc" <<'PY'
+import csv, sys
+assert sys.argv[2] == "0", sys.argv[2]
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[0] == "# schema: 1" and len(lines) == 4, lines[:2]
+r = next(csv.DictReader(lines[2:]))
+assert r["replicas"] == r["replicas_requested"] == "3", r
+for i in (1, 2, 3):
+    for column in (f"K_autocorrelation_time{i}", f"K{i}_error_blocking", f"K{i}_error_replicas"):
+        assert float(r[column]) > 0, column
+PY
 bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --trajectory "$work/t.csv" --every 1
 bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
 bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3

@@ -95,7 +95,7 @@ def test_other_results_to_dataframe():
     s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20)
     df = s.to_dataframe()
     assert df.index.name == "n" and list(df.index) == list(s.n)
-    np.testing.assert_array_equal(df["bound"].to_numpy(), s.bound)
+    np.testing.assert_array_equal(df["beta_K1_error"].to_numpy(), s.beta_K1_error)
     assert s.to_dict()["certified"] == s.certified
     m = pendavg.microcanonical([1, 0.3], [1.3, 0.6], excitation="1e-8")
     dm = m.to_dataframe()

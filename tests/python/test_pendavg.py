@@ -21,6 +21,7 @@ import subprocess
 import sys
 import threading
 import time
+from decimal import Decimal
 from fractions import Fraction
 
 import numpy as np
@@ -195,17 +196,41 @@ def test_limit_agrees_with_cli():
 
 
 def test_series_agrees_with_cli():
-    s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20)
-    d = cli_json("series", "--masses", "0.8,0.2", "--lengths", "1,1", "--beta", "2", "--digits", 20,
-                 "--format", "json")
-    assert s.certified == d["certified"] and s.terms == d["terms"] == len(s.n)
-    for key in ("R_n", "term", "numerator", "denominator", "value", "bound"):
-        assert s.decimal[key] == [row[key] for row in d["rows"]]
-    assert list(s.n) == [row["n"] for row in d["rows"]]
-    assert s.error_kind == "bound"
-    assert s.N == d["N"] == 2 and s.digits == d["digits"] and s.decimal.keys() == set(
-        f[0] for f in pendavg.SeriesResult.fields()[1] if f[1] == "real")
-    np.testing.assert_array_equal(s.m, [0.8, 0.2])  # the inputs, as in pendavg.average
+    """pendavg.series is `pendavg series --format json` field for field: the call's (its inputs,
+    terms, certified, beta_K1_error_kind) and each term's (n, R_n, term, numerator, denominator,
+    beta_K1 and its bound beta_K1_error, None while none exists), at 20 digits (decimal strings)
+    and at 16 (doubles, each bound enlarged by its value's rounding)."""
+    call_fields, term_fields = pendavg.SeriesResult.fields()
+    for digits in (20, 16):
+        s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=digits)
+        d = cli_text_json("series", "--masses", "0.8,0.2", "--lengths", "1,1", "--beta", "2",
+                          "--g", text(1.0), "--digits", digits, "--format", "json")
+        for name, kind, per_particle, _, _ in call_fields:
+            if kind in ("real", "error"):
+                assert s.decimal[name] == d[name], name
+            elif kind == "count":
+                assert getattr(s, name) == int(d[name]), name
+            else:
+                assert getattr(s, name) == d[name], name
+        assert s.terms == len(s.n) == len(d["rows"]) and s.beta_K1_error_kind == "bound"
+        for name, kind, _, _, _ in term_fields:
+            printed = [row[name] for row in d["rows"]]
+            if kind == "count":
+                assert getattr(s, name).tolist() == [int(x) for x in printed], name
+                continue
+            assert s.decimal[name] == printed, name
+            values = getattr(s, name)
+            for x, text_ in zip(values.tolist(), printed):
+                if text_ is None:
+                    assert np.isnan(x), name  # no bound yet
+                elif digits == 16 and kind == "real":
+                    assert x == float(text_), name  # the double itself
+                elif digits == 16:
+                    assert x <= float(text_) <= 1.01 * x, name  # 3 digits, rounded up
+        mpmath = optional_module("mpmath")
+        with mpmath.workdps(digits + 20):  # .mpf: the exact values the strings round
+            for value, printed in zip(s.mpf["beta_K1"], s.decimal["beta_K1"]):
+                assert abs(value - mpmath.mpf(printed)) <= abs(value) * mpmath.mpf(10) ** (1 - min(digits, 16))
 
 
 def test_sweep_agrees_with_table():
@@ -288,8 +313,9 @@ def test_result_attributes_are_the_field_tables():
     s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20)
     call, terms = pendavg.SeriesResult.fields()
     assert set(s.__dict__) == {f[0] for f in call + terms} | {"decimal", "exact"}
-    assert {f[0] for f in call} == table_names("canonical inputs", "series")
-    assert {f[0] for f in terms} == table_names("series terms")
+    assert {f[0] for f in call} == table_names("canonical inputs",
+                                               "series run (after the canonical inputs)")
+    assert {f[0] for f in terms} == table_names("series row")
 
 
 def test_result_values_follow_the_field_kinds():
@@ -701,27 +727,26 @@ def test_nothing_crashes_on_odd_arguments():
 
 def test_simulate_agrees_with_cli():
     r = pendavg.simulate([1, 1], [1, 1], theta="90deg", time=20, every=1000)
-    d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", "90deg", "--time", 20)
-    for key in ("K", "K_error", "Kc", "Kc_error", "cos_phi", "K_deviation_sigmas"):
-        assert [float(f"{x:.9e}") for x in getattr(r, key)] == d[key], key
-    assert float(f"{r.energy:.9e}") == d["energy"]
-    # The exact values: the CLI prints every digit of the double (17), the same doubles here;
-    # their errors with 3 digits, rounded up by at most half a unit of the value's 17th digit.
-    for key in ("exact_K", "exact_var_K"):
+    d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", "90deg", "--time", 20,
+                 "--format", "json")
+    # The CLI prints every value as the shortest text that reads back as the same double, and
+    # every error with 3 digits, rounded up.
+    for key in ("K", "Kc", "cos_phi", "K_deviation_sigmas", "exact_K", "exact_var_K"):
         assert list(getattr(r, key)) == d[key], key
+    assert r.energy == d["energy"]
     assert r.exact_Kc == d["exact_Kc"] and r.exact_excitation == d["exact_excitation"]
-    for key, value_key in (("exact_K_error", "exact_K"), ("exact_var_K_error", "exact_var_K")):
-        for error, printed, value in zip(getattr(r, key), d[key], d[value_key]):
-            assert error <= printed <= 1.01 * error + 1e-16 * abs(value), (key, error, printed)
-    assert float(f"{r.energy_error_max:.2e}") == d["energy_error_max"]
+    for key in ("K_error", "Kc_error", "exact_K_error", "exact_var_K_error"):
+        for error, printed in zip(getattr(r, key), d[key]):
+            assert error <= printed <= 1.01 * error, (key, error, printed)
+    assert r.energy_error_max <= d["energy_error_max"] <= 1.01 * r.energy_error_max
     assert r.steps == d["steps"] and r.newton_solves == d["newton_solves"]
     assert r.exact_method == d["exact_method"] and not r.interrupted
     assert r.trajectory["phi"].shape == (21, 2) and r.trajectory["t"][-1] == pytest.approx(20)
     langevin = pendavg.simulate([1, 1], [1, 1], theta=0, time=10, thermostat="langevin", beta=2,
                                 exact=False)
     d = cli_json("simulate", "--masses", "1,1", "--lengths", "1,1", "--theta", 0, "--time", 10,
-                 "--thermostat", "langevin", "--beta", 2, "--exact", "no")
-    assert [float(f"{x:.9e}") for x in langevin.K] == d["K"]
+                 "--thermostat", "langevin", "--beta", 2, "--exact", "no", "--format", "json")
+    assert list(langevin.K) == d["K"] and d["exact_K"] == [None, None]
     assert langevin.exact_K is None and langevin.ensemble == "canonical"
 
 
@@ -798,10 +823,11 @@ def test_poincare_agrees_with_cli():
     p = pendavg.poincare([1, 1], [1, 1], -2, orbits=2, points=5)
     out = cli("poincare", "--masses", "1,1", "--lengths", "1,1", "--energy", -2, "--orbits", 2,
               "--points", 5).stdout
-    rows = [l.split(",") for l in out.splitlines() if l and not l.startswith("#")][1:]
+    rows = list(csv.DictReader(l for l in out.splitlines() if l and not l.startswith("#")))
     assert len(rows) == len(p.phi2) == 10
-    for k, (orbit, phi2, p2, t) in enumerate(rows):
-        assert int(orbit) == p.orbit[k] and f"{p.phi2[k]:.11e}" == phi2 and f"{p.p2[k]:.11e}" == p2
+    for k, row in enumerate(rows):  # the shortest text that reads back as the same double
+        assert int(row["orbit"]) == p.orbit[k]
+        assert float(row["phi2"]) == p.phi2[k] and float(row["p2"]) == p.p2[k]
 
 
 def test_keyboard_interrupt_stops_simulate_with_the_averages_so_far():

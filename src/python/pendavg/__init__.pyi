@@ -55,15 +55,15 @@ class SeriesResult(_Record):
     l: npt.NDArray[np.float64]
     terms: int
     certified: bool
-    error_kind: str
+    beta_K1_error_kind: str
     n: npt.NDArray[np.int64]
     R_n: npt.NDArray[np.float64]
     term: npt.NDArray[np.float64]
     numerator: npt.NDArray[np.float64]
     denominator: npt.NDArray[np.float64]
-    value: npt.NDArray[np.float64]
-    bound: npt.NDArray[np.float64]
-    decimal: dict[str, list[str]]
+    beta_K1: npt.NDArray[np.float64]
+    beta_K1_error: npt.NDArray[np.float64]
+    decimal: dict[str, Any]
     exact: dict[str, list[Any]]
     @staticmethod
     def fields() -> tuple[list[tuple[str, str, bool, str, bool]],

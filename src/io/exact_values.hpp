@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/exact_values.hpp -- the exact values beside a trajectory: the microcanonical averages
+// src/io/exact_values.hpp -- the exact values beside a trajectory: the microcanonical averages
 // at the run's initial state (NVE) or the canonical ones at its beta (Langevin), as `simulate`
 // prints them and pendavg.simulate returns them (one implementation for the CLI and Python).
 #pragma once
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace pendavg::cli {
+namespace pendavg::io {
 
 /// Exact values of the run's ensemble, per particle, in energy units.
 struct ExactValues {
@@ -36,4 +36,4 @@ ExactValues microcanonical_values(const Chain<double>& chain, double excitation)
 /// The canonical averages at beta, per particle in energy units (all cores).
 ExactValues canonical_values(const Chain<double>& chain, double beta);
 
-}  // namespace pendavg::cli
+}  // namespace pendavg::io

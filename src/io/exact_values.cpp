@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// src/cli/exact_values.cpp -- see exact_values.hpp.
-#include "exact_values.hpp"
+// src/io/exact_values.cpp -- see exact_values.hpp.
+#include "io/exact_values.hpp"
 
-#include "average_options.hpp"
+#include "cli/average_options.hpp"
 
 #include "pendavg/pendavg.hpp"
 
 #include <cmath>
 
-namespace pendavg::cli {
+namespace pendavg::io {
 
 double initial_excitation(const Chain<double>& chain, const ChainState<double>& state,
                           const std::vector<double>& phi) {
@@ -22,7 +22,7 @@ double initial_excitation(const Chain<double>& chain, const ChainState<double>& 
 
 ExactValues microcanonical_values(const Chain<double>& chain, double excitation) {
   MicrocanonicalOptions options;
-  options.threads = hardware_threads();
+  options.threads = cli::hardware_threads();
   const MicrocanonicalAverages<double> r =
       microcanonical_average_excitation(chain, excitation, options);
   ExactValues out;
@@ -51,7 +51,7 @@ ExactValues microcanonical_values(const Chain<double>& chain, double excitation)
 
 ExactValues canonical_values(const Chain<double>& chain, double beta) {
   AverageOptions options;
-  options.threads = hardware_threads();
+  options.threads = cli::hardware_threads();
   const Averages<double> a = average(chain, beta, options);
   ExactValues out;
   for (std::size_t i = 0; i < chain.size(); ++i) {
@@ -75,4 +75,4 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
   return out;
 }
 
-}  // namespace pendavg::cli
+}  // namespace pendavg::io
