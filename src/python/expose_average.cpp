@@ -356,7 +356,7 @@ py::object average_point(py::handle masses, py::handle lengths, py::handle beta,
 
 /// One column of a grid (beta, g, a mass or a length over all points): float64 values, or the
 /// Python objects (str, int, Decimal, mpf, ...) of any other dtype.
-struct Column {
+struct InputColumn {
   py::array_t<double> values;  ///< float64 columns
   py::list objects;            ///< other dtypes, as Python objects
   bool is_float = false;
@@ -375,11 +375,11 @@ struct Column {
   }
 };
 
-Column column(py::handle x, std::size_t count) {
+InputColumn column(py::handle x, std::size_t count) {
   py::array a = py::reinterpret_borrow<py::array>(x);
   if (a.ndim() != 1 || static_cast<std::size_t>(a.shape(0)) != count)
     throw std::invalid_argument("average_grid: every column must have one entry per point");
-  Column c;
+  InputColumn c;
   if (a.dtype().is(py::dtype::of<double>())) {
     c.is_float = true;
     c.values = py::array_t<double, py::array::c_style | py::array::forcecast>(a);
@@ -408,7 +408,7 @@ AveragesResult average_grid(std::vector<py::ssize_t> shape, std::size_t n, const
     keep_call(result);
     return result;
   }
-  std::vector<Column> cols;
+  std::vector<InputColumn> cols;
   for (const py::handle c : columns) cols.push_back(column(c, count));
   // Points run one thread each (as `--cases` and `table`); a single point gets every core.
   const int threads = static_cast<int>(std::min<std::size_t>(hardware_threads(), count));

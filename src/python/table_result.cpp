@@ -75,25 +75,33 @@ py::object numpy_array(const py::list& items, const std::vector<py::ssize_t>& sh
 
 std::shared_ptr<const TableResult::Layout> TableResult::layout_of(
     std::initializer_list<Table> tables, std::size_t particles) {
-  // The layouts made so far, by their tables (static spans: compared by address) and N.
+  // The layouts made so far, by their tables (static spans: compared by address) and N; this
+  // thread's last one first (no lock, no allocation: a call of one point asks for it each time).
   struct Key {
-    std::vector<std::pair<const io::Field*, std::size_t>> tables;
-    std::vector<bool> inputs;
-    std::size_t particles;
-    bool operator==(const Key&) const = default;
+    std::vector<Table> tables;
+    std::size_t particles = 0;
+    bool is(std::initializer_list<Table> other, std::size_t n) const {
+      return n == particles && std::equal(tables.begin(), tables.end(), other.begin(), other.end(),
+                                          [](const Table& a, const Table& b) {
+                                            return a.fields.data() == b.fields.data() &&
+                                                   a.fields.size() == b.fields.size() &&
+                                                   a.inputs == b.inputs;
+                                          });
+    }
   };
-  Key key{{}, {}, particles};
-  for (const Table& t : tables) {
-    key.tables.emplace_back(t.fields.data(), t.fields.size());
-    key.inputs.push_back(t.inputs);
-  }
+  thread_local std::pair<Key, std::shared_ptr<const Layout>> last;
+  if (last.second && last.first.is(tables, particles)) return last.second;
   static std::mutex mutex;
   static std::vector<std::pair<Key, std::shared_ptr<const Layout>>> made;
   {
     const std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& [k, layout] : made)
-      if (k == key) return layout;
+    for (const auto& entry : made)
+      if (entry.first.is(tables, particles)) {
+        last = entry;
+        return entry.second;
+      }
   }
+  const Key key{std::vector<Table>(tables), particles};
   auto layout = std::make_shared<Layout>();
   for (const Table& table : tables) {
     std::vector<CellPlan>& plan = layout->plans.emplace_back();
@@ -123,7 +131,8 @@ std::shared_ptr<const TableResult::Layout> TableResult::layout_of(
   }
   const std::lock_guard<std::mutex> lock(mutex);
   if (made.size() >= 64) made.erase(made.begin());  // (any N may come: keep the recent ones)
-  made.emplace_back(std::move(key), layout);
+  made.emplace_back(key, layout);
+  last = made.back();
   return layout;
 }
 

@@ -2,9 +2,10 @@
 // src/python/table_result.hpp -- the Python result objects, generated from the field tables of
 // the front-end library (src/io/results.hpp): one point's result is filled into records by the
 // same builders the CLI prints from (io::append_averages, ...), and a TableResult keeps the
-// records of every point of a call, column by column (one column per field). Its attributes,
-// .decimal (the CLI's text of each number) and the exact values of an MPFR run are made from the
-// columns by the field's kind and shape alone: no field is named here.
+// cells of every point of a call in pools by kind, a row per point, read as one column per
+// field. Its attributes, .decimal (the CLI's text of each number, made when asked for) and the
+// exact values of an MPFR run are made from the columns by the field's kind and shape alone: no
+// field is named here.
 //
 // Python values, per field kind: real and error -> float (one point) or a float64 array (a
 // grid), per-particle fields with a last axis of N; count -> int / int64 array; flag -> bool /
@@ -13,8 +14,8 @@
 // a call's inputs (N, digits) are the call's: one int, also for a grid.
 //
 // A double run's numbers are the records' doubles (the library's, or a quotient as io divides
-// it); an MPFR run's are the exact values behind its decimal cells (Record::keep_exact), rounded
-// to double, and kept exactly for mpmath.
+// it; an error as computed, before printing enlarges it); an MPFR run's are the exact values
+// behind its decimal cells (Record::keep_exact), rounded to double, and kept exactly for mpmath.
 #pragma once
 
 #include "io/record.hpp"
@@ -23,7 +24,6 @@
 #include <pybind11/pybind11.h>
 
 #include <algorithm>
-
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
