@@ -18,8 +18,9 @@
 #include "oracle/graf_series.hpp"
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/limits/limits.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
 
 #include <boost/math/special_functions/ellint_1.hpp>

@@ -11,7 +11,7 @@
 //    the advice works where it points to MPFR.
 #include <catch2/catch.hpp>
 
-#include "engine/torus.hpp"
+#include "engine/torus/torus.hpp"
 #include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"

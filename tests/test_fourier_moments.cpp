@@ -11,8 +11,8 @@
 // q^s > 0), and the reported relative_error must cover them.
 #include <catch2/catch.hpp>
 
-#include "engine/detail/fourier_moments.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/fourier_moments.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 

@@ -24,9 +24,9 @@
 #include "oracle/near_minimum.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/mpfr.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/microcanonical.hpp"
-#include "engine/torus.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/microcanonical/microcanonical.hpp"
+#include "engine/torus/torus.hpp"
 
 #include <boost/math/quadrature/exp_sinh.hpp>
 #include <boost/math/quadrature/gauss.hpp>

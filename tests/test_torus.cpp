@@ -25,10 +25,12 @@
 #include <array>
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
-#include "engine/torus.hpp"
+#include "engine/limits/limits.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <algorithm>

@@ -5,7 +5,7 @@
 // (eqs. detA, trA1Ainv-dp), and against exact identities (MATH.md Secs. 1, 2, 4, 8).
 #include "oracle/dense_traces.hpp"
 #include "pendavg/chain.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <catch2/catch.hpp>

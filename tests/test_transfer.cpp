@@ -15,9 +15,10 @@
 // Tags: [transfer] (default, a few seconds in Release), [transfer][.slow] for the long variants.
 #include <catch2/catch.hpp>
 
-#include "engine/chain_transfer.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/torus.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"

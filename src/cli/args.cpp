@@ -2,7 +2,7 @@
 // src/cli/args.cpp -- strict parsing of the pendavg command line, numbers and cases files.
 #include "args.hpp"
 
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <algorithm>
 #include <cerrno>

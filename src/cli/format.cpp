@@ -4,8 +4,8 @@
 
 #include "decimal.hpp"
 
-#include "engine/precision.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <algorithm>
 #include <array>

@@ -33,8 +33,9 @@
 //       the largest reported error of beta<K_i>, converged, and the largest difference.
 //
 // tests/bench/large_n_work_precision.sh runs the study behind tables/large_n_work_precision.csv.
-#include "engine/chain_transfer.hpp"
-#include "engine/torus.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/average.hpp"
 
 #include <algorithm>

@@ -76,9 +76,9 @@
 // Higham, Accuracy and Stability, ch. 4 (compensated summation).
 #pragma once
 
-#include "engine/bernoulli.hpp"
-#include "engine/detail/elliptic.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/bernoulli.hpp"
+#include "engine/numerics/elliptic.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 #include <boost/math/special_functions/digamma.hpp>

@@ -15,16 +15,16 @@
 //   mu1 J_{-3/2} = J_{1/2} - mu2 int_0^T sin t cos t q^{-1/2} W' dt + mu2 B(T),
 //   B(t) = sin t cos t q^{-1/2} W(t),   W' = -a1 a2 sin t e^{-A} I1(R)/R <= 0,
 // so both integrand terms are >= 0 and only q^{-1/2}'s branch point at q = 0 remains.
-#include "engine/double_pendulum.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
 
-#include "engine/bessel.hpp"
-#include "engine/quadrature.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/bessel.hpp"
+#include "engine/numerics/quadrature.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <boost/math/constants/constants.hpp>
-#include "engine/detail/fourier_moments.hpp"
+#include "engine/double_pendulum/fourier_moments.hpp"
 #include "engine/detail/graf_rows.hpp"
-#include "engine/detail/inner_panel_series.hpp"
+#include "engine/double_pendulum/inner_panel_series.hpp"
 #include <boost/math/special_functions/fpclassify.hpp>
 
 #include <algorithm>

@@ -3,10 +3,10 @@
 // observables and the workspace, and the run-time choice of the kernels' instruction set
 // (src/engine/dynamics_kernels.cpp is compiled for baseline x86-64 and, where the compiler
 // can, for x86-64-v3 = AVX2 + FMA, about twice as fast; the library runs on any x86-64 CPU).
-#include "engine/dynamics_kernels.hpp"
+#include "engine/dynamics/dynamics_kernels.hpp"
 
 #include "domain.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -10,11 +10,11 @@
 // compiled for baseline x86-64 in every object, so whichever copy the linker keeps is safe to run
 // on any CPU; only the functions of this file's own namespace use AVX2 and FMA (checked by
 // tests/consumer/isa.sh).
-#include "engine/dynamics_kernels.hpp"
+#include "engine/dynamics/dynamics_kernels.hpp"
 
 #include "domain.hpp"
-#include "engine/parallel.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/parallel.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <Eigen/Dense>
 #include <boost/math/constants/constants.hpp>
@@ -35,7 +35,7 @@
 
 // The blocking averager, in this instruction set's namespace (it runs at every step).
 #define PENDAVG_BLOCKING_NAMESPACE PENDAVG_DYNAMICS_ISA
-#include "engine/detail/blocking.hpp"
+#include "engine/dynamics/blocking.hpp"
 
 namespace pendavg::PENDAVG_DYNAMICS_ISA {
 

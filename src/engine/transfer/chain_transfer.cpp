@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The transfer operator along the chain (engine/chain_transfer.hpp has the equations).
-#include "engine/chain_transfer.hpp"
-#include "engine/detail/legendre.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/numerics/legendre.hpp"
 
-#include "engine/estimates.hpp"
-#include "engine/parallel.hpp"
+#include "engine/numerics/estimates.hpp"
+#include "engine/numerics/parallel.hpp"
 
 #include <algorithm>
 #include <bit>

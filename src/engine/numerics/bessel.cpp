@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Scaled modified Bessel functions: GSL in double, series/asymptotic generic, Miller tables.
-#include "engine/bessel.hpp"
+#include "engine/numerics/bessel.hpp"
 
-#include "engine/constant_cache.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/constant_cache.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_sf_bessel.h>

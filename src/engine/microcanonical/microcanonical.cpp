@@ -2,8 +2,8 @@
 // Microcanonical averages (pendavg/microcanonical.hpp): the three rules, the two entry points
 // (energy, excitation) and their explicit instantiations (double, long double, mpfr_real).
 #include "domain.hpp"
-#include "engine/microcanonical.hpp"
-#include "engine/text.hpp"
+#include "engine/microcanonical/microcanonical.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <algorithm>
 
@@ -178,7 +178,7 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
 #endif
       for (std::ptrdiff_t k0 = 0; k0 < static_cast<std::ptrdiff_t>(points); ++k0) {
         errors.capture([&] {
-          std::vector<detail::torus::CompensatedSum<Real>> sums(q);
+          std::vector<detail::CompensatedSum<Real>> sums(q);
           for (std::size_t r = 0; r < inner; ++r) {
             std::size_t rest = r;
             theta[1] = two_pi * Real(static_cast<double>(k0)) / Real(static_cast<double>(points));
@@ -201,7 +201,7 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
     const Real cell =
         pow(two_pi / Real(static_cast<double>(points)), Real(static_cast<double>(dims)));
     for (std::size_t c = 0; c < q; ++c) {
-      detail::torus::CompensatedSum<Real> s;
+      detail::CompensatedSum<Real> s;
       for (std::size_t k0 = 0; k0 < points; ++k0) s.add(partial[k0][c]);
       value[c] = cell * s.value();
     }
@@ -233,13 +233,13 @@ ShellSums<Real> torus_sums(const Chain<Real>& chain, const ShellSetup<Real>& set
 /// 256 (log-sum-exp with a running maximum), so no weight under- or overflows for any N or E.
 template <class Real>
 struct QmcShellShift {
-  detail::torus::CompensatedSum<Real> weight, weight_squared;
-  std::vector<detail::torus::CompensatedSum<Real>> kinetic, cosine, kinetic_squared;
+  detail::CompensatedSum<Real> weight, weight_squared;
+  std::vector<detail::CompensatedSum<Real>> kinetic, cosine, kinetic_squared;
   Real log_scale{0};
   bool scaled = false;  ///< log_scale is set (a point reached the shell)
   explicit QmcShellShift(std::size_t n = 0) : kinetic(n), cosine(n), kinetic_squared(n) {}
   void rescale(const Real& factor) {
-    const auto scale = [](detail::torus::CompensatedSum<Real>& s, const Real& f) {
+    const auto scale = [](detail::CompensatedSum<Real>& s, const Real& f) {
       s.sum *= f;
       s.compensation *= f;
     };

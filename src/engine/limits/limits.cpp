@@ -1,16 +1,15 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The beta -> 0 limit of the double pendulum (paper eq. aveK1-beta0).
+// The limits of engine/limits/limits.hpp: the elliptic beta -> 0 limit of the double pendulum,
+// and the explicit instantiations of the any-N limits (double, long double, mpfr_real).
 //
-// beta -> 0: the Boltzmann factor drops out and t = phi2 - phi1 is uniform, so with
-// q = 1 - mu2 cos^2 t (k^2 = mu2, k'^2 = mu1):
-//   int_0^pi q^{1/2} = 2 E(k),  int_0^pi q^{-1/2} = 2 K(k),  int_0^pi q^{-3/2} = 2 E(k)/mu1,
-// giving beta<K1> = (mu1/2) K/E, <x> = mu1 K/E, <x^2> = mu1. K and E are taken from Carlson's
-// forms with the complementary parameter mu1 passed directly (detail/elliptic.hpp), so
-// nothing is lost as mu1 -> 0, where k = sqrt(1 - mu1) would round mu1 away.
-// (beta -> infinity, in closed form for any N, is low_temperature_limit_any in engine/torus.hpp.)
-#include "engine/double_pendulum.hpp"
+// Why Carlson's forms of the complementary parameter: K and E are taken with mu1 = k'^2 passed
+// directly (numerics/elliptic.hpp), so nothing is lost as mu1 -> 0, where k = sqrt(1 - mu1)
+// would round mu1 away.
+#include "engine/limits/limits.hpp"
 
-#include "engine/detail/elliptic.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+
+#include "engine/numerics/elliptic.hpp"
 
 namespace pendavg {
 
@@ -51,5 +50,14 @@ Averages<Real> elliptic_high_temperature_limit(const Chain<Real>& chain, int dig
 template Averages<double> elliptic_high_temperature_limit<double>(const Chain<double>&, int);
 template Averages<mpfr_real> elliptic_high_temperature_limit<mpfr_real>(const Chain<mpfr_real>&,
                                                                         int);
+
+#define PENDAVG_LIMITS_INSTANTIATE(Real)                                                 \
+  template Averages<Real> high_temperature_limit_any<Real>(                              \
+      const Chain<Real>&, const TorusOptions&, const QmcOptions&, std::size_t);          \
+  template Averages<Real> low_temperature_limit_any<Real>(const Chain<Real>&);
+PENDAVG_LIMITS_INSTANTIATE(double)
+PENDAVG_LIMITS_INSTANTIATE(long double)
+PENDAVG_LIMITS_INSTANTIATE(mpfr_real)
+#undef PENDAVG_LIMITS_INSTANTIATE
 
 }  // namespace pendavg

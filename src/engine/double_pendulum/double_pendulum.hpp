@@ -43,7 +43,7 @@
 #pragma once
 
 #include "pendavg/chain.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/series.hpp"
 
@@ -156,9 +156,5 @@ Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& be
 template <class Real>
 Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int digits = 16,
                               std::size_t max_terms = 0);
-
-/// beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2 (paper eq. aveK1-beta0), N = 2.
-template <class Real>
-Averages<Real> elliptic_high_temperature_limit(const Chain<Real>& chain, int digits = 16);
 
 }  // namespace pendavg

@@ -13,6 +13,8 @@
 #include "pendavg/chain.hpp"
 #include "pendavg/mpfr.hpp"
 
+#include <boost/math/constants/constants.hpp>
+
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -102,5 +104,15 @@ decltype(auto) at_working_precision(const Chain<Real>& chain) {
     return (chain);
   }
 }
+
+namespace detail {
+
+/// pi at the working precision of `Real`.
+template <class Real>
+Real pi() {
+  return boost::math::constants::pi<Real>();
+}
+
+}  // namespace detail
 
 }  // namespace pendavg

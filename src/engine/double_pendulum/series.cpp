@@ -17,11 +17,11 @@
 // Bound: R_n is positive and non-increasing and c_n, d_n <= c_{M+1} for n > M, so both tails
 // are at most T_M = c_{M+1} R_{M+1} mu2^{M+1} / (1 - mu2). Hence
 //   (mu1/2) N_M/D_M <= beta<K1> <= (mu1/2) (N_M + T_M)/(D_M - T_M).
-#include "engine/double_pendulum.hpp"
-#include "engine/parallel.hpp"
-#include "engine/text.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/parallel.hpp"
+#include "engine/numerics/text.hpp"
 
-#include "engine/bessel.hpp"
+#include "engine/numerics/bessel.hpp"
 
 #include <boost/math/special_functions/fpclassify.hpp>
 

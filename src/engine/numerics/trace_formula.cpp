@@ -3,7 +3,7 @@
 // stable are described in include/pendavg/trace_formula.hpp.
 #include "pendavg/trace_formula.hpp"
 
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <cmath>
 #include <string>

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // B_{2j} / (2j) per MPFR precision: see engine/bernoulli.hpp.
-#include "engine/bernoulli.hpp"
+#include "engine/numerics/bernoulli.hpp"
 
-#include "engine/constant_cache.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/constant_cache.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <cmath>
 

@@ -4,12 +4,14 @@
 #pragma once
 
 #include "pendavg/microcanonical.hpp"
-#include "engine/bessel.hpp"
+#include "engine/numerics/bessel.hpp"
 #include "pendavg/chain.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
-#include "engine/parallel.hpp"
-#include "engine/torus.hpp"
+#include "engine/numerics/parallel.hpp"
+#include "engine/numerics/compensated_sum.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <boost/math/constants/constants.hpp>
@@ -43,7 +45,7 @@ using std::exp;
 using std::log;
 using std::sqrt;
 
-using detail::torus::pi;
+using detail::pi;
 
 /// The psi integrals of one shell, divided by scale^p (see the header comment):
 ///   weight = F_p / W^p,  kinetic = F_{p+1} / W^{p+1},  kinetic_squared = F_{p+2} / W^{p+2},

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Nested Clenshaw-Curtis rules (Waldvogel's explicit cosine-sum weights, built per level).
-#include "engine/quadrature.hpp"
+#include "engine/numerics/quadrature.hpp"
 
-#include "engine/constant_cache.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/constant_cache.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 

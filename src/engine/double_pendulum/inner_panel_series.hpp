@@ -34,8 +34,8 @@
 // panel quadrature otherwise (ok == false).
 #pragma once
 
-#include "engine/bessel.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/bessel.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <array>
 #include <cmath>
