@@ -76,28 +76,15 @@ inline std::vector<std::uint32_t> cbc_generating_vector(unsigned m, std::size_t 
   return z;
 }
 
-/// In-place radix-2 complex FFT (sign -1: forward, +1: inverse without the 1/n), size 2^k.
+/// In-place complex FFT of a power-of-two length (sign -1: forward, +1: inverse without the
+/// 1/n), by GSL's radix-2 transform (std::complex<double> is laid out as GSL's packed {re, im}
+/// pairs). The generating vectors it gives are those of the hand-written radix-2 FFT it replaced,
+/// for every size and dimension the library uses (tests/test_lattice_fft.cpp).
 inline void lattice_fft(std::vector<std::complex<double>>& a, int sign) {
-  const std::size_t n = a.size();
-  for (std::size_t i = 1, j = 0; i < n; ++i) {
-    std::size_t bit = n >> 1;
-    for (; j & bit; bit >>= 1) j ^= bit;
-    j ^= bit;
-    if (i < j) std::swap(a[i], a[j]);
-  }
-  std::vector<std::complex<double>> twiddle(n / 2 + 1);
-  for (std::size_t len = 2; len <= n; len <<= 1) {
-    const double angle = sign * 2 * 3.141592653589793238462643 / static_cast<double>(len);
-    for (std::size_t k = 0; k < len / 2; ++k) twiddle[k] = std::polar(1.0, angle * static_cast<double>(k));
-    for (std::size_t i = 0; i < n; i += len) {
-      for (std::size_t k = 0; k < len / 2; ++k) {
-        const std::complex<double> w = twiddle[k];
-        const std::complex<double> x = a[i + k], y = a[i + k + len / 2] * w;
-        a[i + k] = x + y;
-        a[i + k + len / 2] = x - y;
-      }
-    }
-  }
+  double* data = reinterpret_cast<double*>(a.data());
+  const int status = sign < 0 ? gsl_fft_complex_radix2_forward(data, 1, a.size())
+                              : gsl_fft_complex_radix2_backward(data, 1, a.size());
+  if (status != GSL_SUCCESS) throw std::logic_error("lattice_fft: the length is no power of two");
 }
 
 /// The same construction and criterion as cbc_generating_vector, in O(d n log n) (Nuyens-Cools
@@ -106,9 +93,12 @@ inline void lattice_fft(std::vector<std::complex<double>>& a, int sign) {
 /// candidate 5^a is a cyclic correlation of length 2^(m-s-2), done by FFT. Candidates z and
 /// n - z are equivalent; the one below n/2 is returned. Picks the same z as the plain version
 /// up to ties within rounding (~1e-13 relative). m <= 24; n = 2^20 in 256 dimensions: ~10 s.
-inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::size_t d,
-                                                             const std::vector<double>& gamma,
-                                                             int alpha = 2) {
+/// `fft(a, sign)` transforms in place as lattice_fft does (a parameter so that the tests can hold
+/// the construction to the hand-written FFT it used before).
+template <class Fft>
+std::vector<std::uint32_t> fast_cbc_generating_vector_with(unsigned m, std::size_t d,
+                                                           const std::vector<double>& gamma,
+                                                           int alpha, const Fft& fft) {
   if (m < 3 || m > 24) throw invalid_input("fast_cbc_generating_vector: 3 <= m <= 24");
   const std::uint64_t n = std::uint64_t(1) << m;
   const std::vector<double> omega = korobov_kernel(n, alpha);
@@ -134,7 +124,7 @@ inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::si
       w[t] = omega[(p << s) & (n - 1)];
       p = (p * 5) & (ns - 1);
     }
-    lattice_fft(w, -1);
+    fft(w, -1);
     lv.kernel_hat = std::move(w);
     levels.push_back(std::move(lv));
   }
@@ -153,10 +143,10 @@ inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::si
           const std::uint64_t o = lv.power[b];
           q[b] = product[(o << lv.s) & (n - 1)] + product[((ns - o) << lv.s) & (n - 1)];
         }
-        lattice_fft(q, -1);
+        fft(q, -1);
         // Correlation S[a] = sum_b Q[b] W[a + b]: inverse FFT of conj(Q^) W^.
         for (std::size_t t = 0; t < lv.length; ++t) q[t] = std::conj(q[t]) * lv.kernel_hat[t];
-        lattice_fft(q, +1);
+        fft(q, +1);
         const double inv = 1.0 / static_cast<double>(lv.length);
         for (std::size_t a = 0; a < candidates; ++a) criterion[a] += q[a % lv.length].real() * inv;
       }
@@ -178,6 +168,13 @@ inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::si
     for (std::uint64_t k = 0; k < n; ++k) product[k] *= 1 + g * omega[(k * best) & (n - 1)];
   }
   return z;
+}
+
+/// fast_cbc_generating_vector_with GSL's FFT (lattice_fft).
+inline std::vector<std::uint32_t> fast_cbc_generating_vector(unsigned m, std::size_t d,
+                                                             const std::vector<double>& gamma,
+                                                             int alpha = 2) {
+  return fast_cbc_generating_vector_with(m, d, gamma, alpha, lattice_fft);
 }
 
 }  // namespace pendavg::detail::qmc
