@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/detail/fourier_moments.hpp -- Fourier moments of q(t)^s, q = mu1 + mu2 sin^2 t.
+// engine/double_pendulum/fourier_moments.hpp -- Fourier moments of q(t)^s, q = mu1 + mu2 sin^2 t.
 //
 // WHAT. For 0 < mu1 < 1, mu2 = 1 - mu1 (both passed, so neither is rounded away), and
 // s in {1/2, -1/2, -3/2}, k = 0 .. count-1:
@@ -46,7 +46,7 @@
 //  * Miller method (used when the series is slow or ill-conditioned, i.e. when K d or mu1 is
 //    not small, where it is cheap): (2) run down from N = K + (ln(1/u)+5)/(4d) + 10 with
 //    Q_{N+1} = 0, then normalised to the exact Q_0(-1/2) = K(k), Q_0(-3/2) = E(k)/mu1
-//    (Carlson forms, detail/elliptic.hpp). The crossover is decided by an a-priori cost
+//    (Carlson forms, numerics/elliptic.hpp). The crossover is decided by an a-priori cost
 //    (series terms estimated from the term ratios) and the conditioning estimate kappa.
 //  * The downward recursion is run in the difference form, which is free of cancellation
 //    (all terms of one sign) and keeps A - 2 = 4 mu1/mu2 exact in relative terms:
@@ -133,7 +133,7 @@ W digamma_minus_log(const W& x, const W& u) {
   using std::log;
   if constexpr (is_mpfr_v<W>) {
     // DLMF 5.11.2 at x + m >= x0: psi(y) ~ ln y - 1/(2y) - sum_j B_{2j} / (2j y^{2j}), with the
-    // coefficients of engine/bernoulli.hpp (per precision, not Boost's process-wide cache), and
+    // coefficients of numerics/bernoulli.hpp (per precision, not Boost's process-wide cache), and
     // below x0 the recurrence psi(x) = psi(x + m) - sum_{i<m} 1/(x + i) (which cancels at most
     // ~log10(x0 ln x0) digits, inside the moments' extra digits).
     const double x0 = 1.2 * log_inv(u) / (2 * 3.141592653589793) + 2.0;
@@ -342,74 +342,53 @@ TopValues<W> series_top(const W& mu1, std::size_t K) {
 
 // ---------------------------------------------------------------- downward recursion
 
-// Runs (2) downward for the rows s = -1/2 (a) and s = -3/2 (b) in difference form and stores
-// the unnormalised Q_k, k < K, into qa, qb (size K). Start: the top pair (Q_K, D_{K-1}) given
-// as hi + lo parts {Q hi, Q lo, D hi, D lo}, or Miller's Q_{N+1} = 0, Q_N = 1 (start == null).
-template <class Wr, bool Compensate>
-void recurse_down(const Wr& e, std::size_t K, std::size_t top, const Wr* startA,
-                  const Wr* startB, Wr* qa, Wr* qb) {
-  using std::abs;
-  Wr Qa, ca(0), wa, cwa(0), Qb, cb(0), wb, cwb(0);
-  std::size_t k;
-  Wr kk = Wr(static_cast<double>(top));
-  if (startA) {
-    // state at index K-1: Q_{K-1} = Q_K + D_{K-1}; w_{K-1} = (2K-1) D (row a), D/(2K-1) (b)
-    k = top - 1;
-    Qa = startA[0];
-    ca = startA[1];
-    two_sum_acc(Qa, ca, startA[2]);
-    ca += startA[3];
-    wa = (2 * kk - 1) * startA[2];
-    cwa = (2 * kk - 1) * startA[3];
-    Qb = startB[0];
-    cb = startB[1];
-    two_sum_acc(Qb, cb, startB[2]);
-    cb += startB[3];
-    wb = startB[2] / (2 * kk - 1);
-    cwb = startB[3] / (2 * kk - 1);
-    kk -= 1;
-  } else {
-    k = top;  // Q_{N+1} = 0: D_N = Q_N = 1
-    Qa = 1;
-    wa = 2 * kk + 1;
-    Qb = 1;
-    wb = 1 / (2 * kk + 1);
-  }
-  Wr QFa = Qa + ca, QFb = Qb + cb;
-  if (k < K) {
-    qa[k] = QFa;
-    qb[k] = QFb;
-  }
-  if constexpr (is_mpfr_v<Wr>) {
-    // In-place MPFR loop: integer multipliers/divisors map to mpfr_{mul,div}_ui, no
-    // temporaries are allocated, and no rescaling is needed (growth <= e^{2dN} is far inside
-    // MPFR's exponent range for any feasible N).
-    static_assert(!Compensate, "MPFR runs with extra digits instead of compensation");
-    Wr t;
-    for (; k >= 1; --k) {
-      const unsigned long ku = static_cast<unsigned long>(k);
-      t = e;
-      t *= ku;
-      t *= Qa;
-      wa += t;  // w_{k-1} = w_k + e k Q_k
-      t = wa;
-      t /= (2 * ku - 1);
-      Qa += t;  // Q_{k-1} = Q_k + w_{k-1}/(2k-1)
-      t = e;
-      t *= ku;
-      t *= Qb;
-      t /= (4 * ku * ku - 1);
-      wb += t;  // w_{k-1} = w_k + e k Q_k/(4k^2-1)
-      t = wb;
-      t *= (2 * ku - 1);
-      Qb += t;  // Q_{k-1} = Q_k + (2k-1) w_{k-1}
-      if (k - 1 < K) {
-        qa[k - 1] = Qa;
-        qb[k - 1] = Qb;
-      }
+/// The two rows of the downward recursion: row a (s = -1/2) and row b (s = -3/2), each as the
+/// moment Q and the difference variable w with their compensations (cQ, cw), and QF, the value
+/// used for the next increment (hi plus the compensation lagging by one step).
+template <class Wr>
+struct DownwardRows {
+  Wr Qa, ca = Wr(0), wa, cwa = Wr(0), Qb, cb = Wr(0), wb, cwb = Wr(0);
+  Wr QFa, QFb;
+};
+
+/// The downward recursion of recurse_down in MPFR, from index k: in place (see below).
+template <class Wr>
+void recurse_down_mpfr(const Wr& e, std::size_t K, std::size_t k, DownwardRows<Wr>& r, Wr* qa,
+                       Wr* qb) {
+  // In-place MPFR loop: integer multipliers/divisors map to mpfr_{mul,div}_ui, no
+  // temporaries are allocated, and no rescaling is needed (growth <= e^{2dN} is far inside
+  // MPFR's exponent range for any feasible N).
+  Wr t;
+  for (; k >= 1; --k) {
+    const unsigned long ku = static_cast<unsigned long>(k);
+    t = e;
+    t *= ku;
+    t *= r.Qa;
+    r.wa += t;  // w_{k-1} = w_k + e k Q_k
+    t = r.wa;
+    t /= (2 * ku - 1);
+    r.Qa += t;  // Q_{k-1} = Q_k + w_{k-1}/(2k-1)
+    t = e;
+    t *= ku;
+    t *= r.Qb;
+    t /= (4 * ku * ku - 1);
+    r.wb += t;  // w_{k-1} = w_k + e k Q_k/(4k^2-1)
+    t = r.wb;
+    t *= (2 * ku - 1);
+    r.Qb += t;  // Q_{k-1} = Q_k + (2k-1) w_{k-1}
+    if (k - 1 < K) {
+      qa[k - 1] = r.Qa;
+      qb[k - 1] = r.Qb;
     }
-    return;
   }
+}
+
+/// The downward recursion of recurse_down in a hardware type, from index k (kk = k as Wr), with
+/// compensated sums when Compensate and rescaling against overflow.
+template <class Wr, bool Compensate>
+void recurse_down_scaled(const Wr& e, std::size_t K, std::size_t top, std::size_t k, Wr kk,
+                         DownwardRows<Wr>& r, Wr* qa, Wr* qb) {
+  using std::abs;
   // Rescaling guards against overflow in Miller runs over geometric growth; stored values
   // that would become subnormal are set to 0 (they are < u * max |Q| by far).
   std::size_t live_a = K, live_b = K;
@@ -440,42 +419,88 @@ void recurse_down(const Wr& e, std::size_t K, std::size_t top, const Wr* startA,
       // <= u, nothing accumulates, and the latency chain avoids the TwoSum error paths.
       // (Using the bare hi parts instead would leak the sqrt(K) u drift of naive summation
       // back through the coupling.)
-      const Wr inca = ek * QFa;              // row a (s = -1/2)
-      const Wr incb = (ek * inv) * QFb;      // row b (s = -3/2)
-      const Wr Da = (wa + inca + cwa) * (tkp1 * inv);
-      const Wr Db = tkm1 * (wb + incb + cwb);
-      two_sum_acc(wa, cwa, inca);
-      two_sum_acc(wb, cwb, incb);
-      const Wr cao = ca, cbo = cb;
-      two_sum_acc(Qa, ca, Da);
-      two_sum_acc(Qb, cb, Db);
-      QFa = Qa + cao;
-      QFb = Qb + cbo;
+      const Wr inca = ek * r.QFa;              // row a (s = -1/2)
+      const Wr incb = (ek * inv) * r.QFb;      // row b (s = -3/2)
+      const Wr Da = (r.wa + inca + r.cwa) * (tkp1 * inv);
+      const Wr Db = tkm1 * (r.wb + incb + r.cwb);
+      two_sum_acc(r.wa, r.cwa, inca);
+      two_sum_acc(r.wb, r.cwb, incb);
+      const Wr cao = r.ca, cbo = r.cb;
+      two_sum_acc(r.Qa, r.ca, Da);
+      two_sum_acc(r.Qb, r.cb, Db);
+      r.QFa = r.Qa + cao;
+      r.QFb = r.Qb + cbo;
     } else {
-      wa += ek * Qa;
-      Qa += wa * tkp1 * inv;
-      wb += ek * Qb * inv;
-      Qb += tkm1 * wb;
+      r.wa += ek * r.Qa;
+      r.Qa += r.wa * tkp1 * inv;
+      r.wb += ek * r.Qb * inv;
+      r.Qb += tkm1 * r.wb;
     }
     kk -= 1;
     const std::size_t km1 = k - 1;
     if (km1 < K) {
       if constexpr (Compensate) {
-        qa[km1] = Qa + ca;
-        qb[km1] = Qb + cb;
+        qa[km1] = r.Qa + r.ca;
+        qb[km1] = r.Qb + r.cb;
       } else {
-        qa[km1] = Qa;
-        qb[km1] = Qb;
+        qa[km1] = r.Qa;
+        qb[km1] = r.Qb;
       }
     }
-    if (abs(Qa) > big) {
-      Qa *= shrink; ca *= shrink; wa *= shrink; cwa *= shrink; QFa *= shrink;
+    if (abs(r.Qa) > big) {
+      r.Qa *= shrink; r.ca *= shrink; r.wa *= shrink; r.cwa *= shrink; r.QFa *= shrink;
       if (km1 < K) rescale_tail(qa, km1, live_a);
     }
-    if (abs(Qb) > big) {
-      Qb *= shrink; cb *= shrink; wb *= shrink; cwb *= shrink; QFb *= shrink;
+    if (abs(r.Qb) > big) {
+      r.Qb *= shrink; r.cb *= shrink; r.wb *= shrink; r.cwb *= shrink; r.QFb *= shrink;
       if (km1 < K) rescale_tail(qb, km1, live_b);
     }
+  }
+}
+
+// Runs (2) downward for the rows s = -1/2 (a) and s = -3/2 (b) in difference form and stores
+// the unnormalised Q_k, k < K, into qa, qb (size K). Start: the top pair (Q_K, D_{K-1}) given
+// as hi + lo parts {Q hi, Q lo, D hi, D lo}, or Miller's Q_{N+1} = 0, Q_N = 1 (start == null).
+template <class Wr, bool Compensate>
+void recurse_down(const Wr& e, std::size_t K, std::size_t top, const Wr* startA,
+                  const Wr* startB, Wr* qa, Wr* qb) {
+  DownwardRows<Wr> r;
+  std::size_t k;
+  Wr kk = Wr(static_cast<double>(top));
+  if (startA) {
+    // state at index K-1: Q_{K-1} = Q_K + D_{K-1}; w_{K-1} = (2K-1) D (row a), D/(2K-1) (b)
+    k = top - 1;
+    r.Qa = startA[0];
+    r.ca = startA[1];
+    two_sum_acc(r.Qa, r.ca, startA[2]);
+    r.ca += startA[3];
+    r.wa = (2 * kk - 1) * startA[2];
+    r.cwa = (2 * kk - 1) * startA[3];
+    r.Qb = startB[0];
+    r.cb = startB[1];
+    two_sum_acc(r.Qb, r.cb, startB[2]);
+    r.cb += startB[3];
+    r.wb = startB[2] / (2 * kk - 1);
+    r.cwb = startB[3] / (2 * kk - 1);
+    kk -= 1;
+  } else {
+    k = top;  // Q_{N+1} = 0: D_N = Q_N = 1
+    r.Qa = 1;
+    r.wa = 2 * kk + 1;
+    r.Qb = 1;
+    r.wb = 1 / (2 * kk + 1);
+  }
+  r.QFa = r.Qa + r.ca;
+  r.QFb = r.Qb + r.cb;
+  if (k < K) {
+    qa[k] = r.QFa;
+    qb[k] = r.QFb;
+  }
+  if constexpr (is_mpfr_v<Wr>) {
+    static_assert(!Compensate, "MPFR runs with extra digits instead of compensation");
+    recurse_down_mpfr(e, K, k, r, qa, qb);
+  } else {
+    recurse_down_scaled<Wr, Compensate>(e, K, top, k, kk, r, qa, qb);
   }
 }
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The paper's series for the double pendulum, eq. ave-K1-result, with a rigorous truncation
-// bound (MATH.md Sec. 5).
+// bound (src/engine/double_pendulum/README.md, 'Series').
 //
 //   beta<K1> = (mu1/2) N / D,   N = sum_{n>=0} c_n mu2^n R_n,   D = R_0 - sum_{n>=1} d_n mu2^n R_n,
 //   c_n = (2n-1)!!/(n! 2^n),  d_n = (2n-3)!!/(n! 2^n) = c_{n-1}/(2n),
@@ -10,7 +10,7 @@
 //   C(2n,2j) ((2k-1)!!)^2 = [(2n)! / (2j)!] * c_k   (k = n - j, since (2k)! = 2^k k! (2k-1)!!).
 // The derivatives E(d,k) = D^d f_k follow from d/da f_k = a f_{k+1} by Leibniz' rule,
 //   E(0,k) = f_k,  E(1,k) = a f_{k+1},  E(d,k) = a E(d-1,k+1) + (d-1) E(d-2,k+1),
-// which generates MATH.md's closed form sum_r d!/(2^{d-r}(d-r)!(2r-d)!) a^{2r-d} f_{k+r}
+// which generates the closed form sum_r d!/(2^{d-r}(d-r)!(2r-d)!) a^{2r-d} f_{k+r}
 // term by term (every term positive: nothing cancels), in O(1) per entry from one table
 // f_0..f_{2M+2} per argument. Everything is scaled by e^{-(a1+a2)}; the scale cancels in N/D.
 //
@@ -188,6 +188,29 @@ inline double a_priori_terms(double log_mu1, double log_mu2, double log_tol) {
 /// comes back with converged = false and its rigorous bound. An explicit `terms` may exceed it.
 constexpr std::size_t max_automatic_terms = 6000;
 
+/// The refusal of an automatic run that needs `estimate` terms, beyond max_automatic_terms.
+[[noreturn]] void refuse_automatic_terms(double log_mu1, double log_mu2, double estimate,
+                                         int digits) {
+  // mu2 = 1 - mu1 for a light first particle (printed as 1 by a short decimal)
+  const double mu1 = std::exp(log_mu1);
+  // mu1 from its logarithm: exp underflows to 0 below 1e-308 ("1 - 0" was printed)
+  const std::string mu1_text =
+      mu1 > 0 ? short_decimal(mu1)
+              : "1e" + std::to_string(static_cast<long long>(std::floor(log_mu1 / std::log(10.0))));
+  const std::string mu2_text =
+      mu1 < 1e-3 ? "1 - " + mu1_text : short_decimal(std::exp(log_mu2));
+  const std::string terms_text = !std::isfinite(estimate) ? "more than 1e300"
+                                 : estimate < 1e15
+                                     ? "about " + std::to_string(static_cast<long long>(estimate))
+                                     : "about " + short_decimal(estimate);
+  throw invalid_input("series: mu2 = " + mu2_text + " converges like mu2^n: " + terms_text +
+                      " terms for " + std::to_string(digits) +
+                      " digits, beyond the automatic cap of " +
+                      std::to_string(max_automatic_terms) +
+                      " (work grows like terms^2); use the integral method, or give the "
+                      "number of terms explicitly");
+}
+
 }  // namespace
 
 template <class Real>
@@ -226,24 +249,7 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
   const double log_mu2 = static_cast<double>(log(chain.mass_fraction(1)));
   const double estimate = terms > 0 ? double(terms) : a_priori_terms(log_mu1, log_mu2, log_tol);
   if (terms == 0 && !(estimate <= double(max_automatic_terms))) {
-    // mu2 = 1 - mu1 for a light first particle (printed as 1 by a short decimal)
-    const double mu1 = std::exp(log_mu1);
-    // mu1 from its logarithm: exp underflows to 0 below 1e-308 ("1 - 0" was printed)
-    const std::string mu1_text =
-        mu1 > 0 ? short_decimal(mu1)
-                : "1e" + std::to_string(static_cast<long long>(std::floor(log_mu1 / std::log(10.0))));
-    const std::string mu2_text =
-        mu1 < 1e-3 ? "1 - " + mu1_text : short_decimal(std::exp(log_mu2));
-    const std::string terms_text = !std::isfinite(estimate) ? "more than 1e300"
-                                   : estimate < 1e15
-                                       ? "about " + std::to_string(static_cast<long long>(estimate))
-                                       : "about " + short_decimal(estimate);
-    throw invalid_input("series: mu2 = " + mu2_text + " converges like mu2^n: " + terms_text +
-                        " terms for " + std::to_string(is_mpfr_v<Real> ? digits : 16) +
-                        " digits, beyond the automatic cap of " +
-                        std::to_string(max_automatic_terms) +
-                        " (work grows like terms^2); use the integral method, or give the "
-                        "number of terms explicitly");
+    refuse_automatic_terms(log_mu1, log_mu2, estimate, is_mpfr_v<Real> ? digits : 16);
   }
   const std::size_t M = terms > 0 ? terms : static_cast<std::size_t>(estimate);
   if (M > max_series_terms)

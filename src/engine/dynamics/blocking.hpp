@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/detail/blocking.hpp -- time averages of correlated samples with Flyvbjerg-Petersen
+// engine/dynamics/blocking.hpp -- time averages of correlated samples with Flyvbjerg-Petersen
 // blocking error bars (H. Flyvbjerg and H. G. Petersen, J. Chem. Phys. 91, 461 (1989)).
 //
 // Samples arrive one row of `width` observables at a time. They are summed into blocks of a
@@ -29,7 +29,7 @@
 #include <vector>
 
 // The dynamics kernels include this header once per instruction set with
-// PENDAVG_BLOCKING_NAMESPACE set to their own namespace (src/engine/dynamics_kernels.cpp), so that
+// PENDAVG_BLOCKING_NAMESPACE set to their own namespace (src/engine/dynamics/dynamics_kernels.cpp), so that
 // each gets its own copy compiled for it.
 #ifndef PENDAVG_BLOCKING_NAMESPACE
 #define PENDAVG_BLOCKING_NAMESPACE detail

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Constrained symplectic dynamics of the N-link chain (include/pendavg/dynamics.hpp): states,
 // observables and the workspace, and the run-time choice of the kernels' instruction set
-// (src/engine/dynamics_kernels.cpp is compiled for baseline x86-64 and, where the compiler
+// (src/engine/dynamics/dynamics_kernels.cpp is compiled for baseline x86-64 and, where the compiler
 // can, for x86-64-v3 = AVX2 + FMA, about twice as fast; the library runs on any x86-64 CPU).
 #include "engine/dynamics/dynamics_kernels.hpp"
 

@@ -2,7 +2,7 @@
 // The constrained-dynamics kernels (states, observables, RATTLE stages, compositions, BAOAB,
 // runs, the Poincare section); see include/pendavg/dynamics.hpp. This file is compiled once per
 // instruction set (CMake: PENDAVG_DYNAMICS_ISA names the namespace, e.g. dynamics_base for
-// baseline x86-64 and dynamics_x86_64_v3 for AVX2 + FMA); src/engine/dynamics.cpp picks one at
+// baseline x86-64 and dynamics_x86_64_v3 for AVX2 + FMA); src/engine/dynamics/dynamics.cpp picks one at
 // run time.
 //
 // The wider instruction set is switched on by a pragma after the includes, not by -march for the
@@ -838,6 +838,85 @@ void baoab_step_kernel(const Chain<Real>& chain, ChainState<Real>& state, const 
 
 // ---------------------------------------------------------------- runs
 
+/// The start of a run (simulate_kernel): the initial energy and the scale the energy errors are
+/// relative to, the constraint residual at the start, and the time step against the fastest
+/// motion the run can reach (refused in one line). Inlined: one body with the run, as before
+/// the split (the kernels' fused multiply-adds stay where they were).
+template <class Real>
+[[gnu::always_inline]] inline void begin_run(const Chain<Real>& chain,
+                                             const SimulationOptions& options, bool langevin,
+                                             DynamicsWorkspace<Real>& ws, std::vector<Real>& sample,
+                                             SimulationResult<Real>& out) {
+  const std::size_t n = chain.size();
+  Real mass_sum = 0, length_sum = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    mass_sum += chain.mass(i);
+    length_sum += chain.length(i);
+  }
+  {
+    Real k0 = 0, u0 = 0;
+    link_observables(chain, ws, sample.data(), k0, u0);
+    out.initial_energy = k0 + u0;
+    out.energy_scale = chain.gravity() > 0 ? mass_sum * chain.gravity() * length_sum
+                                           : abs(out.initial_energy) + k0;
+    if (!(out.energy_scale > 0)) out.energy_scale = 1;
+  }
+  out.constraint_residual = link_constraint_residual(ws);
+  {
+    // Kinetic energy the motion can reach: E - U_min for NVE; for Langevin also ~ N/beta
+    // (thermal), with a wide margin (20 N / beta).
+    const long double u_min = -static_cast<long double>(chain.gravity()) * static_cast<long double>(mass_sum) *
+                        static_cast<long double>(length_sum);
+    long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
+    if (langevin)
+      kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(*options.beta));
+    domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate",
+                                   options.duration + options.burn_in, max_simulation_steps);
+  }
+}
+
+/// The end of a run (simulate_kernel): the final constraint residual and energy, the energy
+/// errors relative to the scale, the work done, and the time averages with their blocking error
+/// bars. Inlined, as begin_run.
+template <class Real>
+[[gnu::always_inline]] inline void finish_run(
+    const Chain<Real>& chain, const SimulationOptions& options, bool langevin,
+    DynamicsWorkspace<Real>& ws, const BlockAverager<Real>& blocks, std::vector<Real>& sample,
+    std::size_t done, const Real& energy_error_max, const Real& energy_error_squares,
+    SimulationResult<Real>& out) {
+  const std::size_t n = chain.size();
+  out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
+  // The position stages' own residual |sigma|/l^2 ~ relative length error: include it.
+  out.constraint_residual = std::max(out.constraint_residual, ws.largest_stage_residual);
+  {
+    Real k1 = 0, u1 = 0;
+    link_observables(chain, ws, sample.data(), k1, u1);
+    out.final_energy = k1 + u1;
+  }
+  out.energy_drift = (out.final_energy - out.initial_energy) / out.energy_scale;
+  out.energy_error_max = energy_error_max / out.energy_scale;
+  if (done > 0)
+    out.energy_error_rms = sqrt(energy_error_squares / Real(static_cast<double>(done))) / out.energy_scale;
+  out.steps = done;
+  out.samples = blocks.samples();
+  out.simulated_time = static_cast<double>(done) * options.time_step;
+  out.newton_solves = ws.newton_solves;
+  out.unconverged_stages = ws.unconverged_stages;
+
+  const Real sample_time(options.time_step);
+  out.kinetic.resize(n);
+  out.kinetic_canonical.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out.kinetic[i] = blocks.time_average(i, sample_time);
+    out.kinetic_canonical[i] = blocks.time_average(n + i, sample_time);
+  }
+  out.cos_angle.resize(n);
+  for (std::size_t i = 0; i < n; ++i) out.cos_angle[i] = blocks.time_average(2 * n + i, sample_time);
+  out.kinetic_total = blocks.time_average(3 * n, sample_time);
+  out.potential = blocks.time_average(3 * n + 1, sample_time);
+  if (!langevin) out.energy_trend = blocks.trend(3 * n + 2) / out.energy_scale;
+}
+
 template <class Real>
 SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real> state,
                                 const SimulationOptions& options,
@@ -859,36 +938,12 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
   std::mt19937_64 rng(options.seed.value_or(1));
   const Real start_time = state.time;
 
-  Real mass_sum = 0, length_sum = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    mass_sum += chain.mass(i);
-    length_sum += chain.length(i);
-  }
   // Observables per sample: K_i (n), K_i^(c) (n), cos phi_i (n), K, U, E.
   const std::size_t width = 3 * n + 3;
   std::vector<Real> sample(width);
   SimulationResult<Real> out;
   out.method = langevin ? Method::dynamics_langevin : Method::dynamics_nve;
-  {
-    Real k0 = 0, u0 = 0;
-    link_observables(chain, ws, sample.data(), k0, u0);
-    out.initial_energy = k0 + u0;
-    out.energy_scale = chain.gravity() > 0 ? mass_sum * chain.gravity() * length_sum
-                                           : abs(out.initial_energy) + k0;
-    if (!(out.energy_scale > 0)) out.energy_scale = 1;
-  }
-  out.constraint_residual = link_constraint_residual(ws);
-  {
-    // Kinetic energy the motion can reach: E - U_min for NVE; for Langevin also ~ N/beta
-    // (thermal), with a wide margin (20 N / beta).
-    const long double u_min = -static_cast<long double>(chain.gravity()) * static_cast<long double>(mass_sum) *
-                        static_cast<long double>(length_sum);
-    long double kinetic = static_cast<long double>(out.initial_energy) - u_min;
-    if (langevin)
-      kinetic = std::max(kinetic, 20 * static_cast<long double>(n) / static_cast<long double>(*options.beta));
-    domain::check_stable_time_step(chain, options.time_step, kinetic, "simulate",
-                                   options.duration + options.burn_in, max_simulation_steps);
-  }
+  begin_run(chain, options, langevin, ws, sample, out);
 
   auto advance = [&]() {
     if (langevin) {
@@ -902,9 +957,6 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
   // a fraction of a second, and a front end throttles what it prints.
   const std::size_t progress_every =
       std::clamp<std::size_t>(total_steps / 100, 1, 1024);
-  auto stop_requested = [&]() {
-    return observer.stop != nullptr && observer.stop->load(std::memory_order_relaxed);
-  };
   auto export_state = [&](std::size_t step) {
     store_links(ws, state);
     state.time = start_time + Real(static_cast<double>(step)) * h;
@@ -943,45 +995,17 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
       observer.trajectory(state);
     }
     if (observer.progress && step % progress_every == 0)
-      observer.progress(static_cast<double>(step) / static_cast<double>(total_steps));
+      observer.report(static_cast<double>(step) / static_cast<double>(total_steps));
     if ((step & 1023) == 0) {
       out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
-      if (stop_requested()) {
+      if (observer.stop_requested()) {
         out.interrupted = step < total_steps;
         break;
       }
     }
   }
-  out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
-  // The position stages' own residual |sigma|/l^2 ~ relative length error: include it.
-  out.constraint_residual = std::max(out.constraint_residual, ws.largest_stage_residual);
-  {
-    Real k1 = 0, u1 = 0;
-    link_observables(chain, ws, sample.data(), k1, u1);
-    out.final_energy = k1 + u1;
-  }
-  out.energy_drift = (out.final_energy - out.initial_energy) / out.energy_scale;
-  out.energy_error_max = energy_error_max / out.energy_scale;
-  if (done > 0)
-    out.energy_error_rms = sqrt(energy_error_squares / Real(static_cast<double>(done))) / out.energy_scale;
-  out.steps = done;
-  out.samples = blocks.samples();
-  out.simulated_time = static_cast<double>(done) * options.time_step;
-  out.newton_solves = ws.newton_solves;
-  out.unconverged_stages = ws.unconverged_stages;
-
-  const Real sample_time(options.time_step);
-  out.kinetic.resize(n);
-  out.kinetic_canonical.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    out.kinetic[i] = blocks.time_average(i, sample_time);
-    out.kinetic_canonical[i] = blocks.time_average(n + i, sample_time);
-  }
-  out.cos_angle.resize(n);
-  for (std::size_t i = 0; i < n; ++i) out.cos_angle[i] = blocks.time_average(2 * n + i, sample_time);
-  out.kinetic_total = blocks.time_average(3 * n, sample_time);
-  out.potential = blocks.time_average(3 * n + 1, sample_time);
-  if (!langevin) out.energy_trend = blocks.trend(3 * n + 2) / out.energy_scale;
+  finish_run(chain, options, langevin, ws, blocks, sample, done, energy_error_max,
+             energy_error_squares, out);
   return out;
 }
 
@@ -1023,10 +1047,11 @@ Real hermite_crossing(const Real& x0, const Real& v0, const Real& x1, const Real
 
 }  // namespace
 
+/// The request of a section, checked before any step (invalid_input in one line): N = 2, a finite
+/// energy above the minimum -(gamma_1 + gamma_2), g > 0, a positive time step, orbits, points.
 template <class Real>
-PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Real& energy,
-                                       const PoincareOptions& options,
-                                       const DynamicsObserver<Real>& observer) {
+void check_section_request(const Chain<Real>& chain, const Real& energy,
+                           const PoincareOptions& options) {
   if (chain.size() != 2) throw invalid_input("poincare: the section is defined for N = 2");
   if (!std::isfinite(static_cast<double>(energy))) throw invalid_input("poincare: energy must be finite");
   if (!(chain.gravity() > 0)) throw invalid_input("poincare: needs g > 0");
@@ -1038,18 +1063,15 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
     throw invalid_input("poincare: the time step must be positive and finite");
   if (options.orbits == 0 || options.points == 0)
     throw invalid_input("poincare: orbits and points must be positive");
-  const Real pi = boost::math::constants::pi<Real>();
-  const Real m2 = chain.mass(1), l2 = chain.length(1);
-  // On the section (phi1 = 0): U = -g1 - g2 cos phi2 and p2^2 <= 2 A_3 (E - U), A_3 = m2 l2^2
-  // (paper Appendix E). Allowed phi2: cos phi2 > -(E + g1)/g2.
-  const Real cmin = -(energy + g1) / g2;
-  const Real phi2_max = cmin <= -1 ? pi : std::acos(static_cast<double>(cmin)) * Real(1);
-  const Real a3 = m2 * l2 * l2;
-  const std::size_t orbits = options.orbits;
-  PoincareSection<Real> out;
-  out.energy = energy;
-  out.start_phi2.resize(orbits);
-  out.start_p2.resize(orbits);
+}
+
+/// The orbits' starting points on the section (phi1 = 0): even orbits on p2 = 0 over phi2 in
+/// [0, phi2_max), odd ones on phi2 = 0 over |p2| < p2_max, p2_max^2 = 2 A_3 (E + g1 + g2).
+template <class Real>
+[[gnu::always_inline]] inline void section_starts(const Real& energy, const Real& g1,
+                                                  const Real& g2, const Real& phi2_max,
+                                                  const Real& a3, PoincareSection<Real>& out) {
+  const std::size_t orbits = out.start_phi2.size();
   for (std::size_t k = 0; k < orbits; ++k) {
     // Even orbits on p2 = 0 over phi2 in [0, phi2_max), odd ones on phi2 = 0 over |p2| < p2_max.
     const std::size_t half = (orbits + 1) / 2;
@@ -1065,6 +1087,22 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       out.start_p2[k] = (2 * f - 1) * p2_max * Real(0.98);
     }
   }
+}
+
+/// The work of each orbit, bounded before any step, and the energy scale M g L the errors are
+/// relative to (refused when the scales overflow double or the time step is unstable).
+template <class Real>
+struct SectionBudget {
+  double max_time = 0;
+  std::size_t max_steps = 0;
+  Real scale{};
+};
+
+template <class Real>
+[[gnu::always_inline]] inline SectionBudget<Real> section_budget(const Chain<Real>& chain,
+                                                                 const Real& energy,
+                                                                 const PoincareOptions& options) {
+  SectionBudget<Real> budget;
   const double max_time =
       options.max_time > 0 ? options.max_time : 200.0 * static_cast<double>(options.points);
   // Bounded work, decided before any: at most 1e12 steps per orbit.
@@ -1073,8 +1111,8 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
     throw invalid_input("poincare: a time step of " + short_decimal(options.time_step) +
                         " needs " + short_decimal(steps_needed) + " steps per orbit (over 1e12)"
                         "; use a larger --dt or a shorter --max-time");
-  const auto max_steps = static_cast<std::size_t>(steps_needed);
-  const Real h(options.time_step);
+  budget.max_time = max_time;
+  budget.max_steps = static_cast<std::size_t>(steps_needed);
   Real mass_sum = chain.mass(0) + chain.mass(1), length_sum = chain.length(0) + chain.length(1);
   const Real scale = mass_sum * chain.gravity() * length_sum;
   using std::isfinite;
@@ -1089,6 +1127,56 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
   domain::check_stable_time_step(chain, options.time_step,
                                  static_cast<long double>(energy) + static_cast<long double>(scale),
                                  "poincare", max_time, 1e12);
+  budget.scale = scale;
+  return budget;
+}
+
+/// The crossing of the section (phi1 = 0 upwards) between `previous` and the step after it:
+/// the cubic Hermite guess of the time, refined by Newton steps on a partial step from
+/// `previous`; returns the state on the section.
+template <class Real>
+[[gnu::always_inline]] inline ChainState<Real> section_crossing(
+    const Chain<Real>& chain, const ChainState<Real>& previous, const SectionCoordinate<Real>& a,
+    const SectionCoordinate<Real>& b, const Real& h, const DynamicsWorkspace<Real>& ws) {
+  Real tau = hermite_crossing(a.x, a.xdot, b.x, b.xdot, h);
+  ChainState<Real> on;
+  DynamicsWorkspace<Real> ws_partial = ws;
+  for (int refine = 0; refine < 4; ++refine) {
+    on = previous;
+    ws_partial = ws;
+    if (tau > 0) yoshida4_step_kernel(chain, on, tau, ws_partial);
+    const SectionCoordinate<Real> c = section_coordinate(chain, on);
+    if (c.xdot == 0) break;
+    const Real correction = -c.x / c.xdot;
+    tau += correction;
+    if (abs(correction) <= 4 * std::numeric_limits<Real>::epsilon() * h) break;
+  }
+  return on;
+}
+
+template <class Real>
+PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Real& energy,
+                                       const PoincareOptions& options,
+                                       const DynamicsObserver<Real>& observer) {
+  check_section_request(chain, energy, options);
+  const Real g1 = chain.potential_coefficient(0), g2 = chain.potential_coefficient(1);
+  const Real pi = boost::math::constants::pi<Real>();
+  const Real m2 = chain.mass(1), l2 = chain.length(1);
+  // On the section (phi1 = 0): U = -g1 - g2 cos phi2 and p2^2 <= 2 A_3 (E - U), A_3 = m2 l2^2
+  // (paper Appendix E). Allowed phi2: cos phi2 > -(E + g1)/g2.
+  const Real cmin = -(energy + g1) / g2;
+  const Real phi2_max = cmin <= -1 ? pi : std::acos(static_cast<double>(cmin)) * Real(1);
+  const Real a3 = m2 * l2 * l2;
+  const std::size_t orbits = options.orbits;
+  PoincareSection<Real> out;
+  out.energy = energy;
+  out.start_phi2.resize(orbits);
+  out.start_p2.resize(orbits);
+  section_starts(energy, g1, g2, phi2_max, a3, out);
+  const SectionBudget<Real> budget = section_budget(chain, energy, options);
+  const std::size_t max_steps = budget.max_steps;
+  const Real& scale = budget.scale;
+  const Real h(options.time_step);
 
   std::vector<std::vector<SectionPoint<Real>>> per_orbit(orbits);
   std::vector<Real> energy_error(orbits, Real(0));
@@ -1106,7 +1194,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
     if (!last && static_cast<double>(now - std::min(now, before)) * 200 < total_units) return;
     if (!reported.compare_exchange_strong(before, now)) return;
 #pragma omp critical(pendavg_poincare_progress)
-    observer.progress(static_cast<double>(now) / total_units);
+    observer.report(static_cast<double>(now) / total_units);
   };
   ParallelErrors errors;  // an exception may not leave the parallel region
 #pragma omp parallel for schedule(dynamic, 1) num_threads(options.threads) if (options.threads > 1)
@@ -1134,7 +1222,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       ++step;
       if ((step & 1023) == 0) {
         worst = std::max(worst, abs(total_energy_kernel(chain, st) - energy));
-        if (observer.stop != nullptr && observer.stop->load(std::memory_order_relaxed)) {
+        if (observer.stop_requested()) {
           interrupted[k] = 1;
           break;
         }
@@ -1144,19 +1232,7 @@ PoincareSection<Real> poincare_section_kernel(const Chain<Real>& chain, const Re
       const SectionCoordinate<Real> b = section_coordinate(chain, st);
       if (!(a.x < 0 && b.x >= 0 && a.y < 0 && b.y < 0)) continue;
       // Crossing phi1 = 0 upwards (x1 increasing below the pivot: phidot1 > 0).
-      Real tau = hermite_crossing(a.x, a.xdot, b.x, b.xdot, h);
-      ChainState<Real> on;
-      DynamicsWorkspace<Real> ws_partial = ws;
-      for (int refine = 0; refine < 4; ++refine) {
-        on = previous;
-        ws_partial = ws;
-        if (tau > 0) yoshida4_step_kernel(chain, on, tau, ws_partial);
-        const SectionCoordinate<Real> c = section_coordinate(chain, on);
-        if (c.xdot == 0) break;
-        const Real correction = -c.x / c.xdot;
-        tau += correction;
-        if (abs(correction) <= 4 * std::numeric_limits<Real>::epsilon() * h) break;
-      }
+      const ChainState<Real> on = section_crossing(chain, previous, a, b, h, ws);
       const ChainObservables<Real> o = observables_kernel(chain, on);
       SectionPoint<Real> point;
       point.orbit = k;

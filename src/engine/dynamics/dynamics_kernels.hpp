@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/dynamics_kernels.hpp -- the dynamics kernels, declared once per instruction set they are
-// compiled for (src/engine/dynamics_kernels.cpp): dynamics_base (baseline x86-64, any CPU) and
+// engine/dynamics/dynamics_kernels.hpp -- the dynamics kernels, declared once per instruction set they are
+// compiled for (src/engine/dynamics/dynamics_kernels.cpp): dynamics_base (baseline x86-64, any CPU) and
 // dynamics_x86_64_v3 (AVX2 + FMA). The public functions of pendavg/dynamics.hpp pick one at run
-// time (src/engine/dynamics.cpp); the same definitions give the same results up to fused
+// time (src/engine/dynamics/dynamics.cpp); the same definitions give the same results up to fused
 // multiply-adds.
 #pragma once
 

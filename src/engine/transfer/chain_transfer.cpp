@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The transfer operator along the chain (engine/chain_transfer.hpp has the equations).
+// The transfer operator along the chain (engine/transfer/chain_transfer.hpp has the equations).
 #include "engine/transfer/chain_transfer.hpp"
 #include "engine/numerics/legendre.hpp"
 
@@ -1424,10 +1424,10 @@ std::size_t transfer_pivot_nodes(const Chain<Real>& chain, double expected_error
   return std::max<std::size_t>(3, static_cast<std::size_t>(m));
 }
 
-template <class Real>
-Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta,
-                                      const TransferOptions& options) {
-  check_beta(beta);
+namespace {
+
+/// The options chain_transfer_average refuses (invalid_input), before any work.
+void check_transfer_options(const TransferOptions& options) {
   if (!(options.tolerance > 0) || !(options.tolerance < 1)) {
     throw invalid_input("transfer: tolerance must lie in (0, 1)");
   }
@@ -1440,7 +1440,53 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   if (options.max_angle_nodes < 16 || options.max_pivot_nodes < 8) {
     throw invalid_input("transfer: max_angle_nodes >= 16 and max_pivot_nodes >= 8");
   }
+}
+
+/// The reported level's quantities (flatten's order: beta<K_i>, beta^2 Var K_i, <cos phi_i>)
+/// as the averages, each error its verified difference plus the level's noise; converged only
+/// when `converged` and every error is within the tolerance of its scale.
+template <class Real>
+Averages<Real> transfer_averages(const Chain<Real>& chain, const TransferDiagnostics<Real>& run,
+                                 const std::vector<Real>& value, const std::vector<Real>& scale,
+                                 const std::vector<Real>& noise, const std::vector<Real>& error,
+                                 const Real& tol, bool converged, bool stopped) {
   const std::size_t N = chain.size();
+  Averages<Real> out;
+  out.method = Method::transfer;
+  out.error_kind = ErrorKind::estimate;
+  out.work_unit = WorkUnit::nodes;
+  out.evaluations = static_cast<std::size_t>(run.kernel_evaluations);
+  out.beta_kinetic.resize(N);
+  out.beta2_kinetic_variance.resize(N);
+  out.cos_angle.resize(N);
+  out.converged = converged;
+  out.interrupted = stopped;
+  for (std::size_t i = 0; i < N; ++i) {
+    const auto pack = [&](std::size_t q) {
+      const Real e = error[q] + noise[q];
+      if (!(e <= tol * scale[q])) out.converged = false;
+      return Estimate<Real>{value[q], e, ErrorKind::estimate};
+    };
+    out.beta_kinetic[i] = pack(i);
+    out.beta2_kinetic_variance[i] = pack(N + i);
+    out.cos_angle[i] = pack(2 * N + i);
+  }
+  if (N >= 2) {
+    out.ratio = kinetic_ratio(out.beta_kinetic[0], out.beta_kinetic[1],
+                              Real(std::numeric_limits<Real>::epsilon()));
+  }
+  out.transfer = run;
+  add_chain_extras(out, chain);
+  return out;
+}
+
+}  // namespace
+
+template <class Real>
+Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta,
+                                      const TransferOptions& options) {
+  check_beta(beta);
+  check_transfer_options(options);
   const Real tol = Real(options.tolerance);
   // The pivot nodes of level k (see "refinement and error estimate" above), more than the
   // previous level's (so that the verification level's difference also sees the pivot error).
@@ -1516,33 +1562,8 @@ Averages<Real> chain_transfer_average(const Chain<Real>& chain, const Real& beta
   run.angle_nodes = reported.angle_nodes;
   run.pivot_nodes = reported.pivot_nodes;
 
-  Averages<Real> out;
-  out.method = Method::transfer;
-  out.error_kind = ErrorKind::estimate;
-  out.work_unit = WorkUnit::nodes;
-  out.evaluations = static_cast<std::size_t>(run.kernel_evaluations);
-  out.beta_kinetic.resize(N);
-  out.beta2_kinetic_variance.resize(N);
-  out.cos_angle.resize(N);
-  out.converged = !rungs.back().pivots_capped && contracting && !stopped;
-  out.interrupted = stopped;
-  for (std::size_t i = 0; i < N; ++i) {
-    const auto pack = [&](std::size_t q) {
-      const Real e = error[q] + reported.noise[q];
-      if (!(e <= tol * reported.scale[q])) out.converged = false;
-      return Estimate<Real>{reported.value[q], e, ErrorKind::estimate};
-    };
-    out.beta_kinetic[i] = pack(i);
-    out.beta2_kinetic_variance[i] = pack(N + i);
-    out.cos_angle[i] = pack(2 * N + i);
-  }
-  if (N >= 2) {
-    out.ratio = kinetic_ratio(out.beta_kinetic[0], out.beta_kinetic[1],
-                              Real(std::numeric_limits<Real>::epsilon()));
-  }
-  out.transfer = run;
-  add_chain_extras(out, chain);
-  return out;
+  return transfer_averages(chain, run, reported.value, reported.scale, reported.noise, error, tol,
+                           !rungs.back().pivots_capped && contracting && !stopped, stopped);
 }
 
 #define PENDAVG_INSTANTIATE_CHAIN_TRANSFER(Real)                                          \
