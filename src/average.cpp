@@ -191,8 +191,8 @@ std::string advice_for(const Chain<Real>& chain, const Real& beta, AverageMethod
   }
 }
 
-/// The trace formula's pivots carry ratios up to M / m_min and their squares (MATH.md Sec. 4):
-/// in double they stay finite only for M / m_min <= 1e150.
+/// The trace formula's pivots carry ratios up to M / m_min and their squares (src/engine/README.md,
+/// 'Isserlis'): in double they stay finite only for M / m_min <= 1e150.
 template <class Real>
 void check_double_mass_range(const Chain<Real>& chain, const Real& beta, AverageMethod method) {
   const auto lightest = *std::min_element(chain.masses().begin(), chain.masses().end());

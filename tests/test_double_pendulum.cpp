@@ -271,7 +271,7 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
   }
 }
 
-// ---- product integration over the inner panel (detail/inner_panel_series.hpp) --------------
+// ---- product integration over the inner panel (engine/double_pendulum/inner_panel_series.hpp) --------------
 
 #include "bench/cases.hpp"
 #include "engine/numerics/bessel.hpp"

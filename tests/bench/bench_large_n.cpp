@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Large N (issue 13): the work-precision study and the timing targets of the transfer operator
-// (src/engine/chain_transfer.hpp) side by side with randomized lattice QMC, in one process.
+// (src/engine/transfer/chain_transfer.hpp) side by side with randomized lattice QMC, in one process.
 // Unit chains (m_i = l_i = 1, g = 1). Not a Google Benchmark: each mode prints CSV rows.
 //
 //   bench_large_n wp N BETA MAX_LOG2_POINTS [REPS]

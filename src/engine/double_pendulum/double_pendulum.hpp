@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2); the public
+// engine/double_pendulum/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2); the public
 // entry point is average() (pendavg/average.hpp).
 //
-// Three engines, one result type (Averages<Real>):
-//  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (MATH.md Sec. 2),
+// Two engines here and the elliptic limit, one result type (Averages<Real>); the math of both:
+// src/engine/double_pendulum/README.md.
+//  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (src/engine/README.md,
+//    'Reduction'),
 //      folded onto [0, pi/2]. The default engine, in double and in MPFR. Two evaluations:
 //      - exact finite sums: Graf's addition theorem expands the Boltzmann weight
 //        I0(R(t)) e^{-(a1+a2)} in cos(2kt) with coefficients from one Miller table of
@@ -26,16 +28,17 @@
 //        tables' Miller steps beyond the rows (cheaper there: ~920 orders at 38 digits, ~1820
 //        at 77; the nodes' count grows with the digits, the sums' cost per order not).
 //  * series_average -- the paper's series, eq. ave-K1-result, with R_n from the closed-form
-//      Bessel derivatives (MATH.md Sec. 5) and a rigorous truncation bound that decides when
-//      to stop. Converges geometrically with ratio mu2: prefer the integral when mu1 is small.
-//      Evaluated in MPFR (its coefficients leave double's range); gives beta<K_i> only, and
-//      takes <cos phi_i>, Var K_i from the integral. O(M^2) work for M terms.
+//      Bessel derivatives (src/engine/double_pendulum/README.md, 'Series') and a rigorous
+//      truncation bound that decides when to stop. Converges geometrically with ratio mu2: prefer
+//      the integral when mu1 is small. Evaluated in MPFR (its coefficients leave double's range);
+//      gives beta<K_i> only, and takes <cos phi_i>, Var K_i from the integral. O(M^2) work for M
+//      terms.
 //  * elliptic_high_temperature_limit -- beta -> 0: beta<K1> = (mu1/2) K(k)/E(k), k^2 = mu2
-//      (paper eq. aveK1-beta0), via Carlson's R_F, R_G with k'^2 = mu1 given directly.
-// (beta -> infinity, closed form for any N, is in engine/torus.hpp.)
+//      (paper eq. aveK1-beta0), declared with every other limit (beta -> 0 and beta -> infinity,
+//      N = 2 and any N) in engine/limits/limits.hpp.
 //
 // Observables: beta<K_i> (K_2 from beta<K1> + beta<K2> = 1), <cos phi_i>, beta^2 Var K_i
-// (MATH.md Sec. 4: for N = 2 X_1 has rank one, so <K1^2|phi> = 3 <K1|phi>^2).
+// (src/engine/README.md, 'Isserlis': for N = 2 X_1 has rank one, so <K1^2|phi> = 3 <K1|phi>^2).
 //
 // `digits` is the number of correct significant decimal digits requested (16..1000). For
 // Real = double it must be 16 (the double path aims at ~2e-15 relative error). For
@@ -141,8 +144,9 @@ struct NodePlan {
 template <class Real>
 NodePlan<Real> plan_nodes(const DoublePendulumParameters<Real>& p, const IntegralPlan<Real>& plan);
 
-/// The exact 1-D reduced integral (MATH.md Secs. 2, 4): beta<K_i>, <cos phi_i>, beta^2 Var K_i.
-/// `digits`: 16 for double, 16..1000 for MPFR (computed at digits + guard_digits).
+/// The exact 1-D reduced integral (src/engine/README.md, 'Reduction', 'Isserlis'): beta<K_i>, <cos
+/// phi_i>, beta^2 Var K_i. `digits`: 16 for double, 16..1000 for MPFR (computed at digits +
+/// guard_digits).
 template <class Real>
 Averages<Real> reduced_integral_average(const Chain<Real>& chain, const Real& beta, int digits,
                                         const IntegralOptions& options,

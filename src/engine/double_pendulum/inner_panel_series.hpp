@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/detail/inner_panel_series.hpp -- product integration of the double pendulum's
-// reduced integrals over the inner panel t in [0, t1] (MATH.md Sec. 2 integrands, Sec. 6).
+// engine/double_pendulum/inner_panel_series.hpp -- product integration of the double pendulum's
+// reduced integrals over the inner panel t in [0, t1] (src/engine/double_pendulum/README.md,
+// 'Reduced integral').
 //
 // WHAT. With z = sin^2(t/2) on [0, z1], z1 = sin^2(t1/2), and W = e^{-A} I0(R), g =
 // e^{-A} I1(R)/R, R^2 = A^2 - P z (A = a1 + a2, P = 4 a1 a2), the five unfolded integrals

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The exact 1-D reduced integral for the double pendulum (MATH.md Sec. 2 and 4), generic over
-// Real, plus the engine dispatcher. See include/pendavg/double_pendulum.hpp for the design.
+// The exact 1-D reduced integral for the double pendulum (src/engine/double_pendulum/README.md,
+// 'Reduced integral'), generic over Real, plus the engine dispatcher. See
+// engine/double_pendulum/double_pendulum.hpp for the design.
 //
 // Integrals (t = phi2 - phi1 folded onto [0, pi/2] with t -> pi - t, q(t) = mu1 + mu2 sin^2 t,
 // W(t) = I0(R(t)) e^{-(a1+a2)}, R(t)^2 = a1^2 + a2^2 + 2 a1 a2 cos t):
@@ -9,7 +10,8 @@
 // give beta<K1> = (mu1/2) J_{-1/2}/J_{1/2}, <cos phi_j> = C_j / J_{1/2}, and with x = mu1/q
 // (= tr X_1): <x> = mu1 J_{-1/2}/J_{1/2}, <x^2> = mu1^2 J_{-3/2}/J_{1/2},
 //   beta^2 Var K1 = (3/4)<x^2> - <x>^2/4,
-//   beta^2 Var K2 = (1 - <x>) + <x>^2/2 + (3/4)(<x^2> - <x>^2)      (MATH.md Sec. 4).
+//   beta^2 Var K2 = (1 - <x>) + <x>^2/2 + (3/4)(<x^2> - <x>^2)      (src/engine/README.md,
+//   'Isserlis').
 // On a cut range [0, T] (unfolded weight, Bessel weights at the nodes) J_{-3/2} is integrated
 // by parts: with q' = 2 mu2 sin t cos t and mu1 + mu2 = 1,
 //   mu1 J_{-3/2} = J_{1/2} - mu2 int_0^T sin t cos t q^{-1/2} W' dt + mu2 B(T),
@@ -759,7 +761,7 @@ struct ExponentSum {
 };
 
 /// The five integrals from Graf's coefficients and the exact Fourier moments of q^s
-/// (detail/fourier_moments.hpp): no quadrature at all.
+/// (double_pendulum/fourier_moments.hpp): no quadrature at all.
 template <class Real>
 LevelResult<Real> graf_moment_integrals(const DoublePendulumParameters<Real>& p,
                                         const GrafWeights<Real>& g, double L) {
@@ -1110,7 +1112,7 @@ LevelResult<Real> run_bessel_nodes(const DoublePendulumParameters<Real>& p,
   bool done = false;
   if constexpr (is_mpfr_v<Real>) {
     if (np.inner_series) {
-      // Product integration over the inner panel (detail/inner_panel_series.hpp) replaces its
+      // Product integration over the inner panel (double_pendulum/inner_panel_series.hpp) replaces its
       // ~130-260 nodes by ~50-100 series terms. When q's zero is at or beyond the peak's width
       // the panel's end moves out (inner_panel_end), if still well inside [0, T].
       const Real s1 = detail::inner_panel_end(sin(Real(np.t1) / 2), map.eps);
@@ -1152,7 +1154,8 @@ LevelResult<Real> run_bessel_nodes(const DoublePendulumParameters<Real>& p,
     r = levels(map);
   }
   if (dw.by_parts) {
-    // By parts on [0, T] (MATH.md Sec. 2 integrands; q' = 2 mu2 sin t cos t, mu1 + mu2 = 1):
+    // By parts on [0, T] (src/engine/double_pendulum/README.md, 'Reduced integral'; q' = 2 mu2 sin
+    // t cos t, mu1 + mu2 = 1):
     //   mu1 J_{-3/2} = J_{1/2} - mu2 int sin t cos t q^{-1/2} W' dt + mu2 B(T),
     //   B(t) = sin t cos t q^{-1/2} W(t),  B(0) = 0.
     // (Panel boundaries cancel.) Add the boundary term at the cut, exactly.

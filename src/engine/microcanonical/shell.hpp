@@ -272,7 +272,7 @@ Real excitation_of(const Chain<Real>& chain, const Real& energy) {
 
 /// sum_j gamma_j - |z| >= 0 for z = sum_j gamma_j e^{i phi_j}, without cancellation:
 /// sum_j gamma_j (1 - cos(phi_j - arg z)) (Re(z e^{-i arg z}) = |z|), with 1 - cos x =
-/// sin^2 x / (1 + cos x) for cos x >= 0 (torus.hpp's S - R). `rho` = |z| > 0.
+/// sin^2 x / (1 + cos x) for cos x >= 0 (the torus' S - R, torus/level_sums.hpp). `rho` = |z| > 0.
 template <class Real>
 Real well_deficit(const std::vector<Real>& gamma, const Real* cos_phi, const Real* sin_phi,
                   const Real& zx, const Real& zy, const Real& rho) {

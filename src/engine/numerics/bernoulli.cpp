@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// B_{2j} / (2j) per MPFR precision: see engine/bernoulli.hpp.
+// B_{2j} / (2j) per MPFR precision: see engine/numerics/bernoulli.hpp.
 #include "engine/numerics/bernoulli.hpp"
 
 #include "engine/numerics/constant_cache.hpp"

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/bernoulli.hpp -- the coefficients B_{2j} / (2j) of the asymptotic series of the digamma
-// function in MPFR, tabulated once per precision (MATH.md does not need them; the Fourier moments
-// of q^s do, through psi: engine/detail/fourier_moments.hpp).
+// engine/numerics/bernoulli.hpp -- the coefficients B_{2j} / (2j) of the asymptotic series of the digamma
+// function in MPFR, tabulated once per precision (the Fourier moments
+// of q^s do, through psi: engine/double_pendulum/fourier_moments.hpp).
 //
 // Why not Boost.Math's bernoulli_b2n: its cache for a variable-precision type is process-wide and
 // keeps the highest precision any call ever asked for, so a 30-digit result would depend on

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/bessel.hpp -- exponentially scaled modified Bessel functions, generic over Real.
+// engine/numerics/bessel.hpp -- exponentially scaled modified Bessel functions, generic over Real.
 //
 // What for: every Boltzmann weight of the pendulum is a product of I_k(alpha) factors with
 // alpha = beta * (mass) * g * (length), which overflows double beyond alpha ~ 700. Everything
@@ -16,7 +16,8 @@
 //  * scaled_bessel_i_table(a,K) -- e^{-a} I_m(a), m = 0..K-1, by Miller's backward recurrence
 //                                  normalised with the exact sum rule sum_m eps_m e^{-a}I_m(a)=1
 //                                  (eps_0 = 1, eps_m = 2). One table per argument feeds Graf's
-//                                  addition theorem and the paper's series (MATH.md Sec. 5).
+//                                  addition theorem and the paper's series
+//                                  (src/engine/double_pendulum/README.md, 'Series').
 //  * reduced_bessel_table(a,K)  -- f_k(a) = I_k(a)/a^k scaled by e^{-a}, k = 0..K-1, from the
 //                                  backward recurrence f_{k-1} = a^2 f_{k+1} + 2k f_k (all terms
 //                                  positive; exact at a = 0 where f_k = 1/(2^k k!)).

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/constant_cache.hpp -- tables of constants (quadrature rules, series coefficients) shared
+// engine/numerics/constant_cache.hpp -- tables of constants (quadrature rules, series coefficients) shared
 // by every call and thread: built once per key (a size and the MPFR precision; 0 for hardware
 // types), never changed afterwards. Each holds its own lock where it grows lazily. Up to
 // `capacity` keys are kept, the least recently used dropped first (callers hold a shared_ptr, so

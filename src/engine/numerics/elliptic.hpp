@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/detail/elliptic.hpp -- complete elliptic integrals from the complementary parameter.
+// engine/numerics/elliptic.hpp -- complete elliptic integrals from the complementary parameter.
 //
 // K(k) and E(k) with k^2 = mu2 are taken as Carlson's symmetric forms of k'^2 = mu1, passed
 // directly: K = R_F(0, mu1, 1), E = 2 R_G(0, mu1, 1). As mu1 -> 0 this loses nothing, where

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/estimates.hpp -- helpers the engines share to fill an Averages<Real> (result.hpp).
+// engine/numerics/estimates.hpp -- helpers the engines share to fill an Averages<Real>
+// (result.hpp).
 #pragma once
 
 #include "pendavg/chain.hpp"
@@ -30,9 +31,9 @@ Estimate<Real> kinetic_ratio(const Estimate<Real>& k1, const Estimate<Real>& k2,
   return {ratio, k1.error / k2.value + ratio * (k2.error / k2.value + 4 * u), k1.kind};
 }
 
-/// What every engine reports beside its own observables: beta<K_i^(c)> = 1/2 exactly (MATH.md
-/// Sec. 4), the paper's diagonal approximation (Sec. 8) and the equipartition residual
-/// |sum_i beta<K_i> - N/2|.
+/// What every engine reports beside its own observables: beta<K_i^(c)> = 1/2 exactly, the paper's
+/// diagonal approximation and the equipartition residual |sum_i beta<K_i> - N/2| (src/engine/
+/// README.md, 'Equipartition', 'Diagonal approximation', 'Trace formula').
 template <class Real>
 void add_chain_extras(Averages<Real>& a, const Chain<Real>& chain) {
   using std::abs;

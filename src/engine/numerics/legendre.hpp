@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/detail/legendre.hpp -- the Legendre polynomial P_n and its derivative at one point, for
+// engine/numerics/legendre.hpp -- the Legendre polynomial P_n and its derivative at one point, for
 // the Newton steps that place Gauss-Legendre nodes (the torus' rule in MPFR, the transfer
 // operator's panels).
 #pragma once

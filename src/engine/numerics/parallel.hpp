@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/parallel.hpp -- exceptions out of OpenMP regions.
+// engine/numerics/parallel.hpp -- exceptions out of OpenMP regions.
 //
 // An exception may not leave an OpenMP structured block (the runtime calls std::terminate). Each
 // parallel loop body runs inside ParallelErrors::capture, which keeps the first exception; the

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/precision.hpp -- the engines' view of the number types: which Real is MPFR, its unit
+// engine/numerics/precision.hpp -- the engines' view of the number types: which Real is MPFR, its unit
 // roundoff at the working precision, a guard for the entry points (and for the threads of a
 // parallel region: MPFR's working precision is per thread), and the rounding of inputs to the
 // working precision (include/pendavg/mpfr.hpp explains the working precision).

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/quadrature.hpp -- nested Clenshaw-Curtis rules on [0, 1], generic over Real.
+// engine/numerics/quadrature.hpp -- nested Clenshaw-Curtis rules on [0, 1], generic over Real.
 //
 // What for: the 1-D reduced integral needs a rule whose levels nest, so that each refinement
 // reuses every earlier node and the difference between two levels is a free error estimate (as
@@ -10,7 +10,7 @@
 // of level L + 1.
 //
 // When not to use it: for periodic integrands over a full period the trapezoid rule is the
-// better rule (MATH.md Sec. 6).
+// better rule (src/engine/torus/README.md, 'Node maps').
 //
 // Levels are built on first use (O(n^2) weights, Waldvogel's cosine sums), once: a rule is a
 // table of constants that any number of threads may read while one of them adds a level.

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/text.hpp -- numbers in the engines' one-line error messages.
+// engine/numerics/text.hpp -- numbers in the engines' one-line error messages.
 #pragma once
 
 #include <charconv>

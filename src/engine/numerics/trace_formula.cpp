@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The O(N) trace formula per angle node (MATH.md Secs. 1, 3, 4). The recurrences and why they are
-// stable are described in include/pendavg/trace_formula.hpp.
+// The O(N) trace formula per angle node (src/engine/README.md, 'Trace formula', 'Traces in O(N)',
+// 'Isserlis'). The recurrences and why they are stable are described in
+// include/pendavg/trace_formula.hpp.
 #include "pendavg/trace_formula.hpp"
 
 #include "engine/numerics/precision.hpp"

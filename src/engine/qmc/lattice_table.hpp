@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/detail/qmc_lattices.hpp -- the built-in rank-1 lattice generating vectors of
-// qmc_average (include/pendavg/torus.hpp; see the comment above QmcOptions there).
+// engine/qmc/lattice_table.hpp -- the built-in rank-1 lattice generating vectors of
+// qmc_average (engine/qmc/qmc.hpp; src/engine/qmc/README.md, 'Lattice rules').
 //
 // Row m - 10 holds z for n = 2^m points (m = 10..20) in up to 256 dimensions (take the first N
 // entries: CBC vectors are extensible in dimension). Each row is the output of
-// fast_cbc_generating_vector(m, 256, gamma_j = 0.01 for every j, alpha = 2) (torus.hpp): the
+// fast_cbc_generating_vector(m, 256, gamma_j = 0.01 for every j, alpha = 2) (lattice_rules.hpp): the
 // component-by-component construction for the Korobov space of smoothness 2 with equal product
-// weights, run offline (~2 min for all rows). tests/test_torus.cpp recomputes rows m = 10, 12.
+// weights, run offline (~2 min for all rows). tests/test_torus.cpp and
+// tests/test_lattice_fft.cpp recompute them.
 // Every z_j is odd, so each one-dimensional projection is the full grid {k / n}.
 #pragma once
 

@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/chain_transfer.hpp -- near-exact canonical averages of long chains (N = 5..1024 and
-// beyond) by a transfer operator along the chain (MATH.md Secs. 1, 3, 4; README "Large N";
-// paper eq. ave-Ki-linear-pi-trace-varphi). The public entry point is average() with method
-// transfer (pendavg/average.hpp), which automatic picks for N >= 5.
+// engine/transfer/chain_transfer.hpp -- near-exact canonical averages of long chains (N = 5..1024 and
+// beyond) by a transfer operator along the chain (src/engine/README.md, 'Trace formula',
+// 'Isserlis'; README "Large N"; paper eq. ave-Ki-linear-pi-trace-varphi). The public entry point is
+// average() with method transfer (pendavg/average.hpp), which automatic picks for N >= 5.
 //
 // What it computes. For an N-link chain at inverse temperature beta, per particle i:
-//   * beta <K_i>      = (1/2) <tr X_i>_w                                (MATH.md Sec. 1),
-//   * beta^2 Var K_i  = <(tr X_i)^2 + 2 tr X_i^2>_w / 4 - (beta<K_i>)^2 (Isserlis, Sec. 4),
+//   * beta <K_i>      = (1/2) <tr X_i>_w                                (trace formula),
+//   * beta^2 Var K_i  = <(tr X_i)^2 + 2 tr X_i^2>_w / 4 - (beta<K_i>)^2 (Isserlis),
 //   * <cos phi_i>,
 // over the N-torus of absolute angles with the weight
 // w = sqrt(det A) prod_j exp(alpha_j cos phi_j), alpha_j = beta g S_j l_j, each with an error
