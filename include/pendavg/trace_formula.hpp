@@ -125,8 +125,8 @@ PENDAVG_EXPORT const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& cha
                                                           const Real* cos_delta,
                                                           TraceWorkspace<Real>& ws);
 
-/// The paper's diagonal approximation, eq. ke-linear-tave-1 (src/engine/README.md, 'Diagonal
-/// approximation'):
+/// The paper's diagonal approximation, eq. ke-linear-tave-1
+/// (src/engine/README.md, 'Diagonal approximation'):
 ///     beta <K_i>  ~  (m_i / 2) sum_{j <= i} 1 / S_j.
 /// It is exact in no limit; report it next to an exact value, never instead of it.
 template <class Real>

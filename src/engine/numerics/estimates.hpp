@@ -32,8 +32,8 @@ Estimate<Real> kinetic_ratio(const Estimate<Real>& k1, const Estimate<Real>& k2,
 }
 
 /// What every engine reports beside its own observables: beta<K_i^(c)> = 1/2 exactly, the paper's
-/// diagonal approximation and the equipartition residual |sum_i beta<K_i> - N/2| (src/engine/
-/// README.md, 'Equipartition', 'Diagonal approximation', 'Trace formula').
+/// diagonal approximation and the equipartition residual |sum_i beta<K_i> - N/2|
+/// (src/engine/README.md, 'Equipartition', 'Diagonal approximation', 'Trace formula').
 template <class Real>
 void add_chain_extras(Averages<Real>& a, const Chain<Real>& chain) {
   using std::abs;
