@@ -1,12 +1,19 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/double_pendulum/double_pendulum.hpp -- exact thermal averages of the double pendulum (N = 2); the public
-// entry point is average() (pendavg/average.hpp).
-//
-// Two engines here and the elliptic limit, one result type (Averages<Real>); the math of both:
+// engine/double_pendulum/double_pendulum.hpp -- exact thermal averages of the double pendulum
+// (N = 2); the public entry point is average() (pendavg/average.hpp). The math of both engines:
 // src/engine/double_pendulum/README.md.
+//
+// Equations. mu_i = m_i / M, a1 = beta M g l1, a2 = beta m2 g l2, t = phi2 - phi1,
+// q(t) = mu1 + mu2 sin^2 t, R(t)^2 = a1^2 + a2^2 + 2 a1 a2 cos t, J_s = int_0^pi q^s I0(R) dt:
+//     beta<K1> = (mu1/2) J_{-1/2} / J_{1/2},   beta<K2> = 1 - beta<K1>,   (tr X_1 = mu1 / q)
+//     beta^2 Var K1 = (3/4) <x^2> - <x>^2 / 4,  x = mu1 / q  (X_1 has rank one: Isserlis)
+//     beta<K1> = (mu1/2) sum_n c_n mu2^n R_n / (R_0 - sum_{n>=1} d_n mu2^n R_n)   (the series),
+//       R_n = (1/pi) int_0^pi cos^{2n} t I0(R(t)) dt, c_n = (2n-1)!!/(n! 2^n), d_n = c_{n-1}/(2n)
+//
+// Two engines, one result type (Averages<Real>):
 //  * reduced_integral_average -- the exact 1-D integral over t = phi2 - phi1 (src/engine/README.md,
-//    'Reduction'),
-//      folded onto [0, pi/2]. The default engine, in double and in MPFR. Two evaluations:
+//      'Reduction'), folded onto [0, pi/2]. The default engine, in double and in MPFR. Two
+//      evaluations:
 //      - exact finite sums: Graf's addition theorem expands the Boltzmann weight
 //        I0(R(t)) e^{-(a1+a2)} in cos(2kt) with coefficients from one Miller table of
 //        e^{-a} I_m(a) per argument, and the Fourier moments of q(t)^s = (mu1 + mu2 sin^2 t)^s

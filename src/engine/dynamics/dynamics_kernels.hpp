@@ -1,9 +1,19 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// engine/dynamics/dynamics_kernels.hpp -- the dynamics kernels, declared once per instruction set they are
-// compiled for (src/engine/dynamics/dynamics_kernels.cpp): dynamics_base (baseline x86-64, any CPU) and
-// dynamics_x86_64_v3 (AVX2 + FMA). The public functions of pendavg/dynamics.hpp pick one at run
-// time (src/engine/dynamics/dynamics.cpp); the same definitions give the same results up to fused
-// multiply-adds.
+// engine/dynamics/dynamics_kernels.hpp -- the dynamics kernels, declared once per instruction set
+// they are compiled for (src/engine/dynamics/dynamics_kernels.cpp): dynamics_base (baseline
+// x86-64, any CPU) and dynamics_x86_64_v3 (AVX2 + FMA). The public functions of
+// pendavg/dynamics.hpp pick one at run time (src/engine/dynamics/dynamics.cpp); the same
+// definitions give the same results up to fused multiply-adds. The math: src/engine/dynamics/
+// README.md.
+//
+// Equations (Cartesian positions q, momenta p, masses M, constraints sigma_i = (|r_i|^2 - l_i^2)/2,
+// G = d sigma / dq; RATTLE, one step of length h):
+//     p_{1/2} = p_n - (h/2) grad U(q_n) - G(q_n)^T lambda,   q_{n+1} = q_n + h M^{-1} p_{1/2},
+//     sigma(q_{n+1}) = 0                                   (lambda: Newton, tridiagonal, O(N))
+//     p_{n+1} = p_{1/2} - (h/2) grad U(q_{n+1}) - G(q_{n+1})^T mu,  G(q_{n+1}) M^{-1} p_{n+1} = 0
+// composed as Yoshida's fourth-order triple jump (NVE), or as BAOAB with an Ornstein-Uhlenbeck
+// step on the momenta projected onto the constraints (Langevin); time averages of K_i, K_i^(c),
+// cos phi_i, K, U with Flyvbjerg-Petersen blocking errors (1 sigma).
 #pragma once
 
 #include "pendavg/dynamics.hpp"
