@@ -15,14 +15,14 @@
 
 #include "pendavg/average.hpp"
 #include "pendavg/mpfr.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 
 #ifdef PENDAVG_HAS_ARB
 #include "arb_oracle.hpp"
 #include "engine/certified.hpp"
 #include "engine/detail/certified_balls.hpp"
-#include "engine/detail/fourier_moments.hpp"
+#include "engine/double_pendulum/fourier_moments.hpp"
 
 #include <arb_hypgeom.h>
 #endif

@@ -5,8 +5,8 @@
 #include "engine/certified.hpp"
 
 #include "engine/detail/graf_rows.hpp"
-#include "engine/estimates.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/estimates.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <algorithm>
 #include <array>

@@ -16,7 +16,7 @@
 // the two integrals behind beta<K_1> = (mu1/2) J_{-1/2} / J_{1/2},
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,
 //   R^2 = A^2 - 4 a1 a2 sin^2(t/2),  a1 = beta M g l1,  a2 = beta m2 g l2
-// (the reduced integral of engine/double_pendulum.cpp unfolded to [0, pi]), with
+// (the reduced integral of engine/double_pendulum/integral.cpp unfolded to [0, pi]), with
 // e^{-A} I_0(R) = e^{R - A} [e^{-R} I_0(R)] and R - A = -4 a1 a2 sin^2(t/2) / (R + A). Only the
 // kinetic pair: Arb is given the least work pendavg's five integrals include. Precision: goal
 // g = ceil(digits log2 10) + 4 bits relative (53 bits for double), working precision g + 32

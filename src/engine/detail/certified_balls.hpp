@@ -5,7 +5,7 @@
 // with their proven tails. Only in builds with Arb (PENDAVG_HAS_ARB).
 #pragma once
 
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/chain.hpp"
 
 #include <arb.h>
