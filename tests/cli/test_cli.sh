@@ -846,8 +846,8 @@ good "table mixed N with 1 thread" \
   'OMP_NUM_THREADS=1 "$pendavg" "${mixed_table[@]}" | grep -v generated >"$work/t1" &&
    grep -v generated "$work/out" | cmp -s - "$work/t1"' "${mixed_table[@]}"
 
-(fixed masses and lengths): the row beta = 2, g = 1 equals the row beta = 1, g = 2 to
-# (fixed masses and lengths: every average depends on beta g only): the row beta = 2, g = 1 equals the row beta = 1, g = 2 to
+# beta<K_i>, <cos phi_i>, <K1>/<K2> and beta^2 Var K_i depend on beta and g only through beta g
+# (fixed masses and lengths): the row beta = 2, g = 1 equals the row beta = 1, g = 2 to
 # a few units of the last digit, in double and at 30 digits. g = 0 is the beta -> 0 limit at
 # every beta.
 check_beta_g() { # FILE
