@@ -20,6 +20,7 @@
 
 #ifdef PENDAVG_HAS_ARB
 #include "engine/detail/certified_balls.hpp"
+#include "engine/detail/certified_fast.hpp"
 
 #include <acb.h>
 #include <acb_hypgeom.h>
@@ -811,9 +812,55 @@ template Parameters parameters_of<mpfr_real>(const Chain<mpfr_real>&, const mpfr
 
 using namespace certified_detail;
 
+namespace {
+
+/// The fast path's enclosure as an Estimate: the midpoint rounded to double, the error the ball's
+/// radius plus that rounding (|h + l - value| computed with one rounding: two ulps up cover it).
+Estimate<double> estimate_of_fast(const certified_fast::Enclosure& e) {
+  Estimate<double> out;
+  out.kind = ErrorKind::bound;
+  out.value = e.hi + e.lo;
+  const double rounding = std::fabs((e.hi - out.value) + e.lo);  // e.hi - value is exact
+  const double inf = std::numeric_limits<double>::infinity();
+  out.error = std::nextafter(std::nextafter(rounding + e.rad, inf), inf);
+  return out;
+}
+
+Averages<double> averages_of_fast(const certified_fast::FastResult& r) {
+  Averages<double> out;
+  out.method = Method::certified_integral;
+  out.error_kind = ErrorKind::bound;
+  out.work_unit = WorkUnit::terms;
+  out.evaluations = r.rows;
+  out.converged = true;  // every radius is within 2^-60 of its value
+  const auto& o = r.observables;
+  out.beta_kinetic = {estimate_of_fast(o[0]), estimate_of_fast(o[1])};
+  out.ratio = estimate_of_fast(o[2]);
+  out.cos_angle = {estimate_of_fast(o[3]), estimate_of_fast(o[4])};
+  out.beta2_kinetic_variance = {estimate_of_fast(o[5]), estimate_of_fast(o[6])};
+  return out;
+}
+
+}  // namespace
+
 template <class Real>
 Averages<Real> certified_double_pendulum_average(const Chain<Real>& chain, const Real& beta,
                                                  int digits) {
+  check_beta(beta);
+  if constexpr (!is_mpfr_v<Real>) {
+    // Double inputs and results: the double-word fast path (Sec. 10) when it certifies every
+    // observable to 2^-60; otherwise Arb's balls below.
+    if (chain.size() == 2 && digits <= 16) {
+      if (const auto fast = certified_fast::fast_double_average(chain, static_cast<double>(beta)))
+        return averages_of_fast(*fast);
+    }
+  }
+  return certified_detail::arb_double_pendulum_average(chain, beta, digits);
+}
+
+template <class Real>
+Averages<Real> certified_detail::arb_double_pendulum_average(const Chain<Real>& chain,
+                                                             const Real& beta, int digits) {
   check_beta(beta);
   // Two goals (Sec. 7): the requested digits decide `converged`; the result type's own
   // precision (53 bits, or the working precision) is what the radius aims at, so that the
@@ -878,6 +925,13 @@ Averages<Real> certified_high_temperature_limit(const Chain<Real>& chain, int di
 }
 
 #endif  // PENDAVG_HAS_ARB
+
+#ifdef PENDAVG_HAS_ARB
+template Averages<double> certified_detail::arb_double_pendulum_average<double>(
+    const Chain<double>&, const double&, int);
+template Averages<mpfr_real> certified_detail::arb_double_pendulum_average<mpfr_real>(
+    const Chain<mpfr_real>&, const mpfr_real&, int);
+#endif
 
 #define PENDAVG_INSTANTIATE_CERTIFIED(Real)                                                    \
   template Averages<Real> certified_double_pendulum_average<Real>(const Chain<Real>&,          \

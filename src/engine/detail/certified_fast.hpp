@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// engine/detail/certified_fast.hpp -- the certified N = 2 engine's fast path for double inputs
+// and double results (engine/certified/fast_double.cpp; the method and its bounds are
+// engine/certified.md, Sec. 10): the same 1-D reduction, rows and tail bounds as the Arb engine
+// (engine/certified.cpp), evaluated in double-double ball arithmetic (a double-word midpoint and a
+// double radius, both carried with proven error bounds) instead of Arb's balls. Declared for
+// engine/certified.cpp, which tries it first for Real = double and falls back to Arb when it
+// returns nothing, and for its tests. Only in builds with Arb (PENDAVG_HAS_ARB).
+#pragma once
+
+#include "pendavg/chain.hpp"
+
+#include <array>
+#include <cstddef>
+#include <optional>
+
+namespace pendavg::certified_fast {
+
+/// A ball: every point of [hi + lo - rad, hi + lo + rad] (exact reals), rad >= 0.
+struct Enclosure {
+  double hi = 0, lo = 0, rad = 0;
+};
+
+/// The seven observables of a certified N = 2 average: beta<K1>, beta<K2>, <K1>/<K2>,
+/// <cos phi1>, <cos phi2>, beta^2 Var K1, beta^2 Var K2; and the Graf rows used.
+struct FastResult {
+  std::array<Enclosure, 7> observables;
+  std::size_t rows = 0;
+};
+
+/// The certified averages of the double pendulum `chain` (N = 2) at `beta` > 0, every input taken
+/// as the exact double it is; nothing (std::nullopt) when this path cannot certify every
+/// observable to a relative radius of 2^-60 (then the caller runs the Arb engine). Never an
+/// unproven bound: every returned ball contains the exact average.
+std::optional<FastResult> fast_double_average(const Chain<double>& chain, double beta);
+
+/// Which compiled variant fast_double_average runs: "fma" (hardware fused multiply-add) or
+/// "baseline" (Dekker's product), chosen once at run time.
+const char* fast_double_variant();
+
+/// The line of engine/certified/fast_double_body.inc whose check last refused a case on this
+/// thread (0: none yet); for tests and diagnostics.
+int fast_double_last_refusal();
+
+}  // namespace pendavg::certified_fast
