@@ -57,12 +57,40 @@ bool use_fma() {
 
 }  // namespace
 
-std::optional<FastResult> fast_double_average(const Chain<double>& chain, double beta) {
+bool fma_chosen(Variant v) { return v == Variant::fma || (v == Variant::automatic && use_fma()); }
+
+std::optional<FastResult> fast_double_average(const Chain<double>& chain, double beta,
+                                              Variant variant) {
 #if PENDAVG_FAST_HAS_FMA_VARIANT
-  if (use_fma()) return fused::run(chain, beta);
+  if (fma_chosen(variant)) return fused::run(chain, beta);
+#else
+  if (variant == Variant::fma) return std::nullopt;
 #endif
   return baseline::run(chain, beta);
 }
+
+std::optional<std::vector<Enclosure>> fast_double_bessel(double a, std::size_t count,
+                                                         Variant variant) {
+#if PENDAVG_FAST_HAS_FMA_VARIANT
+  if (fma_chosen(variant)) return fused::bessel_part(a, count);
+#else
+  if (variant == Variant::fma) return std::nullopt;
+#endif
+  return baseline::bessel_part(a, count);
+}
+
+std::optional<std::array<std::vector<Enclosure>, 3>> fast_double_moments(double m1, double m2,
+                                                                         std::size_t K,
+                                                                         Variant variant) {
+#if PENDAVG_FAST_HAS_FMA_VARIANT
+  if (fma_chosen(variant)) return fused::moments_part(m1, m2, K);
+#else
+  if (variant == Variant::fma) return std::nullopt;
+#endif
+  return baseline::moments_part(m1, m2, K);
+}
+
+bool fast_double_has_fma() { return use_fma(); }
 
 const char* fast_double_variant() { return use_fma() ? "fma" : "baseline"; }
 

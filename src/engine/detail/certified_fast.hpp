@@ -13,6 +13,7 @@
 #include <array>
 #include <cstddef>
 #include <optional>
+#include <vector>
 
 namespace pendavg::certified_fast {
 
@@ -28,11 +29,28 @@ struct FastResult {
   std::size_t rows = 0;
 };
 
+/// Which compiled body runs: the one the CPU allows (fma where it has fused multiply-adds),
+/// or either on demand (tests; fma where the CPU lacks it is the caller's error, and in builds
+/// without that variant nothing is returned).
+enum class Variant { automatic, baseline, fma };
+
 /// The certified averages of the double pendulum `chain` (N = 2) at `beta` > 0, every input taken
 /// as the exact double it is; nothing (std::nullopt) when this path cannot certify every
 /// observable to a relative radius of 2^-60 (then the caller runs the Arb engine). Never an
 /// unproven bound: every returned ball contains the exact average.
-std::optional<FastResult> fast_double_average(const Chain<double>& chain, double beta);
+std::optional<FastResult> fast_double_average(const Chain<double>& chain, double beta,
+                                              Variant variant = Variant::automatic);
+
+/// Parts, for the tests: e^{-a} I_m(a), m < count (count = 2: the low orders of the tail sums),
+/// for the exact double a >= 0 (Sec. 10.2-10.3); the Fourier moment rows Q_k(1/2), Q_k(-1/2),
+/// Q_k(-3/2), k < K, of mu1 = m1 / (m1 + m2) (Secs. 4, 10.4).
+std::optional<std::vector<Enclosure>> fast_double_bessel(double a, std::size_t count,
+                                                         Variant variant = Variant::automatic);
+std::optional<std::array<std::vector<Enclosure>, 3>> fast_double_moments(
+    double m1, double m2, std::size_t K, Variant variant = Variant::automatic);
+
+/// Whether Variant::automatic runs the fma body on this CPU.
+bool fast_double_has_fma();
 
 /// Which compiled variant fast_double_average runs: "fma" (hardware fused multiply-add) or
 /// "baseline" (Dekker's product), chosen once at run time.
