@@ -600,7 +600,7 @@ TEST_CASE("certified fast path: cases A-E and hard cases are enclosed in both va
         Case{0.5, 0.5, 1, 1, 1, 1e-9}, Case{1e-9, 1 - 1e-9, 1, 1, 1, 1e4},
         Case{0.3, 0.7, 1, 1e4, 1e-2, 30}, Case{0.3, 0.7, 1, 1e-4, 1e2, 3e4},
         Case{1, 1, 1, 1, 0, 1}, Case{0.5, 0.5, 1, 1, 1, 79.5}, Case{0.5, 0.5, 1, 1, 1, 80.5},
-        Case{1, 1, 1, 1e4, 1, 1e6}}) {
+        Case{1, 1, 1, 1e4, 1, 1e6}, Case{0.5, 0.5, 1, 1, 1e300, 1e-300}}) {
     const FastCheck f = check_fast(c);
     INFO(c.text());
     if (f.taken) {
@@ -617,7 +617,7 @@ TEST_CASE("certified fast path: cases A-E and hard cases are enclosed in both va
       }
     }
   }
-  CHECK(taken >= 8);
+  CHECK(taken == 10);  // all but g = 1e300 (outside the path's input range: the Arb engine)
 }
 
 TEST_CASE("certified fast path: seeded random cases are enclosed (a default subset)",
@@ -635,7 +635,7 @@ TEST_CASE("certified fast path: seeded random cases are enclosed (a default subs
   }
   std::printf("fast path, 24 random cases: %zu taken, worst public tightness %.2f, worst raw "
               "radius / true error %.3g\n", taken, worst_tightness, worst_radius);
-  CHECK(taken >= 18);
+  CHECK(taken >= 23);  // measured: 24 of 24
 }
 
 TEST_CASE("certified fast path: 300 seeded random cases are enclosed", "[certified][.slow]") {
@@ -654,7 +654,7 @@ TEST_CASE("certified fast path: 300 seeded random cases are enclosed", "[certifi
   }
   std::printf("fast path, 300 random cases: %zu taken, worst public tightness %.2f, worst raw "
               "radius / true error %.3g\n", taken, worst_tightness, worst_radius);
-  CHECK(taken >= 240);
+  CHECK(taken >= 295);  // measured: 300 of 300
 }
 
 TEST_CASE("certified fast path: Bessel tables and low orders enclose Arb's I~_m",
