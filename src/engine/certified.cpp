@@ -193,6 +193,17 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
   // Sec. 3.2: Miller's backward recurrence from N + 1, N with the start vectors (1, 0) and
   // (0, 1); the true ratios I_m / I_0 lie between those of the two runs (the mediant).
   slong extra = miller_extra > 0 ? miller_extra : static_cast<slong>(extra_d);
+  if (miller_extra < 0) {
+    // The normalization sum (by_sum below) converges like the square root of the ratios: its
+    // terms near N are ~e^{-N^2/(2a)} where the two runs' ratios differ by its square. Where a
+    // run of N >= a + 8 and N >= 16 + sqrt(2 a (L + 16)) costs at most 100 steps more than the
+    // plan (Arb's e^{-a} I_0(a) costs ~60-300 steps at 191-320 bits), it is taken.
+    const double sum_run = std::max(16.0 + std::ceil(std::sqrt(2.0 * a_d * (L + 16.0))),
+                                    std::ceil(a_d) + 8.0);
+    const double planned = static_cast<double>(count + extra);
+    if (sum_run > planned && sum_run <= planned + 100.0)
+      extra = static_cast<slong>(sum_run) - count;
+  }
   Ball ratio_u, ratio_v, sum_u, sum_v;
   bool by_sum = false;  // I~_0 from sum_m I~_m = 1 (Sec. 3.2) instead of Arb
   for (int attempt = 0;; ++attempt) {
@@ -238,7 +249,7 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
       arb_mul_ui(ratio_v, two_over_a, static_cast<ulong>(N), prec);
       arb_div(ratio_v, ratio_v, v[0], prec);
       arb_union(rho, ratio_u, ratio_v, prec);
-      arb_div_ui(q, two_over_a, static_cast<ulong>(N), prec);
+      arb_mul_ui(q, two_over_a, static_cast<ulong>(N), prec);  // 2N/a
       arb_inv(q, q, prec);  // a / (2N)
       if (!arb_lt(q, Ball(1))) by_sum = false;
       arb_sub_ui(T, q, 1, prec);
@@ -281,7 +292,8 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
 /// the sum (a below ~L), else from Arb.
 void scaled_bessel_low_orders(arb_t i0, arb_t i1, const arb_t a, double a_d, double L,
                               slong prec) {
-  if (a_d + 8 <= 26.0 + std::ceil(std::sqrt(std::max(a_d, 0.0) * (L + 16.0)))) {
+  // a two-entry table when its run may normalize by the sum (within the 100 steps above)
+  if (a_d + 8 <= 126.0 + std::ceil(std::sqrt(std::max(a_d, 0.0) * (L + 16.0)))) {
     Balls table(2);
     scaled_bessel_table(table, a, a_d, L, prec);
     arb_set(i0, table[0]);
