@@ -591,6 +591,12 @@ TEST_CASE("certified fast path: cases A-E and hard cases are enclosed in both va
     INFO(c.text());
     CHECK(f.taken);
     CHECK(f.tightness <= 10);
+    // and the Arb engine in double (what runs where the fast path declines) on the same case
+    const Chain<double> chain({c.m1, c.m2}, {c.l1, c.l2}, c.g);
+    const auto by_arb =
+        pendavg::certified_detail::arb_double_pendulum_average<double>(chain, c.beta, 16);
+    CHECK(by_arb.converged);
+    CHECK(check_run(c, 16, observables(by_arb), certified_run(c, 50), true) <= 10);
   }
   // mu1 at either end, tiny and huge beta, g = 0, extreme lengths; where the path refuses, the
   // public call is the Arb engine's result
