@@ -11,7 +11,8 @@
 //
 // pendavg: pendavg::average (automatic method: the reduced integral) with an AverageWorkspace
 // kept across calls, at digits 16 (double), 38 and 77 (mpfr_real); all observables. Certified:
-// the same call with AverageOptions::certified (every observable an enclosure).
+// the same call with AverageOptions::certified (every observable an enclosure; in double the
+// double-word fast path of src/engine/certified.md Sec. 10, at 38 and 77 digits Arb's balls).
 // Arb (when built with Debian's libflint-arb-dev; PENDAVG_BENCH_HAS_ARB): acb_calc_integrate of
 // the two integrals behind beta<K_1> = (mu1/2) J_{-1/2} / J_{1/2},
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,
