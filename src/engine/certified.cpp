@@ -628,28 +628,7 @@ Integrals integrals_of(const Parameters& p, slong K, double L, slong prec) {
     arb_dot(out.value[j], nullptr, 0, coefficient[j]->data(), 1, moment[j]->data(), 1, K, prec);
 
   // ---- tails (Sec. 5)
-  // The coefficients' full sums from Graf's theorem at t = 0 and t = pi.
-  Ball A, total0, total1, total2, diff0, diff1;
-  arb_add(A, p.a1, p.a2, prec);
-  if (arb_is_zero(A)) {
-    arb_one(total0);
-    arb_zero(total1);
-  } else {
-    scaled_bessel_low_orders(total0, total1, A, p.a1_d + p.a2_d, L, prec);
-  }
-  scaled_difference_bessel(diff0, diff1, p, L, prec);
-  arb_add(total0, total0, diff0, prec);
-  arb_set(total2, total1);
-  arb_add(total1, total1, diff1, prec);
-  arb_sub(total2, total2, diff1, prec);
-  const std::array<const Ball*, 3> totals = {&total0, &total1, &total2};
   const std::array<const Balls*, 3> rows = {&c0, &c1, &c2};
-  std::array<Ball, 3> rest;  // sum_{k >= K} c_k, >= 0
-  for (std::size_t j = 0; j < 3; ++j) {
-    Ball partial;  // 0
-    for (slong k = 0; k < K; ++k) arb_add(partial, partial, (*rows[j])[k], prec);
-    arb_sub(rest[j], *totals[j], partial, prec);
-  }
   // The moments beyond K: sup_{k >= K} |Q_k(s)| and sum_{k >= K} |Q_k(s)| (Sec. 4.4).
   const ulong Ku = static_cast<ulong>(K);
   Ball rK, one_minus_r, geometric;
@@ -692,16 +671,63 @@ Integrals integrals_of(const Parameters& p, slong K, double L, slong prec) {
   }
   constexpr std::array<std::size_t, 5> row_of = {0, 0, 0, 1, 2};    // coefficient row
   constexpr std::array<std::size_t, 5> power_of = {0, 1, 2, 0, 0};  // s = 1/2, -1/2, -3/2
+  // The bound by the moments' decay, c_K sum_{k >= K} |Q_k|, first: where it is below
+  // 2^-(prec + 16) of every integral, the bound by the coefficients' rest (their full sums:
+  // two more Bessel evaluations and an exponential) cannot matter and is not formed.
+  std::array<Ball, 5> bound_decay;
+  bool decay_enough = true;
+  for (std::size_t j = 0; j < 5; ++j) {
+    arb_mul(bound_decay[j], (*rows[row_of[j]])[K], sum[power_of[j]], prec);
+    mag_t bound, scale;
+    mag_init(bound);
+    mag_init(scale);
+    arb_get_mag(bound, bound_decay[j]);
+    arb_get_mag_lower(scale, out.value[j]);
+    mag_mul_2exp_si(scale, scale, -(prec + 16));
+    if (mag_cmp(bound, scale) > 0) decay_enough = false;
+    mag_clear(bound);
+    mag_clear(scale);
+  }
+  if (decay_enough) {
+    for (std::size_t j = 0; j < 5; ++j) {
+      mag_t m;
+      mag_init(m);
+      arb_get_mag(m, bound_decay[j]);
+      arb_add_error_mag(out.value[j], m);
+      mag_clear(m);
+    }
+    return out;
+  }
+  // The coefficients' full sums from Graf's theorem at t = 0 and t = pi.
+  Ball A, total0, total1, total2, diff0, diff1;
+  arb_add(A, p.a1, p.a2, prec);
+  if (arb_is_zero(A)) {
+    arb_one(total0);
+    arb_zero(total1);
+  } else {
+    scaled_bessel_low_orders(total0, total1, A, p.a1_d + p.a2_d, L, prec);
+  }
+  scaled_difference_bessel(diff0, diff1, p, L, prec);
+  arb_add(total0, total0, diff0, prec);
+  arb_set(total2, total1);
+  arb_add(total1, total1, diff1, prec);
+  arb_sub(total2, total2, diff1, prec);
+  const std::array<const Ball*, 3> totals = {&total0, &total1, &total2};
+  std::array<Ball, 3> rest;  // sum_{k >= K} c_k, >= 0
+  for (std::size_t j = 0; j < 3; ++j) {
+    Ball partial;  // 0
+    for (slong k = 0; k < K; ++k) arb_add(partial, partial, (*rows[j])[k], prec);
+    arb_sub(rest[j], *totals[j], partial, prec);
+  }
   for (std::size_t j = 0; j < 5; ++j) {
     // |tail| <= min(rest * sup, c_K * sum)
     const double by_rest = upper_abs(rest[row_of[j]]) * upper_abs(sup[power_of[j]]);
-    const double by_decay = upper_abs((*rows[row_of[j]])[K]) * upper_abs(sum[power_of[j]]);
-    Ball bound_rest, bound_decay;
+    const double by_decay = upper_abs(bound_decay[j]);
+    Ball bound_rest;
     arb_mul(bound_rest, rest[row_of[j]], sup[power_of[j]], prec);
-    arb_mul(bound_decay, (*rows[row_of[j]])[K], sum[power_of[j]], prec);
     mag_t m;
     mag_init(m);
-    arb_get_mag(m, by_rest <= by_decay ? bound_rest.get() : bound_decay.get());
+    arb_get_mag(m, by_rest <= by_decay ? bound_rest.get() : bound_decay[j].get());
     arb_add_error_mag(out.value[j], m);
     mag_clear(m);
   }
