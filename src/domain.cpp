@@ -2,8 +2,8 @@
 // The domain module (domain.hpp): scales as logarithms, guards that fail closed, the result check.
 #include "domain.hpp"
 
-#include "engine/precision.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The chain model, its validation, and the method names.
 #include "pendavg/chain.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
 #include "pendavg/version.hpp"
 

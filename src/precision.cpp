@@ -2,7 +2,7 @@
 // The working precision of MPFR values: this thread's default precision and precision rule in
 // Boost.Multiprecision (>= 1.77 keeps both per thread; include/pendavg/mpfr.hpp explains the
 // contract). Nothing here is shared between threads: no lock.
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <stdexcept>
 

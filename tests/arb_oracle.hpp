@@ -3,7 +3,7 @@
 // pendulum's reduced integrand: the independent oracle of the certified engine's tests
 // (tests/test_certified.cpp) and of bench_arb_cases (issue 30). Needs Arb (PENDAVG_HAS_ARB).
 //
-// The integrals, unfolded to [0, pi] (engine/double_pendulum.cpp folds them onto [0, pi/2]):
+// The integrals, unfolded to [0, pi] (engine/double_pendulum/integral.cpp folds them onto [0, pi/2]):
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,
 //   R^2 = A^2 - 4 a1 a2 sin^2(t/2),  a1 = beta M g l1,  a2 = beta m2 g l2,
 // with e^{-A} I_0(R) = e^{R - A} [e^{-R} I_0(R)] and R - A = -4 a1 a2 sin^2(t/2) / (R + A).

@@ -4,9 +4,9 @@
 // nested Clenshaw-Curtis rule on integrals known in closed form.
 #include <catch2/catch.hpp>
 
-#include "engine/bessel.hpp"
-#include "engine/precision.hpp"
-#include "engine/quadrature.hpp"
+#include "engine/numerics/bessel.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/quadrature.hpp"
 
 #include <boost/math/special_functions/bessel.hpp>
 #include <gsl/gsl_sf_bessel.h>

@@ -15,14 +15,15 @@
 
 #include "pendavg/average.hpp"
 #include "pendavg/mpfr.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 
 #ifdef PENDAVG_HAS_ARB
 #include "arb_oracle.hpp"
 #include "engine/certified.hpp"
 #include "engine/detail/certified_balls.hpp"
-#include "engine/detail/fourier_moments.hpp"
+#include "engine/detail/certified_fast.hpp"
+#include "engine/double_pendulum/fourier_moments.hpp"
 
 #include <arb_hypgeom.h>
 #endif
@@ -485,6 +486,252 @@ TEST_CASE("certified: 200 seeded random cases hold against Arb's integrator and 
               "%zu not converged, %zu of 200 Arb balls within 2^-20\n", worst, not_converged,
               sharp);
   CHECK(not_converged == 0);
+}
+
+#endif  // PENDAVG_HAS_ARB
+
+#ifdef PENDAVG_HAS_ARB
+
+// ---------------------------------------------------------------- the double fast path (Sec. 10)
+
+namespace {
+
+using pendavg::certified_fast::Enclosure;
+using pendavg::certified_fast::Variant;
+
+/// The fast path's ball hi + lo +- rad as an Arb ball (exact midpoint, radius rounded up).
+void set_enclosure(arb_t out, const Enclosure& e) {
+  arf_t t;
+  arf_init(t);
+  arf_set_d(arb_midref(out), e.hi);
+  arf_set_d(t, e.lo);
+  arf_add(arb_midref(out), arb_midref(out), t, ARF_PREC_EXACT, ARF_RND_DOWN);
+  arf_clear(t);
+  mag_set_d(arb_radref(out), e.rad);
+}
+
+/// An MPFR value +- error as an Arb ball.
+void set_observable(arb_t out, const Observable& o) {
+  arf_set_mpfr(arb_midref(out), o.value.backend().data());
+  arf_t f;
+  arf_init(f);
+  arf_set_mpfr(f, o.error.backend().data());
+  arf_get_mag(arb_radref(out), f);
+  arf_clear(f);
+}
+
+/// The variants this CPU runs: baseline always, fma where it has fused multiply-adds.
+std::vector<Variant> runnable_variants() {
+  std::vector<Variant> out{Variant::baseline};
+  if (pendavg::certified_fast::fast_double_has_fma()) out.push_back(Variant::fma);
+  return out;
+}
+
+struct FastCheck {
+  bool taken = false;
+  double worst_radius_over_error = 0;  // raw ball radius / |midpoint - reference|
+  double tightness = 0;                // the public result's error / max(true error, last unit)
+};
+
+/// The fast path on one case in every runnable variant: each ball contains the Arb engine's
+/// 50-digit enclosure, the variants agree bit for bit, and the public (double) result is tight
+/// against that reference. Nothing checked (taken = false) where the path refuses the case.
+FastCheck check_fast(const Case& c) {
+  FastCheck out;
+  const Chain<double> chain({c.m1, c.m2}, {c.l1, c.l2}, c.g);
+  std::vector<pendavg::certified_fast::FastResult> results;
+  for (const Variant v : runnable_variants()) {
+    const auto r = pendavg::certified_fast::fast_double_average(chain, c.beta, v);
+    if (!r) {
+      INFO(c.text() << ": refused at line " << pendavg::certified_fast::fast_double_last_refusal());
+      CHECK(results.empty());  // both variants refuse alike
+      return out;
+    }
+    results.push_back(*r);
+  }
+  out.taken = true;
+  const auto reference = certified_run(c, 50);
+  const pendavg::working_precision wp(200);
+  arb_t ball, ref, d;
+  arb_init(ball);
+  arb_init(ref);
+  arb_init(d);
+  for (std::size_t i = 0; i < 7; ++i) {
+    const Enclosure& e = results[0].observables[i];
+    for (std::size_t v = 1; v < results.size(); ++v) {
+      const Enclosure& f = results[v].observables[i];
+      CHECK((f.hi == e.hi && f.lo == e.lo && f.rad == e.rad));  // same exact operations
+    }
+    set_enclosure(ball, e);
+    set_observable(ref, reference[i]);
+    INFO(c.text() << ": " << observable_names[i] << " = " << e.hi << " + " << e.lo << " +- "
+                  << e.rad << ", reference " << reference[i].value.str(40) << " +- "
+                  << reference[i].error.str(3));
+    CHECK(arb_contains(ball, ref));
+    CHECK((e.rad <= std::ldexp(std::fabs(e.hi), -60) || e.rad <= 0x1p-900));
+    arb_sub(d, ball, ref, 400);
+    const double truth = std::fabs(arf_get_d(arb_midref(d), ARF_RND_NEAR));
+    if (truth > 0) out.worst_radius_over_error = std::max(out.worst_radius_over_error, e.rad / truth);
+  }
+  arb_clear(ball);
+  arb_clear(ref);
+  arb_clear(d);
+  // the public double result (the fast path when it certifies) against the same reference
+  const auto run = certified_run(c, 16);
+  out.tightness = check_run(c, 16, run, reference, true);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("certified fast path: cases A-E and hard cases are enclosed in both variants",
+          "[certified]") {
+  for (const Case& c : named_cases) {
+    const FastCheck f = check_fast(c);
+    INFO(c.text());
+    CHECK(f.taken);
+    CHECK(f.tightness <= 10);
+    // and the Arb engine in double (what runs where the fast path declines) on the same case
+    const Chain<double> chain({c.m1, c.m2}, {c.l1, c.l2}, c.g);
+    const auto by_arb =
+        pendavg::certified_detail::arb_double_pendulum_average<double>(chain, c.beta, 16);
+    CHECK(by_arb.converged);
+    CHECK(check_run(c, 16, observables(by_arb), certified_run(c, 50), true) <= 10);
+  }
+  // mu1 at either end, tiny and huge beta, g = 0, extreme lengths; where the path refuses, the
+  // public call is the Arb engine's result
+  std::size_t taken = 0;
+  for (const Case& c :
+       {Case{1e-9, 1 - 1e-9, 1, 1, 1, 1}, Case{1 - 1e-9, 1e-9, 1, 1, 1, 1},
+        Case{0.5, 0.5, 1, 1, 1, 1e-9}, Case{1e-9, 1 - 1e-9, 1, 1, 1, 1e4},
+        Case{0.3, 0.7, 1, 1e4, 1e-2, 30}, Case{0.3, 0.7, 1, 1e-4, 1e2, 3e4},
+        Case{1, 1, 1, 1, 0, 1}, Case{0.5, 0.5, 1, 1, 1, 79.5}, Case{0.5, 0.5, 1, 1, 1, 80.5},
+        Case{1, 1, 1, 1e4, 1, 1e6}, Case{0.5, 0.5, 1, 1, 1e300, 1e-300}}) {
+    const FastCheck f = check_fast(c);
+    INFO(c.text());
+    if (f.taken) {
+      ++taken;
+      CHECK(f.tightness <= 10);
+    } else {
+      const Chain<double> chain({c.m1, c.m2}, {c.l1, c.l2}, c.g);
+      const auto via_public = pendavg::average(chain, c.beta, certified_options(16));
+      const auto by_arb =
+          pendavg::certified_detail::arb_double_pendulum_average<double>(chain, c.beta, 16);
+      for (std::size_t i = 0; i < 2; ++i) {
+        CHECK(via_public.beta_kinetic[i].value == by_arb.beta_kinetic[i].value);
+        CHECK(via_public.beta_kinetic[i].error == by_arb.beta_kinetic[i].error);
+      }
+    }
+  }
+  CHECK(taken == 10);  // all but g = 1e300 (outside the path's input range: the Arb engine)
+}
+
+TEST_CASE("certified fast path: seeded random cases are enclosed (a default subset)",
+          "[certified]") {
+  std::size_t taken = 0;
+  double worst_tightness = 0, worst_radius = 0;
+  for (const RandomCase& r : random_cases(24, 31)) {
+    const FastCheck f = check_fast(r.c);
+    if (!f.taken) continue;
+    ++taken;
+    INFO(r.c.text());
+    CHECK(f.tightness <= 10);
+    worst_tightness = std::max(worst_tightness, f.tightness);
+    worst_radius = std::max(worst_radius, f.worst_radius_over_error);
+  }
+  std::printf("fast path, 24 random cases: %zu taken, worst public tightness %.2f, worst raw "
+              "radius / true error %.3g\n", taken, worst_tightness, worst_radius);
+  CHECK(taken >= 23);  // measured: 24 of 24
+}
+
+TEST_CASE("certified fast path: 300 seeded random cases are enclosed", "[certified][.slow]") {
+  std::size_t taken = 0;
+  double worst_tightness = 0, worst_radius = 0;
+  for (const RandomCase& r : random_cases(300, 2027)) {
+    const FastCheck f = check_fast(r.c);
+    if (!f.taken) continue;
+    ++taken;
+    INFO(r.c.text());
+    CHECK(f.tightness <= 10);
+    worst_tightness = std::max(worst_tightness, f.tightness);
+    worst_radius = std::max(worst_radius, f.worst_radius_over_error);
+    // and against Arb's integrator (beta<K1>, beta^2 Var K1)
+    check_against_arb(r.c, 16, certified_run(r.c, 16), 20000);
+  }
+  std::printf("fast path, 300 random cases: %zu taken, worst public tightness %.2f, worst raw "
+              "radius / true error %.3g\n", taken, worst_tightness, worst_radius);
+  CHECK(taken >= 295);  // measured: 300 of 300
+}
+
+TEST_CASE("certified fast path: Bessel tables and low orders enclose Arb's I~_m",
+          "[certified]") {
+  arb_t direct, ball, nu, a;
+  for (arb_ptr x : {direct, ball, nu, a}) arb_init(x);
+  for (const Variant v : runnable_variants()) {
+    for (const double a_d : {0.0, 1e-9, 0.7, 30.0, 79.99, 80.0, 150.0, 1000.0, 3e4}) {
+      for (const std::size_t count : {std::size_t{2}, std::size_t{40}}) {
+        const auto t = pendavg::certified_fast::fast_double_bessel(a_d, count, v);
+        INFO("a = " << a_d << ", count " << count);
+        REQUIRE(t);
+        arb_set_d(a, a_d);
+        for (std::size_t m = 0; m < count; ++m) {
+          arb_set_si(nu, static_cast<slong>(m));
+          if (a_d == 0) {
+            arb_set_si(direct, m == 0 ? 1 : 0);
+          } else {
+            arb_hypgeom_bessel_i_scaled(direct, nu, a, 256);
+          }
+          set_enclosure(ball, (*t)[m]);
+          INFO("m = " << m << ": " << (*t)[m].hi << " +- " << (*t)[m].rad);
+          CHECK(arb_contains(ball, direct));
+          // tight: within 2^-80 of the first entry
+          CHECK((*t)[m].rad <= std::ldexp((*t)[0].hi, -80));
+        }
+      }
+    }
+  }
+  for (arb_ptr x : {direct, ball, nu, a}) arb_clear(x);
+}
+
+TEST_CASE("certified fast path: the moment rows, forward and from the top, enclose the moments",
+          "[certified]") {
+  for (const Variant v : runnable_variants()) {
+    for (const double mu1 : {0.5, 0.05, 1e-4, 1e-9, 1 - 1e-6}) {
+      for (const std::size_t K : {std::size_t{3}, std::size_t{60}}) {
+        const auto rows = pendavg::certified_fast::fast_double_moments(mu1, 1 - mu1, K, v);
+        INFO("mu1 = " << mu1 << ", K = " << K);
+        REQUIRE(rows);
+        const pendavg::working_precision wp(90);
+        const mpfr_real m1(mu1), m2(1 - mu1), M = m1 + m2;
+        const auto reference =
+            pendavg::detail::q_power_moments(mpfr_real(m1 / M), mpfr_real(m2 / M), K);
+        arb_t ball, ref;
+        arb_init(ball);
+        arb_init(ref);
+        for (std::size_t row = 0; row < 3; ++row) {
+          for (std::size_t k = 0; k < K; ++k) {
+            arf_set_mpfr(arb_midref(ref), reference.Q[row][k].backend().data());
+            const mpfr_real bound = reference.relative_error * abs(reference.Q[row][0]);
+            arf_t f;
+            arf_init(f);
+            arf_set_mpfr(f, bound.backend().data());
+            arf_get_mag(arb_radref(ref), f);
+            arf_clear(f);
+            const Enclosure& e = (*rows)[row][k];
+            set_enclosure(ball, e);
+            INFO("row " << row << ", k = " << k << ": " << e.hi << " +- " << e.rad);
+            CHECK(arb_overlaps(ball, ref));
+            // tight: the forward route's radii grow like k^2 from 2^-96 per operation (measured
+            // 2^-80 at k = 9 to 2^-74.5 at k = 59 of |Q_0| for mu1 = 1e-9); the top-down
+            // route's stay near 2^-90
+            CHECK(e.rad <= std::ldexp(std::fabs((*rows)[row][0].hi), -72));
+          }
+        }
+        arb_clear(ball);
+        arb_clear(ref);
+      }
+    }
+  }
 }
 
 #endif  // PENDAVG_HAS_ARB

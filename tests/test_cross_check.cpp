@@ -18,8 +18,9 @@
 #include "oracle/graf_series.hpp"
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/limits/limits.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
 
 #include <boost/math/special_functions/ellint_1.hpp>
@@ -85,7 +86,7 @@ std::vector<Case> named_hard_cases() {
       {"l2/l1 = 1e4, beta = 1e8", 0.5, 0.5, 1, 1e4, 1, 1e8},
       {"l2/l1 = 1e-4, beta = 1e8", 0.5, 0.5, 1, 1e-4, 1, 1e8},
       {"mu1 = 1e-12, l2/l1 = 1e-4, beta = 1e8", tiny, 1.0 - tiny, 1, 1e-4, 1, 1e8},
-      {"mu1 = 0.05, beta = 100 (MATH.md Sec. 2)", 0.05, 0.95, 1, 1, 1, 100},
+      {"mu1 = 0.05, beta = 100 (src/engine/README.md, 'Reduction')", 0.05, 0.95, 1, 1, 1, 100},
   };
 }
 

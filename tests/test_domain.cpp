@@ -11,7 +11,7 @@
 //    the advice works where it points to MPFR.
 #include <catch2/catch.hpp>
 
-#include "engine/torus.hpp"
+#include "engine/torus/torus.hpp"
 #include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -434,7 +434,7 @@ TEST_CASE("run control: the series refuses unbounded work and stops on request",
 TEST_CASE("run control: an exception inside a parallel region surfaces to the caller",
           "[domain]") {
   // An exception may not leave an OpenMP region (std::terminate): the engines keep the first
-  // one (engine/parallel.hpp) and rethrow it after the region. The series reports progress
+  // one (engine/numerics/parallel.hpp) and rethrow it after the region. The series reports progress
   // from inside its two-thread Bessel-table region (rows beyond 48 terms); a throwing progress
   // callback must come back as that exception, and so must one thrown between transfer links.
   struct callback_failed : std::runtime_error {

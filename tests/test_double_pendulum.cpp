@@ -6,8 +6,9 @@
 #include <catch2/catch.hpp>
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/limits/limits.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <gsl/gsl_mode.h>
 #include <gsl/gsl_sf_ellint.h>
@@ -270,13 +271,13 @@ TEST_CASE("cut ranges: half-angle sinh map, two panels and J_{-3/2} by parts agr
   }
 }
 
-// ---- product integration over the inner panel (detail/inner_panel_series.hpp) --------------
+// ---- product integration over the inner panel (engine/double_pendulum/inner_panel_series.hpp) --------------
 
 #include "bench/cases.hpp"
-#include "engine/bessel.hpp"
-#include "engine/detail/inner_panel_series.hpp"
+#include "engine/numerics/bessel.hpp"
+#include "engine/double_pendulum/inner_panel_series.hpp"
 
-#include "engine/quadrature.hpp"
+#include "engine/numerics/quadrature.hpp"
 
 TEST_CASE("inner-panel series agrees with Clenshaw-Curtis quadrature and covers its error",
           "[double_pendulum][mpfr]") {

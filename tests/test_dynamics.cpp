@@ -4,11 +4,11 @@
 // independent references: dense-matrix Lagrangian mechanics (Eigen), the exact microcanonical
 // (microcanonical.hpp) and canonical (double_pendulum.hpp, torus.hpp) averages, and AR(1)
 // processes with a known variance of the mean.
-#include "engine/detail/blocking.hpp"
-#include "engine/double_pendulum.hpp"
+#include "engine/dynamics/blocking.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
 #include "pendavg/dynamics.hpp"
-#include "engine/microcanonical.hpp"
-#include "engine/torus.hpp"
+#include "engine/microcanonical/microcanonical.hpp"
+#include "engine/torus/torus.hpp"
 
 #include <Eigen/Dense>
 #include <catch2/catch.hpp>

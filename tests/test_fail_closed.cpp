@@ -7,8 +7,8 @@
 #include <catch2/catch.hpp>
 
 #include "domain.hpp"
-#include "engine/chain_transfer.hpp"
-#include "engine/torus.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/torus/torus.hpp"
 #include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"

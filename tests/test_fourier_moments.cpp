@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// q_power_moments (detail/fourier_moments.hpp): Fourier moments of q(t)^s, s = 1/2, -1/2, -3/2,
+// q_power_moments (engine/double_pendulum/fourier_moments.hpp): Fourier moments of q(t)^s,
+// s = 1/2, -1/2, -3/2,
 // q = mu1 + mu2 sin^2 t, against references computed independently of the header's method:
 //  * 147 values pasted from mpmath (hyp2f1 form at 80 digits, cross-checked against
 //    mpmath.quad and mpmath.legenp; generator below);
@@ -11,8 +12,8 @@
 // q^s > 0), and the reported relative_error must cover them.
 #include <catch2/catch.hpp>
 
-#include "engine/detail/fourier_moments.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/fourier_moments.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <boost/math/constants/constants.hpp>
 
@@ -469,7 +470,7 @@ TEST_CASE("digamma minus log: closed forms, recurrence and series against mpfr_d
 
 TEST_CASE("the moments' decay bound behind the N = 2 sums' row cut: |Q_k(s)| <= (k+1) r^k Q_0(s)",
           "[moments]") {
-  // engine/double_pendulum.cpp (moment_sum_terms) stops the exact sums' rows where this bound,
+  // engine/double_pendulum/integral.cpp (moment_sum_terms) stops the exact sums' rows where this bound,
   // r = (1 - sqrt mu1)/(1 + sqrt mu1), makes the tail negligible; for s = -1/2 the sharper
   // Q_k / Q_{k-1} <= r holds as well (its Fourier coefficients are positive sums).
   pendavg::working_precision guard(40);

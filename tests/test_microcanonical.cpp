@@ -24,9 +24,9 @@
 #include "oracle/near_minimum.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/mpfr.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/microcanonical.hpp"
-#include "engine/torus.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/microcanonical/microcanonical.hpp"
+#include "engine/torus/torus.hpp"
 
 #include <boost/math/quadrature/exp_sinh.hpp>
 #include <boost/math/quadrature/gauss.hpp>
@@ -1050,7 +1050,7 @@ TEST_CASE("microcanonical_options: one set of options for both ensembles, checke
 // tables of the last few only; a table in use stays valid when it leaves the cache.
 TEST_CASE("microcanonical MPFR tanh-sinh tables: a bounded cache, held tables stay valid",
           "[microcanonical][mpfr]") {
-  using Table = detail::microcanonical::TanhSinhTable<mpfr_real>;
+  using Table = detail::TanhSinhTable<mpfr_real>;
   std::shared_ptr<const Table> first;
   {
     const working_precision precision(20);

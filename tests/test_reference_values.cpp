@@ -10,8 +10,8 @@
 #include <catch2/catch.hpp>
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/result.hpp"
 

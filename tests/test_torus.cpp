@@ -1,17 +1,18 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_torus.cpp -- the any-N torus quadrature (include/pendavg/torus.hpp, MATH.md Secs. 1-4,
-// 6, 8) against independent methods and exact identities:
+// tests/test_torus.cpp -- the any-N torus quadrature and qmc (src/engine/torus/, src/engine/qmc/;
+// the identities of src/engine/README.md) against independent methods and exact identities:
 //  * N = 2 against the library's 1-D reduced integral (double_pendulum.hpp), which shares none of
 //    the torus code (Graf sums or sinh-mapped Clenshaw-Curtis over t = phi2 - phi1), over betas,
 //    masses and lengths; and g = 0 against the public beta -> 0 limit (elliptic K/E);
 //  * N = 3 against the public reference row of tests/data/public_values.csv, to the digits given;
-//  * the psi reduction of MATH.md Sec. 2 against a brute-force trapezoid over all N angles with
-//    the plain Boltzmann factor exp(sum_j alpha_j cos phi_j) and plain cos phi_j;
+//  * the psi reduction of src/engine/README.md, 'Reduction' against a brute-force trapezoid over
+//    all N angles with the plain Boltzmann factor exp(sum_j alpha_j cos phi_j) and plain cos phi_j;
 //  * trapezoid against Gauss-Legendre, double against MPFR and long double;
 //  * identities: sum_i beta<K_i> = N/2, beta<K_i^(c)> = 1/2, N = 1 in closed form;
 //  * the reported errors against true errors, including a run stopped before the peak at
 //    large beta is resolved (converged = false must come with an error bar that covers);
-//  * MATH.md Sec. 8: N = 3, beta = 0.1, beta<K_1> = 0.3114096682 against the diagonal 1/6;
+//  * src/engine/README.md, 'Diagonal approximation': N = 3, beta = 0.1, beta<K_1> = 0.3114096682
+//    against the diagonal 1/6;
 //  * the work: mirror-halved node counts, determinism across thread counts, the n^(N-1) guard.
 //  * qmc_average (randomized lattice QMC; both proposals, the root-to-tail pivot law and the plain
 //    von Mises law): its error bars cover the exact N = 3 values (unit chain) and N = 4
@@ -25,10 +26,12 @@
 #include <array>
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/result.hpp"
-#include "engine/torus.hpp"
+#include "engine/limits/limits.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <algorithm>
@@ -260,8 +263,8 @@ TEST_CASE("torus identities: equipartition sum, canonical energies, N = 1", "[to
 }
 
 TEST_CASE("torus psi reduction agrees with brute force over all N angles", "[torus]") {
-  // MATH.md Sec. 2: the closed-form psi integral (I0 weight, I1/I0 cos factor) against the plain
-  // Boltzmann factor and plain cos phi_j on an N-dimensional trapezoid grid.
+  // src/engine/README.md, 'Reduction': the closed-form psi integral (I0 weight, I1/I0 cos factor)
+  // against the plain Boltzmann factor and plain cos phi_j on an N-dimensional trapezoid grid.
   const Chain<double> chain({1.0, 0.6, 1.4}, {0.9, 1.2, 0.7}, 1.0);
   const double beta = 1.3;
   const auto r = torus_average(chain, beta);
@@ -301,7 +304,8 @@ TEST_CASE("torus trapezoid and Gauss-Legendre agree", "[torus]") {
 }
 
 TEST_CASE("torus N = 3 at beta = 0.1 against the paper's diagonal approximation", "[torus]") {
-  // MATH.md Sec. 8: the diagonal approximation gives 1/6 where the exact value is ~0.311.
+  // src/engine/README.md, 'Diagonal approximation': the diagonal approximation gives 1/6 where the
+  // exact value is ~0.311.
   const auto r = torus_average(uniform_chain(3), 0.1);
   REQUIRE(r.converged);
   CHECK(std::abs(r.beta_kinetic[0].value - 0.3114096682) <= 5e-11);
@@ -384,9 +388,10 @@ TEST_CASE("torus stopped before the large-beta peak is resolved reports it hones
 }
 
 TEST_CASE("torus hard cases: light particles and large beta, mapped nodes", "[torus]") {
-  // MATH.md Sec. 6: a light particle puts singularities of sqrt(det A) at distance ~sqrt(m_i/S_i)
-  // from the real axis, and large beta makes the weight a peak of width ~alpha^{-1/2}; equispaced
-  // nodes then need O(1/distance) per dimension. The automatic periodic map keeps n bounded.
+  // src/engine/torus/README.md, 'Node maps': a light particle puts singularities of sqrt(det A) at
+  // distance ~sqrt(m_i/S_i) from the real axis, and large beta makes the weight a peak of width
+  // ~alpha^{-1/2}; equispaced nodes then need O(1/distance) per dimension. The automatic periodic
+  // map keeps n bounded.
   struct Hard {
     std::vector<double> masses;
     double beta;
@@ -680,7 +685,8 @@ TEST_CASE("qmc: the pivot and von Mises proposals agree at N = 8; identities at 
   }
 
   // N = 64, beta = 1 (the issue's case) on the built-in table: the identity, even weights, and
-  // equipartition's direction (beta<K_i> rises down a uniform chain, MATH.md Sec. 2).
+  // equipartition's direction (beta<K_i> rises down a uniform chain, src/engine/README.md,
+  // 'Reduction').
   pendavg::QmcOptions long_options;
   long_options.points = 1024;
   long_options.shifts = 8;

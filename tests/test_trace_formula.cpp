@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Tests of the O(N) trace formula (include/pendavg/trace_formula.hpp) against the dense oracle
-// (tests/oracle/dense_traces.hpp, eqs. a-ij and the definition of A^(i)), against MATH.md
-// Sec. 3 (Fixman's tridiagonal form), against the paper's double-pendulum closed forms
-// (eqs. detA, trA1Ainv-dp), and against exact identities (MATH.md Secs. 1, 2, 4, 8).
+// (tests/oracle/dense_traces.hpp, eqs. a-ij and the definition of A^(i)), against
+// src/engine/README.md, 'Traces in O(N)' (Fixman's tridiagonal form), against the paper's
+// double-pendulum closed forms (eqs. detA, trA1Ainv-dp), and against exact identities
+// (src/engine/README.md, 'Notation').
 #include "oracle/dense_traces.hpp"
 #include "pendavg/chain.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <catch2/catch.hpp>
@@ -123,9 +124,9 @@ TEST_CASE("trace formula: O(N) in MPFR matches the dense oracle to 40 digits", "
   CHECK(worst < 1e-40);
 }
 
-TEST_CASE("trace formula: MATH.md Sec. 3 (Fixman's tridiagonal form) agrees with eq. a-ij",
+TEST_CASE("trace formula: src/engine/README.md, 'Traces in O(N)' (Fixman's tridiagonal form) agrees with eq. a-ij",
           "[trace][oracle]") {
-  // The dense H = C M^{-1} C^T route against the dense A route, both in MPFR: checks MATH.md's
+  // The dense H = C M^{-1} C^T route against the dense A route, both in MPFR: checks the
   // indexing of H and of the trace formula, and det A = (prod m_j l_j)^2 det H.
   std::mt19937_64 rng(5);
   const pendavg::working_precision guard(50);
@@ -149,7 +150,7 @@ TEST_CASE("trace formula: MATH.md Sec. 3 (Fixman's tridiagonal form) agrees with
 
 TEST_CASE("trace formula: tiny traces keep their relative accuracy in double", "[trace]") {
   // Light particles between heavy ones: tr X_i ~ m_i / (neighbouring masses) ~ 1e-16. The O(N)
-  // sweeps add only non-negative terms, so these stay accurate to a few ulps relative; MATH.md's
+  // sweeps add only non-negative terms, so these stay accurate to a few ulps relative; the
   // 2 - [...] / m_i would lose every digit here.
   const pendavg::working_precision guard(80);
   const std::vector<double> masses{1e8, 1e-8, 1e8, 1e-8, 1e8, 1e-8, 1e8, 1e-8};
@@ -219,7 +220,7 @@ TEST_CASE("trace formula: N = 2 reproduces the paper's closed forms (eqs. detA, 
     CHECK(static_cast<double>(relative_error(node.trace_X[0], tr1)) < 1e-45);
     CHECK(static_cast<double>(relative_error(node.trace_X[1], tr2)) < 1e-45);
     CHECK(static_cast<double>(abs(node.log_sqrt_det_A - log(det) / 2)) < 1e-45);
-    // X_1 has rank one (MATH.md Sec. 4): tr X_1^2 = (tr X_1)^2.
+    // X_1 has rank one (src/engine/README.md, 'Isserlis'): tr X_1^2 = (tr X_1)^2.
     CHECK(static_cast<double>(relative_error(node.trace_X_squared[0], mpfr_real(tr1 * tr1))) < 1e-45);
   }
 }
@@ -295,8 +296,8 @@ TEST_CASE("trace formula: relative angles give the same node", "[trace]") {
 
 TEST_CASE("trace formula: canonical energies are 1/(2 beta) and Isserlis holds (Monte Carlo)",
           "[trace]") {
-  // MATH.md Sec. 4. (A^{-1} A)_ii = 1 exactly (dense oracle), so beta <K_i^(c) | phi> = 1/2.
-  // Then sample p ~ N(0, A) (beta = 1) and check E[2 K_i] = tr X_i,
+  // src/engine/README.md, 'Isserlis'. (A^{-1} A)_ii = 1 exactly (dense oracle), so beta <K_i^(c) |
+  // phi> = 1/2. Then sample p ~ N(0, A) (beta = 1) and check E[2 K_i] = tr X_i,
   // E[4 K_i^2] = (tr X_i)^2 + 2 tr X_i^2 and E[2 K_i^(c)] = 1 within 5 standard errors.
   const std::vector<double> masses{0.7, 0.05, 2.0};
   const std::vector<double> lengths{1.0, 1.5, 0.6};

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_transfer.cpp -- the transfer operator along the chain (src/engine/chain_transfer.hpp,
-// README "Large N"; method transfer of pendavg::average) against independent methods and exact
+// tests/test_transfer.cpp -- the transfer operator along the chain
+// (src/engine/transfer/chain_transfer.hpp, README "Large N"; method transfer of pendavg::average) against independent methods and exact
 // identities:
-//  * N = 3, 4 and 5 against the tensor torus (engine/torus.hpp: psi-reduced relative angles,
+//  * N = 3, 4 and 5 against the tensor torus (engine/torus/: psi-reduced relative angles,
 //    node_traces at every node; it shares no code with the transfer operator), over unequal
 //    masses, lengths, g and beta from 1e-3 to 1e4: |difference| within the sum of both errors;
 //  * N = 2 against the 1-D reduced integral; N = 1 in closed form;
@@ -15,9 +15,10 @@
 // Tags: [transfer] (default, a few seconds in Release), [transfer][.slow] for the long variants.
 #include <catch2/catch.hpp>
 
-#include "engine/chain_transfer.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/torus.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"

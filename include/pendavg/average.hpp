@@ -5,8 +5,8 @@
 // (result.hpp), and the beta -> 0 and beta -> infinity limits.
 //
 // Methods (AverageMethod; `automatic` picks for you):
-//   * integral         N = 2: the exact 1-D reduced integral (MATH.md Sec. 2), by finite Graf
-//                      sums or sinh-mapped Clenshaw-Curtis nodes; fast in double (README,
+//   * integral         N = 2: the exact 1-D reduced integral (src/engine/double_pendulum/), by
+//                      finite Graf sums or sinh-mapped Clenshaw-Curtis nodes; fast in double (README,
 //                      "Measurements behind the design choices"), any digits in MPFR. Error
 //                      kind: estimate. automatic for N = 2.
 //   * series           N = 2: the paper's series (eq. ave-K1-result) in MPFR with its rigorous
@@ -186,9 +186,9 @@ PENDAVG_EXPORT Averages<Real> average(const Chain<Real>& chain, const Real& beta
                                       const AverageOptions& options,
                                       AverageWorkspace<Real>& workspace);
 
-/// beta -> 0 (MATH.md Sec. 2): N = 2 the paper's elliptic K/E formula (eq. aveK1-beta0, kind
-/// bound); any N the average of the same chain at g = 0 (tensor trapezoid for N <= 5, to
-/// `tolerance` or 10^-digits; transfer beyond, double only). <cos phi_i> -> 0 exactly.
+/// beta -> 0 (src/engine/README.md, 'Reduction'): N = 2 the paper's elliptic K/E formula (eq.
+/// aveK1-beta0, kind bound); any N the average of the same chain at g = 0 (tensor trapezoid for N
+/// <= 5, to `tolerance` or 10^-digits; transfer beyond, double only). <cos phi_i> -> 0 exactly.
 /// `options.method` must be automatic; the torus or transfer options apply as for average().
 template <class Real>
 PENDAVG_EXPORT Averages<Real> high_temperature_limit(const Chain<Real>& chain,

@@ -40,7 +40,7 @@ class PENDAVG_EXPORT Chain {
   Real total_mass() const { return tail_masses_.front(); }
   /// S_j = sum_{i >= j} m_i (0-based j), so tail_mass(0) = M.
   Real tail_mass(std::size_t j) const { return tail_masses_[j]; }
-  /// gamma_j = g S_j l_j: U(phi) = -sum_j gamma_j cos(phi_j)  (MATH.md Sec. 0).
+  /// gamma_j = g S_j l_j: U(phi) = -sum_j gamma_j cos(phi_j)  (src/engine/README.md, 'Notation').
   Real potential_coefficient(std::size_t j) const { return g_ * tail_masses_[j] * lengths_[j]; }
 
   /// mu_i = m_i / M for a double pendulum, computed directly (no 1 - mu cancellation).

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/dynamics.hpp -- constrained symplectic trajectories of the N-link chain, their time
 // averages with error bars, constrained Langevin sampling and the double pendulum's Poincare
-// section (paper Sec. "Simulation Method", Appendix "Poincare surface of section"; MATH.md Sec. 7).
+// section (paper Sec. "Simulation Method", Appendix "Poincare surface of section";
+// src/engine/microcanonical/README.md).
 //
 // What it computes.
 //   * rattle_step: one RATTLE step (Andersen 1983; Leimkuhler-Reich 2004 Sec. 7.2) of the
@@ -13,15 +14,15 @@
 //         p_{n+1} = p_{1/2} - (h/2) grad U - G(q_{n+1})^T mu,  G(q_{n+1}) M^{-1} p_{n+1} = 0.
 //     Position stage: the N multipliers solve N quadratic equations. Each constraint couples
 //     only neighbouring multipliers, so Newton's Jacobian is tridiagonal and one iteration is an
-//     O(N) solve (MATH.md Secs. 3, 7), done by a twisted factorization: elimination from both
-//     ends towards the middle row, two independent serial chains of one multiply-add per row.
-//     Iterations run until every |sigma_i| / l_i^2 is at most a few ulps; the guess is the
-//     quadratic extrapolation of the stage's multipliers over the last three steps, which
-//     leaves one solve per stage (1.00 at N = 16). Velocity stage: a linear system with the
-//     symmetric positive definite tridiagonal matrix H = G M^{-1} G^T (MATH.md Sec. 3), the
-//     same O(N) solve. The kernels run on the links r_i = x_i - x_{i-1} and link velocities
-//     u_i = v_i - v_{i-1} stored as separate arrays (uniform gravity then kicks u_0 alone), so
-//     every pass but the two serial chains vectorizes.
+//     O(N) solve (src/engine/README.md, 'Traces in O(N)'; src/engine/dynamics/README.md), done by a
+//     twisted factorization: elimination from both ends towards the middle row, two independent
+//     serial chains of one multiply-add per row. Iterations run until every |sigma_i| / l_i^2 is at
+//     most a few ulps; the guess is the quadratic extrapolation of the stage's multipliers over the
+//     last three steps, which leaves one solve per stage (1.00 at N = 16). Velocity stage: a linear
+//     system with the symmetric positive definite tridiagonal matrix H = G M^{-1} G^T
+//     (src/engine/README.md, 'Traces in O(N)'), the same O(N) solve. The kernels run on the links
+//     r_i = x_i - x_{i-1} and link velocities u_i = v_i - v_{i-1} stored as separate arrays
+//     (uniform gravity then kicks u_0 alone), so every pass but the two serial chains vectorizes.
 //   * composition_step: a symmetric composition of RATTLE steps RATTLE(w_s h) o ... o
 //     RATTLE(w_1 h): Yoshida's (1990) fourth-order triple jump w1 = 1/(2 - 2^{1/3}),
 //     w0 = -2^{1/3} w1 (the paper's; yoshida4_step), Suzuki's 5-stage fourth order, Yoshida's
@@ -50,7 +51,7 @@
 //     integrating a partial step of the same integrator onto the section (Newton on the step
 //     length), so the points are accurate to the integrator, not to the step.
 //
-// When to use it. To confirm the exact averages of double_pendulum.hpp / torus.hpp (canonical,
+// When to use it. To confirm the exact averages of average() (canonical,
 // via baoab_step) and of microcanonical.hpp (fixed energy, via yoshida4_step) by dynamics, as
 // the paper does. A fixed-energy run samples the microcanonical ensemble of its energy only
 // if the motion is ergodic there; regular islands (see the Poincare section) make time
@@ -67,7 +68,7 @@
 // per step: linear in N.
 // Why: README, Design notes, 'Measurements behind the design choices' (dynamics).
 //
-// Generic over Real (double and long double are instantiated in src/engine/dynamics.cpp). The model
+// Generic over Real (double and long double are instantiated in src/engine/dynamics/dynamics.cpp). The model
 // (Chain) is kept apart from the state (ChainState) and the workspace (DynamicsWorkspace). The
 // library does no I/O: progress, trajectories and interruption go through DynamicsObserver.
 #pragma once
@@ -291,21 +292,22 @@ inline constexpr double max_simulation_steps = 1e13;
 /// settings of the thermostat); throws invalid_input with a one-line message. Cheap.
 PENDAVG_EXPORT void check_simulation_options(const SimulationOptions& options);
 
-/// Callbacks of a run (the library does no I/O). All optional.
+/// Callbacks of a run (the library does no I/O). All optional. Progress and stop are the
+/// RunControl every engine takes (pendavg/result.hpp): `progress` is called every 1024 steps (or
+/// every 1% of a shorter run; for a Poincare section, every 1/200th of its points) with the
+/// fraction done, and `stop` is checked every 1024 steps: true ends the run early with the
+/// averages so far (interrupted = true). A dynamics run adds the trajectory callback.
 template <class Real>
-struct DynamicsObserver {
+struct DynamicsObserver : RunControl {
   /// Called every `trajectory_every` steps (and at step 0) with the current state.
   std::function<void(const ChainState<Real>&)> trajectory;
   std::size_t trajectory_every = 0;
-  /// Called every 1024 steps (or every 1% of a shorter run) with the fraction done.
-  std::function<void(double)> progress;
-  /// Checked every 1024 steps: true ends the run early with the averages so far.
-  const std::atomic<bool>* stop = nullptr;
 };
 
 /// A time average with its statistical error bar: the mean and one standard error (1 sigma)
-/// from blocking (kind statistical), and the integrated autocorrelation time they imply. The
-/// error is NaN (unknown, never 0) when fewer than 16 blocks finished: a run interrupted early
+/// from blocking (kind statistical at 1 sigma, not the 99.9% of the qmc bars: pendavg/result.hpp
+/// says what `statistical` means per method), and the integrated autocorrelation time they imply.
+/// The error is NaN (unknown, never 0) when fewer than 16 blocks finished: a run interrupted early
 /// or shorter than its block length.
 template <class Real>
 struct TimeAverage : Estimate<Real> {

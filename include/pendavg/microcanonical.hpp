@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/microcanonical.hpp -- exact microcanonical averages at fixed energy E (MATH.md Sec. 7):
-// the values that NVE time averages along a trajectory (dynamics) must reproduce.
+// pendavg/microcanonical.hpp -- exact microcanonical averages at fixed energy E
+// (src/engine/microcanonical/README.md): the values that NVE time averages along a trajectory
+// (dynamics) must reproduce.
 //
 // What it computes. For an N-link chain (H = (1/2) p^T A^{-1} p + U, U = -sum_j gamma_j cos phi_j,
 // gamma_j = g S_j l_j, paper eq. potential-energy; the minimum energy is E_min = -sum_j gamma_j):
@@ -84,7 +85,7 @@
 //   * `torus`: the plain tensor periodic trapezoid rule on the (N-1)-torus, refined n -> 2n,
 //     error = last difference. The kinks limit it to algebraic convergence (~n^-2 for N = 3):
 //     an independent cross-check for N <= 4, not a production rule.
-//   * `qmc` (automatic for N >= 5): randomized rank-1 lattice QMC (torus.hpp's lattices) over the
+//   * `qmc` (automatic for N >= 5): randomized rank-1 lattice QMC (the qmc engine's lattices) over the
 //     N absolute angles drawn from the product of von Mises laws exp(beta* gamma_j cos phi_j),
 //     through Best-Fisher's wrapped-Cauchy inverse CDF with the exact acceptance ratio as weight.
 //     The psi marginal of that proposal is 2 pi I0(beta* rho), so each point carries the weight
@@ -92,7 +93,7 @@
 //     beta* solves N/(2 beta) - sum_j gamma_j I1(beta gamma_j)/I0(beta gamma_j) = E (the proposal's
 //     mean energy with equipartition kinetic energy equals E). Error = sigmas x the jackknife
 //     standard error over the random shifts (a statistical bar, not a bound; sigmas is by
-//     default the 99.9% Student-t quantile, 4.07 for 16 shifts: see torus.hpp on why not 3).
+//     default the 99.9% Student-t quantile, 4.07 for 16 shifts: see src/engine/qmc/README.md on why not 3).
 //
 // Cost: the integral rule's nodes grow steeply with N (N = 4 is its practical limit); the qmc
 // bars shrink about like n^-1/2 (the kink at rho = |E| and the dimension). beta* is the matched

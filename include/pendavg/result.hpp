@@ -5,13 +5,24 @@
 // Following GSL's {val, err} and Arb's balls, every observable is an Estimate: a value and an
 // absolute error that is meant to cover the true error. What the error promises is machine
 // readable (ErrorKind):
-//   * bound       -- a rigorous bound (the series' certified tail bound; exact formulas, whose
-//                    error is rounding only);
+//   * bound       -- a rigorous bound (the series' certified tail bound, the certified integral's
+//                    ball arithmetic; exact formulas, whose error is rounding only);
 //   * estimate    -- a deterministic error estimate from refinement (quadrature levels), checked
 //                    against independent methods in the tests but not a proof;
-//   * statistical -- a statistical error bar (randomized QMC: the 99.9% Student-t quantile of
-//                    the standard error over random shifts, 4.07 sigma for 16 shifts; time
-//                    averages: 1 sigma from blocking).
+//   * statistical -- a statistical error bar: error = k * SE (+ a rounding allowance), SE the
+//                    standard error of the value from independent replicas of the computation.
+//                    The multiplier k, and so the confidence, depends on the method:
+//                      - qmc (canonical and microcanonical rule qmc): k = the 99.9% two-sided
+//                        Student-t quantile for R - 1 degrees of freedom, R the random shifts
+//                        (4.07 for the default 16; QmcOptions::sigmas overrides it), SE the
+//                        jackknife over the shifts: the bar misses about 1 run in 1000;
+//                      - dynamics time averages (TimeAverage, SimulationResult): k = 1, SE from
+//                        Flyvbjerg-Petersen blocking: one standard error, the bar misses about
+//                        1 run in 3 (multiply by 3.29 for the qmc bars' confidence);
+//                      - low_temperature_extrapolation of a qmc run: the qmc bars carried
+//                        through the extrapolation (same k).
+//                    The 1-sigma SE of a qmc run is in QmcDiagnostics (the *_standard_error
+//                    arrays), so the two can be compared on one scale.
 // Tests look for estimates that fail to cover the truth. "Did not converge" is a status with a
 // still-valid estimate (converged = false), never a silent wrong value.
 #pragma once
@@ -29,9 +40,14 @@ namespace pendavg {
 
 /// Progress reports and cancellation of a long computation (the library does no I/O): both
 /// optional. `progress` receives the estimated fraction done of the current stage (a torus
-/// level, the series' Bessel table); `stop` is polled between units of work, and when it reads
-/// true the run ends early: with what it finished (converged = false, interrupted = true) when
-/// that is a valid result, or by throwing `interrupted` when nothing reportable is finished.
+/// level, the transfer sweeps, the qmc shifts, the series' Bessel table, a trajectory); `stop`
+/// is polled between units of work, and when it reads true the run ends early: with what it
+/// finished (converged = false, interrupted = true) when that is a valid result, or by throwing
+/// `interrupted` when nothing reportable is finished.
+///
+/// The one progress and stop type of every engine: AverageOptions::control (torus, qmc,
+/// transfer; series through series_convergence), MicrocanonicalOptions::control, and
+/// DynamicsObserver (pendavg/dynamics.hpp), which is a RunControl with a trajectory callback.
 struct RunControl {
   std::function<void(double fraction)> progress;
   const std::atomic<bool>* stop = nullptr;
@@ -48,7 +64,7 @@ struct PENDAVG_EXPORT interrupted : std::runtime_error {
 
 enum class Method {
   series,                   ///< the paper's series, eq. ave-K1-result (N = 2)
-  reduced_integral,         ///< the exact 1-D reduced integral, MATH.md Sec. 2 (N = 2)
+  reduced_integral,         ///< the exact 1-D reduced integral (N = 2; src/engine/double_pendulum/)
   high_temperature_limit,   ///< beta -> 0 (elliptic K/E for N = 2)
   low_temperature_limit,    ///< beta -> infinity (1/2 each)
   torus_trapezoid,          ///< any N: periodic trapezoid on the reduced (N-1)-torus
@@ -58,7 +74,7 @@ enum class Method {
   /// any N at large beta: Richardson extrapolation in 1/beta of a torus or qmc method's values
   /// at two lower temperatures towards the beta -> infinity limit (src/average.cpp)
   low_temperature_extrapolation,
-  microcanonical,           ///< exact microcanonical averages at fixed energy (MATH.md Sec. 7)
+  microcanonical,           ///< exact averages at fixed energy (src/engine/microcanonical/)
   dynamics_nve,             ///< time averages along a RATTLE + Yoshida-4 trajectory (fixed energy)
   dynamics_langevin,        ///< time averages along constrained Langevin (BAOAB + RATTLE)
   /// N = 2: the exact 1-D reduced integral's finite Graf sums in ball arithmetic with proven
@@ -69,7 +85,8 @@ enum class Method {
 /// Stable lower-case name used in the CLI and in tables ("series", "integral", ...).
 PENDAVG_EXPORT const char* method_name(Method m);
 
-/// What an error promises (see the header comment).
+/// What an error promises (see the header comment; `statistical` has a confidence that depends on
+/// the method: 99.9% for qmc, one standard error for dynamics time averages).
 enum class ErrorKind { bound, estimate, statistical };
 
 /// "bound", "estimate" or "statistical".
@@ -140,11 +157,13 @@ struct Averages {
   std::vector<Estimate<Real>> beta2_kinetic_variance;  ///< beta^2 Var K_i
   /// <K_1>/<K_2>; empty for a single pendulum (N = 1).
   std::optional<Estimate<Real>> ratio;
-  /// beta <K_i^(c)>, K_i^(c) = p_i phidot_i / 2: 1/2 exactly for every chain (MATH.md Sec. 4,
-  /// generalized equipartition), reported as the built-in check it is (error 0, kind bound).
+  /// beta <K_i^(c)>, K_i^(c) = p_i phidot_i / 2: 1/2 exactly for every chain (generalized
+  /// equipartition: <K_i^(c) | phi> = 1/(2 beta) for every angle; src/engine/README.md), reported
+  /// as the built-in check it is (error 0, kind bound).
   std::vector<Estimate<Real>> beta_kinetic_canonical;
-  /// The paper's diagonal approximation, eq. ke-linear-tave-1 (MATH.md Sec. 8): beside the exact
-  /// values, never instead of them. An approximation, not an estimate of the average: no error.
+  /// The paper's diagonal approximation, eq. ke-linear-tave-1, beta<K_i> ~ (m_i/2) sum_{j<=i}
+  /// 1/S_j: beside the exact values, never instead of them (it is exact in no limit). An
+  /// approximation, not an estimate of the average: no error.
   std::vector<Real> diagonal_approximation;
   /// |sum_i beta<K_i> - N/2|: the trace identity sum_i tr X_i = N after the computation.
   Real equipartition_residual{};

@@ -1,15 +1,16 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // pendavg/series.hpp -- the paper's series for the double pendulum, term by term (eq.
-// ave-K1-result; MATH.md Sec. 5): the convergence table that proves the value.
+// ave-K1-result; src/engine/double_pendulum/README.md, 'Series'): the convergence table that proves
+// the value.
 //
 // beta<K1> = (mu1/2) sum_n c_n mu2^n R_n / (R_0 - sum_{n>=1} d_n mu2^n R_n), with
 // R_n(a1, a2) = (1/pi) int_0^pi cos^{2n} t I0(R(t)) dt from the closed-form Bessel derivatives
-// (MATH.md Sec. 5). After n terms both tails are bounded by c_{n+1} R_{n+1} mu2^{n+1} / (1 - mu2),
-// which gives each row a rigorous bound on |beta<K1> - partial value|. Convergence is geometric
-// with ratio mu2 = m2/M: when mu1 = m1/M is small prefer average() (the reduced integral), which
-// has no such slowdown. The sums run in MPFR (their coefficients leave double's range); the
-// double instantiation runs them at 16 + guard digits and rounds the rows.
-// For the value itself with all observables, call average() with AverageMethod::series.
+// (src/engine/double_pendulum/README.md, 'Series'). After n terms both tails are bounded by c_{n+1}
+// R_{n+1} mu2^{n+1} / (1 - mu2), which gives each row a rigorous bound on |beta<K1> - partial
+// value|. Convergence is geometric with ratio mu2 = m2/M: when mu1 = m1/M is small prefer average()
+// (the reduced integral), which has no such slowdown. The sums run in MPFR (their coefficients
+// leave double's range); the double instantiation runs them at 16 + guard digits and rounds the
+// rows. For the value itself with all observables, call average() with AverageMethod::series.
 #pragma once
 
 #include "pendavg/export.hpp"

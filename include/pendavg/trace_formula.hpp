@@ -1,16 +1,18 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// pendavg/trace_formula.hpp -- the trace formula at one angle node, in O(N) (MATH.md Secs. 1, 3, 4).
+// pendavg/trace_formula.hpp -- the trace formula at one angle node, in O(N) (src/engine/README.md,
+// 'Trace formula', 'Traces in O(N)', 'Isserlis').
 //
 // What it computes. For one configuration phi of an N-link chain (paper eq. a-ij):
 //   * log sqrt(det A(phi))                      -- the weight of the node (eq. ave-Ki-linear-pi-
 //                                                  trace-varphi), as a log so that N = 10^4 does
 //                                                  not overflow;
-//   * tr X_i = tr(A^(i) A^{-1}), i = 1..N       -- 2 beta <K_i | phi>  (MATH.md Sec. 1);
+//   * tr X_i = tr(A^(i) A^{-1}), i = 1..N       -- 2 beta <K_i | phi>  (trace formula);
 //   * tr(X_i X_i), i = 1..N                     -- with the above, beta^2 <K_i^2 | phi>
-//                                                  = [(tr X_i)^2 + 2 tr(X_i^2)] / 4 (Isserlis,
-//                                                  MATH.md Sec. 4).
+//                                                  = [(tr X_i)^2 + 2 tr(X_i^2)] / 4
+//                                                  (Isserlis).
 // The canonical kinetic energies need no node work: (A^{-1} A)_ii = 1, so
-// beta <K_i^(c) | phi> = 1/2 at every node (MATH.md Sec. 4, paper eq. ke-canonical-i).
+// beta <K_i^(c) | phi> = 1/2 at every node (src/engine/README.md, 'Equipartition'; paper eq.
+// ke-canonical-i).
 //
 // How. Given the angles the momenta are Gaussian, and so are the Cartesian velocities v_i. The
 // chain is a tree: v_i = v_{i-1} + l_i phidot_i t_i with t_i = (cos phi_i, sin phi_i). Eliminating
@@ -32,9 +34,9 @@
 // overflow nor underflow for any N; the determinant is a product renormalized by powers of two
 // and its log is taken once. sin^2 is formed from sin, never as 1 - cos^2.
 //
-// The same quantities follow from MATH.md Sec. 3 (G = H^{-1}, H = C M^{-1} C^T tridiagonal);
-// that form is kept in tests/oracle/dense_traces.hpp as a check. Its trace formula
-// 2 - [G_ii + G_{i+1,i+1} - 2 c G_{i,i+1}] / m_i cancels when tr X_i << 1, losing about
+// The same quantities follow from src/engine/README.md, 'Traces in O(N)' (G = H^{-1}, H = C M^{-1}
+// C^T tridiagonal); that form is kept in tests/oracle/dense_traces.hpp as a check. Its trace
+// formula 2 - [G_ii + G_{i+1,i+1} - 2 c G_{i,i+1}] / m_i cancels when tr X_i << 1, losing about
 // log10(1 / tr X_i) digits, which is why the library uses the articulated-body sweeps instead.
 //
 // Accuracy (tests/test_trace_formula.cpp, against the dense oracle in 50-digit MPFR): traces,
@@ -107,7 +109,7 @@ PENDAVG_EXPORT const NodeTraces<Real>& node_traces(const Chain<Real>& chain, con
                                                    TraceWorkspace<Real>& ws);
 
 /// The same from the N - 1 relative angles delta_i = phi_{i+1} - phi_i (A depends on nothing
-/// else). Use it when the quadrature runs over relative angles (MATH.md Sec. 2).
+/// else). Use it when the quadrature runs over relative angles (src/engine/README.md, 'Reduction').
 template <class Real>
 PENDAVG_EXPORT const NodeTraces<Real>& node_traces_relative(const Chain<Real>& chain,
                                                             const Real* delta,
@@ -123,7 +125,8 @@ PENDAVG_EXPORT const NodeTraces<Real>& node_traces_sincos(const Chain<Real>& cha
                                                           const Real* cos_delta,
                                                           TraceWorkspace<Real>& ws);
 
-/// The paper's diagonal approximation, eq. ke-linear-tave-1 (MATH.md Sec. 8):
+/// The paper's diagonal approximation, eq. ke-linear-tave-1
+/// (src/engine/README.md, 'Diagonal approximation'):
 ///     beta <K_i>  ~  (m_i / 2) sum_{j <= i} 1 / S_j.
 /// It is exact in no limit; report it next to an exact value, never instead of it.
 template <class Real>

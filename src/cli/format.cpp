@@ -3,8 +3,8 @@
 #include "format.hpp"
 
 
-#include "engine/precision.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/text.hpp"
 
 #include <algorithm>
 #include <array>

@@ -5,8 +5,8 @@
 #include "engine/certified.hpp"
 
 #include "engine/detail/graf_rows.hpp"
-#include "engine/estimates.hpp"
-#include "engine/precision.hpp"
+#include "engine/numerics/estimates.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <algorithm>
 #include <array>
@@ -20,6 +20,7 @@
 
 #ifdef PENDAVG_HAS_ARB
 #include "engine/detail/certified_balls.hpp"
+#include "engine/detail/certified_fast.hpp"
 
 #include <acb.h>
 #include <acb_hypgeom.h>
@@ -192,6 +193,17 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
   // Sec. 3.2: Miller's backward recurrence from N + 1, N with the start vectors (1, 0) and
   // (0, 1); the true ratios I_m / I_0 lie between those of the two runs (the mediant).
   slong extra = miller_extra > 0 ? miller_extra : static_cast<slong>(extra_d);
+  if (miller_extra < 0) {
+    // The normalization sum (by_sum below) converges like the square root of the ratios: its
+    // terms near N are ~e^{-N^2/(2a)} where the two runs' ratios differ by its square. Where a
+    // run of N >= a + 8 and N >= 16 + sqrt(2 a (L + 16)) costs at most 100 steps more than the
+    // plan (Arb's e^{-a} I_0(a) costs ~60-300 steps at 191-320 bits), it is taken.
+    const double sum_run = std::max(16.0 + std::ceil(std::sqrt(2.0 * a_d * (L + 16.0))),
+                                    std::ceil(a_d) + 8.0);
+    const double planned = static_cast<double>(count + extra);
+    if (sum_run > planned && sum_run <= planned + 100.0)
+      extra = static_cast<slong>(sum_run) - count;
+  }
   Ball ratio_u, ratio_v, sum_u, sum_v;
   bool by_sum = false;  // I~_0 from sum_m I~_m = 1 (Sec. 3.2) instead of Arb
   for (int attempt = 0;; ++attempt) {
@@ -237,7 +249,7 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
       arb_mul_ui(ratio_v, two_over_a, static_cast<ulong>(N), prec);
       arb_div(ratio_v, ratio_v, v[0], prec);
       arb_union(rho, ratio_u, ratio_v, prec);
-      arb_div_ui(q, two_over_a, static_cast<ulong>(N), prec);
+      arb_mul_ui(q, two_over_a, static_cast<ulong>(N), prec);  // 2N/a
       arb_inv(q, q, prec);  // a / (2N)
       if (!arb_lt(q, Ball(1))) by_sum = false;
       arb_sub_ui(T, q, 1, prec);
@@ -280,7 +292,8 @@ void scaled_bessel_table(Balls& out, const arb_t a, double a_d, double L, slong 
 /// the sum (a below ~L), else from Arb.
 void scaled_bessel_low_orders(arb_t i0, arb_t i1, const arb_t a, double a_d, double L,
                               slong prec) {
-  if (a_d + 8 <= 26.0 + std::ceil(std::sqrt(std::max(a_d, 0.0) * (L + 16.0)))) {
+  // a two-entry table when its run may normalize by the sum (within the 100 steps above)
+  if (a_d + 8 <= 126.0 + std::ceil(std::sqrt(std::max(a_d, 0.0) * (L + 16.0)))) {
     Balls table(2);
     scaled_bessel_table(table, a, a_d, L, prec);
     arb_set(i0, table[0]);
@@ -615,28 +628,7 @@ Integrals integrals_of(const Parameters& p, slong K, double L, slong prec) {
     arb_dot(out.value[j], nullptr, 0, coefficient[j]->data(), 1, moment[j]->data(), 1, K, prec);
 
   // ---- tails (Sec. 5)
-  // The coefficients' full sums from Graf's theorem at t = 0 and t = pi.
-  Ball A, total0, total1, total2, diff0, diff1;
-  arb_add(A, p.a1, p.a2, prec);
-  if (arb_is_zero(A)) {
-    arb_one(total0);
-    arb_zero(total1);
-  } else {
-    scaled_bessel_low_orders(total0, total1, A, p.a1_d + p.a2_d, L, prec);
-  }
-  scaled_difference_bessel(diff0, diff1, p, L, prec);
-  arb_add(total0, total0, diff0, prec);
-  arb_set(total2, total1);
-  arb_add(total1, total1, diff1, prec);
-  arb_sub(total2, total2, diff1, prec);
-  const std::array<const Ball*, 3> totals = {&total0, &total1, &total2};
   const std::array<const Balls*, 3> rows = {&c0, &c1, &c2};
-  std::array<Ball, 3> rest;  // sum_{k >= K} c_k, >= 0
-  for (std::size_t j = 0; j < 3; ++j) {
-    Ball partial;  // 0
-    for (slong k = 0; k < K; ++k) arb_add(partial, partial, (*rows[j])[k], prec);
-    arb_sub(rest[j], *totals[j], partial, prec);
-  }
   // The moments beyond K: sup_{k >= K} |Q_k(s)| and sum_{k >= K} |Q_k(s)| (Sec. 4.4).
   const ulong Ku = static_cast<ulong>(K);
   Ball rK, one_minus_r, geometric;
@@ -679,16 +671,63 @@ Integrals integrals_of(const Parameters& p, slong K, double L, slong prec) {
   }
   constexpr std::array<std::size_t, 5> row_of = {0, 0, 0, 1, 2};    // coefficient row
   constexpr std::array<std::size_t, 5> power_of = {0, 1, 2, 0, 0};  // s = 1/2, -1/2, -3/2
+  // The bound by the moments' decay, c_K sum_{k >= K} |Q_k|, first: where it is below
+  // 2^-(prec + 16) of every integral, the bound by the coefficients' rest (their full sums:
+  // two more Bessel evaluations and an exponential) cannot matter and is not formed.
+  std::array<Ball, 5> bound_decay;
+  bool decay_enough = true;
+  for (std::size_t j = 0; j < 5; ++j) {
+    arb_mul(bound_decay[j], (*rows[row_of[j]])[K], sum[power_of[j]], prec);
+    mag_t bound, scale;
+    mag_init(bound);
+    mag_init(scale);
+    arb_get_mag(bound, bound_decay[j]);
+    arb_get_mag_lower(scale, out.value[j]);
+    mag_mul_2exp_si(scale, scale, -(prec + 16));
+    if (mag_cmp(bound, scale) > 0) decay_enough = false;
+    mag_clear(bound);
+    mag_clear(scale);
+  }
+  if (decay_enough) {
+    for (std::size_t j = 0; j < 5; ++j) {
+      mag_t m;
+      mag_init(m);
+      arb_get_mag(m, bound_decay[j]);
+      arb_add_error_mag(out.value[j], m);
+      mag_clear(m);
+    }
+    return out;
+  }
+  // The coefficients' full sums from Graf's theorem at t = 0 and t = pi.
+  Ball A, total0, total1, total2, diff0, diff1;
+  arb_add(A, p.a1, p.a2, prec);
+  if (arb_is_zero(A)) {
+    arb_one(total0);
+    arb_zero(total1);
+  } else {
+    scaled_bessel_low_orders(total0, total1, A, p.a1_d + p.a2_d, L, prec);
+  }
+  scaled_difference_bessel(diff0, diff1, p, L, prec);
+  arb_add(total0, total0, diff0, prec);
+  arb_set(total2, total1);
+  arb_add(total1, total1, diff1, prec);
+  arb_sub(total2, total2, diff1, prec);
+  const std::array<const Ball*, 3> totals = {&total0, &total1, &total2};
+  std::array<Ball, 3> rest;  // sum_{k >= K} c_k, >= 0
+  for (std::size_t j = 0; j < 3; ++j) {
+    Ball partial;  // 0
+    for (slong k = 0; k < K; ++k) arb_add(partial, partial, (*rows[j])[k], prec);
+    arb_sub(rest[j], *totals[j], partial, prec);
+  }
   for (std::size_t j = 0; j < 5; ++j) {
     // |tail| <= min(rest * sup, c_K * sum)
     const double by_rest = upper_abs(rest[row_of[j]]) * upper_abs(sup[power_of[j]]);
-    const double by_decay = upper_abs((*rows[row_of[j]])[K]) * upper_abs(sum[power_of[j]]);
-    Ball bound_rest, bound_decay;
+    const double by_decay = upper_abs(bound_decay[j]);
+    Ball bound_rest;
     arb_mul(bound_rest, rest[row_of[j]], sup[power_of[j]], prec);
-    arb_mul(bound_decay, (*rows[row_of[j]])[K], sum[power_of[j]], prec);
     mag_t m;
     mag_init(m);
-    arb_get_mag(m, by_rest <= by_decay ? bound_rest.get() : bound_decay.get());
+    arb_get_mag(m, by_rest <= by_decay ? bound_rest.get() : bound_decay[j].get());
     arb_add_error_mag(out.value[j], m);
     mag_clear(m);
   }
@@ -811,9 +850,55 @@ template Parameters parameters_of<mpfr_real>(const Chain<mpfr_real>&, const mpfr
 
 using namespace certified_detail;
 
+namespace {
+
+/// The fast path's enclosure as an Estimate: the midpoint rounded to double, the error the ball's
+/// radius plus that rounding (|h + l - value| computed with one rounding: two ulps up cover it).
+Estimate<double> estimate_of_fast(const certified_fast::Enclosure& e) {
+  Estimate<double> out;
+  out.kind = ErrorKind::bound;
+  out.value = e.hi + e.lo;
+  const double rounding = std::fabs((e.hi - out.value) + e.lo);  // e.hi - value is exact
+  const double inf = std::numeric_limits<double>::infinity();
+  out.error = std::nextafter(std::nextafter(rounding + e.rad, inf), inf);
+  return out;
+}
+
+Averages<double> averages_of_fast(const certified_fast::FastResult& r) {
+  Averages<double> out;
+  out.method = Method::certified_integral;
+  out.error_kind = ErrorKind::bound;
+  out.work_unit = WorkUnit::terms;
+  out.evaluations = r.rows;
+  out.converged = true;  // every radius is within 2^-60 of its value
+  const auto& o = r.observables;
+  out.beta_kinetic = {estimate_of_fast(o[0]), estimate_of_fast(o[1])};
+  out.ratio = estimate_of_fast(o[2]);
+  out.cos_angle = {estimate_of_fast(o[3]), estimate_of_fast(o[4])};
+  out.beta2_kinetic_variance = {estimate_of_fast(o[5]), estimate_of_fast(o[6])};
+  return out;
+}
+
+}  // namespace
+
 template <class Real>
 Averages<Real> certified_double_pendulum_average(const Chain<Real>& chain, const Real& beta,
                                                  int digits) {
+  check_beta(beta);
+  if constexpr (!is_mpfr_v<Real>) {
+    // Double inputs and results: the double-word fast path (Sec. 10) when it certifies every
+    // observable to 2^-60; otherwise Arb's balls below.
+    if (chain.size() == 2 && digits <= 16) {
+      if (const auto fast = certified_fast::fast_double_average(chain, static_cast<double>(beta)))
+        return averages_of_fast(*fast);
+    }
+  }
+  return certified_detail::arb_double_pendulum_average(chain, beta, digits);
+}
+
+template <class Real>
+Averages<Real> certified_detail::arb_double_pendulum_average(const Chain<Real>& chain,
+                                                             const Real& beta, int digits) {
   check_beta(beta);
   // Two goals (Sec. 7): the requested digits decide `converged`; the result type's own
   // precision (53 bits, or the working precision) is what the radius aims at, so that the
@@ -878,6 +963,13 @@ Averages<Real> certified_high_temperature_limit(const Chain<Real>& chain, int di
 }
 
 #endif  // PENDAVG_HAS_ARB
+
+#ifdef PENDAVG_HAS_ARB
+template Averages<double> certified_detail::arb_double_pendulum_average<double>(
+    const Chain<double>&, const double&, int);
+template Averages<mpfr_real> certified_detail::arb_double_pendulum_average<mpfr_real>(
+    const Chain<mpfr_real>&, const mpfr_real&, int);
+#endif
 
 #define PENDAVG_INSTANTIATE_CERTIFIED(Real)                                                    \
   template Averages<Real> certified_double_pendulum_average<Real>(const Chain<Real>&,          \

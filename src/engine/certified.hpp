@@ -12,6 +12,8 @@
 // stable backward recurrence), the Fourier moments Q_k(s) of q^s by the cancellation-free
 // difference recurrence from Arb's 2F1 at the top row, and the truncated tails bounded with
 // the exact sums of the coefficients (Graf's theorem at t = 0 and pi) and the moments' decay.
+// With double inputs and results the same computation runs first in double-word balls
+// (engine/detail/certified_fast.hpp, certified.md Sec. 10); Arb's balls where that declines.
 #pragma once
 
 #include "pendavg/average.hpp"

@@ -64,7 +64,7 @@ ExactValues canonical_values(const Chain<double>& chain, double beta) {
     out.variance.push_back(a.beta2_kinetic_variance[i].value / beta / beta);
     out.variance_error.push_back(a.beta2_kinetic_variance[i].error / beta / beta);
   }
-  // beta <K_i^(c)> = 1/2 exactly (MATH.md Sec. 4).
+  // beta <K_i^(c)> = 1/2 exactly (src/engine/README.md, "Equipartition").
   out.kinetic_canonical = a.beta_kinetic_canonical.front().value / beta;
   out.kinetic_canonical_error = a.beta_kinetic_canonical.front().error / beta;
   out.method = method_name(a.method);

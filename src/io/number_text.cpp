@@ -4,8 +4,8 @@
 
 #include "io/decimal_fast.hpp"
 
-#include "engine/precision.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/text.hpp"
 #include "pendavg/average.hpp"
 
 #include <algorithm>

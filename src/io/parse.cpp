@@ -2,7 +2,7 @@
 // src/io/parse.cpp -- strict decimal numbers, integers and choices.
 #include "io/parse.hpp"
 
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <algorithm>
 #include <charconv>

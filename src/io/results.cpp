@@ -7,8 +7,8 @@
 
 #include "io/exact_values.hpp"
 
-#include "engine/precision.hpp"
-#include "engine/text.hpp"
+#include "engine/numerics/precision.hpp"
+#include "engine/numerics/text.hpp"
 #include "pendavg/average.hpp"
 
 #include <gmp.h>

@@ -16,7 +16,8 @@
 #include <benchmark/benchmark.h>
 
 #include "pendavg/chain.hpp"
-#include "engine/torus.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/trace_formula.hpp"
 
 #include <algorithm>

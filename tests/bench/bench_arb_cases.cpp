@@ -11,12 +11,13 @@
 //
 // pendavg: pendavg::average (automatic method: the reduced integral) with an AverageWorkspace
 // kept across calls, at digits 16 (double), 38 and 77 (mpfr_real); all observables. Certified:
-// the same call with AverageOptions::certified (every observable an enclosure).
+// the same call with AverageOptions::certified (every observable an enclosure; in double the
+// double-word fast path of src/engine/certified.md Sec. 10, at 38 and 77 digits Arb's balls).
 // Arb (when built with Debian's libflint-arb-dev; PENDAVG_BENCH_HAS_ARB): acb_calc_integrate of
 // the two integrals behind beta<K_1> = (mu1/2) J_{-1/2} / J_{1/2},
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,
 //   R^2 = A^2 - 4 a1 a2 sin^2(t/2),  a1 = beta M g l1,  a2 = beta m2 g l2
-// (the reduced integral of engine/double_pendulum.cpp unfolded to [0, pi]), with
+// (the reduced integral of engine/double_pendulum/integral.cpp unfolded to [0, pi]), with
 // e^{-A} I_0(R) = e^{R - A} [e^{-R} I_0(R)] and R - A = -4 a1 a2 sin^2(t/2) / (R + A). Only the
 // kinetic pair: Arb is given the least work pendavg's five integrals include. Precision: goal
 // g = ceil(digits log2 10) + 4 bits relative (53 bits for double), working precision g + 32
@@ -34,7 +35,8 @@
 //                                         a block of certified pendavg calls (--certified,
 //                                         src/engine/certified.md) and a block of Arb calls
 //                                         (thread CPU time, blocks of ~20 ms); prints the medians
-//                                         (us), certified/pendavg, Arb/certified, and the check
+//                                         (us), certified/pendavg, Arb/certified, Arb/pendavg
+//                                         (uncertified; issue 30's item 5), and the check
 //                                         of both pendavg beta<K_1> against Arb's ball.
 //   bench_arb_cases --check               only the check: pendavg's beta<K_1> must lie in Arb's
 //                                         ball widened by pendavg's own error; exit status 1 if
@@ -304,8 +306,8 @@ int run_table(int rounds, bool timing) {
   int failures = 0;
   const bool certified = pendavg::certified_available();
   if (timing) {
-    std::printf("%-4s %6s %12s %12s %12s %10s %10s\n", "case", "digits", "pendavg_us",
-                "certified_us", "arb_us", "cert/pend", "arb/cert");
+    std::printf("%-4s %6s %12s %12s %12s %10s %10s %10s\n", "case", "digits", "pendavg_us",
+                "certified_us", "arb_us", "cert/pend", "arb/cert", "arb/pend");
   }
   for (int digits : digit_levels) {
     for (const NamedCase& c : named_cases) {
@@ -339,9 +341,9 @@ int run_table(int rounds, bool timing) {
       }
       const double mp = median_of(tp) * 1e6, mc = median_of(tc) * 1e6;
       const double ma = ta.empty() ? 0.0 : median_of(ta) * 1e6;
-      std::printf("%-4s %6d %12.2f %12.2f %12.2f %10.2f %10.1f\n", c.name, digits, mp,
+      std::printf("%-4s %6d %12.2f %12.2f %12.2f %10.2f %10.1f %10.1f\n", c.name, digits, mp,
                   certified ? mc : 0.0, ma, certified ? mc / mp : 0.0,
-                  certified && ma > 0 ? ma / mc : 0.0);
+                  certified && ma > 0 ? ma / mc : 0.0, ma / mp);
       std::fflush(stdout);
     }
   }

@@ -38,8 +38,8 @@
 #include "cases.hpp"
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <algorithm>
 #include <chrono>

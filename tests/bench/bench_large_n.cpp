@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Large N (issue 13): the work-precision study and the timing targets of the transfer operator
-// (src/engine/chain_transfer.hpp) side by side with randomized lattice QMC, in one process.
+// (src/engine/transfer/chain_transfer.hpp) side by side with randomized lattice QMC, in one process.
 // Unit chains (m_i = l_i = 1, g = 1). Not a Google Benchmark: each mode prints CSV rows.
 //
 //   bench_large_n wp N BETA MAX_LOG2_POINTS [REPS]
@@ -33,8 +33,9 @@
 //       the largest reported error of beta<K_i>, converged, and the largest difference.
 //
 // tests/bench/large_n_work_precision.sh runs the study behind tables/large_n_work_precision.csv.
-#include "engine/chain_transfer.hpp"
-#include "engine/torus.hpp"
+#include "engine/transfer/chain_transfer.hpp"
+#include "engine/qmc/qmc.hpp"
+#include "engine/torus/torus.hpp"
 #include "pendavg/average.hpp"
 
 #include <algorithm>

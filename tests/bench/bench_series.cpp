@@ -16,8 +16,8 @@
 #include <benchmark/benchmark.h>
 
 #include "pendavg/chain.hpp"
-#include "engine/double_pendulum.hpp"
-#include "engine/precision.hpp"
+#include "engine/double_pendulum/double_pendulum.hpp"
+#include "engine/numerics/precision.hpp"
 
 #include <cstdlib>
 #include <exception>

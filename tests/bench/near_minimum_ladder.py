@@ -16,7 +16,7 @@ string, read exactly), the source of the CLI tests' near-minimum reference strin
 `--separatrix` checks N = 2 at every separatrix energy (exactly and 1e-9 of the top off) and
 above the top against definition_2d, the definition over (phi_1, phi_2) by nested tanh-sinh.
 
-The oracle is the definition (MATH.md Sec. 7) integrated over the N absolute angles, written here
+The oracle is the definition (src/engine/microcanonical/README.md) integrated over the N absolute angles, written here
 from the paper's matrices alone: A_jk = S_max(j,k) l_j l_k cos(phi_j - phi_k), A^(i)_jk =
 m_i l_j l_k cos(phi_j - phi_k) for j, k <= i, X_i = A^(i) A^{-1}; per node the weight sqrt(det A)
 (E - U)^(N/2 - 1), <K_i | phi> = tr X_i (E - U) / N and <K_i^2 | phi> = (E - U)^2 ((tr X_i)^2 +
@@ -157,7 +157,7 @@ def tanh_sinh(f, a, b, size, tolerance, scale_of=None):
 
 
 def definition_2d(masses, lengths, g, energy, tolerance, floors=None):
-    """N = 2 at any energy: the definition over (phi_1, phi_2) literally (MATH.md Sec. 7), with
+    """N = 2 at any energy: the definition over (phi_1, phi_2) literally (src/engine/microcanonical/README.md), with
     the paper's closed forms det A = l1^2 l2^2 m2 (M - m2 c^2), tr X_1 = m1 / (M - m2 c^2)
     (c = cos(phi_2 - phi_1); X_1 has rank one, X_2 = 1 - X_1). phi_1 over its exact accessible
     arc, phi_2 over [0, pi] (the integrand is even) split where that arc opens or closes. Each

@@ -10,18 +10,20 @@
 // with A from eq. a-ij, A^(i) from its definition below eq. Ki-linear-dotvarphi-Ai and U from
 // eq. potential-energy. The 2x2 matrices are built and inverted with Eigen at every node; no
 // closed form for the traces or the determinant (eqs. trA1Ainv-dp, detA) and none of the reductions
-// of MATH.md Sec. 2 are used, so this file shares no algebra with the library it checks.
-// The momenta are Gaussian given the angles, so (Isserlis, MATH.md Sec. 4)
+// of src/engine/README.md, 'Reduction' are used, so this file shares no algebra with the library it
+// checks. The momenta are Gaussian given the angles, so (Isserlis, src/engine/README.md,
+// 'Isserlis')
 //
 //     beta^2 <K_i^2 | phi> = [ (tr X_i)^2 + 2 tr(X_i X_i) ] / 4,    X_i = A^(i) A^{-1}.
 //
 // How: a tensor Gauss-Legendre rule on P equal panels per angle with n nodes each. The nodes are
 // computed here (Newton on the Legendre three-term recurrence), generically in Real, so the same
 // code runs in double and in MPFR. The integrand is periodic and analytic; its nearest
-// singularities are the zeros of det A (MATH.md Sec. 6: about asinh(sqrt(mu1/mu2)) off the real
-// axis in phi2 - phi1), and exp(-beta U) grows off the real axis like exp(alpha cosh y), so the
-// rule converges geometrically with a rate set by those two. U is summed literally at every node
-// and shifted by its minimum U(0) (exp(-beta (U - U(0))) <= 1), so nothing overflows.
+// singularities are the zeros of det A (src/engine/torus/README.md, 'Node maps': about
+// asinh(sqrt(mu1/mu2)) off the real axis in phi2 - phi1), and exp(-beta U) grows off the real axis
+// like exp(alpha cosh y), so the rule converges geometrically with a rate set by those two. U is
+// summed literally at every node and shifted by its minimum U(0) (exp(-beta (U - U(0))) <= 1), so
+// nothing overflows.
 //
 // When to use it: ONLY as a test oracle for moderate parameters (mu1 in ~[0.2, 0.8], beta*M*g*l
 // up to ~20, l2/l1 in ~[0.5, 2]). It costs P^2 n^2 node evaluations and is hopeless for

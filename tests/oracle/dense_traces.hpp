@@ -9,8 +9,8 @@
 //   * X_i = A^(i) A^{-1} formed explicitly (LU with full pivoting), and tr X_i, tr(X_i X_i),
 //     log sqrt(det A), and diag(A^{-1} A) (the canonical energies, eq. ke-canonical-i:
 //     beta <K_i^(c) | phi> = (A^{-1} A)_ii / 2).
-// Second, MATH.md Sec. 3 taken literally (Fixman's Cartesian form): the tridiagonal
-// H = C M^{-1} C^T, G = H^{-1} by a dense inverse, det A = (prod m_j l_j)^2 det H and
+// Second, src/engine/README.md, 'Traces in O(N)' taken literally (Fixman's Cartesian form): the
+// tridiagonal H = C M^{-1} C^T, G = H^{-1} by a dense inverse, det A = (prod m_j l_j)^2 det H and
 // tr X_i = 2 - [G_ii + G_{i+1,i+1} - 2 cos(phi_{i+1} - phi_i) G_{i,i+1}] / m_i.
 // Neither shares algebra with the library's articulated-body recurrences (src/trace_formula.cpp).
 //
@@ -38,7 +38,7 @@ struct DenseTraces {
   std::vector<Real> trace_X;           ///< tr(A^(i) A^{-1})
   std::vector<Real> trace_X_squared;   ///< tr(A^(i) A^{-1} A^(i) A^{-1})
   std::vector<Real> canonical_diagonal;  ///< (A^{-1} A)_ii
-  Real log_sqrt_det_A_fixman;          ///< log sqrt((prod m_j l_j)^2 det H)   (MATH.md Sec. 3)
+  Real log_sqrt_det_A_fixman;          ///< log sqrt((prod m_j l_j)^2 det H)   (src/engine/README.md, 'Traces in O(N)')
   std::vector<Real> trace_X_fixman;    ///< 2 - [G_ii + G_{i+1,i+1} - 2 c G_{i,i+1}] / m_i
 };
 
@@ -87,7 +87,7 @@ DenseTraces<Real> dense_traces(const std::vector<Real>& masses, const std::vecto
     out.canonical_diagonal.push_back(canonical(i, i));
   }
 
-  // MATH.md Sec. 3: H = C M^{-1} C^T with C the unit constraint gradients.
+  // src/engine/README.md, 'Traces in O(N)': H = C M^{-1} C^T with C the unit constraint gradients.
   Matrix h = Matrix::Zero(n, n);
   for (Eigen::Index j = 0; j < n; ++j) {
     h(j, j) = 1 / at(masses, j) + (j > 0 ? Real(1 / at(masses, j - 1)) : Real(0));

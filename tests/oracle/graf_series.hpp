@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/graf_series.hpp -- an independent test oracle for the paper's series,
 // eq. ave-K1-result, with R_n(a1, a2) from Graf's addition theorem instead of the paper's
-// Bessel-derivative formula (which the library implements, MATH.md Sec. 5).
+// Bessel-derivative formula (which the library implements, src/engine/double_pendulum/README.md,
+// 'Series').
 //
 // R_n(a1, a2) = (2 pi)^{-2} ∫∫ cos^{2n}(phi2 - phi1) e^{a1 cos phi1 + a2 cos phi2} d^2phi.
 // Expanding cos^{2n} t = 2^{-2n} [ C(2n,n) + 2 sum_{k=1}^{n} C(2n,n-k) cos(2kt) ] and using

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // tests/oracle/near_minimum.hpp -- an independent test oracle for microcanonical averages near
-// the bottom of the well: the definition (MATH.md Sec. 7) integrated directly over the N absolute
-// angles, in the excitation form, by nested Gauss-Legendre rules.
+// the bottom of the well: the definition (src/engine/microcanonical/README.md) integrated directly
+// over the N absolute angles, in the excitation form, by nested Gauss-Legendre rules.
 //
 // What it is. At excitation D = E - E_min the accessible angles are
 //     {phi : sum_j 2 gamma_j sin^2(phi_j / 2) < D}      (U - U_min, no cancellation),

@@ -5,8 +5,9 @@
 // with their proven tails. Only in builds with Arb (PENDAVG_HAS_ARB).
 #pragma once
 
-#include "engine/precision.hpp"
+#include "engine/numerics/precision.hpp"
 #include "pendavg/chain.hpp"
+#include "pendavg/result.hpp"
 
 #include <arb.h>
 
@@ -116,5 +117,10 @@ struct Integrals {
 };
 
 Integrals integrals_of(const Parameters& p, slong K, double L, slong prec);
+
+/// The certified averages by Arb's balls alone (certified_double_pendulum_average without the
+/// double fast path of Sec. 10; for tests and benchmarks of either path).
+template <class Real>
+Averages<Real> arb_double_pendulum_average(const Chain<Real>& chain, const Real& beta, int digits);
 
 }  // namespace pendavg::certified_detail
