@@ -10,8 +10,9 @@
 // the CLI does; the result filled into the records the CLI prints (io::append_microcanonical),
 // from which the class MicrocanonicalResult is generated (table_result.hpp).
 //
-// The library's microcanonical run takes no RunControl here: it reports no progress and cannot
-// be stopped, so it runs with the GIL released and a Ctrl-C is raised when it returns.
+// The run gets no RunControl here (MicrocanonicalOptions::control: left for later): it reports no
+// progress and cannot be stopped, so it runs with the GIL released and a Ctrl-C is raised when it
+// returns.
 #include "bindings.hpp"
 #include "inputs.hpp"
 #include "table_result.hpp"

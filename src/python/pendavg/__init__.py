@@ -443,8 +443,8 @@ def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto"
       excitation  the excitation D = E - E_min > 0, instead of energy (formed without
                   cancellation: the way to state a state near the bottom of the well).
     An option the chosen rule does not use is refused (ValueError, the CLI's message).
-    Progress and Ctrl-C: the library's microcanonical run reports no progress and cannot be
-    stopped midway (its options take no RunControl); it runs with the GIL released, and a
+    Progress and Ctrl-C: this function reports no progress and cannot be stopped midway (it
+    does not pass the library a RunControl yet); it runs with the GIL released, and a
     Ctrl-C raises KeyboardInterrupt when it returns.
     Returns a MicrocanonicalResult with the fields of `pendavg average --energy E --format json`:
 
