@@ -2,7 +2,7 @@
 // src/io/exact_values.cpp -- see exact_values.hpp.
 #include "io/exact_values.hpp"
 
-#include "cli/average_options.hpp"
+#include "io/requests.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -22,7 +22,7 @@ double initial_excitation(const Chain<double>& chain, const ChainState<double>& 
 
 ExactValues microcanonical_values(const Chain<double>& chain, double excitation) {
   MicrocanonicalOptions options;
-  options.threads = cli::hardware_threads();
+  options.threads = hardware_threads();
   const MicrocanonicalAverages<double> r =
       microcanonical_average_excitation(chain, excitation, options);
   ExactValues out;
@@ -51,7 +51,7 @@ ExactValues microcanonical_values(const Chain<double>& chain, double excitation)
 
 ExactValues canonical_values(const Chain<double>& chain, double beta) {
   AverageOptions options;
-  options.threads = cli::hardware_threads();
+  options.threads = hardware_threads();
   const Averages<double> a = average(chain, beta, options);
   ExactValues out;
   for (std::size_t i = 0; i < chain.size(); ++i) {
