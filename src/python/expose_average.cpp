@@ -148,8 +148,7 @@ void keep_point(AveragesResult& result, std::size_t k, const Chain<Real>& chain,
   io::append_averages(records.values, a, beta, printing);
   const std::array<const io::Record*, 2> both{&records.inputs, &records.values};
   result.store(k, both);
-  result.seconds[k] = seconds;
-  result.interrupted[k] = a.interrupted ? 1 : 0;
+  result.set_run(k, seconds, a.interrupted);
   result.runs[k] = run_details_of(a);
 }
 

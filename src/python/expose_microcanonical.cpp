@@ -84,7 +84,7 @@ void run(MicrocanonicalResult& result, const AverageOptions& settings, std::stri
   const MicrocanonicalAverages<Real> r = state == "excitation"
                                              ? microcanonical_average_excitation(chain, x, options)
                                              : microcanonical_average(chain, x, options);
-  result.seconds[0] = watch.seconds();
+  result.set_run(0, watch.seconds(), false);
   const io::Printing printing{settings.digits, false};  // (texts when .decimal asks)
   io::Record inputs, values;
   inputs.keep_exact(mpfr);

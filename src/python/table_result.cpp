@@ -141,8 +141,6 @@ void TableResult::layout(std::initializer_list<Table> tables, bool mpfr) {
   points_ = 1;
   for (const py::ssize_t s : shape) points_ *= static_cast<std::size_t>(s);
   const std::size_t rows = std::max<std::size_t>(points_, 1);  // an empty grid: store_call's
-  seconds.assign(points_, 0.0);
-  interrupted.assign(points_, 0);
   layout_ = layout_of(tables, particles);
   columns_ = layout_->columns;
   row_present_ = layout_->row_present;
@@ -150,20 +148,27 @@ void TableResult::layout(std::initializer_list<Table> tables, bool mpfr) {
   row_integers_ = layout_->row_integers;
   row_flags_ = layout_->row_flags;
   row_texts_ = layout_->row_texts;
-  present_.assign(rows * row_present_, 0);
-  numbers_.assign(rows * row_numbers_, nan);
-  gaps_.assign(mpfr ? 0 : rows * row_numbers_, 0.0);
-  decimals_.assign(mpfr ? rows * row_numbers_ : 0, {});
-  exact_.assign(mpfr ? rows * row_numbers_ : 0, {});
+  const std::size_t numbers = rows * row_numbers_;
+  gaps_at_ = numbers;
+  seconds_at_ = gaps_at_ + (mpfr ? 0 : numbers);
+  doubles_.assign(seconds_at_ + points_, 0.0);
+  std::fill(doubles_.begin(), doubles_.begin() + static_cast<std::ptrdiff_t>(numbers), nan);
+  flags_at_ = rows * row_present_;
+  finite_at_ = flags_at_ + rows * row_flags_;
+  interrupted_at_ = finite_at_ + rows;
+  bytes_.assign(interrupted_at_ + points_, 0);
+  std::fill(bytes_.begin() + static_cast<std::ptrdiff_t>(finite_at_),
+            bytes_.begin() + static_cast<std::ptrdiff_t>(interrupted_at_), std::uint8_t{1});
+  decimals_.assign(mpfr ? numbers : 0, {});
+  exact_.assign(mpfr ? numbers : 0, {});
   integers_.assign(rows * row_integers_, 0);
-  flags_.assign(rows * row_flags_, 0);
   texts_.assign(rows * row_texts_, {});
-  finite_.assign(rows, 1);
 }
 
 void TableResult::put(std::size_t k, std::span<const io::Record* const> records, bool call_only) {
-  std::uint8_t* present = present_.data() + k * row_present_;
-  double* numbers = numbers_.data() + k * row_numbers_;
+  std::uint8_t* present = bytes_.data() + k * row_present_;
+  double* numbers = doubles_.data() + k * row_numbers_;
+  double* gaps = doubles_.data() + gaps_at_ + k * row_numbers_;
   bool finite = true;
   for (std::size_t t = 0; t < layout_->plans.size(); ++t) {
     const std::vector<CellPlan>& plan = layout_->plans[t];
@@ -184,7 +189,7 @@ void TableResult::put(std::size_t k, std::span<const io::Record* const> records,
         case io::Kind::error:
           if (cell.tag == io::Cell::Tag::number || cell.tag == io::Cell::Tag::input) {
             numbers[p.at] = cell.number;  // (an error's: the library's; its text adds a gap)
-            if (!mpfr_) gaps_[k * row_numbers_ + p.at] = cell.gap;
+            if (!mpfr_) gaps[p.at] = cell.gap;
             else if (j < record.exact().size() && record.exact()[j].kept())
               exact_[k * row_numbers_ + p.at] = record.exact()[j];  // (a double of an MPFR run)
             finite = finite && std::isfinite(cell.number);
@@ -201,12 +206,12 @@ void TableResult::put(std::size_t k, std::span<const io::Record* const> records,
           }
           break;
         case io::Kind::count: integers_[k * row_integers_ + p.at] = cell.integer; break;
-        case io::Kind::flag: flags_[k * row_flags_ + p.at] = cell.flag ? 1 : 0; break;
+        case io::Kind::flag: bytes_[flags_at_ + k * row_flags_ + p.at] = cell.flag ? 1 : 0; break;
         case io::Kind::text: texts_[k * row_texts_ + p.at] = record.text_of(cell); break;
       }
     }
   }
-  if (!call_only) finite_[k] = finite ? 1 : 0;
+  if (!call_only) bytes_[finite_at_ + k] = finite ? 1 : 0;
 }
 
 void TableResult::store(std::size_t k, std::span<const io::Record* const> records) {
@@ -230,8 +235,8 @@ py::object TableResult::value(std::string_view name) const {
   if (!found) return py::none();
   const Column& c = *found;
   if (c.call_wide) return py::int_(integers_[c.first]);  // N, digits: the call's
-  const auto present = [&](std::size_t k, std::size_t i) {
-    return present_[cell(c, row_present_, k, i) - c.first + c.present] != 0;
+  const auto present = [&, presence = this->present()](std::size_t k, std::size_t i) {
+    return presence[k * row_present_ + c.present + i] != 0;
   };
   bool any = false, all = true;
   for (std::size_t k = 0; k < points_; ++k)
@@ -254,9 +259,9 @@ py::object TableResult::value(std::string_view name) const {
   switch (c.field.kind) {
     case io::Kind::real:
     case io::Kind::error: {
-      if (scalar) return present(0, 0) ? py::object(py::float_(numbers_[c.first])) : py::none();
+      if (scalar) return present(0, 0) ? py::object(py::float_(numbers()[c.first])) : py::none();
       py::array_t<double> out(shape);
-      gather(out.mutable_data(), numbers_.data(), row_numbers_, same);
+      gather(out.mutable_data(), numbers(), row_numbers_, same);
       return out;
     }
     case io::Kind::count: {
@@ -266,9 +271,9 @@ py::object TableResult::value(std::string_view name) const {
       return out;
     }
     case io::Kind::flag: {
-      if (scalar) return present(0, 0) ? py::object(py::bool_(flags_[c.first] != 0)) : py::none();
+      if (scalar) return present(0, 0) ? py::object(py::bool_(flags()[c.first] != 0)) : py::none();
       py::array_t<bool> out(shape);
-      gather(out.mutable_data(), flags_.data(), row_flags_,
+      gather(out.mutable_data(), flags(), row_flags_,
              [](std::uint8_t x) { return x != 0; });
       return out;
     }
@@ -295,19 +300,19 @@ py::dict TableResult::decimal() const {
     for (std::size_t k = 0; k < points_; ++k)
       for (std::size_t i = 0; i < c.width; ++i) {
         const std::size_t at = cell(c, row_numbers_, k, i);
-        if (!present_[k * row_present_ + c.present + i]) {
+        if (!present()[k * row_present_ + c.present + i]) {
           items.append(py::none());
           empty = true;
         } else if (mpfr_ && !decimals_[at].empty()) {
           items.append(py::str(decimals_[at]));
         } else {
           // as the CLI prints it: a value's shortest text, an error covering its value's
-          double x = numbers_[at];
+          double x = numbers()[at];
           if (c.field.kind == io::Kind::error && !mpfr_) {
-            double gap = gaps_[at];
+            double gap = doubles_[gaps_at_ + at];
             if (gap == io::deferred_gap)
               gap = c.value < columns_.size()
-                        ? io::shortest_gap(numbers_[cell(columns_[c.value], row_numbers_, k, i)])
+                        ? io::shortest_gap(numbers()[cell(columns_[c.value], row_numbers_, k, i)])
                         : 0;
             x = io::covering(x, gap);
           }
@@ -337,12 +342,12 @@ py::object TableResult::exact() const {
     for (std::size_t k = 0; k < points_; ++k)
       for (std::size_t i = 0; i < c.width; ++i) {
         const std::size_t at = cell(c, row_numbers_, k, i);
-        if (!present_[k * row_present_ + c.present + i]) {
+        if (!present()[k * row_present_ + c.present + i]) {
           items.append(py::none());
           continue;
         }
         const io::ExactNumber& x = exact_[at];
-        if (!x.kept()) items.append(py::float_(numbers_[at]));  // a double cell of an MPFR run
+        if (!x.kept()) items.append(py::float_(numbers()[at]));  // a double cell of an MPFR run
         else if (x.finite) items.append(py::make_tuple(x.mantissa, x.exponent));
         else items.append(py::float_(x.rounded));
       }
@@ -353,16 +358,17 @@ py::object TableResult::exact() const {
 
 void TableResult::require_finite(const std::string& command, const std::string& reason) const {
   for (std::size_t k = 0; k < points_; ++k) {
-    if (finite_[k]) continue;
+    if (bytes_[finite_at_ + k]) continue;
     for (const Column& c : columns_) {
       if (!c.numeric()) continue;
       for (std::size_t i = 0; i < c.width; ++i) {
-        if (!present_[k * row_present_ + c.present + i]) continue;
+        if (!present()[k * row_present_ + c.present + i]) continue;
         const std::size_t at = cell(c, row_numbers_, k, i);
         const bool exact = mpfr_ && exact_[at].kept();
-        const double x = exact ? exact_[at].rounded : numbers_[at];
+        const double x = exact ? exact_[at].rounded : numbers()[at];
         if (exact ? exact_[at].finite : std::isfinite(x)) continue;
-        if (c.field.kind == io::Kind::error && interrupted[k] && x > 0) continue;  // unchecked
+        if (c.field.kind == io::Kind::error && bytes_[interrupted_at_ + k] && x > 0)
+          continue;  // a bound never checked
         const std::string where = single() ? "" : " at " + index_text(k, shape);
         const std::string field = c.field.shape == io::Shape::per_particle
                                       ? std::string(c.field.name) + "[" + std::to_string(i) + "]"

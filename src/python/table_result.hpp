@@ -55,7 +55,7 @@ std::vector<ClassField> class_fields(std::initializer_list<Table> tables);
 
 /// One field over every point of a call: `width` cells per point (1, or N per particle). A
 /// point's cells are a row of each pool (point-major: a point is stored in one sweep); the
-/// column's lie at `first` in the row of its kind's pool and at `present` in present_'s.
+/// column's lie at `first` in the row of its kind's pool and at `present` in the presence row.
 struct Column {
   io::Field field;
   std::size_t width = 1;
@@ -77,11 +77,16 @@ class TableResult {
   std::vector<py::ssize_t> shape;  ///< the broadcast shape; empty for one point
   std::size_t particles = 0;
   int digits = 16;
-  std::vector<double> seconds;            ///< per point: wall time of the library call
-  std::vector<std::uint8_t> interrupted;  ///< per point: stopped early (an error may be +inf)
 
   bool single() const { return shape.empty(); }
   std::size_t points() const { return points_; }
+  /// Point k's wall time of the library call, and whether it stopped early (an error may then be
+  /// +inf: a level's bound that was never checked).
+  void set_run(std::size_t k, double seconds, bool interrupted) {
+    doubles_[seconds_at_ + k] = seconds;
+    bytes_[interrupted_at_ + k] = interrupted ? 1 : 0;
+  }
+  const double* seconds() const { return doubles_.data() + seconds_at_; }
 
   /// Lays out the columns of `tables` (each point's records come in this order) for the points
   /// of `shape` (set before), each of `particles` particles; `mpfr`: the records hold decimal
@@ -108,7 +113,7 @@ class TableResult {
   void require_finite(const std::string& command, const std::string& reason) const;
 
  private:
-  /// Where a record's cell goes: its pool, its place in a point's row of it and of present_.
+  /// Where a record's cell goes: its pool, its place in a point's row of it and of presence.
   struct CellPlan {
     io::Kind kind;
     bool call_wide;
@@ -131,15 +136,21 @@ class TableResult {
   // call, and a point's cells stored together).
   std::size_t row_present_ = 0, row_numbers_ = 0, row_integers_ = 0, row_flags_ = 0,
               row_texts_ = 0;
-  std::vector<std::uint8_t> present_;  ///< 0: an empty cell (every column)
-  std::vector<double> numbers_;        ///< real, error: the double (MPFR: exact, rounded)
-  std::vector<double> gaps_;           ///< error of a double run: what its text adds (Cell::gap)
+  // doubles_: numbers (real, error: the double; MPFR: exact, rounded), then a double run's
+  // errors' gaps (what their texts add: Cell::gap), then each point's seconds; bytes_: present
+  // (0: an empty cell, every column), flags, then each point's finite (every number finite:
+  // require_finite) and interrupted.
+  std::vector<double> doubles_;
+  std::vector<std::uint8_t> bytes_;
+  std::size_t gaps_at_ = 0, seconds_at_ = 0, flags_at_ = 0, finite_at_ = 0, interrupted_at_ = 0;
   std::vector<std::string> decimals_;  ///< real, error of an MPFR run: the printed text
   std::vector<io::ExactNumber> exact_;  ///< real, error of an MPFR run
   std::vector<std::int64_t> integers_;  ///< count
-  std::vector<std::uint8_t> flags_;    ///< flag
   std::vector<std::string> texts_;     ///< text
-  std::vector<std::uint8_t> finite_;   ///< per point: every number finite (require_finite)
+  const double* numbers() const { return doubles_.data(); }
+  double* numbers() { return doubles_.data(); }
+  const std::uint8_t* present() const { return bytes_.data(); }
+  const std::uint8_t* flags() const { return bytes_.data() + flags_at_; }
   const Column* find(std::string_view name) const;
   /// Column c's cell i of point k in the row-major pool `pool` of row length `row`.
   static std::size_t cell(const Column& c, std::size_t row, std::size_t k, std::size_t i) {
@@ -178,9 +189,9 @@ void define_table_class(py::class_<Result>& c, const std::vector<ClassField>& fi
       .def_property_readonly(
           "seconds",
           [](const Result& r) -> py::object {
-            if (r.single()) return py::float_(r.seconds.empty() ? 0.0 : r.seconds.front());
+            if (r.single()) return py::float_(r.points() ? r.seconds()[0] : 0.0);
             py::array_t<double> out(r.shape);
-            std::copy(r.seconds.begin(), r.seconds.end(), out.mutable_data());
+            std::copy(r.seconds(), r.seconds() + r.points(), out.mutable_data());
             return out;
           },
           "Wall time of the library call (the CLI's `seconds`): a float, an array for a grid.")
