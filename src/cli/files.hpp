@@ -37,6 +37,8 @@ class AtomicFile {
   void append(std::string_view text);
   void commit();
   const std::string& path() const { return path_; }
+  /// The target is not a regular file (a device, a FIFO): written in place, no temporary.
+  bool in_place() const { return in_place_; }
 
  private:
   [[noreturn]] void fail(int error);

@@ -336,12 +336,16 @@ class OrderedWriter {
  public:
   OrderedWriter(SweepOutput& output, std::size_t count) : output_(output), count_(count) {}
   void add(Finished&& rows) {
-    if (rows.count > 0) waiting_.emplace(rows.first, std::move(rows));
+    if (rows.count == 0) return;
+    waiting_.emplace(rows.first, std::move(rows));
+    ahead_changed_ = true;
   }
-  /// Writes every row that is next in order, and lets them out of the output's buffer.
+  /// Writes every row that is next in order, and lets them out of the output's buffer; the rows
+  /// that still wait are copied out (keep_ahead) when they changed and the last copy is old.
   void advance() {
     write_next();
     output_.flush();
+    keep_ahead();
   }
   /// After an interruption: every row there is, in order, past the missing ones.
   void drain() {
@@ -375,10 +379,33 @@ class OrderedWriter {
     }
   }
 
+  /// A process killed outright loses what only its memory holds: the waiting rows are copied
+  /// out every second, or less often when a copy took more than 2% of the time since the last
+  /// (the copy rewrites every waiting row: up to the reorder budget).
+  void keep_ahead() {
+    if (waiting_.empty()) {
+      if (ahead_kept_) output_.keep_ahead({});
+      ahead_kept_ = ahead_changed_ = false;
+      return;
+    }
+    const Clock::time_point now = Clock::now();
+    if (!ahead_changed_ || now - last_copy_ < copy_period_) return;
+    std::string text;
+    for (const auto& [first, rows] : waiting_) text += rows.text;
+    output_.keep_ahead(text);
+    ahead_kept_ = true;
+    ahead_changed_ = false;
+    last_copy_ = Clock::now();
+    copy_period_ = std::max<Clock::duration>(std::chrono::seconds(1), 50 * (last_copy_ - now));
+  }
+
   SweepOutput& output_;
   const std::size_t count_;
   std::size_t position_ = 0, written_ = 0;
   std::map<std::size_t, Finished> waiting_;
+  bool ahead_kept_ = false, ahead_changed_ = false;
+  Clock::time_point last_copy_ = Clock::now();
+  Clock::duration copy_period_ = std::chrono::seconds(1);
 };
 
 /// "[name] k/count unit" on stderr every 2 s once the sweep has run 2 s, and at the end.

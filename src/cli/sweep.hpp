@@ -24,8 +24,9 @@
 // fails outside its rows stops the sweep the same way, and names itself. A process killed
 // outright (SIGKILL: no handler runs) keeps what rank 0 had written: rows go out as soon as they
 // are in order (SweepOutput::flush when rank 0 waits), a running chunk hands its finished rows
-// over every second, and --resume takes them from the dead writer's temporary (sweep_file.hpp);
-// rows finished out of order, waiting in the reorder buffer, are lost and computed again.
+// over every second, rows finished ahead of an unfinished one (waiting in the reorder buffer)
+// are copied out about every second (SweepOutput::keep_ahead), and --resume takes them all
+// from the dead writer's temporaries (sweep_file.hpp).
 #pragma once
 
 #include <cstddef>
@@ -75,6 +76,10 @@ class SweepOutput {
   /// Rank 0 is about to wait: what is buffered goes out, so that a run killed outright
   /// (SIGKILL) leaves every row written so far where --resume finds it.
   virtual void flush() {}
+  /// The rows finished ahead of an unfinished one, which wait in rank 0's reorder buffer: their
+  /// lines in index order (empty: none wait any more). Kept where --resume finds them should the
+  /// process be killed outright; replaces what an earlier call kept.
+  virtual void keep_ahead(std::string_view) {}
 };
 
 struct SweepOutcome {

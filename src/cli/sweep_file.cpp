@@ -300,7 +300,7 @@ const std::string& ResumedRows::row(std::size_t index) {
 
 SweepFile::SweepFile(const std::string& path, std::string_view command, const std::string& header,
                      ResumedRows* resumed)
-    : resumed_(resumed) {
+    : resumed_(resumed), command_(command), header_(header) {
   if (!path.empty()) file_.emplace(path, command);
   buffer_.reserve(flush_bytes + (1u << 16));
   append(header);
@@ -348,13 +348,27 @@ void SweepFile::write_out(std::string_view text) {
   }
 }
 
+void SweepFile::keep_ahead(std::string_view rows) {
+  if (!file_ || file_->in_place()) return;
+  if (rows.empty()) {
+    ahead_.reset();
+    return;
+  }
+  auto next = std::make_unique<AtomicFile>(file_->path(), command_);
+  next->append(header_);
+  next->append(rows);
+  ahead_ = std::move(next);
+}
+
 void SweepFile::commit() {
   flush();
+  ahead_.reset();  // every row is in the file now
   if (file_) file_->commit();
 }
 
 void SweepFile::discard() {
   buffer_.clear();
+  ahead_.reset();
   file_.reset();
 }
 

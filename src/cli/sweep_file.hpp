@@ -87,6 +87,10 @@ class SweepFile : public SweepOutput {
   void append(std::string_view text);
   /// Writes out what is buffered (SweepOutput: rank 0 is about to wait).
   void flush() override;
+  /// A file's rows that wait ahead of an unfinished one go to a second temporary of the target
+  /// (the header and those rows), which --resume reads as it reads the file's own temporary
+  /// after a SIGKILL; each call replaces it (a new one written before the old one is removed).
+  void keep_ahead(std::string_view rows) override;
   /// Flushes; a file is renamed into place.
   void commit();
   /// A file's temporary is removed (nothing is written); stdout keeps what it got.
@@ -95,8 +99,9 @@ class SweepFile : public SweepOutput {
  private:
   void write_out(std::string_view text);
   std::optional<AtomicFile> file_;
+  std::unique_ptr<AtomicFile> ahead_;  ///< never committed: removed when replaced or done
   ResumedRows* resumed_ = nullptr;
-  std::string buffer_;
+  std::string command_, header_, buffer_;
 };
 
 /// The header lines of a sweep as this run writes them, for ResumedRows: '#' lines and the

@@ -7,6 +7,8 @@
 //       the rows it can foresee failing before any is computed, so no input reproduces this);
 //   PENDAVG_TEST_FAIL_ON_RANK=K[:sweep]  rank K (all: every rank) fails just before the sweep's
 //       first collective step, or with ":sweep" as its sweep begins;
+//   PENDAVG_TEST_SLOW_ROW=I:S  row I sleeps S seconds before it is computed (rows after it finish
+//       first and wait in rank 0's reorder buffer);
 //   PENDAVG_SWEEP_WINDOW_ROWS=K  a reorder window of K rows (rows wait for the window to move);
 //   PENDAVG_SWEEP_REPORT=1  one line on stderr after a sweep: the rows each rank computed.
 #include "cli/distribute.hpp"
@@ -18,6 +20,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <chrono>
+#include <thread>
 #include <vector>
 
 namespace pendavg::cli {
@@ -45,6 +49,10 @@ std::string_view variable(const char* name) {
 }  // namespace
 
 void inject_row_fault(std::size_t index) {
+  static const std::string slow(variable("PENDAVG_TEST_SLOW_ROW"));
+  if (const std::size_t colon = slow.find(':'); colon != std::string::npos &&
+      std::strtoull(slow.c_str(), nullptr, 10) == index)
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::atof(slow.c_str() + colon + 1)));
   static const std::vector<std::size_t> rows = failing_rows();
   if (std::ranges::binary_search(rows, index))
     throw std::runtime_error("a failure injected into this row by the test build "
@@ -66,7 +74,7 @@ std::size_t test_window_rows() {
 void report_sweep(const SweepOutcome& outcome, std::span<const std::size_t> rows_per_rank) {
   if (variable("PENDAVG_SWEEP_REPORT") != "1") return;
   std::string per_rank;
-  for (const std::size_t rows : rows_per_rank) per_rank += " " + std::to_string(rows);
+  for (const std::size_t rows : rows_per_rank) (per_rank += ' ') += std::to_string(rows);
   std::fprintf(stderr, "pendavg: test: sweep of %zu rows, %zu computed, %.6f s; rows per rank:%s\n",
                outcome.count, outcome.computed, outcome.seconds, per_rank.c_str());
 }
