@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -219,6 +220,19 @@ template void append_decimal<mpfr_real>(std::string&, const mpfr_real&, int);
 
 double printing_gap(double x, std::string_view text) {
   if (x == 0) return 0;
+  // Most values settle here, from their bits alone: a normal |x| = m 2^-k with m odd and
+  // k >= 25 has the exact decimal m 5^k 10^-k, whose m 5^k >= 5^25 > 10^17 has more significant
+  // digits than any shortest text (at most 17), so the text is not x's exact value.
+  {
+    const auto bits = std::bit_cast<std::uint64_t>(x) & ~(std::uint64_t{1} << 63);
+    const auto biased = static_cast<int>(bits >> 52);
+    if (biased > 53 && biased < 2047) {
+      const std::uint64_t m = (bits & ((std::uint64_t{1} << 52) - 1)) | (std::uint64_t{1} << 52);
+      const int k = 1075 - biased - std::countr_zero(m);
+      if (k >= 25)  // half a unit in the last place: 2^(biased - 1076)
+        return std::bit_cast<double>(static_cast<std::uint64_t>(biased - 53) << 52);
+    }
+  }
   // the text as D * 10^q (D < 10^38: a long integer's fixed notation has up to 39 digits)
   using u128 = unsigned __int128;
   u128 digits = 0;
@@ -329,6 +343,11 @@ char* write_error(char* out, const Real& e) {
     if constexpr (std::is_same_v<Real, double>) {
       if (e > 0)
         if (char* end = detail::scientific_fast(out, e, error_digits, true)) return end;
+      static_assert(error_digits == 3, "the zero error below has error_digits digits");
+      if (e == 0) {  // as write_error_exact writes it (errors of exact values: common)
+        std::memcpy(out, "0.00e+00", 8);
+        return out + 8;
+      }
     }
     // zero, subnormals, magnitudes outside the fast path, long double: exactly, in MPFR
     mpfr_t x;

@@ -288,23 +288,22 @@ void append_json_members(std::string& out, const Record& record) {
 
 void append_csv_cells(std::string& out, const Record& record,
                       std::span<const std::size_t> selection) {
+  // One resize for the whole row (room for every cell and its comma), then the cells written
+  // in place: a resize per cell was a fifth of the printing of an `average --cases` row.
   const auto cells = record.cells();
-  if (selection.empty()) {
-    std::size_t c = 0;
-    for (std::size_t k = 0; k < record.fields().size(); ++k) {
-      const Kind kind = record.fields()[k].kind;
-      const std::size_t n = record.cells_of(k).size();
-      for (std::size_t i = 0; i < n; ++i, ++c) {
-        append_cell(out, record, cells[c], kind);
-        out += ',';
-      }
-    }
-    return;
+  const std::size_t count = selection.empty() ? cells.size() : selection.size();
+  const auto cell_index = [&](std::size_t j) { return selection.empty() ? j : selection[j]; };
+  std::size_t room = count;
+  for (std::size_t j = 0; j < count; ++j) room += max_cell_length(record, cells[cell_index(j)]);
+  const std::size_t start = out.size();
+  out.resize(start + room);
+  char* p = out.data() + start;
+  for (std::size_t j = 0; j < count; ++j) {
+    const std::size_t c = cell_index(j);
+    p = write_cell_as(p, record, cells[c], record.kind_of_cell(c));
+    *p++ = ',';
   }
-  for (const std::size_t c : selection) {
-    append_cell(out, record, cells[c], record.kind_of_cell(c));
-    out += ',';
-  }
+  out.resize(static_cast<std::size_t>(p - out.data()));
 }
 
 // ---------------------------------------------------------------- text
