@@ -68,7 +68,7 @@ ax.set_ylabel(r"$\beta\langle K_i\rangle$")
 ax.set_title(r"Double pendulum, $\mu_1 = 1/2$, $l_1 = l_2 = 1$, $g = 1$ (paper Fig. 5: exact curves, trajectory symbols)",
              fontsize=9)
 ax.set_ylim(0.3, 0.7)
-ax.legend(fontsize=8, loc="center right")
+ax.legend(fontsize=8, loc="center left")  # the empty band between the curves at small beta
 ax.grid(True, which="both", alpha=0.3)
 save(fig, "fig5_beta_K.png")
 
