@@ -13,12 +13,13 @@ Every run must either
       --digits 30 for integral, series, limit and microcanonical; torus against transfer for
       N = 3..4; tolerance error_a + error_b + 4 ulps), or
   (b) exit 2 with exactly one line on stderr ("pendavg: ..."), nothing on stdout and no file
-      left behind (no partial output, no temporaries); a refusal slower than --refusal-soft
-      (0.1 s) is recorded as a soft finding, slower than --refusal-hard (2 s) as a failure; a
-      refusal's advice must be true ("request 17 or more digits": the same command at 17 digits
-      runs; "at 16 digits pendavg extrapolates": the same command at 16 digits runs; "use method
-      transfer": the same command with that method runs);
-and it must end within --timeout seconds (else "unbounded-run"). Exit 1 (internal error), any
+      left behind (no partial output, no temporaries); a refusal that takes more CPU time than
+      --refusal-soft (0.1 s) is recorded as a soft finding, more than --refusal-hard (2 s) as a
+      failure; a refusal's advice must be true ("request 17 or more digits": the same command at
+      17 digits runs; "at 16 digits pendavg extrapolates": the same command at 16 digits runs;
+      "use method transfer": the same command with that method runs);
+and it must end within --timeout seconds of CPU time (else "unbounded-run"; work, not wall time:
+the verdict does not depend on the machine's load; a run is killed after 3x that of wall time). Exit 1 (internal error), any
 other status and a signal are failures.
 
 Inputs: masses, lengths, g, beta, energies, angles, times, steps, perturbations and tolerances at
@@ -43,6 +44,7 @@ import json
 import os
 import random
 import re
+import resource
 import shlex
 import shutil
 import signal
@@ -173,11 +175,12 @@ def execute(binary, case, timeout, scratch):
     r = Result()
     r.timed_out = False
     start = time.monotonic()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)  # cases run one at a time
     p = subprocess.Popen([binary] + argv, cwd=outdir, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, env=env,
                          start_new_session=True)
     try:
-        out, err = p.communicate(timeout=timeout)
+        out, err = p.communicate(timeout=3 * timeout)
     except subprocess.TimeoutExpired:
         r.timed_out = True
         try:
@@ -186,6 +189,9 @@ def execute(binary, case, timeout, scratch):
             pass
         out, err = p.communicate()
     r.seconds = time.monotonic() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    r.cpu_seconds = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    r.timed_out = r.timed_out or r.cpu_seconds > timeout
     r.rc = p.returncode
     r.stdout = out.decode("utf-8", "replace")
     r.stderr = err.decode("utf-8", "replace")
@@ -407,7 +413,8 @@ def judge(case, r, args):
     """Findings about one run (not yet the advice or cross checks)."""
     c = Checker(case)
     if r.timed_out:
-        c.add("unbounded-run", "no exit within %.0f s" % args.timeout)
+        c.add("unbounded-run", "no exit within %.0f s of CPU time (%.1f s used, %.1f s of wall "
+              "time)" % (args.timeout, r.cpu_seconds, r.seconds))
         return c, None
     if r.rc < 0:
         c.add("crash", "killed by signal %s; stderr: %s" % (
@@ -488,12 +495,12 @@ def judge(case, r, args):
         c.add("refusal-left-file", "exit %d left: %s" % (r.rc, ", ".join(r.leftover)))
     if r.files:
         c.add("refusal-left-file", "exit %d left its output: %s" % (r.rc, ", ".join(r.files)))
-    if r.seconds > args.refusal_hard:
-        c.add("slow-refusal", "exit %d after %.2f s (> %.1f s): %s"
-              % (r.rc, r.seconds, args.refusal_hard, msg[:200]))
-    elif r.seconds > args.refusal_soft:
-        c.add("slow-refusal-soft", "exit %d after %.2f s (> %.2f s): %s"
-              % (r.rc, r.seconds, args.refusal_soft, msg[:200]), soft=True)
+    if r.cpu_seconds > args.refusal_hard:
+        c.add("slow-refusal", "exit %d after %.2f s of CPU time (> %.1f s): %s"
+              % (r.rc, r.cpu_seconds, args.refusal_hard, msg[:200]))
+    elif r.cpu_seconds > args.refusal_soft:
+        c.add("slow-refusal-soft", "exit %d after %.2f s of CPU time (> %.2f s): %s"
+              % (r.rc, r.cpu_seconds, args.refusal_soft, msg[:200]), soft=True)
     return c, None
 
 
