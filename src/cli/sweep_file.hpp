@@ -13,7 +13,9 @@
 // it is whole (its newline, the column line's number of fields, each a number, a word or empty);
 // a damaged one, and a '# failed:' line (a row that failed), are computed again. A run killed
 // outright (SIGKILL) leaves its rows in its temporary (files.hpp), written in order as they were
-// finished; --resume takes them from there too.
+// finished, and the rows it had finished ahead of an unfinished one in a second temporary
+// (SweepFile::keep_ahead: the same header, those rows in index order); --resume takes them from
+// both.
 #pragma once
 
 #include "files.hpp"
