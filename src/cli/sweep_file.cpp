@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 
 #include <unistd.h>
 
@@ -349,15 +350,22 @@ void SweepFile::write_out(std::string_view text) {
 }
 
 void SweepFile::keep_ahead(std::string_view rows) {
-  if (!file_ || file_->in_place()) return;
+  if (!file_ || file_->in_place() || ahead_failed_) return;
   if (rows.empty()) {
     ahead_.reset();
     return;
   }
-  auto next = std::make_unique<AtomicFile>(file_->path(), command_);
-  next->append(header_);
-  next->append(rows);
-  ahead_ = std::move(next);
+  // A safeguard, not the output: when the copy cannot be written (a full disk, a directory
+  // made read-only) the sweep goes on without it, and the file itself reports its own failure.
+  try {
+    auto next = std::make_unique<AtomicFile>(file_->path(), command_);
+    next->append(header_);
+    next->append(rows);
+    ahead_ = std::move(next);
+  } catch (const std::exception&) {
+    ahead_.reset();
+    ahead_failed_ = true;
+  }
 }
 
 void SweepFile::commit() {

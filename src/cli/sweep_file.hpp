@@ -102,6 +102,7 @@ class SweepFile : public SweepOutput {
   void write_out(std::string_view text);
   std::optional<AtomicFile> file_;
   std::unique_ptr<AtomicFile> ahead_;  ///< never committed: removed when replaced or done
+  bool ahead_failed_ = false;          ///< a copy could not be written: no more are tried
   ResumedRows* resumed_ = nullptr;
   std::string command_, header_, buffer_;
 };
