@@ -202,8 +202,8 @@ constexpr std::string_view merge_usage =
     "every row in the order of the whole sweep, the file one run of the sweep writes. Refuses\n"
     "shards of different sweeps (any other header line differing), a shard given twice, one\n"
     "missing, and a shard that is incomplete (interrupted: resume it as the same shard first)\n"
-    "or has extra rows, and shards of different formats (--format csv, json or text: the merged\n"
-    "file has the shards' format). A '# failed:' line (a row that failed; JSON: its entry in\n"
+    "or has extra rows, and shards of different formats (csv, json or text: the merged file\n"
+    "has the shards' format). A '# failed:' line (a row that failed; JSON: its entry in\n"
     "\"failed\") is kept in its place; the merge then exits 3.\n";
 
 std::string run_merge(const Options& options) {
@@ -230,7 +230,7 @@ std::string run_merge(const Options& options) {
     if (f->format != first.format)
       refuse("'" + f->path + "' is a " + std::string(format_name(f->format)) + " shard, '" +
              first.path + "' a " + std::string(format_name(first.format)) +
-             " shard: the shards of one sweep are written with one --format");
+             " shard: the shards of one sweep are written in one format");
     if (f->schema != first.schema)
       refuse("'" + f->path + "' has output schema " + f->schema + ", '" + first.path +
              "' schema " + first.schema + ": shards written by different pendavg versions");
