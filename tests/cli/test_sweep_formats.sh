@@ -213,13 +213,11 @@ three_formats() {
 case_values() {
   three_formats table_inputs table --beta .5,+1,2.,007 --mu1 0.1,.25 --l2 1,2.
   three_formats table_digits table --beta 0.5,1 --mu1 0.3,0.5 --digits 16,20
-  three_formats table_chains table --chain 3,4 --beta 0.5,2 --digits 16
+  three_formats table_chains table --chain 3,5 --beta 0.5,2 --digits 16
   three_formats table_energy table --energy=-1.4,0,2 --mu1 0.5,0.25
   three_formats table_excitation table --excitation 0.5,3 --digits 20
-  three_formats table_qmc table --chain 3,5 --beta 1 --method qmc --samples 1024 --shifts 4
   three_formats cases_double average --cases "$work/n2.csv"
   DIGITS=24 three_formats cases_mpfr average --cases "$work/n2.csv" --digits 24
-  three_formats cases_n3 average --cases "$work/n3.csv"
   three_formats cases_energy average --cases "$work/energy.csv"
   # pandas reads the rows as the CSV's table (where it is installed)
   if "$python" -c 'import pandas' 2>/dev/null; then
@@ -503,9 +501,9 @@ case_mpi() {
     export OMPI_MCA_btl_vader_single_copy_mechanism=none
     launcher+=(--oversubscribe --bind-to none --mca btl self,vader --mca plm isolated)
   fi
-  for f in json text; do
+  for f in json text; do  # a table of double and MPFR rows, and cases files
     for sweep in "table --beta log:0.1:10:30 --mu1 0.1,0.5 --digits 16,20" \
-                 "average --cases $work/n2.csv --digits 20" "average --cases $work/n3.csv"; do
+                 "average --cases $work/$([ $f = json ] && echo n2.csv --digits 20 || echo n3.csv)"; do
       # shellcheck disable=SC2086
       OMP_NUM_THREADS=1 "$pendavg" $sweep --format "$f" >"$work/serial" 2>/dev/null
       for ranks in 1 2 3; do
