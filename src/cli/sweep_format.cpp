@@ -14,6 +14,29 @@ namespace pendavg::cli {
 
 namespace {
 
+/// A number as the commands write and read them: [+-]digits[.digits][e[+-]digits].
+bool is_decimal_number(std::string_view field) {
+  std::size_t i = 0;
+  const auto digits = [&] {
+    const std::size_t start = i;
+    while (i < field.size() && field[i] >= '0' && field[i] <= '9') ++i;
+    return i - start;
+  };
+  if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
+  std::size_t mantissa = digits();
+  if (i < field.size() && field[i] == '.') {
+    ++i;
+    mantissa += digits();
+  }
+  if (mantissa == 0) return false;
+  if (i < field.size() && (field[i] == 'e' || field[i] == 'E')) {
+    ++i;
+    if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  return i == field.size();
+}
+
 /// A word a row may hold (a method, an error kind, true or false): a letter, then letters,
 /// digits, '-', '_' or '.'.
 bool is_word(std::string_view field) {
@@ -74,28 +97,6 @@ bool read_line(std::FILE* file, std::string& line, bool& ended) {
 constexpr std::string_view json_start = "{\"schema\": ";
 
 }  // namespace
-
-bool is_decimal_number(std::string_view field) {
-  std::size_t i = 0;
-  const auto digits = [&] {
-    const std::size_t start = i;
-    while (i < field.size() && field[i] >= '0' && field[i] <= '9') ++i;
-    return i - start;
-  };
-  if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
-  std::size_t mantissa = digits();
-  if (i < field.size() && field[i] == '.') {
-    ++i;
-    mantissa += digits();
-  }
-  if (mantissa == 0) return false;
-  if (i < field.size() && (field[i] == 'e' || field[i] == 'E')) {
-    ++i;
-    if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
-    if (digits() == 0) return false;
-  }
-  return i == field.size();
-}
 
 std::string_view format_name(io::Format format) {
   switch (format) {

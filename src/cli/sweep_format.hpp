@@ -96,7 +96,4 @@ class RowReader {
   mutable std::string scratch_;
 };
 
-/// A number as the commands write and read them: [+-]digits[.digits][e[+-]digits].
-bool is_decimal_number(std::string_view field);
-
 }  // namespace pendavg::cli
