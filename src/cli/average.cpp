@@ -11,11 +11,13 @@
 #include "shard.hpp"
 #include "sweep.hpp"
 #include "sweep_file.hpp"
+#include "sweep_format.hpp"
 #include "version_info.hpp"
 
 #include "io/record.hpp"
 #include "io/report.hpp"
 #include "io/results.hpp"
+#include "io/sweep_rows.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -50,8 +52,9 @@ constexpr std::string_view average_usage =
     "       pendavg average --masses ... --lengths ... [--g G] (--energy E | --excitation D)\n"
     "                       [--digits D] [--method M] [method options] [--format json|csv|text]\n"
     "       pendavg average --cases FILE.csv [--digits D] [--method M] [method options]\n"
-    "                       [--columns LIST] [--output FILE | --resume FILE] [--timing]\n"
-    "                       [--timing-rows FILE] [--shard K/N]\n"
+    "                       [--columns LIST] [--format json|csv|text]\n"
+    "                       [--output FILE | --resume FILE] [--timing] [--timing-rows FILE]\n"
+    "                       [--shard K/N]\n"
     "\n"
     "Thermal averages of an N-link pendulum (N = the number of masses = the number of lengths)\n"
     "at inverse temperature B, gravity G (default 1). --method M (default auto):\n"
@@ -89,7 +92,7 @@ constexpr std::string_view average_usage =
     "run prints the digits asked for (JSON strings); errors have 3 digits rounded up and cover\n"
     "the printed value.\n"
     "--cases reads a CSV with the columns beta,g,m1..mN,l1..lN (any order, N from the header;\n"
-    "blank lines and lines starting with # are skipped) and writes one CSV row per case: the\n"
+    "blank lines and lines starting with # are skipped) and writes one row per case: the\n"
     "input columns in that order, then the output columns above from method on. Every row is\n"
     "checked before the first is computed. --columns LIST prints only the listed output\n"
     "columns, in that order, after the input columns: names as in the header, a per-particle\n"
@@ -109,6 +112,14 @@ constexpr std::string_view average_usage =
     "--shard K/N (a job array without MPI: K = 1..N; not with --timing) computes the K-th of N\n"
     "fixed shares of the rows into its own file; 'pendavg merge' joins the N files into the\n"
     "file one run of all the rows writes.\n"
+    "--format (with --cases): csv (the default), json or text, with the same header, rows and\n"
+    "values (the CSV's texts) in each. json: one document {\"schema\": 1, \"command\": \"average\",\n"
+    "\"header\": [the '#' lines], \"columns\": [...], \"rows\": [an object a row, keys = the\n"
+    "columns; double: JSON numbers, MPFR: decimal strings, an empty cell null], \"failed\":\n"
+    "[{\"row\": R, \"message\": M}, R the failed row's 0-based row], \"interrupted\": null or the\n"
+    "reason}, written a row a line as the rows finish: pandas.DataFrame(doc[\"rows\"]) is the\n"
+    "table. text: the '#' lines and the columns right-aligned at fixed widths, '-' for an empty\n"
+    "cell. --resume and merge take files of the run's --format only.\n"
     "A cases file written by pandas (df.to_csv(): its unnamed index column) is read.\n"
     "A single qmc point (without --cases) shares its shifts between the MPI ranks; the result\n"
     "is the same for any number of ranks.\n"
@@ -274,7 +285,7 @@ template <class Real>
 void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow& row,
                          const std::vector<std::string>& columns,
                          std::span<const std::size_t> chosen, const MicrocanonicalOptions& micro,
-                         int digits, io::Record& record) {
+                         int digits, io::Record& record, const io::RowWriter& rows) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(digits + guard_digits);
   std::vector<std::string_view> fields(columns.size());
@@ -286,9 +297,8 @@ void microcanonical_case(std::string& line, const CasesFile& file, const CaseRow
       micro);
   record.reset(io::microcanonical_fields(file.state), file.particles);
   io::append_microcanonical(record, r, io::Printing{digits});
-  for (const std::string_view field : fields) (line += field) += ',';
-  io::append_csv_cells(line, record, chosen);
-  line.back() = '\n';
+  const io::RowCells cells[] = {{&record, chosen}};
+  rows.append(line, fields, std::is_same_v<Real, double>, cells);
 }
 
 /// Checks one microcanonical cases row (fields, numbers at the working precision, the chain, the
@@ -334,13 +344,13 @@ struct CaseScratch {
 };
 
 /// One output row of `average --cases`: the input fields as written, then the `chosen` cells of
-/// the averages' record, appended to `line`. `columns` are the canonical column names (beta, g,
-/// m1..mN, l1..lN).
+/// the averages' record, appended to `line` in the format of `rows`. `columns` are the canonical
+/// column names (beta, g, m1..mN, l1..lN).
 template <class Real>
 void write_case(std::string& line, const CasesFile& file, const CaseRow& row,
                 const std::vector<std::string>& columns, std::span<const std::size_t> chosen,
                 const AverageOptions& options, CaseScratch<Real>& scratch,
-                std::span<const double> checked = {}) {
+                const io::RowWriter& rows, std::span<const double> checked = {}) {
   std::optional<working_precision> precision;  // each row of an MPFR run holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(options.digits + guard_digits);
   auto& fields = scratch.fields;
@@ -364,9 +374,8 @@ void write_case(std::string& line, const CasesFile& file, const CaseRow& row,
   const Averages<Real> averages = average(*parsed, beta, options, scratch.workspace);
   scratch.record.reset(io::averages_fields(), n);
   io::append_averages(scratch.record, averages, &beta, io::Printing{options.digits});
-  for (const std::string_view field : fields) (line += field) += ',';
-  io::append_csv_cells(line, scratch.record, chosen);
-  line.back() = '\n';
+  const io::RowCells cells[] = {{&scratch.record, chosen}};
+  rows.append(line, fields, std::is_same_v<Real, double>, cells);
 }
 
 /// Thread CPU time in microseconds (CLOCK_THREAD_CPUTIME_ID: a system call, ~0.5 us).
@@ -453,6 +462,7 @@ struct CasesOutput {
   std::string timing_rows;  ///< --timing-rows
   bool timing = false;
   std::optional<Shard> shard;  ///< --shard K/N
+  io::Format format = io::Format::csv;  ///< --format
 };
 
 // ---------------------------------------------------------------- average_cases' steps
@@ -511,11 +521,34 @@ std::string cases_header(const CasesFile& file, const std::string& path,
   return header;
 }
 
+/// The rows in --format's layout: the input columns, then `output_names` (the cells `chosen`
+/// of the output fields) and (text) each one's width: an input's widest text in the whole file
+/// (every shard's widths are the merged file's), an output's widest at `digits`.
+io::RowWriter cases_row_writer(const CasesFile& file, const std::vector<std::string>& columns,
+                               const std::vector<std::string>& output_names,
+                               std::span<const std::size_t> chosen, int digits, bool microcanonical,
+                               io::Format format) {
+  std::vector<std::string> names = columns;
+  names.insert(names.end(), output_names.begin(), output_names.end());
+  if (format != io::Format::text) return io::RowWriter(format, std::move(names));
+  std::vector<std::size_t> widths(columns.size(), 1);
+  std::vector<std::string_view> fields(columns.size());
+  for (const CaseRow& row : file.rows) {
+    case_fields(file, row, fields);
+    for (std::size_t k = 0; k < fields.size(); ++k) widths[k] = std::max(widths[k], fields[k].size());
+  }
+  const std::vector<const io::Field*> cells = io::cell_fields(
+      microcanonical ? io::microcanonical_fields(file.state) : io::averages_fields(), file.particles);
+  const int run_digits[] = {digits};
+  for (const std::size_t c : chosen) widths.push_back(io::widest_cell(*cells[c], run_digits));
+  return io::RowWriter(format, std::move(names), std::move(widths));
+}
+
 /// Step 3: rank 0 checks the outputs and reads a resumed file into `resumed`; every rank learns
 /// the verdict (a usage_error on every rank when the outputs cannot be written or the file does
 /// not match).
 void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
-                        const std::vector<std::string>& columns,
+                        const std::vector<std::string>& columns, const io::RowWriter& row_format,
                         const std::string& header, const CasesOutput& where,
                         std::optional<ResumedRows>& resumed,
                         std::optional<AtomicFile>& timing_file, std::optional<SweepFile>& output) {
@@ -531,7 +564,7 @@ void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
       }
       if (!where.resume.empty()) {  // the file, or a killed run's temporary, or nothing yet
         std::vector<std::string_view> fields(columns.size());
-        resumed.emplace(where.resume, "average", header, rows.size(), columns.size(),
+        resumed.emplace(where.resume, "average", header, row_format, rows.size(), columns.size(),
                         [&](std::size_t k) {
                           case_fields(file, rows[k], fields);
                           std::string key;
@@ -541,7 +574,9 @@ void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
                         });
       }
       // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
-      output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr);
+      output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr,
+                     row_format.format());
+      if (where.shard) output->row_number = [&](std::size_t k) { return where.shard->row(k); };
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -638,14 +673,17 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       bad < rows.size())
     check(bad, 0);  // throws the first bad row's error, on every rank
 
-  const std::string header =
+  const io::RowWriter row_format = cases_row_writer(file, columns, output_names, chosen, settings.digits,
+                                                   plan.microcanonical, where.format);
+  const std::string header = sweep_header(
+      row_format, "average",
       (where.shard ? where.shard->header_line() : "") +
-      cases_header(file, path, settings, columns, output_names, !where.path.empty());
+          cases_header(file, path, settings, columns, output_names, !where.path.empty()));
   std::optional<ResumedRows> resumed;
   std::optional<AtomicFile> timing_file;  // --timing-rows, on rank 0
   std::string timing_text;                // its lines not yet written
   std::optional<SweepFile> output;
-  open_cases_outputs(file, rows, columns, header, where, resumed, timing_file, output);
+  open_cases_outputs(file, rows, columns, row_format, header, where, resumed, timing_file, output);
 
   // Step 4, run: the sweep engine computes the rows; rank 0 writes them in order.
   const double timer_us = where.timing ? timer_overhead_microseconds() : 0.0;
@@ -668,15 +706,20 @@ std::string average_cases(const CasesFile& file, const std::string& path,
   for (const CaseRow& row : rows)
     sweep.row_bytes = std::max(sweep.row_bytes, 2 * row.size + 1 + all_names.size() *
                                                     (decimal_max_length(digits) + 1));
+  if (where.format == io::Format::json)  // its keys
+    for (const std::string& name : row_format.columns()) sweep.row_bytes += name.size() + 6;
+  sweep.row_bytes += row_format.text_line_length();  // text: its padding
   std::vector<std::optional<io::Record>> micro_records(static_cast<std::size_t>(threads));
   sweep.compute = [&](std::size_t k, int thread, std::string& text) {
     if (plan.microcanonical) {
       auto& record = micro_records[static_cast<std::size_t>(thread)];
       if (!record) record.emplace();
-      microcanonical_case<Real>(text, file, rows[k], columns, chosen, plan.micro, digits, *record);
+      microcanonical_case<Real>(text, file, rows[k], columns, chosen, plan.micro, digits, *record,
+                                row_format);
       return;
     }
     write_case<Real>(text, file, rows[k], columns, chosen, plan.options, scratch_of(thread),
+                     row_format,
                      checked ? checked->row_if_stored(k) : std::span<const double>{});
   };
   // A row that fails once the sweep runs (the check above passed it) does not cost the others:
@@ -690,11 +733,12 @@ std::string average_cases(const CasesFile& file, const std::string& path,
       rethrow_failure(outcome, line_context);
     }
     if (outcome.written < rows.size()) {
-      output->append("# interrupted: " + std::to_string(outcome.written) + " of " +
-                     std::to_string(rows.size()) +
-                     " rows computed; the rows of the others are left out\n");
+      output->end_rows(std::to_string(outcome.written) + " of " + std::to_string(rows.size()) +
+                       " rows computed; the rows of the others are left out");
       std::fprintf(stderr, "[average] interrupted: %zu of %zu rows written\n", outcome.written,
                    rows.size());
+    } else {
+      output->end_rows({});
     }
     output->commit();
     if (timing_file) {
@@ -704,7 +748,8 @@ std::string average_cases(const CasesFile& file, const std::string& path,
     if (where.timing) report_case_timing(row_us, file, timer_us, outcome.threads);
     if (outcome.failed_rows > 0)
       throw rows_failed(failed_rows_message("average", outcome, "rows", where.path,
-                                            line_context(outcome.first_failed_row)));
+                                            line_context(outcome.first_failed_row),
+                                            where.format));
   });
   return {};
 }
@@ -733,8 +778,6 @@ std::string run_average(const Options& options) {
   for (const std::string_view single : {"masses", "lengths", "g", "beta", "energy", "excitation"})
     if (options.has(single))
       throw usage_error("average: --cases cannot be combined with --" + std::string(single));
-  constexpr std::array<std::string_view, 1> formats{"csv"};
-  format_option(options, "csv", formats);
   const std::string path(options.required("cases"));
   CasesOutput where;
   where.timing_rows = std::string(options.get("timing-rows", ""));
@@ -759,6 +802,7 @@ std::string run_average(const Options& options) {
   const CasesFile file = read_cases_file(path);
   where.timing = options.has("timing") || !where.timing_rows.empty();
   where.shard = shard_option(options, "average", file.rows.size());
+  where.format = format_option(options, "csv", all_formats);
   if (settings.digits == min_digits) return average_cases<double>(file, path, settings, where);
   return average_cases<mpfr_real>(file, path, settings, where);
 }

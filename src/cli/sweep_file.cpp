@@ -4,12 +4,14 @@
 
 #include "args.hpp"
 #include "one_line.hpp"
+#include "sweep_format.hpp"
 
 #include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <utility>
 
 #include <unistd.h>
 
@@ -39,69 +41,6 @@ bool read_line(std::FILE* file, std::string& line, bool* ended = nullptr) {
   if (newline) line.pop_back();
   if (ended) *ended = newline;
   return true;
-}
-
-/// A decimal number as the commands write them and read them: [+-]digits[.digits][e[+-]digits]
-/// (digits on at least one side of the point).
-bool is_number(std::string_view field) {
-  std::size_t i = 0;
-  const auto digits = [&] {
-    const std::size_t start = i;
-    while (i < field.size() && field[i] >= '0' && field[i] <= '9') ++i;
-    return i - start;
-  };
-  if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
-  std::size_t mantissa = digits();
-  if (i < field.size() && field[i] == '.') {
-    ++i;
-    mantissa += digits();
-  }
-  if (mantissa == 0) return false;
-  if (i < field.size() && (field[i] == 'e' || field[i] == 'E')) {
-    ++i;
-    if (i < field.size() && (field[i] == '+' || field[i] == '-')) ++i;
-    if (digits() == 0) return false;
-  }
-  return i == field.size();
-}
-
-/// A word a row may hold (a method, an error kind, true or false): a letter, then letters,
-/// digits, '-', '_' or '.'.
-bool is_word(std::string_view field) {
-  const auto letter = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); };
-  if (field.empty() || !letter(field.front())) return false;
-  for (const char c : field)
-    if (!letter(c) && !(c >= '0' && c <= '9') && c != '-' && c != '_' && c != '.') return false;
-  return true;
-}
-
-/// A row of an earlier output is kept only when it is whole: it ended with its newline, it has
-/// as many fields as the column line, and each is empty, a number or a word. A row cut short
-/// (the process killed in the middle of a write, a full disk, a copy that stopped) or otherwise
-/// damaged is computed again instead.
-bool intact_row(std::string_view row, bool ended, std::size_t columns) {
-  if (!ended) return false;
-  std::size_t fields = 0;
-  for (std::size_t begin = 0;;) {
-    const std::size_t comma = std::min(row.find(',', begin), row.size());
-    const std::string_view field = row.substr(begin, comma - begin);
-    if (!field.empty() && !is_number(field) && !is_word(field)) return false;
-    ++fields;
-    if (comma == row.size()) break;
-    begin = comma + 1;
-  }
-  return fields == columns;
-}
-
-/// The first `fields` comma-separated fields of `row` (the whole row when it has fewer).
-std::string_view leading_fields(std::string_view row, std::size_t fields) {
-  std::size_t position = 0;
-  for (std::size_t k = 0; k < fields; ++k) {
-    const std::size_t comma = row.find(',', position);
-    if (comma == std::string_view::npos) return row;
-    position = comma + 1;
-  }
-  return row.substr(0, position - 1);
 }
 
 std::string shortened(std::string_view line) {
@@ -170,13 +109,16 @@ std::string failed_row_line(std::string_view context, std::string_view reason) {
 
 std::string failed_rows_message(std::string_view command, const SweepOutcome& outcome,
                                 std::string_view unit, const std::string& path,
-                                std::string_view first_context) {
+                                std::string_view first_context, io::Format format) {
   std::string message = std::string(command) + ": " + std::to_string(outcome.failed_rows) +
                         " of " + std::to_string(outcome.count) + " " + std::string(unit) +
                         " failed while they were computed; ";
   message += path.empty() ? "the output" : "'" + path + "'";
-  message += " has every other finished row and a '# failed:' line in place of each; the "
-             "first: " + std::string(first_context) + outcome.first_failed_reason;
+  message += format == io::Format::json
+                 ? " has every other finished row and an entry in \"failed\" for each; the first: "
+                 : " has every other finished row and a '# failed:' line in place of each; the "
+                   "first: ";
+  message += std::string(first_context) + outcome.first_failed_reason;
   if (!path.empty()) message += "; --resume '" + path + "' computes the failed rows again";
   return message;
 }
@@ -199,9 +141,9 @@ std::string fnv1a_hex(std::string_view text) {
 }
 
 ResumedRows::ResumedRows(const std::string& path, std::string_view command,
-                         const std::string& header, std::size_t count, std::size_t key_fields,
-                         const std::function<std::string(std::size_t)>& key)
-    : path_(path), command_(command), from_(count, 0) {
+                         const std::string& header, const io::RowWriter& rows, std::size_t count,
+                         std::size_t key_fields, const std::function<std::string(std::size_t)>& key)
+    : path_(path), command_(command), from_(count, 0), reader_(rows) {
   // The header: every '#' line and the column line, as this run writes them.
   std::vector<std::string_view> expected;
   for (std::size_t begin = 0; begin < header.size();) {
@@ -209,8 +151,6 @@ ResumedRows::ResumedRows(const std::string& path, std::string_view command,
     expected.push_back(std::string_view(header).substr(begin, end - begin));
     begin = end == std::string::npos ? header.size() : end + 1;
   }
-  columns_ = expected.empty() ? 0 : 1 + static_cast<std::size_t>(std::ranges::count(
-                                            expected.back(), ','));
   std::vector<std::string> paths;
   if (std::FILE* file = std::fopen(path_.c_str(), "rb")) {
     std::fclose(file);
@@ -241,6 +181,18 @@ bool ResumedRows::read_source(Source& source, std::size_t number,
     if (temporary && errno == ENOENT) return false;  // removed since it was listed
     throw usage_error(where + ": cannot read it: " + std::strerror(errno));
   }
+  // A file of another format: named as such (the line-by-line comparison would name a line).
+  if (const SweepFileKind kind = sweep_file_kind(file); kind.format) {
+    if (*kind.format != reader_.format())
+      throw usage_error(where + " holds --format " + std::string(format_name(*kind.format)) +
+                        " output; this run writes --format " +
+                        std::string(format_name(reader_.format())) + " (give --format " +
+                        std::string(format_name(*kind.format)) + " to continue it)");
+    if (*kind.format == io::Format::json && kind.schema != std::to_string(io::schema_version))
+      throw usage_error(where + " was written with output schema '" + shortened(kind.schema) +
+                        "'; this pendavg writes schema " + std::to_string(io::schema_version) +
+                        " -- start a new file with --output");
+  }
   // A file of another output schema (an older pendavg's: other columns, other number formats)
   // is named as such, not as a line that differs.
   if (const std::string reason = other_schema(file, expected); !reason.empty())
@@ -266,14 +218,15 @@ bool ResumedRows::read_source(Source& source, std::size_t number,
   // The rows, matched to indices in order; a damaged one is left to be computed again.
   std::size_t index = 0, row_number = 0;
   while (read_line(file, line, &ended)) {
-    if (line.empty() || line.front() == '#') continue;
+    if (reader_.ends_rows(line)) break;
+    if (!reader_.is_row(line)) continue;
     ++row_number;
-    if (!intact_row(line, ended, columns_)) continue;
-    const std::string_view found = leading_fields(line, key_fields);
-    while (index < from_.size() && key(index) != found) ++index;
+    if (!reader_.read(line, ended)) continue;
+    while (index < from_.size() && !reader_.has_key(key(index), key_fields)) ++index;
     if (index == from_.size())
       throw usage_error(where + ": its data row " + std::to_string(row_number) + " ('" +
-                        shortened(found) + ",...') is not a row of this sweep, or out of order");
+                        shortened(reader_.leading(key_fields)) +
+                        ",...') is not a row of this sweep, or out of order");
     const bool first = from_[index] == 0;  // rows held by two sources are the same
     source.used.push_back(first);
     if (first) {
@@ -290,7 +243,7 @@ const std::string& ResumedRows::row(std::size_t index) {
   Source& source = sources_.at(from_.at(index) - 1u);
   bool ended = false;
   while (source.next < source.used.size() && read_line(source.file.get(), line_, &ended)) {
-    if (line_.empty() || line_.front() == '#' || !intact_row(line_, ended, columns_)) continue;
+    if (!reader_.is_row(line_) || !reader_.read(line_, ended)) continue;
     if (source.used[source.next++]) {
       line_ += '\n';
       return line_;
@@ -300,19 +253,55 @@ const std::string& ResumedRows::row(std::size_t index) {
 }
 
 SweepFile::SweepFile(const std::string& path, std::string_view command, const std::string& header,
-                     ResumedRows* resumed)
-    : resumed_(resumed), command_(command), header_(header) {
+                     ResumedRows* resumed, io::Format format)
+    : resumed_(resumed), command_(command), header_(header), json_(format == io::Format::json) {
   if (!path.empty()) file_.emplace(path, command);
   buffer_.reserve(flush_bytes + (1u << 16));
   append(header);
 }
 
-void SweepFile::write_kept(std::size_t index) { append(resumed_->row(index)); }
+void SweepFile::write_kept(std::size_t index) {
+  std::string_view row = resumed_->row(index);
+  if (json_) {  // the earlier file's first row has no comma
+    if (row.starts_with(',')) row.remove_prefix(1);
+    if (!std::exchange(first_row_, false)) append(",");
+  }
+  append(row);
+}
 
 void SweepFile::write_rows(std::size_t first, std::size_t, std::string_view text,
                            std::span<const double> row_us) {
   if (on_timing && !row_us.empty()) on_timing(first, row_us);
-  append(text);
+  if (json_) json_rows(first, text);
+  else append(text);
+}
+
+void SweepFile::json_rows(std::size_t first, std::string_view text) {
+  // A row's line holds no '#': rows without a failed one go out as they are.
+  if (text.find('#') == std::string_view::npos) {
+    if (std::exchange(first_row_, false) && text.starts_with(',')) text.remove_prefix(1);
+    append(text);
+    return;
+  }
+  constexpr std::string_view failed = "# failed: ";
+  for (std::size_t begin = 0, index = first; begin < text.size(); ++index) {
+    const std::size_t end = std::min(text.find('\n', begin), text.size() - 1) + 1;
+    std::string_view line = text.substr(begin, end - begin);
+    begin = end;
+    if (line.starts_with(failed)) {
+      line.remove_prefix(failed.size());
+      if (line.ends_with('\n')) line.remove_suffix(1);
+      failed_.push_back(json_failed_entry(row_number ? row_number(index) : index, line));
+      continue;
+    }
+    if (std::exchange(first_row_, false) && line.starts_with(',')) line.remove_prefix(1);
+    append(line);
+  }
+}
+
+void SweepFile::end_rows(std::string_view interrupted) {
+  if (json_) append(json_end(failed_, interrupted));
+  else if (!interrupted.empty()) append("# interrupted: " + std::string(interrupted) + "\n");
 }
 
 void SweepFile::append(std::string_view text) {

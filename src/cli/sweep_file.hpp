@@ -4,8 +4,8 @@
 // of an earlier, interrupted run of the same sweep (--resume), which are kept instead of being
 // computed again.
 //
-// A sweep file is '#' lines (the header), the column line, the rows, and possibly an
-// '# interrupted: ...' line at the end. Resuming checks the earlier file's header and column
+// A sweep file (CSV; text and JSON alike, line by line: sweep_format.hpp) is '#' lines (the
+// header), the column line, the rows, and possibly an '# interrupted: ...' line at the end. Resuming checks the earlier file's header and column
 // line against this run's (everything but the date of its "# pendavg VERSION, generated DATE"
 // line: the parameters, method, digits and version must agree) and finds each earlier row's
 // index from its leading fields (its parameters), in order, so rows missing anywhere are
@@ -20,6 +20,7 @@
 
 #include "files.hpp"
 #include "sweep.hpp"
+#include "sweep_format.hpp"
 
 #include <cstdint>
 #include <cstdio>
@@ -40,11 +41,13 @@ namespace pendavg::cli {
 class ResumedRows {
  public:
   /// Reads `path` (when it exists) and its dead writers' temporaries and checks them against
-  /// `header` (this run's '#' lines and column line, as written); `key(index)` is row `index`'s
+  /// `header` (this run's header as written: '#' lines and column line, or JSON's lines up to
+  /// its rows) and `rows` (this run's format, columns and widths; a file of another format is
+  /// refused); `key(index)` is row `index`'s
   /// leading `key_fields` fields joined by commas (a row that produces no line returns an empty
   /// key). Throws usage_error (one line, naming `command` and the option) on a mismatch.
   ResumedRows(const std::string& path, std::string_view command, const std::string& header,
-              std::size_t count, std::size_t key_fields,
+              const io::RowWriter& rows, std::size_t count, std::size_t key_fields,
               const std::function<std::string(std::size_t)>& key);
   ResumedRows(const ResumedRows&) = delete;
   ResumedRows& operator=(const ResumedRows&) = delete;
@@ -68,16 +71,18 @@ class ResumedRows {
   std::vector<Source> sources_;
   std::vector<std::uint8_t> from_;  ///< per row: 1 + the source it is kept from, 0: not kept
   std::size_t kept_count_ = 0;
-  std::size_t columns_ = 0;  ///< fields of a row (the column line's)
+  RowReader reader_;  ///< the rows in this run's format
   std::string line_;
 };
 
 /// A sweep's output: the header at once, then the rows in order (SweepOutput), then commit().
 class SweepFile : public SweepOutput {
  public:
-  /// `path` empty: stdout. `resumed` (may be null) supplies kept rows.
+  /// `path` empty: stdout. `resumed` (may be null) supplies kept rows. `format`: the rows'
+  /// (JSON: each row's line starts with the comma that separates it from the one before, which
+  /// the first row written drops; a '# failed:' line goes to the "failed" list at the end).
   SweepFile(const std::string& path, std::string_view command, const std::string& header,
-            ResumedRows* resumed);
+            ResumedRows* resumed, io::Format format = io::Format::csv);
   bool kept(std::size_t index) const override { return resumed_ && resumed_->kept(index); }
   std::size_t kept_count() const override { return resumed_ ? resumed_->kept_count() : 0; }
   void write_kept(std::size_t index) override;
@@ -86,7 +91,14 @@ class SweepFile : public SweepOutput {
   /// Called with every computed row's times (SweepRows::timing).
   std::function<void(std::size_t first, std::span<const double> row_us)> on_timing;
 
+  /// JSON: the sweep's row (the one a failed row's entry names) of row `index` of this run
+  /// (a shard's rows are the sweep's rows shard.row(index)); unset: `index`.
+  std::function<std::size_t(std::size_t index)> row_number;
+
   void append(std::string_view text);
+  /// After the last row: the format's end (CSV and text: an '# interrupted: ' line when
+  /// `interrupted` is not empty; JSON: the failed rows, the interruption and the closing brace).
+  void end_rows(std::string_view interrupted);
   /// Writes out what is buffered (SweepOutput: rank 0 is about to wait).
   void flush() override;
   /// A file's rows that wait ahead of an unfinished one go to a second temporary of the target
@@ -100,11 +112,17 @@ class SweepFile : public SweepOutput {
 
  private:
   void write_out(std::string_view text);
+  /// JSON: rows first.. as computed (a row a line, each after its comma; a '# failed:' line in
+  /// place of a failed row).
+  void json_rows(std::size_t first, std::string_view text);
   std::optional<AtomicFile> file_;
   std::unique_ptr<AtomicFile> ahead_;  ///< never committed: removed when replaced or done
   bool ahead_failed_ = false;          ///< a copy could not be written: no more are tried
   ResumedRows* resumed_ = nullptr;
   std::string command_, header_, buffer_;
+  bool json_ = false;
+  bool first_row_ = true;            ///< JSON: no row written yet (its comma is dropped)
+  std::vector<std::string> failed_;  ///< JSON: the failed rows' entries, until the end
 };
 
 /// The header lines of a sweep as this run writes them, for ResumedRows: '#' lines and the
@@ -121,7 +139,8 @@ std::string failed_row_line(std::string_view context, std::string_view reason);
 /// that --resume computes them again.
 std::string failed_rows_message(std::string_view command, const SweepOutcome& outcome,
                                 std::string_view unit, const std::string& path,
-                                std::string_view first_context);
+                                std::string_view first_context,
+                                io::Format format = io::Format::csv);
 
 /// FNV-1a 64-bit hash of `text` as 16 hex digits (identifies an input file in a header).
 std::string fnv1a_hex(std::string_view text);

@@ -14,10 +14,12 @@
 #include "io/exact_decimal.hpp"
 #include "io/record.hpp"
 #include "io/results.hpp"
+#include "io/sweep_rows.hpp"
 #include "interrupt.hpp"
 #include "sweep.hpp"
 #include "shard.hpp"
 #include "sweep_file.hpp"
+#include "sweep_format.hpp"
 
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
@@ -47,10 +49,10 @@ namespace pendavg::cli {
 constexpr std::string_view table_usage =
     "usage: pendavg table --beta SPEC [--mu1 SPEC] [--l1 SPEC] [--l2 SPEC] [--g SPEC]\n"
     "                     [--digits LIST] [--method auto|integral|series]\n"
-    "                     [--output FILE.csv | --resume FILE.csv] [--shard K/N]\n"
+    "                     [--format csv|json|text] [--output FILE | --resume FILE] [--shard K/N]\n"
     "       pendavg table --chain LIST --beta SPEC [--g SPEC] [--digits LIST]\n"
     "                     [--method auto|torus-trapezoid|transfer|qmc] [--tol T] [--samples S]\n"
-    "                     [--shifts R] [--seed K] [--output FILE.csv | --resume FILE.csv]\n"
+    "                     [--shifts R] [--seed K] [--format F] [--output FILE | --resume FILE]\n"
     "       pendavg table (--energy SPEC | --excitation SPEC) [--mu1 ...] [--chain LIST] ...\n"
     "\n"
     "A parameter sweep: one CSV row per combination of the values. SPEC is one of\n"
@@ -82,6 +84,14 @@ constexpr std::string_view table_usage =
     "leaves its cells for particles N+1..M empty.\n"
     "The CSV starts with '# schema: 1', then '#' lines naming every swept value, the method (and\n"
     "qmc's samples, shifts and seed), the version and the UTC date.\n"
+    "--format csv (the default), json or text: the same header, rows and values (the CSV's\n"
+    "texts) in each. json: one document, {\"schema\": 1, \"command\": \"table\", \"header\": [the '#'\n"
+    "lines], \"columns\": [...], \"rows\": [one object a row, keys = the columns; a double run's\n"
+    "values are JSON numbers, an MPFR run's decimal strings, an empty cell null], \"failed\":\n"
+    "[{\"row\": R, \"message\": M} for each failed point, R its 0-based row], \"interrupted\": null\n"
+    "or the reason}, one line a row: pandas.DataFrame(doc[\"rows\"]) is the table. text: the '#'\n"
+    "lines, then the columns right-aligned at fixed widths (the widest text each can hold),\n"
+    "'-' for an empty cell. --resume and merge take files of the run's --format only.\n"
     "--output FILE: written through a temporary file in the same directory and renamed into\n"
     "place (nothing is left behind on error or on a signal); a symbolic link is followed, a\n"
     "device or FIFO is written in place; without --output the CSV goes to stdout. Rows are\n"
@@ -313,9 +323,11 @@ std::vector<std::string_view> point_texts(const Point& point, bool with_state) {
   return texts;
 }
 
-/// One row of a table: the inputs, then the averages, as table_columns names them.
+/// One row of a table: the inputs, then the averages, as table_columns names them, appended to
+/// `out` in the format of `rows`.
 template <class Real>
-std::string table_row(const Point& point, const TablePlan& plan) {
+void table_row(std::string& out, const Point& point, const TablePlan& plan,
+               const io::RowWriter& rows) {
   std::optional<working_precision> precision;  // each row of an MPFR sweep holds its own
   if constexpr (!std::is_same_v<Real, double>) precision.emplace(point.options.digits + guard_digits);
   const io::Printing printing{point.options.digits};
@@ -341,11 +353,8 @@ std::string table_row(const Point& point, const TablePlan& plan) {
     values.reset(io::averages_fields(), width);
     io::append_averages(values, averages, &beta, printing);
   }
-  std::string out;
-  io::append_csv_cells(out, inputs);
-  io::append_csv_cells(out, values);
-  out.back() = '\n';
-  return out;
+  const io::RowCells cells[] = {{&inputs}, {&values}};
+  rows.append(out, {}, false, cells);
 }
 
 /// The rows of a sweep, generated one at a time from their index (never all at once: a chain of
@@ -658,6 +667,51 @@ std::vector<std::string> table_columns(const TablePlan& plan) {
   return header;
 }
 
+/// The rows in --format's layout: the columns, and (text) each one's width: an input's widest
+/// value as written (the swept values; m2 = 1 - mu1 of each mu1), an output's widest text at
+/// the sweep's digits (io::widest_cell). From the whole sweep, so that every shard's widths are
+/// the merged file's.
+io::RowWriter table_row_writer(const Options& options, const TableRequest& request,
+                               const TableMethods& m) {
+  const io::Format format = format_option(options, "csv", all_formats);
+  const TablePlan& plan = request.plan;
+  std::vector<std::string> columns = table_columns(plan);
+  if (format != io::Format::text) return io::RowWriter(format, std::move(columns));
+  const auto widest = [](const std::vector<std::string>& values) {
+    std::size_t w = 0;
+    for (const std::string& v : values) w = std::max(w, v.size());
+    return w;
+  };
+  const auto sweep_width = [&](std::string_view name) {
+    const Sweep* sweep = request.sweep_named(name);
+    return sweep ? widest(sweep->values) : std::size_t(1);
+  };
+  std::vector<int> digits;
+  for (const std::string& d : request.sweep_named("digits")->values) digits.push_back(std::stoi(d));
+  const std::size_t n = plan.columns_particles;
+  std::vector<std::size_t> widths;
+  std::size_t particles = 1;
+  for (const std::size_t p : m.particle_values) particles = std::max(particles, std::to_string(p).size());
+  widths.push_back(particles);
+  widths.push_back(sweep_width("digits"));
+  widths.push_back(sweep_width(plan.state));
+  widths.push_back(sweep_width("g"));
+  if (plan.chain) {
+    widths.insert(widths.end(), 2 * n, 1);  // "1", or "-" beyond a row's N
+  } else {
+    std::size_t m2 = 1;
+    for (const std::string& mu1 : request.sweep_named("mu1")->values)
+      m2 = std::max(m2, one_minus_decimal(mu1, "--mu1").size());
+    for (const std::size_t w : {sweep_width("mu1"), m2, sweep_width("l1"), sweep_width("l2")})
+      widths.push_back(w);
+  }
+  const auto outputs = plan.microcanonical() ? io::microcanonical_fields(plan.state)
+                                             : io::averages_fields();
+  for (const io::Field* field : io::cell_fields(outputs, n))
+    widths.push_back(io::widest_cell(*field, digits));
+  return io::RowWriter(format, std::move(columns), std::move(widths));
+}
+
 /// Step 3, format: the '#' lines that say what made the file (and that --resume checks), then
 /// the column line.
 std::string table_header(const TableRequest& request, const TableMethods& m,
@@ -738,8 +792,8 @@ std::string table_header(const TableRequest& request, const TableMethods& m,
 /// rows (sweep.hpp) and rank 0 streams them, in order, after `header`.
 void run_table(const TableRequest& request, const PointSpace& space,
                const std::function<AverageOptions(std::size_t, int)>& row_options,
-               const TableTarget& target, const std::string& header, int threads,
-               const std::optional<Shard>& shard) {
+               const TableTarget& target, const io::RowWriter& rows_format,
+               const std::string& header, int threads, const std::optional<Shard>& shard) {
   const TablePlan& plan = request.plan;
   const std::size_t row_count = shard ? shard->count() : space.count();
   // Row k of this run: the sweep's row k, or the shard's k-th.
@@ -751,12 +805,15 @@ void run_table(const TableRequest& request, const PointSpace& space,
     try {
       if (!target.path.empty()) probe_output(target.path, "table");
       if (!target.resume.empty())  // the file, or a killed run's temporary, or nothing yet
-        resumed.emplace(target.resume, "table", header, row_count, 4 + 2 * plan.columns_particles,
+        resumed.emplace(target.resume, "table", header, rows_format, row_count,
+                        4 + 2 * plan.columns_particles,
                         [&](std::size_t k) {
                           return row_key(point(k), plan.columns_particles);
                         });
       // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
-      file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr);
+      file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr,
+                   rows_format.format());
+      if (shard) file->row_number = [&](std::size_t k) { return shard->row(k); };
     } catch (const invalid_input& bad) {
       verdict = bad.what();
     }
@@ -777,11 +834,14 @@ void run_table(const TableRequest& request, const PointSpace& space,
     const std::size_t m = plan.columns_particles;
     rows.row_bytes = (8 * m + 5) * (decimal_max_length(most_digits) + 1) +
                      (2 * m + 2) * 32 + 4 * m + 6 * 25 + 64;
+    if (rows_format.format() == io::Format::json)  // its keys
+      for (const std::string& name : rows_format.columns()) rows.row_bytes += name.size() + 6;
+    rows.row_bytes += rows_format.text_line_length();  // text: its padding
   }
   rows.compute = [&](std::size_t k, int, std::string& text) {
     const Point p = point(k);
-    text += p.options.digits == min_digits ? table_row<double>(p, plan)
-                                           : table_row<mpfr_real>(p, plan);
+    if (p.options.digits == min_digits) table_row<double>(text, p, plan, rows_format);
+    else table_row<mpfr_real>(text, p, plan, rows_format);
   };
   const auto point_context = [&](std::size_t k) {
     return "point (" + point(k).describe() + "): ";
@@ -799,16 +859,18 @@ void run_table(const TableRequest& request, const PointSpace& space,
     if (outcome.written < row_count) {
       // Interrupted (SIGINT/SIGTERM): every finished row is kept; say so in the file and on
       // stderr. --resume FILE computes the others.
-      file->append("# interrupted: " + std::to_string(outcome.written) + " of " +
-                   std::to_string(row_count) +
-                   " points computed; the rows of the others are left out\n");
+      file->end_rows(std::to_string(outcome.written) + " of " + std::to_string(row_count) +
+                     " points computed; the rows of the others are left out");
       std::fprintf(stderr, "[table] interrupted: %zu of %zu points written\n", outcome.written,
                    row_count);
+    } else {
+      file->end_rows({});
     }
     file->commit();
     if (outcome.failed_rows > 0)
       throw rows_failed(failed_rows_message("table", outcome, "points", target.path,
-                                            point_context(outcome.first_failed_row)));
+                                            point_context(outcome.first_failed_row),
+                                            rows_format.format()));
   });
 }
 
@@ -846,15 +908,19 @@ std::string run_table(const Options& options) {
       bad < row_count)
     check(bad, 0);  // throws the first bad point's error, on every rank
 
-  run_table(request, space, row_options, target,
-            (shard ? shard->header_line() : "") + table_header(request, methods, space.count()),
+  const io::RowWriter rows_format = table_row_writer(options, request, methods);
+  run_table(request, space, row_options, target, rows_format,
+            sweep_header(rows_format, "table",
+                         (shard ? shard->header_line() : "") +
+                             table_header(request, methods, space.count())),
             threads, shard);
   return {};
 }
 
-constexpr std::array<std::string_view, 17> table_options{
+constexpr std::array<std::string_view, 18> table_options{
     "beta",    "mu1",    "l1",   "l2",     "g",      "chain",  "digits",     "method",
-    "tol",     "samples", "shifts", "seed", "output", "resume", "energy", "excitation", "shard"};
+    "tol",     "samples", "shifts", "seed", "output", "resume", "energy", "excitation", "shard",
+    "format"};
 const Command table_command{"table", table_usage, table_options, run_table, {}, true};
 
 }  // namespace pendavg::cli

@@ -24,6 +24,7 @@
 #              PENDAVG_BENCH_DIGITS (default 16, passed as --digits),
 #              PENDAVG_BENCH_COLUMNS (passed as --columns: e.g. beta_K,beta_K_error,ratio,cos_phi,
 #              method,evaluations, the columns of 9ae1382; default: every column),
+#              PENDAVG_BENCH_FORMAT (passed as --format: csv, json or text; default: none, csv),
 #              PENDAVG_BENCH_NO_HYPERFINE=1 (use the date loop even when hyperfine is installed),
 #              PENDAVG_BENCH_TIMING_RUNS (default 3; 0 skips the per-row timing),
 #              PENDAVG_BENCH_TIMING_THREADS (default 1: OMP_NUM_THREADS of the timing runs),
@@ -63,11 +64,16 @@ echo "cases file: $rows rows ($count cases x $replicate, $layout)" >&2
 
 cmd=("$pendavg" average --cases "$cases" --digits "$digits")
 if [ -n "${PENDAVG_BENCH_COLUMNS:-}" ]; then cmd+=(--columns "$PENDAVG_BENCH_COLUMNS"); fi
+if [ -n "${PENDAVG_BENCH_FORMAT:-}" ]; then cmd+=(--format "$PENDAVG_BENCH_FORMAT"); fi
 
 # One checked run first: the command must succeed and print one line per row plus a header
-# (after its '#' lines: the schema line).
+# (after its '#' lines: the schema line; JSON: a {...} line per row after the first line).
 "${cmd[@]}" >"$work/out.csv"
-out_rows=$(($(grep -vc '^#' "$work/out.csv") - 1))
+if [ "${PENDAVG_BENCH_FORMAT:-csv}" = json ]; then
+  out_rows=$(($(grep -c '^,\?{"' "$work/out.csv") - 1))  # without the document's first line
+else
+  out_rows=$(($(grep -vc '^#' "$work/out.csv") - 1))
+fi
 if ((out_rows != rows)); then
   echo "pendavg printed $out_rows rows for $rows input rows" >&2
   exit 1

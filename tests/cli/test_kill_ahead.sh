@@ -9,19 +9,20 @@
 # The run is killed once the copy holds rows; the resumed run must then compute only the rows the
 # copy did not hold (row 0 among them), and write the uninterrupted run's file byte for byte.
 #
-#   bash tests/cli/test_kill_ahead.sh PENDAVG_ROW_FAULTS CASE     (CASE: threads, mpi; --list)
+#   bash tests/cli/test_kill_ahead.sh PENDAVG_ROW_FAULTS CASE     (--list: the cases: threads in
+#   each --format, and mpi)
 set -uo pipefail
 export SOURCE_DATE_EPOCH=1700000000  # the header's date: the same in every run
 faulty=$1
 case_name=${2:-}
-cases=(threads mpi)
+cases=(threads.csv threads.json threads.text mpi.csv)
 if [ "$case_name" = --list ]; then printf '%s\n' "${cases[@]}"; exit 0; fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 failures=0
 fail() { echo "FAIL [$case_name] $*" >&2; failures=$((failures + 1)); }
 
-sweep=(table --beta log:0.01:100:120 --mu1 0.3 --digits 24)
+sweep=(table --beta log:0.01:100:120 --mu1 0.3 --digits 24 --format "${case_name#*.}")
 
 # killed_ahead NAME LAUNCH...: LAUNCH is how the test build is started (alone, or under mpirun).
 killed_ahead() {
@@ -30,7 +31,7 @@ killed_ahead() {
   local out=$work/$name.csv reference=$work/$name.reference.csv
   OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$reference" 2>/dev/null ||
     { fail "$name: the uninterrupted run failed"; return; }
-  rows=$(($(grep -vc '^#' "$reference") - 1))
+  rows=$(grep -c '^,\?{"N"\|^[0-9 ]' "$reference")
   PENDAVG_TEST_SLOW_ROW=0:60 OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$out" >/dev/null 2>&1 &
   local pid=$!
   # The copy: a second temporary of OUT with data rows (the file's own holds only its header
@@ -38,8 +39,8 @@ killed_ahead() {
   copy=
   for ((k = 0; k < 300; ++k)); do
     [ -n "$copy" ] && break
-    for temporary in "$out".tmp.*; do
-      [ -e "$temporary" ] && [ "$(grep -vc '^#' "$temporary")" -ge 3 ] && copy=$temporary
+    for temporary in "$out".tmp.*; do  # a row (its "beta" field) after the header
+      [ -e "$temporary" ] && [ "$(grep -c '^,\?{"N"\|^[0-9 ]' "$temporary")" -ge 2 ] && copy=$temporary
     done
     sleep 0.1
   done
@@ -62,11 +63,11 @@ killed_ahead() {
 }
 
 case $case_name in
-  threads) killed_ahead threads "$faulty" ;;
-  mpi)
+  threads.*) killed_ahead "$case_name" "$faulty" ;;
+  mpi.csv)
     command -v mpirun >/dev/null || { echo "SKIP [mpi] no mpirun"; exit 0; }
     export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
-    killed_ahead mpi mpirun -n 2 --mca btl self,vader --mca plm isolated \
+    killed_ahead "$case_name" mpirun -n 2 --mca btl self,vader --mca plm isolated \
       -x OMP_NUM_THREADS -x PENDAVG_TEST_SLOW_ROW -x PENDAVG_SWEEP_REPORT "$faulty" ;;
   *) echo "usage: $0 PENDAVG_ROW_FAULTS {$(IFS='|'; echo "${cases[*]}")|--list}" >&2; exit 2 ;;
 esac

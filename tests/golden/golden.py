@@ -30,7 +30,7 @@ touched, so any other difference fails):
   seconds   the wall-clock time: JSON "seconds": X, text `seconds = X`, a Python repr's
             seconds=X and field `seconds: X`, and a CSV column named seconds become <seconds>
   version   the version in the sweep files' provenance line `# pendavg 0.2.0, generated ...`
-            becomes <version> (a release changes it; the date is pinned by SOURCE_DATE_EPOCH)
+            (JSON: the header item "pendavg 0.2.0, generated ...") becomes <version> (a release changes it; the date is pinned by SOURCE_DATE_EPOCH)
   progress  stderr lines `[command] ...` (progress of runs over 2 s) are dropped
   timing    the numbers of `--timing`'s stderr line but rows= (CPU times, the thread count)
             become <n>
@@ -120,7 +120,7 @@ def read_cases(path=CASES_FILE):
 
 SECONDS_JSON = re.compile(r'("seconds": )-?[0-9][0-9.eE+-]*')
 SECONDS_TEXT = re.compile(r"(\bseconds(?: = |=|: ))-?[0-9][0-9.eE+-]*")
-VERSION_LINE = re.compile(r"^(# pendavg )\S+(, generated )", re.M)
+VERSION_LINE = re.compile(r"^(# pendavg |\"pendavg )\S+(, generated )", re.M)
 PROGRESS_LINE = re.compile(r"^\[[a-z-]+\] ")
 TIMING_LINE = re.compile(r"^pendavg: timing: ")
 TIMING_NUMBER = re.compile(r"\b(?!rows=)([a-z0-9_]+=)[0-9][0-9.eE+-]*")
