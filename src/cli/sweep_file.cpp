@@ -23,26 +23,6 @@ constexpr std::size_t flush_bytes = 1u << 20;
 constexpr std::size_t direct_bytes = 1u << 16;  ///< longer pieces are written unbuffered
 constexpr std::string_view generated = ", generated ";
 
-/// Reads one line (without its newline) into `line`; false at the end of the file. `ended`
-/// (when given) says whether the line had its newline (the last line of a file cut short has
-/// none).
-bool read_line(std::FILE* file, std::string& line, bool* ended = nullptr) {
-  char* buffer = nullptr;
-  std::size_t capacity = 0;
-  const ssize_t length = ::getline(&buffer, &capacity, file);
-  if (length < 0) {
-    std::free(buffer);
-    line.clear();
-    return false;
-  }
-  line.assign(buffer, static_cast<std::size_t>(length));
-  std::free(buffer);
-  const bool newline = !line.empty() && line.back() == '\n';
-  if (newline) line.pop_back();
-  if (ended) *ended = newline;
-  return true;
-}
-
 std::string shortened(std::string_view line) {
   return std::string(line.substr(0, 120)) + (line.size() > 120 ? "..." : "");
 }

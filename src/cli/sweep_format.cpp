@@ -76,9 +76,11 @@ std::string_view leading_fields(std::string_view row, std::size_t fields) {
   return row.substr(0, position - 1);
 }
 
-/// Reads one line (without its newline); false at the end of the file. `ended`: whether it had
-/// its newline.
-bool read_line(std::FILE* file, std::string& line, bool& ended) {
+constexpr std::string_view json_start = "{\"schema\": ";
+
+}  // namespace
+
+bool read_line(std::FILE* file, std::string& line, bool* ended) {
   char* buffer = nullptr;
   std::size_t capacity = 0;
   const ssize_t length = ::getline(&buffer, &capacity, file);
@@ -89,14 +91,11 @@ bool read_line(std::FILE* file, std::string& line, bool& ended) {
   }
   line.assign(buffer, static_cast<std::size_t>(length));
   std::free(buffer);
-  ended = !line.empty() && line.back() == '\n';
-  if (ended) line.pop_back();
+  const bool newline = !line.empty() && line.back() == '\n';
+  if (newline) line.pop_back();
+  if (ended) *ended = newline;
   return true;
 }
-
-constexpr std::string_view json_start = "{\"schema\": ";
-
-}  // namespace
 
 std::string_view format_name(io::Format format) {
   switch (format) {
@@ -163,7 +162,7 @@ SweepFileKind sweep_file_kind(std::FILE* file) {
   SweepFileKind kind;
   std::string line;
   bool ended = false;
-  while (read_line(file, line, ended) && ended) {
+  while (read_line(file, line, &ended) && ended) {
     if (line.starts_with(json_start)) {
       kind.format = io::Format::json;
       const std::string_view rest = std::string_view(line).substr(json_start.size());

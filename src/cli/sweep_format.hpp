@@ -41,6 +41,11 @@
 
 namespace pendavg::cli {
 
+/// Reads one line (without its newline) into `line`; false at the end of the file. `ended`
+/// (when given) says whether the line had its newline (the last line of a file cut short has
+/// none).
+bool read_line(std::FILE* file, std::string& line, bool* ended = nullptr);
+
 /// "csv", "json" or "text".
 std::string_view format_name(io::Format format);
 

@@ -244,8 +244,8 @@ char* write_cell(char* out, const Record& record, const Cell& cell) {
   return write_cell_as(out, record, cell, record.kind_of_cell(k));
 }
 
-std::string json_string(std::string_view text) {
-  std::string out = "\"";
+void append_json_string(std::string& out, std::string_view text) {
+  out += '"';
   for (const char c : text) {
     if (c == '"' || c == '\\') out += '\\';
     if (static_cast<unsigned char>(c) < 0x20) {
@@ -256,7 +256,13 @@ std::string json_string(std::string_view text) {
     }
     out += c;
   }
-  return out + "\"";
+  out += '"';
+}
+
+std::string json_string(std::string_view text) {
+  std::string out;
+  append_json_string(out, text);
+  return out;
 }
 
 void append_json_member(std::string& out, std::string_view key, std::string_view json) {

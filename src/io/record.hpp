@@ -196,6 +196,8 @@ void append_json_members(std::string& out, const Record& record);
 void append_json_member(std::string& out, std::string_view key, std::string_view json);
 /// A JSON string literal.
 std::string json_string(std::string_view text);
+/// Appends `text` as a JSON string (quotes, backslashes and control characters escaped).
+void append_json_string(std::string& out, std::string_view text);
 
 /// Appends the cells `selection` (indices into record.cells(); all cells when empty) as CSV
 /// fields, each followed by a comma (the caller ends the line).

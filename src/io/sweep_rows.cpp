@@ -181,21 +181,6 @@ void append_json_number(std::string& out, std::string_view literal) {
   out.append(literal.substr(i));  // the exponent, as JSON writes it too
 }
 
-void append_json_string(std::string& out, std::string_view text) {
-  out += '"';
-  for (const char c : text) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) {
-      char code[8];
-      std::snprintf(code, sizeof code, "\\u%04x", static_cast<unsigned>(c));
-      out += code;
-      continue;
-    }
-    out += c;
-  }
-  out += '"';
-}
-
 std::vector<const Field*> cell_fields(std::span<const Field> fields, std::size_t particles) {
   std::vector<const Field*> out;
   for (const Field& f : fields) out.insert(out.end(), f.shape == Shape::per_particle ? particles : 1, &f);

@@ -64,8 +64,6 @@ class RowWriter {
 /// JSON number of the same exact value: a leading '+' and leading zeros dropped, a missing
 /// digit before or after the point written as 0 (".5" -> 0.5, "+1." -> 1.0, "007" -> 7).
 void append_json_number(std::string& out, std::string_view literal);
-/// Appends `text` as a JSON string (quotes, backslashes and control characters escaped).
-void append_json_string(std::string& out, std::string_view text);
 
 /// The field of each cell of a record of `fields` for `particles` (cell order).
 std::vector<const Field*> cell_fields(std::span<const Field> fields, std::size_t particles);
