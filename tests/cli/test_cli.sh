@@ -1885,11 +1885,9 @@ case:average.certified() {
 if "$pendavg" --version | grep -q '^certified enclosures (--certified): Arb'; then
   run average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 60 --format json
   cp "$work/out" "$work/certified_ref.json"
-  # SCHEMA1-BUG: a double's shortest round-trip text is not the double's value as a decimal (up
-  # to half a unit of its last digit away), and schema 1 no longer widens a double's error for
-  # printing: here beta_K[1] prints 0.5377756655277243 +- 1.65e-17 (bound) while the 60-digit
-  # value is 0.53777566552772428346..., 1.6537e-17 from the printed decimal (the double itself,
-  # 0.537775665527724267..., is 1.6462e-17 away: covered). A bound must cover the printed value.
+  # A double's shortest round-trip text is not the double's value as a decimal (up to half a
+  # unit of its last digit away): a printed bound must cover the printed value, not only the
+  # double (this point's beta_K[1] once printed a bound that covered the double alone).
   good "average --certified: bounds (double)" 'check_certified "$work/out" 16 "$work/certified_ref.json"' \
     average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --format json
   good "average --certified --digits 30: bounds" 'check_certified "$work/out" 30 "$work/certified_ref.json"' \
