@@ -1,26 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-# tests/cli/sweep_harness.sh -- the set-up and checks test_sweeps.sh, test_sweep_files.sh and
-# test_shards.sh share, sourced after they set $pendavg: $python, a scratch directory $work removed
-# on exit, and the checks. progress_lines_allowed=1 lets "[command] ..." progress lines stand
-# before a refusal's one error line (sweeps whose check shows progress).
-python=/usr/bin/python3
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-passed=0
-failed=0
+# tests/cli/sweep_harness.sh -- the set-up and checks the sweep scripts (test_sweeps.sh,
+# test_sweep_files.sh, test_shards.sh, test_mpi.sh, test_no_silent_copies.sh) share, sourced
+# after they set $pendavg (and $faulty, the test build, if they take it): the named cases, the
+# scratch directory $work and the checks of case_harness.sh, and the sweep checks below.
+# progress_lines_allowed=1 lets "[command] ..." progress lines stand before a refusal's one error
+# line (sweeps whose check shows progress).
+# shellcheck source=case_harness.sh
+source "$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/case_harness.sh"
+record_commands pendavg faulty
 export SOURCE_DATE_EPOCH=1767225600  # the files' date line, so that whole files compare
 
-pass() { passed=$((passed + 1)); }
-fail() {
-  failed=$((failed + 1))
-  echo "FAIL: $1"
-  [ -s "$work/out" ] && head -c 2000 "$work/out" | sed 's/^/  stdout: /' | head -5
-  [ -s "$work/err" ] && head -c 2000 "$work/err" | sed 's/^/  stderr: /' | head -5
-}
-run() {
-  "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-}
 # one_error_line: stderr is one line "pendavg: error: ..." (after progress lines if allowed)
 one_error_line() {
   local others
@@ -38,20 +27,16 @@ bad() {
   shift
   timeout 20 "$pendavg" "$@" >"$work/out" 2>"$work/err"
   rc=$?
+  local expected="exit 2 within 20 s, nothing on stdout, one stderr line 'pendavg: error: ...'"
   if [ "$rc" -ne 2 ]; then
-    fail "$name: exit code $rc, expected 2"
+    fail "$name" "$expected" "exit $rc"
   elif [ -s "$work/out" ]; then
-    fail "$name: stdout not empty"
+    fail "$name" "$expected" "output on stdout"
   elif ! one_error_line; then
-    fail "$name: stderr is not one 'pendavg: error: ' line"
+    fail "$name" "$expected" "$(wc -l <"$work/err") stderr lines"
   else
     pass
   fi
-}
-check() { # NAME COMMAND...: the command succeeds
-  local name=$1
-  shift
-  if "$@"; then pass; else fail "$name"; fi
 }
 no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
 # killed_and_resumed NAME REFERENCE OUT COMMAND...: runs COMMAND --output OUT in the background
@@ -78,20 +63,21 @@ killed_and_resumed() {
   # The processes of the killed run (an orphaned rank) are gone before it is resumed.
   for ((k = 0; k < 100; ++k)); do pgrep -f -- "--output $out" >/dev/null || break; sleep 0.1; done
   if [ -e "$out" ] || [ -z "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
-    fail "$name: the run killed after $delay s finished or left no temporary (too fast a sweep?)"
+    fail "$name" "a temporary left by the run killed after $delay s" "the run had finished or left no temporary (too fast a sweep?)"
     return
   fi
   PENDAVG_SWEEP_REPORT=1 "$@" --resume "$out" >"$work/out" 2>"$work/err"
   rc=$?
   computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
+  local expected="killed (SIGKILL) after $delay s and resumed: exit 0, the uninterrupted file, no temporary, fewer than $rows rows computed"
   if [ "$rc" -ne 0 ]; then
-    fail "$name: killed (SIGKILL) after $delay s, the resumed run exited $rc"
+    fail "$name" "$expected" "the resumed run exited $rc"
   elif ! cmp -s "$out" "$reference"; then
-    fail "$name: killed (SIGKILL) after $delay s and resumed: differs from an uninterrupted run"
+    fail "$name" "$expected" "a file that differs from an uninterrupted run's"
   elif [ -n "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
-    fail "$name: killed (SIGKILL) after $delay s and resumed: a temporary is left"
+    fail "$name" "$expected" "a temporary left"
   elif ! [ "${computed:-$rows}" -lt "$rows" ]; then
-    fail "$name: killed (SIGKILL) after $delay s: the resume computed ${computed:-?} of $rows rows (none taken from the temporary)"
+    fail "$name" "$expected" "${computed:-?} of $rows rows computed (none taken from the temporary)"
   else
     pass
   fi

@@ -1,45 +1,30 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: GPL-3.0-or-later
-# tests/cli/test_cli.sh -- end-to-end checks of the `pendavg` command-line contract.
+# tests/cli/test_cli.sh -- end-to-end checks of the `pendavg` command-line contract, as named
+# cases (case_harness.sh: one ctest test cli.CASE each).
 #
-# Usage: test_cli.sh PATH/TO/pendavg
+# Usage: test_cli.sh PATH/TO/pendavg CASE    (test_cli.sh --list: the cases)
 # Bad input must exit 2 with exactly one stderr line "pendavg: error: ..." and nothing on stdout;
-# good input must exit 0 with well-formed output. Prints "N passed, M failed" last and exits
-# non-zero on any failure.
+# good input must exit 0 with well-formed output. Prints "CASE: N passed, M failed" last and
+# exits non-zero on any failure.
 set -u
 
-pendavg=${1:?usage: test_cli.sh PATH/TO/pendavg}
-python=/usr/bin/python3
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-passed=0
-failed=0
-
-pass() { passed=$((passed + 1)); }
-fail() {
-  failed=$((failed + 1))
-  echo "FAIL: $1"
-  [ -s "$work/out" ] && sed 's/^/  stdout: /' "$work/out" | head -5
-  [ -s "$work/err" ] && sed 's/^/  stderr: /' "$work/err" | head -5
-}
-
-# run ARGS... : runs pendavg, leaves stdout/stderr in $work/out, $work/err and the code in $rc.
-run() {
-  "$pendavg" "$@" >"$work/out" 2>"$work/err"
-  rc=$?
-}
+pendavg=${1:?usage: test_cli.sh PATH/TO/pendavg CASE, or test_cli.sh --list}
+# shellcheck source=case_harness.sh
+source "$(cd "$(dirname "$0")" && pwd)/case_harness.sh"
+record_commands pendavg
 
 # bad NAME ARGS... : expects exit 2, one stderr line "pendavg: error: ...", empty stdout.
 bad() {
-  local name=$1
+  local name=$1 expected="exit 2, nothing on stdout, one stderr line 'pendavg: error: ...'"
   shift
   run "$@"
   if [ "$rc" -ne 2 ]; then
-    fail "$name: exit code $rc, expected 2"
+    fail "$name" "$expected" "exit $rc"
   elif [ -s "$work/out" ]; then
-    fail "$name: stdout not empty"
+    fail "$name" "$expected" "output on stdout"
   elif [ "$(wc -l <"$work/err")" -ne 1 ] || ! head -1 "$work/err" | grep -q '^pendavg: error: '; then
-    fail "$name: stderr is not one 'pendavg: error: ' line"
+    fail "$name" "$expected" "$(wc -l <"$work/err") stderr lines"
   else
     pass
   fi
@@ -52,20 +37,21 @@ good() {
   shift 2
   run "$@"
   if [ "$rc" -ne 0 ]; then
-    fail "$name: exit code $rc, expected 0"
+    fail "$name" "exit 0" "exit $rc"
   elif grep -qv '^\[[a-z]*\] ' "$work/err"; then
-    fail "$name: stderr not empty"
+    fail "$name" "nothing on stderr but progress lines" "other lines on stderr"
   elif ! eval "$check"; then
-    fail "$name: output check failed"
+    fail "$name" "exit 0 and an output that passes: $check" "an output that does not (the check's message, if any, above)"
   else
     pass
   fi
 }
 
-# Schema 1 of the outputs (issue 27): schema1.py reads them for the checks below (run them with
-# `py`); `data FILE` prints a CSV output's header and rows ('#' lines skipped) and
-# `cols FILE NAME...` the named cells of each row, comma-joined (MISSING:NAME for a column the
-# header does not have).
+# Schema 1 of the outputs (issue 27): schema1.py (written by cases_setup, below) reads them for
+# the checks (run them with `py`); `data FILE` prints a CSV output's header and rows ('#' lines
+# skipped) and `cols FILE NAME...` the named cells of each row, comma-joined (MISSING:NAME for a
+# column the header does not have). cases_setup also writes the cases files several cases read.
+cases_setup() {
 cat >"$work/schema1.py" <<'PY'
 """Schema 1 of pendavg's outputs, for the checks of test_cli.sh."""
 import csv
@@ -234,6 +220,26 @@ def read_csv(path, text=None):
     assert all(len(l.split(",")) == len(head) for l in data), "ragged rows"
     return comments, head, list(csv.DictReader(data))
 PY
+# the cases files (bad ones, then the shuffled N = 2 and N = 3 files, energy and excitation)
+printf 'beta,g,m1,m2,l1\n1,1,0.5,0.5,1\n' >"$work/missing_column.csv"
+printf 'beta,g,m1,m2,l1,l2,T\n1,1,0.5,0.5,1,1,3\n' >"$work/extra_column.csv"
+printf 'm1,m2,l1,l2,g,beta\n0.5,0.5,1,1,1,1\n0.5,0.5,1,1,1,-2\n' >"$work/bad_row.csv"
+printf 'm1,m2,l1,l2,g,beta\n0.5,0.5,1,1\n' >"$work/short_row.csv"
+printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
+printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
+touch "$work/plain_file"  # (a directory that is a file: --output refused)
+printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
+printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
+# strict_json.py: JSON without a bare NaN/Infinity (the checks of the issue 10 keys)
+cat >"$work/strict_json.py" <<'PY'
+import json
+def strict(path):
+    def refuse(token):
+        raise ValueError("bare " + token)
+    return json.loads(open(path).read(), parse_constant=refuse)
+KINDS = {"bound", "estimate", "statistical"}
+PY
+}
 py() { PYTHONPATH="$work" "$python" "$@"; }
 data() { grep -v '^#' "$1"; }
 cols() { # FILE NAME...
@@ -249,8 +255,12 @@ cols() { # FILE NAME...
 }
 
 pendulum=(--masses 0.5,0.5 --lengths 1,1)
+unit3=(--masses 1,1,1 --lengths 1,1,1 --g 1)
+# unit3_reference: $work/unit3.json, the unit 3-link chain at beta = 1 (average.any_n checks it)
+unit3_reference() { "$pendavg" average "${unit3[@]}" --beta 1 --format json >"$work/unit3.json"; }
 
 # ---------------------------------------------------------------- bad input
+case:input.refusals() {
 bad "mass 0"            average --masses 0,0.5 --lengths 1,1 --beta 1
 bad "mass -1"           average --masses -1,0.5 --lengths 1,1 --beta 1
 bad "mass nan"          average --masses nan,0.5 --lengths 1,1 --beta 1
@@ -289,9 +299,10 @@ bad "series beta 0"     series "${pendulum[@]}" --beta 0 --terms 3
 bad "series terms -1"   series "${pendulum[@]}" --beta 1 --terms -1
 bad "series terms 200001" series "${pendulum[@]}" --beta 1 --terms 200001  # the library's cap, checked before any work
 bad "help unknown"      help nothing
+}
 
 # the any-N options: malformed values, and options of a method that does not run
-unit3=(--masses 1,1,1 --lengths 1,1,1 --g 1)
+case:average.option_refusals() {
 bad "tol 0"                  average "${unit3[@]}" --beta 1 --tol 0
 bad "tol -1e-10"             average "${unit3[@]}" --beta 1 --tol -1e-10
 bad "tol nan"                average "${unit3[@]}" --beta 1 --tol nan
@@ -322,20 +333,19 @@ bad "torus N = 12"           average --masses 1,1,1,1,1,1,1,1,1,1,1,1 --lengths 
 bad "method torus"           average "${unit3[@]}" --beta 1 --method torus
 bad "N = 3 counts mismatch"  average --masses 1,1,1 --lengths 1,1 --beta 1
 bad "N = 3 length 0"         average --masses 1,1,1 --lengths 1,0,1 --beta 1 --method qmc
+}
 
-printf 'beta,g,m1,m2,l1\n1,1,0.5,0.5,1\n' >"$work/missing_column.csv"
-printf 'beta,g,m1,m2,l1,l2,T\n1,1,0.5,0.5,1,1,3\n' >"$work/extra_column.csv"
-printf 'm1,m2,l1,l2,g,beta\n0.5,0.5,1,1,1,1\n0.5,0.5,1,1,1,-2\n' >"$work/bad_row.csv"
-printf 'm1,m2,l1,l2,g,beta\n0.5,0.5,1,1\n' >"$work/short_row.csv"
+case:cases.refusals() {
 bad "cases file missing"     average --cases "$work/no_such_file.csv"
 bad "cases missing column"   average --cases "$work/missing_column.csv"
 bad "cases extra column"     average --cases "$work/extra_column.csv"
 bad "cases bad row"          average --cases "$work/bad_row.csv"
-grep -q 'line 3' "$work/err" && pass || fail "cases bad row: stderr does not name line 3"
+expect "cases bad row: stderr names line 3" 'grep -q "line 3" "$work/err"'
 bad "cases short row"        average --cases "$work/short_row.csv"
 bad "cases with --beta"      average --cases "$work/bad_row.csv" --beta 1
 bad "cases is a directory"   average --cases "$work"
 bad "cases --format json"    average --cases "$work/bad_row.csv" --format json
+}
 
 # ---------------------------------------------------------------- good input
 # average --format json: one line, schema 1's keys in their order, reals as JSON numbers with every
@@ -359,9 +369,6 @@ real(o["ratio"], digits)
 assert abs(D(o["beta_K"][0]) + D(o["beta_K"][1]) - 1) < D("1e-12"), "beta<K1> + beta<K2> = 1"
 PY
 }
-good "average json"          'check_average_json 16' average "${pendulum[@]}" --beta 1 --format json
-good "average json, digits 30" 'check_average_json 30' average "${pendulum[@]}" --beta 0.1 --digits 30 --format json
-good "average series json"   'check_average_json 16' average "${pendulum[@]}" --beta 1 --method series --format json
 # CSV: '# schema: 1', '# pendavg average', the header, one row as long as the header.
 check_average_csv() { # N [STATE]
   py - "$work/out" "$1" "${2:-beta}" <<'PY'
@@ -374,9 +381,13 @@ assert head == header("average", int(sys.argv[2]), sys.argv[3]), head
 assert len(rows) == 1, len(rows)
 PY
 }
-good "average csv"           'check_average_csv 2' average "${pendulum[@]}" --beta 1 --format csv
 # csv is every command's default format: the same output as --format csv, but for the run time
 strip_csv_seconds() { sed 's/,[^,]*$//' "$1"; }
+case:average.formats() {
+good "average json"          'check_average_json 16' average "${pendulum[@]}" --beta 1 --format json
+good "average json, digits 30" 'check_average_json 30' average "${pendulum[@]}" --beta 0.1 --digits 30 --format json
+good "average series json"   'check_average_json 16' average "${pendulum[@]}" --beta 1 --method series --format json
+good "average csv"           'check_average_csv 2' average "${pendulum[@]}" --beta 1 --format csv
 run average "${pendulum[@]}" --beta 1 --format csv
 cp "$work/out" "$work/average_csv.csv"
 good "average: csv by default" \
@@ -388,20 +399,13 @@ good "limit: csv by default" \
   '[ "$(strip_csv_seconds "$work/out")" = "$(strip_csv_seconds "$work/limit_csv.csv")" ]' \
   limit --masses 0.5,0.5
 good "average text"          'grep -Eq "^i +beta_K +beta_K_error " "$work/out"' average "${pendulum[@]}" --beta 1 --format text
+}
 
-printf '# shuffled columns\nl2,m1,beta,g,l1,m2\n\n1,0.5,1,1,1,0.5\n1,0.2,10,1,1,0.8\n# comment\n2,1,0.1,9.81,1,3\n' >"$work/cases.csv"
 # The canonical CSV header of schema 1: the inputs, then the results.
 canonical_header() { # KIND (average | cases | table | limit) N [STATE]
   py -c 'import sys, schema1; print(",".join(schema1.header(sys.argv[1], int(sys.argv[2]), sys.argv[3])))' \
     "$1" "$2" "${3:-beta}"
 }
-cases_header=$(canonical_header cases 2)
-good "cases shuffled" \
-  '[ "$(head -1 "$work/out")" = "# schema: 1" ] && [ "$(data "$work/out" | wc -l)" -eq 4 ] &&
-   [ "$(data "$work/out" | head -1)" = "$cases_header" ] && [ "$(data "$work/out" | sed -n 3p | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
-  average --cases "$work/cases.csv"
-good "cases shuffled, digits 20" '[ "$(data "$work/out" | wc -l)" -eq 4 ]' \
-  average --cases "$work/cases.csv" --digits 20
 
 # Every --cases column equals `average --format csv` of the same point: var_K is Var K_i (not
 # beta^2 Var K_i) and each error and kind as printed there; in double and in MPFR.
@@ -425,8 +429,17 @@ for row in rows:
         assert row[key] == single[key], (key, row[key], single[key])
 PY
 }
-if check_cases_as_average 16; then pass; else fail "cases columns = average --format csv (double)"; fi
-if check_cases_as_average 25; then pass; else fail "cases columns = average --format csv (MPFR)"; fi
+case:cases.shuffled() {
+cases_header=$(canonical_header cases 2)
+good "cases shuffled" \
+  '[ "$(head -1 "$work/out")" = "# schema: 1" ] && [ "$(data "$work/out" | wc -l)" -eq 4 ] &&
+   [ "$(data "$work/out" | head -1)" = "$cases_header" ] && [ "$(data "$work/out" | sed -n 3p | cut -d, -f1-6)" = "10,1,0.2,0.8,1,1" ]' \
+  average --cases "$work/cases.csv"
+good "cases shuffled, digits 20" '[ "$(data "$work/out" | wc -l)" -eq 4 ]' \
+  average --cases "$work/cases.csv" --digits 20
+check "cases columns = average --format csv (double)" check_cases_as_average 16
+check "cases columns = average --format csv (MPFR)" check_cases_as_average 25
+}
 
 # --columns LIST: the listed output columns (names or per-particle stems), in that order, each
 # with the same text as in the full output; the input columns stay in front. Bad lists exit 2.
@@ -459,23 +472,19 @@ for a, b in zip(full[1:], some[1:]):
     assert b == [row[schema1_name(name)] for name in expected], (a, b)
 PY
 }
-check_columns 16 beta_K,error_K,ratio,cos_phi,method,evaluations \
-  beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations &&
-  pass || fail "cases --columns: the original seven numbers"
-check_columns 16 beta_K,beta_K_error,ratio,cos_phi,method,evaluations \
-  beta_K1,beta_K2,beta_K1_error,beta_K2_error,ratio,cos_phi1,cos_phi2,method,evaluations &&
-  pass || fail "cases --columns: the original seven numbers, schema 1's names"
-check_columns 16 var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 \
-  var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 &&
-  pass || fail "cases --columns: any order, variance errors before values"
-check_columns 16 var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted \
-  var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted &&
-  pass || fail "cases --columns: any order, schema 1's names"
-check_columns 25 cos_phi_error,ratio_error,equipartition_residual,work_unit \
-  cos_phi1_error,cos_phi2_error,ratio_error,equipartition_residual,work_unit &&
-  pass || fail "cases --columns at 25 digits"
+case:cases.columns() {
+check "cases --columns: the original seven numbers" check_columns 16 beta_K,error_K,ratio,cos_phi,method,evaluations \
+  beta_K1,beta_K2,error_K1,error_K2,ratio,cos_phi1,cos_phi2,method,evaluations
+check "cases --columns: the original seven numbers, schema 1's names" check_columns 16 beta_K,beta_K_error,ratio,cos_phi,method,evaluations \
+  beta_K1,beta_K2,beta_K1_error,beta_K2_error,ratio,cos_phi1,cos_phi2,method,evaluations
+check "cases --columns: any order, variance errors before values" check_columns 16 var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1 \
+  var_K_error2,var_K1,beta_Kc_error_kind,converged,var_K_error1
+check "cases --columns: any order, schema 1's names" check_columns 16 var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted \
+  var_K2_error,var_K1,beta_Kc_error_kind,converged,var_K1_error,beta2_var_K2,interrupted
+check "cases --columns at 25 digits" check_columns 25 cos_phi_error,ratio_error,equipartition_residual,work_unit \
+  cos_phi1_error,cos_phi2_error,ratio_error,equipartition_residual,work_unit
 bad "cases --columns unknown"          average --cases "$work/cases.csv" --columns beta_K,foo
-grep -q "unknown column 'foo'" "$work/err" && pass || fail "cases --columns unknown: message"
+check "cases --columns unknown: message" grep -q "unknown column 'foo'" "$work/err"
 bad "cases --columns twice selected"   average --cases "$work/cases.csv" --columns cos_phi,cos_phi2
 bad "cases --columns empty"            average --cases "$work/cases.csv" --columns ""
 bad "cases --columns empty item"       average --cases "$work/cases.csv" --columns beta_K,,ratio
@@ -486,20 +495,22 @@ printf 'excitation,g,m1,m2,l1,l2\n1,1,1,1,1,1\n' >"$work/micro_cases.csv"
 good "cases --columns, microcanonical" \
   '[ "$(data "$work/out" | head -1)" = "excitation,g,m1,m2,l1,l2,K2,density_of_states,energy" ] && [ "$(data "$work/out" | tail -1 | tr , "\n" | wc -l)" -eq 9 ]' \
   average --cases "$work/micro_cases.csv" --columns K2,density_of_states,energy
+}
 
 # --cases --timing: stdout unchanged, one summary line on stderr (its presence and format, not
 # its numbers); --timing-rows FILE: one CSV line per row with its file line. Bad uses exit 2.
-run average --cases "$work/cases.csv"
-cp "$work/out" "$work/cases_out.csv"
-timing_line='^pendavg: timing: rows=3 median_us=[0-9]+\.[0-9]{3} p90_us=[0-9]+\.[0-9]{3} worst_us=[0-9]+\.[0-9]{3} worst_row=[0-2] worst_line=(4|5|7) threads=[1-9][0-9]* timer_us=[0-9]+\.[0-9]{3} \(thread CPU time per row, row to formatted line, timer overhead subtracted\)$'
 check_timing() { # ARGS...: stdout as in $work/cases_out.csv, stderr one summary line
   run average --cases "$work/cases.csv" "$@"
   [ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/cases_out.csv" &&
     [ "$(wc -l <"$work/err")" -eq 1 ] && grep -Eq "$timing_line" "$work/err"
 }
-check_timing --timing && pass || fail "cases --timing: stdout or the stderr summary line"
-check_timing --timing-rows "$work/rows.csv" &&
-  "$python" - "$work/rows.csv" <<'PY' && pass || fail "cases --timing-rows: file"
+case:cases.timing() {
+run average --cases "$work/cases.csv"
+cp "$work/out" "$work/cases_out.csv"
+timing_line='^pendavg: timing: rows=3 median_us=[0-9]+\.[0-9]{3} p90_us=[0-9]+\.[0-9]{3} worst_us=[0-9]+\.[0-9]{3} worst_row=[0-2] worst_line=(4|5|7) threads=[1-9][0-9]* timer_us=[0-9]+\.[0-9]{3} \(thread CPU time per row, row to formatted line, timer overhead subtracted\)$'
+check "cases --timing: stdout and the stderr summary line" check_timing --timing
+check "cases --timing-rows: stdout and the stderr summary line" check_timing --timing-rows "$work/rows.csv"
+check "cases --timing-rows: file" "$python" - "$work/rows.csv" <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 assert [r["row"] for r in rows] == ["0", "1", "2"], rows
@@ -508,16 +519,18 @@ float(rows[0]["us"])
 PY
 run average --cases "$work/cases.csv" --digits 20
 cp "$work/out" "$work/cases_out.csv"
-check_timing --timing --digits 20 && pass || fail "cases --timing --digits 20"
+check "cases --timing --digits 20" check_timing --timing --digits 20
 bad "cases --timing without --cases"   average "${pendulum[@]}" --beta 1 --timing
 bad "cases --timing-rows without --cases" average "${pendulum[@]}" --beta 1 --timing-rows "$work/r.csv"
 bad "cases --timing=1"                 average --cases "$work/cases.csv" --timing=1
 bad "cases --timing twice"             average --cases "$work/cases.csv" --timing --timing
 bad "cases --timing-rows unwritable"   average --cases "$work/cases.csv" --timing-rows /nonexistent/rows.csv
 bad "cases --timing, bad row"          average --cases "$work/bad_row.csv" --timing
-grep -q 'line 3' "$work/err" && pass || fail "cases --timing, bad row: stderr does not name line 3"
+expect "cases --timing, bad row: stderr names line 3" 'grep -q "line 3" "$work/err"'
+}
 
 # Rows run in blocks of 256 on all cores: 600 rows give the same bytes on 1 and 2 threads.
+case:cases.threads() {
 "$python" - "$work/many.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -527,8 +540,9 @@ with open(sys.argv[1], "w") as f:
 PY
 OMP_NUM_THREADS=1 "$pendavg" average --cases "$work/many.csv" >"$work/many1.csv" 2>/dev/null
 OMP_NUM_THREADS=2 "$pendavg" average --cases "$work/many.csv" >"$work/many2.csv" 2>/dev/null
-[ "$(data "$work/many1.csv" | wc -l)" -eq 601 ] && cmp -s "$work/many1.csv" "$work/many2.csv" && pass ||
-  fail "cases 600 rows: 1 and 2 threads differ"
+expect "cases 600 rows: 1 and 2 threads give the same bytes" \
+  '[ "$(data "$work/many1.csv" | wc -l)" -eq 601 ] && cmp -s "$work/many1.csv" "$work/many2.csv"'
+}
 
 # ---------------------------------------------------------------- any N
 check_any_n_json() { # N
@@ -570,8 +584,10 @@ for value, prefix in zip(o["beta_K"], ("0.32908723613784", "0.48318092191398", "
 assert has_prefix(o["ratio"], "0.681084912943"), o["ratio"]
 PY
 }
+# text: the per-particle table of the results (its header ends with diagonal_approx), one row per particle
+text_rows() { awk '/^i .*diagonal_approx$/ { on = 1; next } on && /^ *[0-9]+  / { ++rows; next } { on = 0 } END { print rows + 0 }' "$1"; }
+case:average.any_n() {
 good "N = 3 unit chain"      check_unit3 average "${unit3[@]}" --beta 1 --format json
-cp "$work/out" "$work/unit3.json"
 # 1/6 to the 16 digits the old check read (1.666666666666667e-01)
 good "N = 3 diagonal approx" \
   'check_any_n_json 3 && py -c "import sys; from schema1 import *; o = load(sys.argv[1]); assert round(D(o[\"diagonal_approx\"][0]), 16) == D(\"0.1666666666666667\"), o" "$work/out"' \
@@ -584,11 +600,10 @@ good "N = 1"                 \
   average --masses 2 --lengths 3 --beta 0.7 --format json
 good "N = 4 csv"             'check_average_csv 4' \
   average --masses 1,2,3,4 --lengths 1,1,1,1 --beta 1 --format csv
-# text: the per-particle table of the results (its header ends with diagonal_approx), one row per particle
-text_rows() { awk '/^i .*diagonal_approx$/ { on = 1; next } on && /^ *[0-9]+  / { ++rows; next } { on = 0 } END { print rows + 0 }' "$1"; }
 good "N = 3 text"            '[ "$(text_rows "$work/out")" -eq 3 ]' \
   average "${unit3[@]}" --beta 1 --format text
 good "N = 2 json extras"     'check_any_n_json 2' average "${pendulum[@]}" --beta 1 --format json
+}
 
 # The any-N engines against the N = 2 engine: torus rules to 1e-12 relative, qmc within its bar.
 check_agree() { # REFERENCE CANDIDATE TOLERANCE ("bar": within the candidate's error bars)
@@ -607,6 +622,7 @@ for key in ("beta_K", "cos_phi", "var_K"):
             assert abs(x - y) <= Decimal(tolerance) * abs(x), (key, x, y)
 PY
 }
+case:average.engines_agree() {
 for params in "0.5,0.5 1,1 1 1" "0.2,0.8 1,2 10 9.81" "3,0.01 2,0.5 0.05 1"; do
   read -r m l b g <<<"$params"
   run average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --format json
@@ -618,9 +634,12 @@ for params in "0.5,0.5 1,1 1 1" "0.2,0.8 1,2 10 9.81" "3,0.01 2,0.5 0.05 1"; do
   good "N = 2 qmc vs default ($params)" 'check_agree "$work/reference.json" bar' \
     average --masses "$m" --lengths "$l" --beta "$b" --g "$g" --method qmc --samples 4096 --format json
 done
+}
 
 # qmc: deterministic for a seed (all but the wall time), and its bars cover the exact values.
 strip_seconds() { sed 's/"seconds": [^,}]*//' "$1"; }
+case:average.qmc_seeds() {
+unit3_reference  # (qmc N = 3 covers exact)
 run average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096 --format json
 cp "$work/out" "$work/qmc1.json"
 good "qmc N = 3 deterministic" '[ "$(strip_seconds "$work/out")" = "$(strip_seconds "$work/qmc1.json")" ]' \
@@ -636,11 +655,10 @@ for x, y, e in zip(map(D, q[\"beta_K\"]), map(D, exact[\"beta_K\"]), map(D, q[\"
   average "${unit3[@]}" --beta 1 --method qmc --seed 12345 --samples 4096 --format json
 good "qmc N = 3 other seed differs" '[ "$(strip_seconds "$work/out")" != "$(strip_seconds "$work/qmc1.json")" ]' \
   average "${unit3[@]}" --beta 1 --method qmc --seed 12346 --samples 4096 --shifts 8 --format json
+}
 
 # --cases with N = 3 columns in any order: canonical input columns, then N = 3 results that
 # match the single-case command.
-printf 'l3,m2,beta,l1,g,m3,m1,l2\n1,1,1,1,1,1,1,1\n2,1,0.5,1,9.81,3,2,1\n' >"$work/cases3.csv"
-cases3_header=$(canonical_header cases 3)
 check_cases3() {
   [ "$(data "$work/out" | wc -l)" -eq 3 ] && [ "$(data "$work/out" | head -1)" = "$cases3_header" ] &&
     [ "$(data "$work/out" | sed -n 3p | cut -d, -f1-8)" = "0.5,9.81,2,1,3,1,1,2" ] &&
@@ -654,6 +672,9 @@ assert [rows[0]["beta_K%d" % i] for i in (1, 2, 3)] == [text(v) for v in exact["
 assert rows[0]["ratio"] == text(exact["ratio"])
 PY
 }
+case:cases.any_n() {
+unit3_reference  # (cases N = 3 shuffled)
+cases3_header=$(canonical_header cases 3)
 good "cases N = 3 shuffled"  check_cases3 average --cases "$work/cases3.csv"
 good "cases N = 3 qmc"       '[ "$(data "$work/out" | wc -l)" -eq 3 ] && [ "$(cols "$work/out" method | head -1)" = qmc ]' \
   average --cases "$work/cases3.csv" --method qmc --samples 1024 --seed 3
@@ -667,7 +688,8 @@ bad "cases column m02"          average --cases "$work/cases3_m02.csv"
 bad "cases N = 3 series"        average --cases "$work/cases3.csv" --method series
 bad "cases N = 3 seed, torus"   average --cases "$work/cases3.csv" --seed 4
 bad "cases N = 3 bad row"       average --cases "$work/cases3_bad_row.csv"
-grep -q 'line 3: m3' "$work/err" && pass || fail "cases N = 3 bad row: stderr does not name line 3, m3"
+expect "cases N = 3 bad row: stderr names line 3, m3" 'grep -q "line 3: m3" "$work/err"'
+}
 
 check_limit() { # DIGITS
   py - "$work/out" "$1" <<'PY'
@@ -682,9 +704,6 @@ value = real(o["high_temperature"]["beta_K"][0], digits)
 assert has_prefix(value, "0.3431834814709"), value
 PY
 }
-good "limit paper value"     'check_limit 16' limit --masses 0.5,0.5 --format json
-good "limit paper value, digits 40" 'check_limit 40' limit --masses 0.5,0.5 --digits 40 --format json
-good "limit text"            '[ -s "$work/out" ]' limit --masses 0.5,0.5 --format text
 check_limit_any() { # N: beta -> 0 sums to N/2; beta -> infinity is 1/2 each
   py - "$work/out" "$1" <<'PY'
 import sys
@@ -698,24 +717,30 @@ assert abs(total - Decimal(n) / 2) <= bars + Decimal("1e-13"), (total, bars)
 assert all(D(x) == Decimal("0.5") for x in l["beta_K"])
 PY
 }
+case:limit.values() {
+good "limit paper value"     'check_limit 16' limit --masses 0.5,0.5 --format json
+good "limit paper value, digits 40" 'check_limit 40' limit --masses 0.5,0.5 --digits 40 --format json
+good "limit text"            '[ -s "$work/out" ]' limit --masses 0.5,0.5 --format text
 good "limit N = 3"             'check_limit_any 3' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format json
 good "limit N = 7 (transfer)"  'check_limit_any 7' limit --masses 1,1,1,1,1,1,1 --format json
 bad "limit N = 6 at 20 digits" limit --masses 1,1,1,1,1,1 --digits 20
+}
 
 # text reports: `name = value` of the scalars, comma separated on one line (count_scalar FILE
 # NAME VALUE: how many lines hold it)
 count_scalar() { grep -Ec "(^|, )$2 = $3(,|\$)" "$1"; }
 
 # series: the run, then one row per term (text: a table under the field names)
+case:series.output() {
 good "series 5 terms text" \
   '[ "$(awk "/^n /{t=1; next} /^seconds = /{t=0} t" "$work/out" | grep -c "^ *[0-9]")" -eq 5 ] && [ "$(count_scalar "$work/out" terms 5)" -eq 1 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5 --format text
 good "series 5 terms csv" \
   '[ "$(head -2 "$work/out")" = "$(printf "# schema: 1\n# pendavg series")" ] && [ "$(grep -vc "^#" "$work/out")" -eq 6 ]' \
   series "${pendulum[@]}" --beta 1 --terms 5
+}
 
 # table: a small sweep's rows (every combination, in a fixed order) and its '#' header.
-table_header=$(canonical_header table 2)
 check_table() {
   "$python" -c '
 import csv, sys
@@ -737,6 +762,8 @@ for r in rows:
     assert 0 <= k1 <= 0.5 <= k2 <= 1 and abs(k1 + k2 - 1) < 1e-14, r
 ' "$1" "$table_header"
 }
+case:table.basics() {
+table_header=$(canonical_header table 2)
 good "table sweep to stdout"  'check_table "$work/out"' \
   table --beta log:1e-3:1e3:7 --mu1 0.05,0.95 --l2 0.5,2
 good "table sweep to file"    '[ ! -s "$work/out" ] && check_table "$work/table.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
@@ -752,13 +779,14 @@ good "table digits 30"        '[ "$(cols "$work/out" beta_K1 | wc -c)" -eq 36 ] 
   table --beta 1 --mu1 1e-4 --digits 30
 good "table chain 3"          '[ "$(grep -v "^#" "$work/out" | wc -l)" -eq 3 ] && grep -q "diagonal_approx3" "$work/out"' \
   table --chain 3 --beta 0.1,1
-touch "$work/plain_file"
+}
+case:table.refusals() {
 bad "table unwritable dir"    table --beta 1 --output "$work/plain_file/t.csv"
-[ -f "$work/plain_file" ] && [ -z "$(ls "$work" | grep tmp)" ] && pass || fail "table unwritable dir left a file"
+expect "table unwritable dir: no file left" '[ -f "$work/plain_file" ] && [ -z "$(ls "$work" | grep tmp)" ]'
 bad "table missing dir"       table --beta 1 --output "$work/no/such/dir/t.csv"
 bad "table output is a dir"   table --beta 1 --output "$work"
 bad "table bad point"         table --beta 1 --l2 0 --output "$work/bad.csv"
-[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep 'bad.csv')" ] && pass || fail "table bad point left a file"
+expect "table bad point: no file left" '[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep "bad.csv")" ]'
 bad "table no beta"           table --mu1 0.5
 bad "table log reversed"      table --beta log:10:1:5
 bad "table log from 0"        table --beta log:0:1:5
@@ -785,12 +813,15 @@ bad "table chain integral"    table --chain 3 --beta 1 --method integral
 bad "table energy transfer"   table --chain 5 --energy 0 --method transfer
 bad "table energy series"     table --energy 0 --method series
 bad "table unknown method"    table --beta 1 --method simpson
+}
+case:table.methods() {
 good "table chain torus-gauss" 'grep -q "^3,16," "$work/out"' table --chain 3 --beta 1 --method torus-gauss --tol 1e-8
 good "table pendulum torus"   'grep -q "^2,16," "$work/out"' table --beta 1 --method torus-trapezoid --tol 1e-10
 # Microcanonical qmc runs as far as its lattices go (N <= 256), from the CLI as from the library.
 good "micro qmc N = 40"       'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert o[\"N\"] == 40 and len(o[\"K\"]) == 40" "$work/out"' \
   average --masses "$(printf '1%.0s,' {1..39})1" --lengths "$(printf '1%.0s,' {1..39})1" --energy 0 --samples 1024 --shifts 8 --format json
 good "table --help"           'grep -q "usage" "$work/out"' table --help
+}
 
 # table: lists of N, digits and g (issue 5). check_mixed_table FILE: a table of chains N = 3 and
 # 5 at digits 16 and 20 (N = 5 runs transfer: digits 16 only) and g = 1, 2, with the mixed-N
@@ -838,6 +869,7 @@ for lo, hi in ((rows[0], rows[2]), (rows[1], rows[3])):
         assert D(hi[f"beta_K{i}_error"]) < D("1e-18"), hi[f"beta_K{i}_error"]
 PY
 }
+case:table.lists() {
 mixed_table=(table --chain 3,5 --beta 0.5 --g 1,2 --digits 16,20)
 good "table lists of N, digits, g"   'check_mixed_table "$work/out"' "${mixed_table[@]}"
 good "table mixed N to file"         '[ ! -s "$work/out" ] && check_mixed_table "$work/mixed.csv" && [ -z "$(ls "$work" | grep tmp)" ]' \
@@ -845,6 +877,7 @@ good "table mixed N to file"         '[ ! -s "$work/out" ] && check_mixed_table 
 good "table mixed N with 1 thread" \
   'OMP_NUM_THREADS=1 "$pendavg" "${mixed_table[@]}" | grep -v generated >"$work/t1" &&
    grep -v generated "$work/out" | cmp -s - "$work/t1"' "${mixed_table[@]}"
+}
 
 # beta<K_i>, <cos phi_i>, <K1>/<K2> and beta^2 Var K_i depend on beta and g only through beta g
 # (fixed masses and lengths): the row beta = 2, g = 1 equals the row beta = 1, g = 2 to
@@ -882,8 +915,6 @@ for key, r in at.items():
             assert abs(D(r[f"beta_K{i}"]) - D(hi[f"beta_K{i}"])) <= D(r[f"beta_K{i}_error"]), (key, i)
 PY
 }
-good "table beta g scaling"          'check_beta_g "$work/out"' \
-  table --beta 1,2 --g 0,1,2 --digits 16,30 --mu1 0.3 --l1 1.5 --l2 0.7
 check_chain_beta_g() { # FILE: chain N = 3 by the torus, beta = 2, g = 1 vs beta = 1, g = 2
   "$python" - "$1" <<'PY'
 import csv, sys
@@ -896,6 +927,9 @@ for i in (1, 2, 3):
     assert abs(float(a[f"cos_phi{i}"]) - float(b[f"cos_phi{i}"])) <= 1e-12, i
 PY
 }
+case:table.beta_g() {
+good "table beta g scaling"          'check_beta_g "$work/out"' \
+  table --beta 1,2 --g 0,1,2 --digits 16,30 --mu1 0.3 --l1 1.5 --l2 0.7
 good "table chain beta g scaling"    'check_chain_beta_g "$work/out"' \
   table --chain 3 --beta 1,2 --g 1,2
 good "table g range innermost" \
@@ -905,6 +939,8 @@ good "table single N, no empty cells" \
   '! grep -v "^#" "$work/out" | grep -q ",," && ! grep -q "cells beyond" "$work/out" &&
    [ "$(data "$work/out" | head -1 | tr "," "\n" | grep -cx "beta_K[0-9]*")" -eq 3 ]' \
   table --chain 3 --beta 1
+}
+case:table.qmc_transfer() {
 # qmc options are recorded and used: the table's row is the row of `average` with the same
 # options (qmc's numbers do not depend on the thread count).
 good "table qmc options" \
@@ -926,14 +962,16 @@ good "table transfer tolerance" \
 good "table chain 300 (transfer)" \
   '[ "$(grep -v "^#" "$work/out" | sed 1d | tr "," "\n" | grep -c "^transfer$")" -eq 1 ]' \
   table --chain 300 --beta 1 --tol 1e-4
+}
 
 # bad_table NAME ARGS...: bad input with --output: exit 2, one line, and no file left behind.
 bad_table() {
   local name=$1
   shift
   bad "$name" table "$@" --output "$work/never.csv"
-  [ -z "$(ls "$work" | grep never)" ] || fail "$name: left a file"
+  expect "$name: no file left" '[ -z "$(ls "$work" | grep never)" ]'
 }
+case:table.list_refusals() {
 bad_table "table negative g"         --beta 1 --g -1
 bad_table "table negative g in list" --chain 3 --beta 1 --g 1,-0.5
 bad_table "table negative g range"   --beta 1 --g lin:-1:1:3
@@ -970,7 +1008,8 @@ bad_table "table samples, series"    --beta 1 --method series --samples 1024
 bad "table mixed unwritable"         table --chain 3,5 --beta 1 --output "$work/plain_file/t.csv"
 bad "table mixed missing dir"        table --chain 3,5 --beta 1 --output "$work/no/such/dir/t.csv"
 bad "table g sweep bad point"        table --beta 1 --g 1,2 --l2 0 --output "$work/bad.csv"
-[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep 'bad.csv')" ] && pass || fail "table g sweep bad point left a file"
+expect "table g sweep bad point: no file left" '[ ! -e "$work/bad.csv" ] && [ -z "$(ls "$work" | grep "bad.csv")" ]'
+}
 
 # ---------------------------------------------------------------- simulate and poincare
 check_simulate_json() { # ENSEMBLE N
@@ -990,10 +1029,6 @@ for i in range(n):
     assert abs(d["K"][i] - d["exact_K"][i]) <= 4 * math.hypot(d["K_error"][i], d["exact_K_error"][i]), i
 PY
 }
-good "simulate nve json"    'check_simulate_json microcanonical 2' \
-  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300 --format json
-good "simulate langevin"    'check_simulate_json canonical 2' \
-  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3 --format json
 # CSV (the default): one row with the per-particle columns K1..KN, K1_error..KN_error, ...
 check_simulate_csv_row() { # N
   "$python" - "$work/out" "$1" <<'PY'
@@ -1011,16 +1046,40 @@ assert all(float(r[f"K{i}"]) > 0 and float(r[f"K{i}_error"]) > 0 for i in range(
 assert all(r[f"exact_K{i}"] == "" for i in range(1, n + 1)), r  # --exact no
 PY
 }
+case:simulate.output() {
+good "simulate nve json"    'check_simulate_json microcanonical 2' \
+  simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300 --format json
+good "simulate langevin"    'check_simulate_json canonical 2' \
+  simulate --masses 1,1 --lengths 1,1 --theta 0 --time 300 --thermostat langevin --beta 0.5 --seed 3 --format json
 good "simulate csv"         'check_simulate_csv_row 3' \
   simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 20 --exact no
 run simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work/traj.csv" --every 100 --exact no
 if [ "$rc" -eq 0 ] && [ "$(grep -c . "$work/traj.csv")" -eq 14 ] && head -1 "$work/traj.csv" | grep -qx '# schema: 1' \
    && sed -n 3p "$work/traj.csv" | grep -q '^t,E,phi1,phi2,phidot1,phidot2$' \
-   && [ -z "$(ls "$work" | grep 'traj.csv.tmp')" ]; then pass; else fail "simulate trajectory file"; fi
+   && [ -z "$(ls "$work" | grep 'traj.csv.tmp')" ]; then pass
+else fail "simulate trajectory file" "exit 0, 14 lines: '# schema: 1', the column line t,E,phi1,phi2,phidot1,phidot2, the rows; no temporary" "exit $rc, $(grep -c . "$work/traj.csv" 2>&1) lines, columns $(sed -n 3p "$work/traj.csv" 2>&1)"; fi
 # --output FILE: written atomically, nothing on stdout
 run simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --exact no --format json --output "$work/simulate.json"
 if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && "$python" -c "import json, sys; d = json.load(open(sys.argv[1])); assert d['schema'] == 1 and d['command'] == 'simulate' and len(d['K']) == 2" "$work/simulate.json" \
-   && [ -z "$(ls "$work" | grep 'simulate.json.tmp')" ]; then pass; else fail "simulate --output"; fi
+   && [ -z "$(ls "$work" | grep 'simulate.json.tmp')" ]; then pass
+else fail "simulate --output" "exit 0, nothing on stdout, the JSON in the file, no temporary" "exit $rc"; fi
+# simulate: exact values with every digit of the double (the shortest text that reads back as
+# the same double, not rounded to fewer digits)
+good "simulate exact full digits" '"$python" -c "
+import json, sys
+from decimal import Decimal
+o = json.load(open(sys.argv[1]))
+digits = lambda v: sum(c.isdigit() for c in v.lower().split(\"e\")[0].lstrip(\"0.-\"))
+raw = open(sys.argv[1]).read()
+import re
+k = re.search(r\"\\\"exact_K\\\": \\[([^]]*)\\]\", raw).group(1).split(\", \")
+assert all(Decimal(v) == Decimal(repr(float(v))) for v in k), k
+assert max(digits(v) for v in k) >= 15, k
+assert o[\"exact_excitation\"] > 0 and len(o[\"exact_var_K\"]) == 2, o
+assert abs(o[\"exact_excitation\"] - (o[\"energy\"] + 3)) < 1e-8, o
+" "$work/out"' simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 50 --format json
+}
+case:simulate.refusals() {
 bad "simulate unwritable output" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --output /nonexistent/s.csv
 bad "simulate no time"         simulate --masses 1,1 --lengths 1,1 --theta 1
 bad "simulate theta and phi"   simulate --masses 1,1 --lengths 1,1 --theta 1 --phi 1,1 --time 1
@@ -1041,6 +1100,8 @@ bad "simulate bad integrator"  simulate --masses 1,1 --lengths 1,1 --theta 1 --t
 bad "simulate every alone"     simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --every 10
 bad "simulate unwritable traj" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory /nonexistent/t.csv --every 1
 bad "simulate traj directory"  simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --trajectory "$work" --every 1
+}
+case:signals.simulate() {
 # SIGINT ends a run cleanly: exit 0, the averages so far, "interrupted": true.
 "$pendavg" simulate --masses 1,1,1,1 --lengths 1,1,1,1 --theta 90deg --time 1e6 --exact no --format json >"$work/out" 2>"$work/err" &
 pid=$!
@@ -1049,7 +1110,8 @@ kill -INT "$pid"
 wait "$pid"
 rc=$?
 if [ "$rc" -eq 0 ] && "$python" -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['interrupted'] and 0 < d['steps'] < 10**9 and len(d['K']) == 4" "$work/out" \
-   && grep -q "interrupted" "$work/err"; then pass; else fail "simulate SIGINT"; fi
+   && grep -q "interrupted" "$work/err"; then pass
+else fail "simulate SIGINT" "exit 0, JSON with interrupted true and 0 < steps < 1e9, 'interrupted' on stderr" "exit $rc (the check's message, if any, above)"; fi
 # Issue 11: interrupted long before its blocks fill, a run reports unknown error bars (null and
 # a reason), never 0; the exact values are still printed.
 "$pendavg" simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --time 1e9 --format json >"$work/out" 2>"$work/err" &
@@ -1064,7 +1126,10 @@ d = json.load(open(sys.argv[1]))
 assert d['interrupted'] and d['K_error'] == [None, None] and d['error_reason'], d
 assert d['K_deviation_sigmas'] == [None, None] and len(d['exact_K']) == 2
 assert 'nan' not in open(sys.argv[1]).read().lower()
-" "$work/out"; then pass; else fail "simulate SIGINT before the blocks fill"; fi
+" "$work/out"; then pass
+else fail "simulate SIGINT before the blocks fill" "exit 0, null errors with a reason, no nan" "exit $rc (the check's message, if any, above)"; fi
+}
+case:signals.series() {
 # SIGINT during the series' Bessel table: exit 130, one line, nothing on stdout.
 "$pendavg" series --masses 1,100 --lengths 1,1 --beta 1 >"$work/out" 2>"$work/err" &
 pid=$!
@@ -1072,16 +1137,18 @@ sleep 1
 kill -INT "$pid"
 wait "$pid"
 rc=$?
-if [ "$rc" -eq 130 ] && [ ! -s "$work/out" ] && grep -q '^pendavg: interrupted: ' "$work/err"; then pass; else fail "series SIGINT"; fi
+if [ "$rc" -eq 130 ] && [ ! -s "$work/out" ] && grep -q '^pendavg: interrupted: ' "$work/err"; then pass
+else fail "series SIGINT" "exit 130, nothing on stdout, 'pendavg: interrupted: ' on stderr" "exit $rc"; fi
+}
+case:series.refusals() {
 bad "series beyond the term cap" series --masses 1,1e3 --lengths 1,1 --beta 1
 # A light first particle: the refusal names mu2 = 1 - mu1 (not "1") and the a priori term
 # count (~ln(tol mu1^2 / 2) / ln mu2 = 7.9e13 for mu1 = 1e-12; it stopped at 2^40 + 1).
 bad "series, mu1 = 1e-12: refused" series --masses 1e-12,1 --lengths 1,1 --beta 1
-if grep -Eq 'mu2 = 1 - 1e-12 converges like mu2\^n: about [1-9][0-9]{13} terms' "$work/err"; then
-  pass
-else
-  fail "series, mu1 = 1e-12: message"
-fi
+expect "series, mu1 = 1e-12: the message names mu2 and the term count" \
+  'grep -Eq "mu2 = 1 - 1e-12 converges like mu2\^n: about [1-9][0-9]{13} terms" "$work/err"'
+}
+case:signals.average() {
 # SIGINT during a long torus run: the last finished level, "interrupted": true, errors covering.
 "$pendavg" average --masses 1,1,1,1 --lengths 1,1,1,1 --beta 1e3 --digits 30 --format json >"$work/out" 2>"$work/err" &
 pid=$!
@@ -1095,7 +1162,9 @@ d = json.load(open(sys.argv[1]))
 assert d['interrupted'] and not d['converged'], d
 exact = 0.4991310458913583  # the converged double value (error ~3e-14)
 assert abs(float(d['beta_K'][0]) - exact) <= float(d['beta_K_error'][0]), d
-" "$work/out"; then pass; else fail "average SIGINT"; fi
+" "$work/out"; then pass
+else fail "average SIGINT" "exit 0, interrupted and not converged, beta_K1 within its error of 0.4991310458913583" "exit $rc (the check's message, if any, above)"; fi
+}
 # Issue 11: one big qmc point, a long transfer run and a long microcanonical run stop within
 # seconds of SIGINT (polled between lattice chunks, between links, every 256 nodes): exit 0 with
 # what they finished ("interrupted": true, not converged), or 130 and one line when nothing
@@ -1114,7 +1183,7 @@ interrupt_within() { # NAME SECONDS_BEFORE_SIGNAL ARGS... (env limit_tenths: the
   if kill -0 "$pid" 2>/dev/null; then
     kill -KILL "$pid"
     wait "$pid"
-    fail "$name: still running $((limit / 10)) s after SIGINT"
+    fail "$name" "ended within $((limit / 10)) s of SIGINT" "still running"
     return
   fi
   wait "$pid"
@@ -1129,10 +1198,11 @@ assert d['interrupted'] and not d['converged'], d
 " "$work/out"; then
     pass
   else
-    fail "$name: exit $rc"
+    fail "$name" "exit 130 and one line, or exit 0 with interrupted true and not converged" "exit $rc (the check's message, if any, above)"
   fi
 }
 ones() { printf '1%.0s,' $(seq 2 "$1"); printf '1'; }
+case:signals.qmc_text() {
 # The text format says so too: a qmc run of 64 short shifts stopped once its progress shows a
 # finished shift (4% of the points: more than two shifts' worth, so one is finished on up to two
 # threads; a fixed 3 s was not always enough on a loaded machine) reports the shifts it
@@ -1151,14 +1221,25 @@ if [ "$rc" -eq 0 ] && [ "$(count_scalar "$work/out" converged false)" -eq 1 ] &&
    [ "$(count_scalar "$work/out" interrupted true)" -eq 1 ]; then
   pass
 else
-  fail "average --format text, interrupted: marked (exit $rc)"
+  fail "average --format text, interrupted: marked" "exit 0, 'converged = false' and 'interrupted = true' once each" \
+    "exit $rc, $(count_scalar "$work/out" converged false) and $(count_scalar "$work/out" interrupted true)"
 fi
+}
+case:signals.qmc() {
 interrupt_within "qmc N = 64 at 2^20 points: SIGINT" 2 \
   average --masses "$(ones 64)" --lengths "$(ones 64)" --beta 1 --method qmc --samples 1048576
+}
+case:signals.transfer() {
 interrupt_within "transfer N = 4096: SIGINT" 2 \
   average --masses "$(ones 4096)" --lengths "$(ones 4096)" --beta 1 --tol 1e-12
+}
+case:signals.microcanonical() {
 interrupt_within "microcanonical N = 4 at 20 digits: SIGINT" 2 \
   average --masses 1,1,1,1 --lengths 1,1,1,1 --energy 0 --digits 20
+interrupt_within "microcanonical qmc N = 64: SIGINT" 2 \
+  average --masses "$(ones 64)" --lengths "$(ones 64)" --energy 0 --samples 65536 --shifts 1024
+}
+case:signals.torus() {
 # A torus level at N = 10 takes seconds (its first: 8^9 nodes; at N = 8 and 9 the work cap now
 # ends the run after a first level of ~1-2 s, before the signal) and its outermost slices ~1/16
 # of it: the stop request is polled before every innermost row of nodes (it took 4-5 s, the end
@@ -1167,8 +1248,8 @@ for rule in torus-trapezoid torus-gauss; do
   limit_tenths=20 interrupt_within "$rule N = 10, SIGINT inside a level of seconds" 2 \
     average --masses "$(ones 10)" --lengths "$(ones 10)" --beta 1 --method "$rule" --tol 1e-12
 done
-interrupt_within "microcanonical qmc N = 64: SIGINT" 2 \
-  average --masses "$(ones 64)" --lengths "$(ones 64)" --energy 0 --samples 65536 --shifts 1024
+}
+case:input.double_range() {
 # The microcanonical engine's double range is checked before any work, with advice that works.
 bad "micro energy 1e308"       average --masses 1,1 --lengths 1,1 --energy 1e308
 bad "micro excitation 1e300"   average --masses 1 --lengths 1 --excitation 1e300
@@ -1184,7 +1265,9 @@ bad "transfer mass ratio 1e200" average --masses 1e-100,1e100,1,1e-100,1e100 --l
 bad "simulate dt 10"           simulate --masses 1,1 --lengths 1,1 --phi 1,0 --phidot 0,0 --dt 10 --time 100
 bad "simulate phidot 1e10"     simulate --masses 1,1 --lengths 1,1 --phi 0,0 --phidot 1e10,0 --time 1
 bad "simulate at rest, bottom" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 3000000
+}
 
+case:signals.table() {
 # SIGINT ends a long table sweep cleanly: exit 0, the finished rows written after an
 # '# interrupted' line, atomically to --output.
 "$pendavg" table --beta log:1:1000:60 --mu1 0.001 --digits 1000 --output "$work/partial.csv" 2>"$work/err" &
@@ -1195,7 +1278,9 @@ wait "$pid"
 rc=$?
 if [ "$rc" -eq 0 ] && grep -q '^# interrupted: [0-9]* of 60 points computed' "$work/partial.csv" \
    && [ "$(grep -c '^2,' "$work/partial.csv")" -lt 60 ] && [ -z "$(ls "$work" | grep 'partial.csv.tmp')" ] \
-   && grep -q "interrupted" "$work/err"; then pass; else fail "table SIGINT"; fi
+   && grep -q "interrupted" "$work/err"; then pass
+else fail "table SIGINT" "exit 0, '# interrupted: K of 60 points computed', fewer than 60 rows, no temporary, 'interrupted' on stderr" "exit $rc"; fi
+}
 
 check_poincare() { # POINTS
   "$python" - "$work/out" "$1" <<'PY'
@@ -1212,16 +1297,20 @@ assert all(-math.pi <= r[1] <= math.pi for r in data)
 assert all(r[2] ** 2 <= 2 * (-2.5 + 2 + math.cos(r[1])) + 1e-9 for r in data)
 PY
 }
+case:poincare.output() {
 good "poincare csv"            'check_poincare 40' poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 4 --points 10
 run poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 2 --points 5 --output "$work/section.csv"
 if [ "$rc" -eq 0 ] && [ ! -s "$work/out" ] && [ "$(grep -c '^[0-9]' "$work/section.csv")" -eq 10 ] \
-   && head -1 "$work/section.csv" | grep -qx '# schema: 1'; then pass; else fail "poincare --output"; fi
+   && head -1 "$work/section.csv" | grep -qx '# schema: 1'; then pass
+else fail "poincare --output" "exit 0, nothing on stdout, 10 rows after '# schema: 1' in the file" "exit $rc"; fi
 good "poincare json"           '"$python" -c "
 import json, sys
 d = json.load(open(sys.argv[1]))
 assert d[\"schema\"] == 1 and d[\"command\"] == \"poincare\" and d[\"orbits\"] == 2 and d[\"points_per_orbit\"] == 3
 assert len(d[\"points\"]) == 6 and all(set(p) == {\"orbit\", \"phi2\", \"p2\", \"time\"} for p in d[\"points\"])
 " "$work/out"' poincare --masses 1,1 --lengths 1,1 --energy -2.5 --orbits 2 --points 3 --format json
+}
+case:poincare.refusals() {
 bad "poincare bad format"      poincare --masses 1,1 --lengths 1,1 --energy 0 --format xml
 bad "poincare N = 3"           poincare --masses 1,1,1 --lengths 1,1,1 --energy 0
 bad "poincare below minimum"   poincare --masses 1,1 --lengths 1,1 --energy -3
@@ -1236,23 +1325,23 @@ done
 bad "poincare heavy mass"      poincare --masses 1,1e308 --lengths 1,1 --energy 1 --orbits 2 --points 5
 bad "poincare long link"       poincare --masses 1,1 --lengths 1,1e308 --energy 1 --orbits 2 --points 5
 bad "poincare dt 1e-320"       poincare --masses 1,1 --lengths 1,1 --energy -2.5 --dt 1e-320 --orbits 2 --points 5
+}
+case:input.advice() {
 # The advice fits the command: scales that overflow say so (not "use --dt 0"), and a command
 # without --digits does not advise it.
 for extreme in "--energy 1e308" "--g 1e308 --energy 1"; do
   run poincare --masses 1,1 --lengths 1,1 $extreme --orbits 2 --points 5
   # the energy scale overflows, or g leaves the dynamics' range (1e-50..1e50): both say why
-  if [ "$rc" -eq 2 ] && grep -qE '(overflow double|outside 1e-50..1e50).*; choose units nearer 1' "$work/err"; then pass
-  else fail "poincare $extreme: the overflow named"; fi
+  expect "poincare $extreme: the overflow named" \
+    '[ "$rc" -eq 2 ] && grep -qE "(overflow double|outside 1e-50..1e50).*; choose units nearer 1" "$work/err"'
 done
 run poincare --masses 1,1 --lengths 1,1 --energy 1e400
-if [ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"; then pass
-else fail "poincare --energy 1e400: no --digits advice"; fi
+expect "poincare --energy 1e400: no --digits advice" '[ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"'
 run simulate --masses 1,1 --lengths 1,1 --theta 0.1 --time 1e400
-if [ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"; then pass
-else fail "simulate --time 1e400: no --digits advice"; fi
+expect "simulate --time 1e400: no --digits advice" '[ "$rc" -eq 2 ] && grep -q "out of the range of double$" "$work/err"'
 run average --masses 1,1 --lengths 1,1 --beta 1e400
-if [ "$rc" -eq 2 ] && grep -q "(use --digits > 16)$" "$work/err"; then pass
-else fail "average --beta 1e400: the --digits advice"; fi
+expect "average --beta 1e400: the --digits advice" '[ "$rc" -eq 2 ] && grep -q "(use --digits > 16)$" "$work/err"'
+}
 
 # ---------------------------------------------------------------- microcanonical (issue 15)
 check_micro_json() { # N DIGITS [K1 reference: |K1 - reference| <= K1's error]
@@ -1292,6 +1381,7 @@ PY
 # 2.4999999684000729769e-9 (the issue's audit: 2.49999996840007298e-09; the old engine was off by
 # 3e-9 relative); at D = 1e-8 (the double in double runs, the decimal in MPFR runs; they differ
 # by 2e-17 relative) <K_1>_E = 2.49999998359375020479329115840663e-9.
+case:microcanonical.average() {
 good "micro --energy near the minimum" 'check_micro_json 2 16 2.4999999684000729769e-9' \
   average --masses 1,1 --lengths 1,1 --energy -2.99999999 --format json
 good "micro --excitation"      'check_micro_json 2 16 2.49999998359375020479329115840663e-9' \
@@ -1316,8 +1406,10 @@ good "micro csv"               'check_average_csv 2 energy' \
   average --masses 1,1 --lengths 1,1 --energy 0.5 --format csv
 good "micro text"              '[ "$(count_scalar "$work/out" ensemble microcanonical)" -eq 1 ] && grep -Eq "^i +K +K_error +cos_phi +cos_phi_error +var_K +var_K_error$" "$work/out"' \
   average --masses 1,1 --lengths 1,1 --energy 0.5 --format text
+}
+case:microcanonical.refusals() {
 bad "micro energy below the minimum" average --masses 1,1 --lengths 1,1 --energy -4
-grep -q 'minimum energy E_min = -3' "$work/err" && pass || fail "micro energy below the minimum: no valid range"
+expect "micro energy below the minimum: the valid range" 'grep -q "minimum energy E_min = -3" "$work/err"'
 bad "micro energy at the minimum" average --masses 1,1 --lengths 1,1 --energy -3
 bad "micro excitation 0"       average --masses 1,1 --lengths 1,1 --excitation 0
 bad "micro excitation -1"      average --masses 1,1 --lengths 1,1 --excitation -1
@@ -1331,14 +1423,14 @@ bad "micro N = 3 torus digits 20" average --masses 1,1,1 --lengths 1,1,1 --energ
 bad "micro tol with qmc"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --tol 1e-5
 bad "micro samples with integral" average --masses 1,1 --lengths 1,1 --energy 0 --samples 1024
 bad "micro samples 2^17"       average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --energy 0 --samples 131072
+}
 
-printf 'm2,energy,g,m1,l1,l2\n1,-1,1,1,1,1\n1,-2.99999999,1,1,1,1\n0.5,5,9.81,0.5,1,2\n' >"$work/energy.csv"
+case:microcanonical.cases() {
 micro_cases_header=$(canonical_header cases 2 energy)
 good "cases energy column" \
   '[ "$(data "$work/out" | wc -l)" -eq 4 ] && [ "$(data "$work/out" | head -1)" = "$micro_cases_header" ] &&
    py -c "import sys; from schema1 import *; assert has_prefix(read_csv(sys.argv[1])[2][1][\"K1\"], \"2.4999999684000e-9\")" "$work/out"' \
   average --cases "$work/energy.csv"
-printf 'excitation,g,m1,m2,l1,l2\n1e-8,1,1,1,1,1\n' >"$work/excitation.csv"
 # the mpmath reference above, to 20 digits: 2.4999999835937502048e-9
 good "cases excitation column, digits 20" \
   '[ "$(data "$work/out" | wc -l)" -eq 2 ] && [ "$(data "$work/out" | head -1)" = "$(canonical_header cases 2 excitation)" ] &&
@@ -1348,15 +1440,16 @@ printf 'beta,energy,g,m1,m2,l1,l2\n1,1,1,1,1,1,1\n' >"$work/beta_energy.csv"
 bad "cases beta and energy"    average --cases "$work/beta_energy.csv"
 printf 'energy,g,m1,m2,l1,l2\n0,1,1,1,1,1\n-4,1,1,1,1,1\n' >"$work/energy_low.csv"
 bad "cases energy below min"   average --cases "$work/energy_low.csv"
-grep -q 'line 3' "$work/err" && pass || fail "cases energy below min: stderr does not name line 3"
+expect "cases energy below min: stderr names line 3" 'grep -q "line 3" "$work/err"'
 # microcanonical rows run through the same sweep engine: --timing as for beta rows
 run average --cases "$work/energy.csv"
 cp "$work/out" "$work/energy_out.csv"
 run average --cases "$work/energy.csv" --timing
-[ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/energy_out.csv" && [ "$(wc -l <"$work/err")" -eq 1 ] &&
-  grep -Eq '^pendavg: timing: rows=3 median_us=' "$work/err" && pass ||
-  fail "cases energy --timing: stdout or the stderr summary line"
+expect "cases energy --timing: stdout unchanged, one stderr summary line" \
+  '[ "$rc" -eq 0 ] && cmp -s "$work/out" "$work/energy_out.csv" && [ "$(wc -l <"$work/err")" -eq 1 ] &&
+   grep -Eq "^pendavg: timing: rows=3 median_us=" "$work/err"'
 bad "cases energy and --energy" average --cases "$work/energy.csv" --energy 1
+}
 
 check_micro_table() { # ROWS STATE
   py - "$work/out" "$1" "$2" <<'PY'
@@ -1376,6 +1469,7 @@ for r in rows:
         assert float(r["K%d_error" % (i + 1)]) > 0, r
 PY
 }
+case:microcanonical.table() {
 good "table --excitation log sweep" 'check_micro_table 6 excitation' \
   table --excitation log:1e-12:1:3 --mu1 0.5,0.2
 good "table --energy chains"   'check_micro_table 4 energy' \
@@ -1386,23 +1480,10 @@ bad "table beta and energy"    table --beta 1 --energy 0
 bad "table energy below min"   table --energy -2,0 --l2 2
 bad "table energy method series" table --energy 0 --method series
 bad "table energy qmc digits 20" table --chain 5 --energy 0 --digits 20
+}
 
-# simulate: exact values with every digit of the double (the shortest text that reads back as
-# the same double, not rounded to fewer digits)
-good "simulate exact full digits" '"$python" -c "
-import json, sys
-from decimal import Decimal
-o = json.load(open(sys.argv[1]))
-digits = lambda v: sum(c.isdigit() for c in v.lower().split(\"e\")[0].lstrip(\"0.-\"))
-raw = open(sys.argv[1]).read()
-import re
-k = re.search(r\"\\\"exact_K\\\": \\[([^]]*)\\]\", raw).group(1).split(\", \")
-assert all(Decimal(v) == Decimal(repr(float(v))) for v in k), k
-assert max(digits(v) for v in k) >= 15, k
-assert o[\"exact_excitation\"] > 0 and len(o[\"exact_var_K\"]) == 2, o
-assert abs(o[\"exact_excitation\"] - (o[\"energy\"] + 3)) < 1e-8, o
-" "$work/out"' simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 50 --format json
 
+case:average.qmc_underflow() {
 # qmc weights cannot underflow (issue 15: this run printed NaN with "converged": true); its
 # values within their bars of the tensor torus rule's
 good "torus beta 100 (reference)" 'cp "$work/out" "$work/torus100.json"' \
@@ -1419,18 +1500,11 @@ for key in (\"beta_K\", \"cos_phi\", \"var_K\"):
     for a, ea, b, eb in zip(o[key], o[error], t[key], t[error]):
         assert abs(D(a) - D(b)) <= D(ea) + D(eb), (key, a, ea, b, eb)
 " "$work/out" "$work/torus100.json"' average --masses 1,1,1 --lengths 1,1,1 --beta 100 --method qmc --seed 16 --format json
+}
 # ---------------------------------------------------------------- issue 10: every error in every output
 # The keys and columns added after the original ones: present, finite (JSON never holds a bare
 # nan/inf: json.loads below refuses NaN and Infinity), errors positive, kinds valid, and equal to
 # what `average` prints for the same point where both print it.
-cat >"$work/strict_json.py" <<'PY'
-import json
-def strict(path):
-    def refuse(token):
-        raise ValueError("bare " + token)
-    return json.loads(open(path).read(), parse_constant=refuse)
-KINDS = {"bound", "estimate", "statistical"}
-PY
 strict_python() { PYTHONPATH="$work" "$python" "$@"; }
 
 check_limit_added() { # N DIGITS RUN_KEYS (the keys of high_temperature.run, "null" for none)
@@ -1472,6 +1546,7 @@ else:
 assert d["low_temperature"]["run"] is None
 PY
 }
+case:limit.every_error() {
 good "limit json: converged, run, residual, beta_Kc, seconds (N = 2)" 'check_limit_added 2 16 null' \
   limit --masses 0.5,0.5 --format json
 good "limit json: the torus run (N = 3)" 'check_limit_added 3 16 points_per_dim,levels,grid_points' \
@@ -1479,6 +1554,7 @@ good "limit json: the torus run (N = 3)" 'check_limit_added 3 16 points_per_dim,
 good "limit json: the transfer run (N = 7)" 'check_limit_added 7 16 angle_nodes,pivot_nodes,levels' \
   limit --masses 1,1,1,1,1,1,1 --format json
 good "limit json: digits 30" 'check_limit_added 2 30 null' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format json
+}
 
 # limit --format csv: average's columns (the same writer), the limit in front and no beta; its
 # values are the JSON's, as printed there.
@@ -1522,6 +1598,7 @@ for r in rows:
         assert math.isfinite(float(r[k])), (k, r[k])
 PY
 }
+case:limit.csv() {
 good "limit --format csv (N = 2)"            'check_limit_csv 2 0.5,0.5 1,1 16' limit --masses 0.5,0.5 --lengths 1,1 --format csv
 good "limit --format csv (N = 3, torus)"     'check_limit_csv 3 1,2,0.5 1,0.5,2 16' limit --masses 1,2,0.5 --lengths 1,0.5,2 --format csv
 good "limit --format csv (N = 2, digits 30)" 'check_limit_csv 2 0.2,0.8 1,2 30' limit --masses 0.2,0.8 --lengths 1,2 --digits 30 --format csv
@@ -1533,6 +1610,7 @@ good "limit text: errors, work, residual per limit" \
    [ "$(count_scalar "$work/out" work_unit "[a-z]+")" -eq 2 ] && [ "$(count_scalar "$work/out" converged true)" -eq 2 ] &&
    [ "$(count_scalar "$work/out" equipartition_residual "[0-9.e+-]+")" -eq 2 ] && [ "$(text_rows "$work/out")" -eq 4 ]' \
   limit --masses 0.5,0.5 --format text
+}
 
 # simulate JSON: <K> and <U> over time, the energy trend, the work; Langevin: the canonical Var K_i.
 check_simulate_added() { # ENSEMBLE [AVERAGE_JSON: the canonical values at the run's beta]
@@ -1583,6 +1661,7 @@ else:
     assert kinds["var_K"] == a["var_K_error_kind"] and kinds["Kc"] == "bound"
 PY
 }
+case:simulate.every_error() {
 good "simulate json: K_total, potential, energy_trend, samples (NVE)" 'check_simulate_added microcanonical' \
   simulate --masses 1,1 --lengths 1,1 --theta 90deg --time 300 --format json
 "$pendavg" average --masses 1,1 --lengths 1,1 --beta 0.5 --format json >"$work/canonical.json" 2>/dev/null
@@ -1591,6 +1670,7 @@ good "simulate json: exact_var_K and kinds (Langevin)" 'check_simulate_added can
 "$pendavg" average --masses 1,2,1 --lengths 1,1,0.5 --beta 2 --format json >"$work/canonical3.json" 2>/dev/null
 good "simulate json: exact_var_K (Langevin, N = 3)" 'check_simulate_added canonical "$work/canonical3.json"' \
   simulate --masses 1,2,1 --lengths 1,1,0.5 --theta 0 --time 200 --thermostat langevin --beta 2 --seed 5 --format json
+}
 
 # simulate CSV (the default): every column holds the JSON's value (the same deterministic run):
 # a per-particle key X is the columns X1..XN (its error X_error X1_error..XN_error).
@@ -1646,17 +1726,6 @@ for i in range(n):
 assert ("replicas" in r) == replicas
 PY
 }
-nve3=(simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 50)
-"$pendavg" "${nve3[@]}" --format json >"$work/nve3.json" 2>/dev/null
-good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}"
-"$pendavg" "${nve3[@]}" --exact no --format json >"$work/nve3_no_exact.json" 2>/dev/null
-good "simulate csv: --exact no leaves the exact cells empty" 'check_simulate_csv "$work/nve3_no_exact.json"' "${nve3[@]}" --exact no --format csv
-langevin2=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 0.5 --seed 3)
-"$pendavg" "${langevin2[@]}" --format json >"$work/langevin2.json" 2>/dev/null
-good "simulate csv: exact_var_K (Langevin)" 'check_simulate_csv "$work/langevin2.json"' "${langevin2[@]}" --format csv
-replicas3=(simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4)
-"$pendavg" "${replicas3[@]}" --format json >"$work/replicas3.json" 2>/dev/null
-good "simulate csv: the replicas' error columns" 'check_simulate_csv "$work/replicas3.json" replicas' "${replicas3[@]}" --format csv
 # --replicas: <K> and <U> combined like the other averages (the larger of the two errors)
 check_replicas_added() {
   strict_python - "$work/out" <<'PY'
@@ -1671,7 +1740,20 @@ assert abs(d["K_total"] - sum(d["K"])) <= 1e-9 * d["K_total"]
 assert d["replicas_error_reason"] is None
 PY
 }
+case:simulate.csv() {
+nve3=(simulate --masses 1,2,1 --lengths 1,1,0.5 --phi 0.5,-1,2 --phidot 0,1,0 --time 50)
+"$pendavg" "${nve3[@]}" --format json >"$work/nve3.json" 2>/dev/null
+good "simulate csv: cos_phi, exact values and kinds (NVE)" 'check_simulate_csv "$work/nve3.json"' "${nve3[@]}"
+"$pendavg" "${nve3[@]}" --exact no --format json >"$work/nve3_no_exact.json" 2>/dev/null
+good "simulate csv: --exact no leaves the exact cells empty" 'check_simulate_csv "$work/nve3_no_exact.json"' "${nve3[@]}" --exact no --format csv
+langevin2=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 0.5 --seed 3)
+"$pendavg" "${langevin2[@]}" --format json >"$work/langevin2.json" 2>/dev/null
+good "simulate csv: exact_var_K (Langevin)" 'check_simulate_csv "$work/langevin2.json"' "${langevin2[@]}" --format csv
+replicas3=(simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4)
+"$pendavg" "${replicas3[@]}" --format json >"$work/replicas3.json" 2>/dev/null
+good "simulate csv: the replicas' error columns" 'check_simulate_csv "$work/replicas3.json" replicas' "${replicas3[@]}" --format csv
 good "simulate json: K_total and potential over replicas" check_replicas_added "${replicas3[@]}" --format json
+}
 
 # table and --cases rows: every column equals `average --format csv`'s for the same point (the
 # same library call; the inputs as given); a series row's beta_K error is a bound, its cos_phi and
@@ -1714,18 +1796,22 @@ for r in rows:
         assert (r["beta_K_error_kind"], r["cos_phi_error_kind"], r["var_K_error_kind"]) == ("bound", "estimate", "estimate"), r
 PY
 }
+case:table.rows_as_average() {
 good "table: error kinds, work_unit, residual, beta_Kc (series rows)" 'check_rows_as_average "$work/out" table' \
   table --beta 0.5,2 --mu1 0.3 --l2 0.7 --method series
 good "table: the same for chains N = 3, 5 (torus, transfer)" 'check_rows_as_average "$work/out" table' \
   table --chain 3,5 --beta 1 --g 1,2
 good "table: the same at digits 30" 'check_rows_as_average "$work/out" table' \
   table --beta 1 --mu1 0.3 --digits 30
+}
+case:cases.rows_as_average() {
 good "cases: error kinds, work_unit, residual, beta_Kc" 'check_rows_as_average "$work/out" cases' \
   average --cases "$work/cases.csv"
 good "cases: the same for N = 3" 'check_rows_as_average "$work/out" cases' \
   average --cases "$work/cases3.csv"
 good "cases: the same for series rows" 'check_rows_as_average "$work/out" cases' \
   average --cases "$work/cases.csv" --method series
+}
 
 # microcanonical rows: every column (K_total, density_of_states, each with its error and kind,
 # work_unit, ...) equal to `average --energy/--excitation --format csv`'s.
@@ -1760,6 +1846,7 @@ for r in rows:
     assert r["work_unit"] == ("samples" if r["method"] == "qmc" else "nodes"), r
 PY
 }
+case:microcanonical.rows_as_average() {
 good "table --excitation: K_total, density_of_states, work_unit" 'check_micro_added "$work/out" table excitation' \
   table --excitation log:1e-6:1:3 --mu1 0.5,0.2
 good "table --energy chains: the same (integral, qmc)" 'check_micro_added "$work/out" table energy' \
@@ -1770,6 +1857,7 @@ good "cases energy column: K_total, density_of_states, work_unit" 'check_micro_a
   average --cases "$work/energy.csv"
 good "cases excitation column: the same" 'check_micro_added "$work/out" cases excitation' \
   average --cases "$work/excitation.csv"
+}
 
 # --certified (N = 2): every printed error a bound that covers the printed value; the JSON's
 # kinds are all "bound" and the printed value lies within its printed error of a 60-digit run.
@@ -1793,14 +1881,13 @@ for key in ("beta_K", "K", "cos_phi", "var_K", "beta2_var_K"):
 assert abs(D(run["ratio"]) - D(ref["ratio"])) <= D(run["ratio_error"])
 PY
 }
+case:average.certified() {
 if "$pendavg" --version | grep -q '^certified enclosures (--certified): Arb'; then
   run average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --digits 60 --format json
   cp "$work/out" "$work/certified_ref.json"
-  # SCHEMA1-BUG: a double's shortest round-trip text is not the double's value as a decimal (up
-  # to half a unit of its last digit away), and schema 1 no longer widens a double's error for
-  # printing: here beta_K[1] prints 0.5377756655277243 +- 1.65e-17 (bound) while the 60-digit
-  # value is 0.53777566552772428346..., 1.6537e-17 from the printed decimal (the double itself,
-  # 0.537775665527724267..., is 1.6462e-17 away: covered). A bound must cover the printed value.
+  # A double's shortest round-trip text is not the double's value as a decimal (up to half a
+  # unit of its last digit away): a printed bound must cover the printed value, not only the
+  # double (this point's beta_K[1] once printed a bound that covered the double alone).
   good "average --certified: bounds (double)" 'check_certified "$work/out" 16 "$work/certified_ref.json"' \
     average --masses 1,3 --lengths 1,2 --beta 7 --g 2 --certified --format json
   good "average --certified --digits 30: bounds" 'check_certified "$work/out" 30 "$work/certified_ref.json"' \
@@ -1816,7 +1903,9 @@ if "$pendavg" --version | grep -q '^certified enclosures (--certified): Arb'; th
 else
   bad "average --certified without Arb" average --masses 1,1 --lengths 1,1 --beta 1 --certified
 fi
+}
 
+case:help.usage() {
 good "average --help: microcanonical and MPFR" 'grep -q "excitation D" "$work/out" && grep -q "runs in MPFR" "$work/out"' average --help
 
 for command in average limit series simulate poincare; do
@@ -1826,6 +1915,7 @@ good "--help"                'grep -q "usage" "$work/out"' --help
 good "help"                  'grep -q "usage" "$work/out"' help
 good "help average"          'grep -q "usage" "$work/out"' help average
 good "--version"             'head -n 1 "$work/out" | grep -Eqx "pendavg [0-9]+\.[0-9]+\.[0-9]+"' --version
+}
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+
+cases_main "$@"

@@ -1,27 +1,27 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: GPL-3.0-or-later
-# tests/cli/test_fail_closed.sh PENDAVG -- the hostile-input audit's reproducers, one per root
-# cause, through the command line: each either exits 0 with finite numbers, or exits 2 with
-# exactly one line on stderr and nothing on stdout. Usage: test_fail_closed.sh build/pendavg
+# tests/cli/test_fail_closed.sh PENDAVG CASE -- the hostile-input audit's reproducers, one per
+# root cause, through the command line: each either exits 0 with finite numbers, or exits 2 with
+# exactly one line on stderr and nothing on stdout. Usage: test_fail_closed.sh build/pendavg CASE
+# (test_fail_closed.sh --list: the cases); prints "CASE: N passed, M failed" last.
 set -uo pipefail
-P=${1:?usage: test_fail_closed.sh PENDAVG}
-pass=0
-fail=0
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+pendavg=${1:?usage: test_fail_closed.sh PENDAVG CASE, or test_fail_closed.sh --list}
+# shellcheck source=case_harness.sh
+source "$(cd "$(dirname "$0")" && pwd)/case_harness.sh"
+record_commands pendavg
 
 # refused NAME EXPECTED-TEXT ARGS...: exit 2, one stderr line containing EXPECTED-TEXT, no stdout.
 refused() {
   local name=$1 expected=$2
   shift 2
-  timeout 60 "$P" "$@" >"$work/out" 2>"$work/err"
+  timeout 60 "$pendavg" "$@" >"$work/out" 2>"$work/err"
   local rc=$? lines
   lines=$(wc -l <"$work/err")
   if [[ $rc -eq 2 && $lines -eq 1 && ! -s $work/out ]] && grep -qF -- "$expected" "$work/err"; then
-    pass=$((pass + 1))
+    pass
   else
-    fail=$((fail + 1))
-    echo "FAIL refused: $name (rc=$rc, $lines stderr lines): $(head -c 300 "$work/err")"
+    fail "refused: $name" "exit 2 within 60 s, nothing on stdout, one stderr line containing: $expected" \
+      "exit $rc, $lines stderr lines"
   fi
 }
 
@@ -29,16 +29,16 @@ refused() {
 finite() {
   local name=$1
   shift
-  timeout 60 "$P" "$@" >"$work/out" 2>"$work/err"
+  timeout 60 "$pendavg" "$@" >"$work/out" 2>"$work/err"
   local rc=$?
   if [[ $rc -eq 0 ]] && ! grep -qiE '(^|[,: \[])[-+]?(nan|inf)' "$work/out"; then
-    pass=$((pass + 1))
+    pass
   else
-    fail=$((fail + 1))
-    echo "FAIL finite: $name (rc=$rc): $(head -c 300 "$work/out") $(head -c 300 "$work/err")"
+    fail "finite: $name" "exit 0 within 60 s, no nan or inf in the output" "exit $rc"
   fi
 }
 
+case:limit.subnormal() {
 # limit: NaN var_K_beta2 with converged true, subnormal values, Boost's ellint_rf domain error
 refused "limit: subnormal mass fraction" "below double's normal range" \
   limit --masses 1e-300,1e20 --lengths 1,0.5
@@ -50,7 +50,9 @@ refused "limit: three scales" "below double's normal range" \
 refused "limit: mu1 = 1e-400 (was ellint_rf)" "below double's normal range" \
   limit --masses 1e-200,1e200
 finite "limit: the advice works" limit --masses 1e-200,1e200 --digits 17 --format csv
+}
 
+case:simulate.tiny_links() {
 # simulate: null averages with zero errors and exit 0 (a NaN frequency passed the dt check)
 refused "simulate: length 1e-300" "choose units nearer 1" \
   simulate --masses 1,1 --lengths 1e-300,1 --theta 1 --time 1
@@ -66,7 +68,9 @@ refused "simulate: --perturb 1e300" "--perturb must be in (0, 0.1]" \
   simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 4 --perturb 1e300
 refused "poincare: length 1e-300" "choose units nearer 1" \
   poincare --masses 1,1 --lengths 1e-300,1 --energy -1
+}
 
+case:average.mpfr_torus() {
 # average: the MPFR torus' stiffness was converted to double (unbounded runs)
 refused "average: MPFR beta 1e400, N = 3" "beyond what the torus resolves in MPFR" \
   average --masses 1,1,1 --lengths 1,1,1 --beta 1e400 --digits 20
@@ -76,6 +80,9 @@ refused "average: MPFR g 1e400" "beyond what the torus resolves in MPFR" \
   average --masses 1,1,1 --lengths 1,1,1 --beta 1 --g 1e400 --digits 20
 refused "average: MPFR middle link 1e400" "times the softest joint's" \
   average --masses 1,1,1 --lengths 1,1e400,1 --beta 1 --digits 20
+}
+
+case:average.double_overflow() {
 # double overflow inside the N >= 3 engines (minutes, then four lines)
 refused "average: g 6e307, N = 3" "beyond double's range for the engines" \
   average --masses 1,1,1 --lengths 1,1,1 --beta 1 --g 6e307
@@ -85,7 +92,10 @@ refused "average: last link 6e307" "link 3" \
   average --masses 1,1,1 --lengths 1,1,6e307 --beta 1
 refused "table: g = DBL_MAX" "beyond double's range for the engines" \
   table --chain 3 --beta 1 --g 1.7976931348623157e308 --output "$work/table.csv"
-[[ -e $work/table.csv ]] && { fail=$((fail + 1)); echo "FAIL table: a refused table left a file"; }
+check "table: a refused table left no file" test ! -e "$work/table.csv"
+}
+
+case:transfer.light_particles() {
 # transfer: a particle below 1e-16 of the total, two adjacent light particles (unbounded runs)
 refused "transfer: a particle of 3.7e-127" "below what the transfer operator resolves" \
   average --masses 0.369,0.597,1.19,1.58,3.7e-127,2.29 --lengths 0.913,1.66,1.03,1.7,1.55,0.338 \
@@ -94,38 +104,48 @@ refused "transfer: four light particles before a heavy tail" "not two adjacent o
   average --masses 1,1,1,1,1e14 --lengths 1,1,1,1,1 --beta 1 --tol 1e-4
 finite "transfer: one light particle (1e-12) converges" \
   average --masses 1,1e-12,1,1,1 --lengths 1,1,1,1,1 --beta 1 --format csv
+}
+
+case:microcanonical.scales() {
 # microcanonical: a light middle particle (unbounded), links 1e81 apart (error did not cover)
 refused "microcanonical: a middle mass of 1e-82" "below the double quadrature's accurate range" \
   average --masses 2.454,1e-82,7.361 --lengths 2.04,2.44,2.29 --g 1 --energy -1 --tol 1e-8
 refused "microcanonical: links 1e81 apart" "more than 1e30 times the shortest" \
   average --masses 1.12,0.638 --lengths 1.02,2e81 --g 0.412 --energy -0.6101
+}
+
+case:advice.fits() {
 refused "simulate: refused exact values point to --exact no" "--exact no runs the trajectory" \
   simulate --masses 1e-12,1 --lengths 1,1 --theta 1 --time 1e-5 --dt 1e-8
 refused "poincare: no --dt advice beyond the step cap" "choose units nearer 1" \
   poincare --masses 1,1 --lengths 1,1e-40 --g 1e40 --energy 0 --orbits 1 --points 2
+}
+
+case:average.underflow() {
 # underflow: Var K_i = 5e-601 printed as 0 +- 0
 refused "average: Var K underflows, N = 1" "leaves double's range" \
   average --masses 2 --lengths 3 --g 1 --beta 1e200
 refused "average: Var K underflows, N = 5" "leaves double's range" \
   average --masses 1,1,1,1,1 --lengths 1,1,1,1,1 --beta 1e200
 finite "average: N = 2 at beta 1e200 in MPFR" average --masses 1,1 --lengths 1,1 --beta 1e200 --digits 20 --format csv
+}
+
+case:advice.digits() {
 # advice that is true: at 30 digits the refusal names MPFR's exponent range
 refused "average: MPFR exponent range" "MPFR's exponent range" \
   average --masses 1,1 --lengths 1,1 --beta 1e200000000 --digits 30
-if grep -q "request 17" "$work/err"; then
-  fail=$((fail + 1))
-  echo "FAIL advice: a 30-digit run advised 17 digits"
-fi
+check "advice: a 30-digit run does not advise 17 digits" test -z "$(grep "request 17" "$work/err")"
 refused "average: a far stiffer last link" "request 17 or more digits" \
   average --masses 1,1,1 --lengths 1,1,1e24 --beta 1
 finite "average: ... and the advice works" average --masses 1,1,1 --lengths 1,1,1e24 --beta 1 --digits 17 --format csv
+}
+
+case:simulate.replicas_shell() {
 finite "simulate: replicas on one energy shell" \
   simulate --masses 1,1 --lengths 1,1 --theta 1 --time 2 --replicas 3 --perturb 1e-3 --format json
 spread=$(grep -oE '"replica_energy_spread": "?[0-9.e+-]+' "$work/out" | grep -oE '[0-9.e+-]+$')
-if ! awk -v s="${spread:-1}" 'BEGIN { exit !(s < 1e-13) }'; then
-  fail=$((fail + 1))
-  echo "FAIL simulate: replica energy spread ${spread:-missing} (same shell expected)"
-fi
+check "simulate: replica energy spread ${spread:-missing} < 1e-13 (one shell)" \
+  awk -v s="${spread:-1}" 'BEGIN { exit !(s < 1e-13) }'
+}
 
-echo "$pass passed, $fail failed"
-[[ $fail -eq 0 ]]
+cases_main "$@"

@@ -6,22 +6,22 @@
 # another number of ranks gives the uninterrupted file; bad input is reported once; a failure on
 # one rank stops the job and names the rank.
 #
-# Usage: test_mpi.sh PATH/TO/pendavg MPIEXEC [PATH/TO/pendavg_row_faults]
+# Usage: test_mpi.sh PATH/TO/pendavg CASE MPIEXEC PATH/TO/pendavg_row_faults
 # (the test build, whose hooks tests/cli/row_faults.cpp describes: rows or ranks that fail on
-# demand, a small reorder window, the rows each rank computed)
-# Prints "N passed, M failed" last and exits non-zero on any failure.
+# demand, a small reorder window, the rows each rank computed; test_mpi.sh --list: the cases)
+# Prints "CASE: N passed, M failed" last and exits non-zero on any failure.
 set -u
 
-pendavg=${1:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
-mpiexec=${2:?usage: test_mpi.sh PATH/TO/pendavg MPIEXEC}
-faulty=${3:-}
-python=/usr/bin/python3
+usage="usage: test_mpi.sh PATH/TO/pendavg CASE MPIEXEC PATH/TO/pendavg_row_faults, or test_mpi.sh --list"
+pendavg=${1:?$usage}
+mpiexec=${3:-}
+faulty=${4:-}
+[ "$pendavg" = --list ] || [ -n "$faulty" ] || { echo "$usage" >&2; exit 2; }
 here=$(cd "$(dirname "$0")" && pwd)
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 # shellcheck source=sweep_harness.sh
 source "$here/sweep_harness.sh"
 
+cases_setup() {
 # What OpenMPI needs in a CI container: running as root, more ranks than cores, shared memory
 # between the ranks only (no network), local launch without ssh, no CMA (ptrace may be
 # forbidden), no binding (the ranks' OpenMP threads share the cores).
@@ -31,6 +31,19 @@ if "$mpiexec" --version 2>&1 | grep -q "Open MPI\|OpenRTE"; then
   export OMPI_MCA_btl_vader_single_copy_mechanism=none
   launcher+=(--oversubscribe --bind-to none --mca btl self,vader --mca plm isolated)
 fi
+# cases.csv: 2,000 rows (the benchmark's spread of costs)
+"$python" - "$work/cases.csv" <<'PY'
+import math, random, sys
+rng = random.Random(2026)
+with open(sys.argv[1], "w") as f:
+    f.write("beta,g,m1,m2,l1,l2\n")
+    for _ in range(2000):
+        beta = 10 ** rng.uniform(-4, 4)
+        x = 10 ** rng.uniform(-6, math.log10(0.5))
+        mu1 = x if rng.random() < 0.5 else 1 - x
+        f.write(f"{beta:.6g},1,{mu1:.9g},{1 - mu1:.9g},1,{10 ** rng.uniform(-2, 2):.6g}\n")
+PY
+}
 
 # on_ranks K OUT ARGS...: mpiexec -n K pendavg ARGS > OUT (K = 0: the plain serial run)
 on_ranks() {
@@ -50,15 +63,17 @@ without_timing() { sed 's/"seconds": [^,}]*//' "$1"; }
 same_on_ranks() {
   local name=$1
   shift
-  OMP_NUM_THREADS=${ONE_THREAD:-2} on_ranks 0 "$work/serial.out" "$@" || { fail "$name: serial run"; return; }
-  [ -s "$work/serial.out" ] || { fail "$name: serial run printed nothing"; return; }
+  OMP_NUM_THREADS=${ONE_THREAD:-2} on_ranks 0 "$work/serial.out" "$@" || { fail "$name: serial run" "exit 0" "exit $?"; return; }
+  [ -s "$work/serial.out" ] || { fail "$name: serial run" "an output" "nothing printed"; return; }
   local ranks threads=1
   for ranks in 1 2 3; do
     [ -n "${ONE_THREAD:-}" ] && threads=1
-    if ! OMP_NUM_THREADS=$threads on_ranks "$ranks" "$work/ranks.out" "$@"; then
-      fail "$name: $ranks ranks exited with an error"
+    OMP_NUM_THREADS=$threads on_ranks "$ranks" "$work/ranks.out" "$@"
+    rc=$?
+    if [ "$rc" -ne 0 ]; then
+      fail "$name: $ranks ranks" "exit 0, the serial run's output" "exit $rc"
     elif ! cmp -s <(without_timing "$work/serial.out") <(without_timing "$work/ranks.out"); then
-      fail "$name: $ranks ranks differ from the serial run"
+      fail "$name: $ranks ranks" "the serial run's output" "another output"
     else
       pass
     fi
@@ -66,43 +81,53 @@ same_on_ranks() {
   done
 }
 
-# --cases: 2,000 rows at 38 digits (the benchmark's spread of costs), to stdout and to a file.
-"$python" - "$work/cases.csv" <<'PY'
-import math, random, sys
-rng = random.Random(2026)
-with open(sys.argv[1], "w") as f:
-    f.write("beta,g,m1,m2,l1,l2\n")
-    for _ in range(2000):
-        beta = 10 ** rng.uniform(-4, 4)
-        x = 10 ** rng.uniform(-6, math.log10(0.5))
-        mu1 = x if rng.random() < 0.5 else 1 - x
-        f.write(f"{beta:.6g},1,{mu1:.9g},{1 - mu1:.9g},1,{10 ** rng.uniform(-2, 2):.6g}\n")
-PY
+# --cases: 2,000 rows at 38 digits, to stdout and to a file.
+case:ranks.cases_38_digits() {
 ONE_THREAD=1 same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
+}
+case:ranks.cases_columns() {
 same_on_ranks "cases 2000 rows, --columns" average --cases "$work/cases.csv" --columns var_K,ratio,beta_K2
-"$pendavg" average --cases "$work/cases.csv" --output "$work/cases_serial.csv" 2>/dev/null
+}
+# cases_serial: $work/cases_serial.csv, the serial run's file
+cases_serial() { "$pendavg" average --cases "$work/cases.csv" --output "$work/cases_serial.csv" 2>/dev/null; }
+case:ranks.cases_output() {
+cases_serial
 for ranks in 2 3; do
   rm -f "$work/cases_ranks.csv"
   "${launcher[@]}" -n "$ranks" "$pendavg" average --cases "$work/cases.csv" --output "$work/cases_ranks.csv" 2>"$work/err"
-  if cmp -s "$work/cases_ranks.csv" "$work/cases_serial.csv"; then pass; else fail "cases --output on $ranks ranks"; fi
+  check "cases --output on $ranks ranks: the serial file" cmp -s "$work/cases_ranks.csv" "$work/cases_serial.csv"
 done
+}
 # table: chains of 3 and 8 by qmc and by auto (torus, transfer), and a double-pendulum sweep
 # mixing double and MPFR rows.
+case:ranks.table_qmc() {
 same_on_ranks "table --chain 8 qmc" table --chain 3,8 --beta log:0.1:10:12 --g 1,2 --method qmc --samples 2048 --shifts 8
+}
+case:ranks.table_auto() {
 same_on_ranks "table --chain 8 auto" table --chain 3,8 --beta log:0.1:10:6 --g 1,2 --tol 1e-8
+}
+case:ranks.table_mixed_digits() {
 ONE_THREAD=1 same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
+}
 # One qmc point at N = 64: its shifts shared by the ranks. (JSON, whose "seconds" without_timing
 # leaves out: the default CSV has it as a column.)
+case:ranks.qmc_point() {
 unit64=$("$python" -c 'print(",".join(["1"] * 64))')
 same_on_ranks "qmc point N = 64" average --masses "$unit64" --lengths "$unit64" --beta 1 --method qmc --samples 4096 --shifts 12 --format json
+}
 # Trajectory replicas, N = 3: Langevin (noise streams) and NVE (perturbed starts).
+case:ranks.replicas() {
 same_on_ranks "simulate --replicas 4, Langevin" simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 40 --thermostat langevin --beta 1 --replicas 4 --format json
 same_on_ranks "simulate --replicas 4, NVE" simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 40 --replicas 4 --exact no --format json
+}
 # Commands that do not distribute run on rank 0 alone and print once.
+case:ranks.limit() {
 same_on_ranks "limit on rank 0" limit --masses 0.5,0.5 --format json
+}
 
 # A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
 # at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.
+case:resume.killed() {
 export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
 sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 1000)
 "$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
@@ -116,30 +141,31 @@ wait "$pid"
 [ -e "$work/resumed.csv" ] || cp /dev/null "$work/resumed.csv"  # killed before the file existed
 interrupted=$(grep -c '^# interrupted' "$work/resumed.csv")
 [ -s "$work/resumed.csv" ] || rm -f "$work/resumed.csv"
+expected="killed under mpirun after $delay s (interrupted: $interrupted): no temporary; resumed on 3 ranks: exit 0, the serial file"
 if [ -n "$(find "$work" -name '*.tmp.*' | head -1)" ]; then
-  fail "SIGTERM under mpirun left a temporary file"
+  fail "SIGTERM under mpirun, resumed" "$expected" "a temporary file left"
 elif ! "${launcher[@]}" -n 3 "$pendavg" "${sweep[@]}" --resume "$work/resumed.csv" >/dev/null 2>"$work/err"; then
-  fail "resume on 3 ranks"
+  fail "SIGTERM under mpirun, resumed" "$expected" "the resume on 3 ranks failed"
 elif ! cmp -s "$work/resumed.csv" "$work/reference.csv"; then
-  fail "killed under mpirun after $delay s (interrupted: $interrupted), resumed on 3 ranks: differs"
+  fail "SIGTERM under mpirun, resumed" "$expected" "another file"
 else
   pass
 fi
 # The whole mpirun killed with SIGKILL (a node lost, the job's processes killed outright): rank
 # 0's temporary keeps the rows it had written, and --resume on 2 ranks takes them.
-if [ -n "$faulty" ]; then
-  killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed.csv" \
-    "${launcher[@]}" -n 2 "$faulty" "${sweep[@]}"
-fi
+killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed.csv" \
+  "${launcher[@]}" -n 2 "$faulty" "${sweep[@]}"
+}
 
 # The test build: a resumed file with holes (every third row missing) completed, and a file
 # written afresh, on 2 and 3 ranks with a reorder window of 16 rows (PENDAVG_SWEEP_WINDOW_ROWS:
 # rows wait for the window to move), are the serial file; the ranks other than 0 computed rows
 # (PENDAVG_SWEEP_REPORT); every run ends (a bound of 120 s: a liveness check, not a timing).
+case:resume.window() {
+export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null
 "$python" "$here/punch_holes.py" "$work/cases38.csv" "$work/holes.csv"
 for ranks in 2 3; do
-  [ -n "$faulty" ] || break
   cp "$work/holes.csv" "$work/holes_resumed.csv"
   rm -f "$work/cases_window.csv"
   for out in cases_window.csv holes_resumed.csv; do
@@ -150,40 +176,46 @@ for ranks in 2 3; do
     others=$(sed -n 's/^pendavg: test: sweep .*rows per rank: [0-9]*//p' "$work/err" |
              tr ' ' '\n' | awk '{ s += $1 } END { print s + 0 }')
     what="$out on $ranks ranks, a window of 16 rows"
+    expected="exit 0, rows computed by the ranks other than 0, the serial file"
     if [ "$rc" -ne 0 ]; then
-      fail "$what: exit $rc"
+      fail "$what" "$expected" "exit $rc"
     elif [ "$others" -eq 0 ]; then
-      fail "$what: the ranks other than 0 computed no row"
+      fail "$what" "$expected" "the ranks other than 0 computed no row"
     elif ! cmp -s "$work/$out" "$work/cases38.csv"; then
-      fail "$what: differs from the serial file"
+      fail "$what" "$expected" "another file"
     else
       pass
     fi
   done
 done
-unset OMP_NUM_THREADS
+}
 
 # Bad input: every rank refuses it, rank 0 alone says so (mpirun may add its own lines).
+case:refusals.bad_input() {
 "${launcher[@]}" -n 2 "$pendavg" table --beta log:1e-3:1e300:60 --digits 16,600 >"$work/out" 2>"$work/err"
 rc=$?
 if [ "$rc" -eq 0 ] || [ -s "$work/out" ] || [ "$(grep -c '^pendavg: error: ' "$work/err")" -ne 1 ]; then
-  fail "bad input under mpirun: exit $rc, $(grep -c '^pendavg: error: ' "$work/err") error lines"
+  fail "bad input under mpirun" "a non-zero exit, nothing on stdout, one error line" \
+    "exit $rc, $(grep -c '^pendavg: error: ' "$work/err") error lines"
 else
   pass
 fi
+}
 
 # An output no rank can write (a FIFO nobody reads): refused on every rank before any row, rank 0
 # says so once (not a rank alone that stops the job after 10 s).
+case:refusals.fifo() {
 mkfifo "$work/fifo"
 timeout 60 "${launcher[@]}" -n 2 "$pendavg" table --beta log:0.1:10:20 --output "$work/fifo" \
   >"$work/out" 2>"$work/err"
 rc=$?
 if [ "$rc" -ne 2 ] || [ "$(grep -c '^pendavg: ' "$work/err")" -ne 1 ] ||
    ! grep -q "^pendavg: error: table: cannot write '$work/fifo': it is a FIFO that no process reads$" "$work/err"; then
-  fail "a FIFO nobody reads under mpirun: exit $rc, not one error line by rank 0"
+  fail "a FIFO nobody reads under mpirun" "exit 2, one error line by rank 0 naming the FIFO" "exit $rc"
 else
   pass
 fi
+}
 
 # A failure on one rank alone (the test build's PENDAVG_TEST_FAIL_ON_RANK=K: just before the
 # sweep's first collective step, as a failing output on rank 0 would be; K:sweep: as its sweep
@@ -195,10 +227,11 @@ fi
 # --resume completes the file (the serial one). The four cases at once (they mostly wait; a bound
 # of 90 s: liveness, not timing). The same failure on every rank (all:sweep) is reported once, by
 # rank 0, and leaves no file.
+case:failures.one_rank() {
+cases_serial
 cases=(0 1 0:sweep 1:sweep)
 pids=()
 for k in "${!cases[@]}"; do
-  [ -n "$faulty" ] || break
   PENDAVG_TEST_FAIL_ON_RANK=${cases[$k]} timeout 90 "${launcher[@]}" -n 2 "$faulty" average \
     --cases "$work/cases.csv" --output "$work/alone$k.csv" >/dev/null 2>"$work/alone$k.err" &
   pids+=($!)
@@ -214,7 +247,9 @@ for k in "${!pids[@]}"; do
        cmp -s "$work/alone$k.csv" "$work/cases_serial.csv"; then
       pass
     else
-      fail "a failure on rank 1 once the sweep began: exit $rc, no report naming it, no finished rows kept, or not resumed to the whole output"
+      fail "a failure on rank 1 once the sweep began" \
+        "a non-zero exit, a report naming rank 1, the finished rows kept, resumed to the whole output" \
+        "exit $rc, or no such report, rows or resume"
       sed 's/^/  stderr: /' "$work/alone$k.err" | head -5
     fi
   elif [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && [ ! -e "$work/alone$k.csv" ] &&
@@ -222,11 +257,13 @@ for k in "${!pids[@]}"; do
        "$work/alone$k.err"; then
     pass
   else
-    fail "a failure on rank ${cases[$k]} alone: exit $rc, no report naming it, or an output written"
+    fail "a failure on rank ${cases[$k]} alone" "a non-zero exit, a report naming the rank, no output" \
+      "exit $rc, or no such report, or an output written"
     sed 's/^/  stderr: /' "$work/alone$k.err" | head -5
   fi
 done
-if [ -n "$faulty" ]; then
+}
+case:failures.every_rank() {
   PENDAVG_TEST_FAIL_ON_RANK=all:sweep timeout 60 "${launcher[@]}" -n 3 "$faulty" average \
     --cases "$work/cases.csv" --output "$work/all.csv" >/dev/null 2>"$work/err"
   rc=$?
@@ -235,21 +272,20 @@ if [ -n "$faulty" ]; then
      [ -z "$(find "$work" -name 'all.csv*' | head -1)" ]; then
     pass
   else
-    fail "the same failure on every rank: exit $rc, not one report by rank 0, or a file left"
+    fail "the same failure on every rank" "exit 1, one report by rank 0, no file" "exit $rc"
   fi
-fi
+}
 
 # Rows that fail while they are computed (the test build): each becomes a '# failed:' line, the
 # other rows are kept, the file is the serial run's on 1, 2 and 3 ranks, the job exits 3 and
 # rank 0 alone says so in one line.
-if [ -n "$faulty" ]; then
+case:failures.rows() {
   export PENDAVG_TEST_FAILING_ROWS=7,1500,1999
   failing_cases=(average --cases "$work/cases.csv" --output)
   "$faulty" "${failing_cases[@]}" "$work/failed_serial.csv" >/dev/null 2>"$work/err"
   rc=$?
-  if [ "$rc" -ne 3 ] || [ "$(grep -c '^# failed: ' "$work/failed_serial.csv")" -ne 3 ]; then
-    fail "failed rows, serial: exit $rc or not 3 '# failed:' lines"
-  fi
+  check "failed rows, serial: exit 3, 3 '# failed:' lines" \
+    test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/failed_serial.csv")" -eq 3
   for run in 1 2 3; do
     OMP_NUM_THREADS=1 timeout 120 "${launcher[@]}" -n "$run" \
       "$faulty" "${failing_cases[@]}" "$work/failed_ranks.csv" >"$work/out" 2>"$work/err"
@@ -260,11 +296,9 @@ if [ -n "$faulty" ]; then
        cmp -s "$work/failed_ranks.csv" "$work/failed_serial.csv"; then
       pass
     else
-      fail "failed rows on $run ranks: exit $rc, not one error line by rank 0, or not the serial file"
+      fail "failed rows on $run ranks" "exit 3, one error line by rank 0, the serial file" "exit $rc"
     fi
   done
-  unset PENDAVG_TEST_FAILING_ROWS
-fi
+}
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+cases_main "$@"

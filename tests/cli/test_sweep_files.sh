@@ -8,17 +8,21 @@
 # progress while a long sweep is checked, error lines safe for a terminal, cases files as
 # pandas writes them, and files of another output schema (refused by --resume).
 #
-# Usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults
+# Usage: test_sweep_files.sh PATH/TO/pendavg CASE PATH/TO/pendavg_row_faults
+#        (test_sweep_files.sh --list: the cases)
 # pendavg_row_faults is the test build of the same command whose rows listed in
 # PENDAVG_TEST_FAILING_ROWS (indices from 0) throw when they are computed: a row that fails
 # late, after the check before the sweep passed it.
-# Prints "N passed, M failed" last and exits non-zero on any failure.
+# Prints "CASE: N passed, M failed" last and exits non-zero on any failure.
 set -u
 
-pendavg=${1:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
-faulty=${2:?usage: test_sweep_files.sh PATH/TO/pendavg PATH/TO/pendavg_row_faults}
+usage="usage: test_sweep_files.sh PATH/TO/pendavg CASE PATH/TO/pendavg_row_faults, or test_sweep_files.sh --list"
+pendavg=${1:?$usage}
+faulty=${3:-}
+[ "$pendavg" = --list ] || [ -n "$faulty" ] || { echo "$usage" >&2; exit 2; }
 progress_lines_allowed=1
 # shellcheck source=sweep_harness.sh
+source "$(cd "$(dirname "$0")" && pwd)/sweep_harness.sh"
 source "$(cd "$(dirname "$0")" && pwd)/sweep_harness.sh"
 # faulty_run ROWS ARGS...: the test build with rows ROWS failing late
 faulty_run() {
@@ -29,9 +33,20 @@ faulty_run() {
 }
 # data_rows FILE: the lines that are neither '#' lines nor the column line
 data_rows() { grep -v '^#' "$1" | tail -n +2; }
+table=(table --beta log:0.1:10:20 --mu1 0.1,0.5 --digits 16)
+# the uninterrupted runs: $work/cases_reference.csv (of $work/cases.csv) and table_reference.csv
+cases_reference() { "$pendavg" "${cases[@]}" --output "$work/cases_reference.csv" 2>/dev/null; }
+table_reference() { "$pendavg" "${table[@]}" --output "$work/table_reference.csv" 2>/dev/null; }
+# dead_writer: $dead_pid, the pid of a process that has ended, and $host, as temporaries name it
+dead_writer() {
+  true &
+  dead_pid=$!
+  wait "$dead_pid"
+  host=$(hostname | tr -cd 'A-Za-z0-9-' | cut -c1-64)
+}
 
-# ---------------------------------------------------------------- 1. no sweep row lost
-# 120 good N = 3 rows; rows 5 and 119 (file lines 7 and 121) fail while they are computed.
+# cases.csv: 120 good N = 3 rows
+cases_setup() {
 "$python" - "$work/cases.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -40,7 +55,11 @@ with open(sys.argv[1], "w") as f:
         f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,1,1,{1 + i % 5}\n")
 PY
 cases=(average --cases "$work/cases.csv")
-"$pendavg" "${cases[@]}" --output "$work/cases_reference.csv" 2>/dev/null
+}
+# ---------------------------------------------------------------- 1. no sweep row lost
+# Rows 5 and 119 of cases.csv (file lines 7 and 121) fail while they are computed.
+case:rows_lost.cases() {
+cases_reference
 "$pendavg" "${cases[@]}" >"$work/cases_reference_stdout.csv" 2>/dev/null
 faulty_run 5,119 "${cases[@]}" --output "$work/cases_failed.csv"
 check "failed rows: exit status 3 (was 2 and no file)" test "$rc" -eq 3
@@ -75,9 +94,10 @@ check "failed first row to stdout: its line in place" \
 faulty_run "$(seq -s, 0 119)" "${cases[@]}" --output "$work/cases_all_failed.csv"
 check "every row failed: exit 3, 120 '# failed:' lines" \
   test "$rc" -eq 3 -a "$(grep -c '^# failed: ' "$work/cases_all_failed.csv")" -eq 120
+}
 # table likewise: a '# failed: point (...)' line, resumed = a full run.
-table=(table --beta log:0.1:10:20 --mu1 0.1,0.5 --digits 16)
-"$pendavg" "${table[@]}" --output "$work/table_reference.csv" 2>/dev/null
+case:rows_lost.table() {
+table_reference
 faulty_run 3,39 "${table[@]}" --output "$work/table_failed.csv"
 check "table failed points: exit 3, one error line" test "$rc" -eq 3
 check "table failed points: one error line" one_error_line
@@ -88,6 +108,8 @@ check "table failed points: the finished rows equal the full run's" \
   cmp -s <(data_rows "$work/table_failed.csv") <(data_rows "$work/table_reference.csv" | sed -e '4d' -e '40d')
 run "${table[@]}" --resume "$work/table_failed.csv"
 check "table failed points resumed = a full run" cmp -s "$work/table_failed.csv" "$work/table_reference.csv"
+}
+case:rows_lost.sigterm() {
 # A failed row and an interruption (SIGTERM once the progress line shows rows being computed:
 # 400 rows at 1000 digits, several seconds, so that the run is still going when the first
 # progress line shows at 2 s): the file has both lines and --resume completes it.
@@ -116,8 +138,11 @@ check "failed row then SIGTERM: exit 3, the failed line and the interrupted line
 run "${slow[@]}" --resume "$work/slow_failed.csv"
 check "failed row and interruption resumed = a full run" \
   cmp -s "$work/slow_failed.csv" "$work/slow_reference.csv"
+}
 
 # ---------------------------------------------------------------- 2. --resume keeps whole rows only
+case:resume.damaged_rows() {
+cases_reference
 cp "$work/cases_reference.csv" "$work/damaged.csv"
 # Row 50 cut to 9 of its fields, row 80 with a field that is no number, the last row cut
 # mid-number and without its newline (a file cut short).
@@ -139,10 +164,14 @@ check "damaged rows resumed: exit 0" test "$rc" -eq 0
 check "damaged rows resumed: the 3 damaged rows computed, the others kept" \
   grep -q '^pendavg: test: sweep of 120 rows, 3 computed,' "$work/err"
 check "damaged rows resumed = a full run" cmp -s "$work/damaged.csv" "$work/cases_reference.csv"
-PENDAVG_SWEEP_REPORT=1 faulty_run "" "${table[@]}" --resume "$work/table_failed.csv"
+table_reference
+cp "$work/table_reference.csv" "$work/table_whole.csv"
+PENDAVG_SWEEP_REPORT=1 faulty_run "" "${table[@]}" --resume "$work/table_whole.csv"
 check "a whole file resumed: every row kept" grep -q '^pendavg: test: sweep of 40 rows, 0 computed,' "$work/err"
+}
 
 # ---------------------------------------------------------------- 3. a file size limit
+case:limits.file_size() {
 big_table=(table --beta log:0.1:10:2000 --mu1 0.1,0.5 --digits 16)
 (
   ulimit -f 8  # 8 blocks of 512 bytes: the table is ~1 MB
@@ -154,8 +183,11 @@ check "ulimit -f: one error line naming the limit" \
   sh -c "[ \$(wc -l <'$work/err') -eq 1 ] && grep -q 'File too large' '$work/err'"
 check "ulimit -f: no file" test ! -e "$work/limited.csv"
 check "ulimit -f: no temporary" no_temporaries
+}
 
 # ---------------------------------------------------------------- 4. long output names
+case:output.long_name() {
+table_reference
 long_name=$(printf 'x%.0s' $(seq 1 251)).csv  # 255 characters, NAME_MAX
 run "${table[@]}" --output "$work/$long_name"
 check "a 255-character output name is written" cmp -s "$work/$long_name" "$work/table_reference.csv"
@@ -163,8 +195,10 @@ run "${table[@]}" --resume "$work/$long_name"
 check "a 255-character output name is resumed" test "$rc" -eq 0
 check "long name: no temporary" no_temporaries
 rm -f "$work/$long_name"
+}
 
 # ---------------------------------------------------------------- 5. modes and hard links
+case:output.modes_and_links() {
 echo old >"$work/private.csv"
 chmod 600 "$work/private.csv"
 run "${table[@]}" --output "$work/private.csv"
@@ -183,8 +217,10 @@ bad "an output with two hard links is refused" "${table[@]}" --output "$work/lin
 check "hard links: the line says why" grep -q "2 hard links" "$work/err"
 check "hard links: both names keep their content" \
   sh -c "[ \"\$(cat '$work/linked.csv')\" = old ] && [ \"\$(cat '$work/link2.csv')\" = old ]"
+}
 
 # ---------------------------------------------------------------- 6. --timing-rows on a full disk
+case:timing_rows.full_disk() {
 bad "--timing-rows /dev/full fails before any row reaches stdout" \
   "${cases[@]}" --timing-rows /dev/full
 run "${cases[@]}" --timing-rows "$work/timing.csv"
@@ -196,8 +232,10 @@ faulty_run 7 "${cases[@]}" --timing-rows "$work/timing_failed.csv"
 check "--timing-rows with a failed row: the row is left out" \
   test "$rc" -eq 3 -a "$(wc -l <"$work/timing_failed.csv")" -eq 120 -a \
        -z "$(cut -d, -f1 "$work/timing_failed.csv" | grep -x 7)"
+}
 
 # ---------------------------------------------------------------- 7. endless input, FIFOs
+case:input.endless() {
 bad "--cases /dev/zero is refused at once (a NUL byte)" average --cases /dev/zero
 check "/dev/zero: the line says why" grep -q "line 1 holds a NUL byte: not a text file" "$work/err"
 bad "--cases /dev/urandom is refused at once" average --cases /dev/urandom
@@ -207,6 +245,9 @@ check "long line: the line says why" grep -q "line 2 is longer than 64 MB" "$wor
 rm -f "$work/long_line.csv"
 bad "an endless line from a pipe is refused" average --cases <(yes 1,1,1,1 | tr -d '\n')
 check "endless line: the line says why" grep -q "line 1 is longer than 64 MB" "$work/err"
+}
+case:output.fifo() {
+table_reference
 mkfifo "$work/fifo"
 bad "--output to a FIFO nobody reads is refused" "${table[@]}" --output "$work/fifo"
 check "FIFO: the line says why" grep -q "FIFO that no process reads" "$work/err"
@@ -220,8 +261,10 @@ run "${table[@]}" --output "$work/fifo"
 wait "$reader"
 check "--output to a FIFO with a reader writes through it" \
   cmp -s "$work/from_fifo.csv" "$work/table_reference.csv"
+}
 
 # ---------------------------------------------------------------- 8. progress while checking
+case:checking.progress() {
 # 1e8 points take minutes to check: a progress line comes within seconds; SIGINT then ends the
 # run (no row was computed).
 "$pendavg" table --beta lin:0.1:10:10000 --mu1 lin:0.01:0.99:10000 --output "$work/huge.csv" \
@@ -234,8 +277,10 @@ done
 kill -INT "$pid" 2>/dev/null
 wait "$pid"
 check "a long check prints progress" grep -q '^\[table\] checking the points: [0-9]*/100000000' "$work/err"
+}
 
 # ---------------------------------------------------------------- 9. error lines safe for a terminal
+case:errors.terminal_safe() {
 one=(average --masses 1,1 --lengths 1,1)
 bad "ESC and CR in an argument" "${one[@]}" --beta $'1\e[31m\r2'
 check "ESC and CR are escaped" grep -qF -- "--beta: malformed number '1\x1b[31m\x0d2'" "$work/err"
@@ -256,8 +301,10 @@ check "a 1 MB field is cut after 40 characters, its length said" \
 printf 'beta,g,m1,l1\n1,1,1\x1b]0;owned\x07,1\n' >"$work/control_field.csv"
 bad "control characters in a cases field" average --cases "$work/control_field.csv"
 check "cases field's control characters escaped" grep -qF '\x1b]0;owned\x07' "$work/err"
+}
 
 # ---------------------------------------------------------------- 10. cases files as pandas writes them
+case:cases_files.pandas() {
 printf 'beta,g,m1,m2,l1,l2\n1,1,1,1,1,1\n2.5,9.81,0.3,1,2,0.5\n' >"$work/plain.csv"
 run average --cases "$work/plain.csv"
 cp "$work/out" "$work/plain_out.csv"
@@ -286,8 +333,10 @@ PY
   run average --cases "$work/pandas_real.csv"
   check "a file pandas wrote" test "$rc" -eq 0 -a "$(grep -v '^#' "$work/out" | grep -c .)" -eq 3
 fi
+}
 
 # ---------------------------------------------------------------- killed outright
+case:resume.killed() {
 # SIGKILL (the OOM killer, kill -9: no handler runs) at a random moment once rows are written,
 # then --resume: the killed run's rows are taken from its temporary (one thread: MPFR rows of
 # N = 2 vary in their last digits with two, a race outside the sweep).
@@ -295,13 +344,12 @@ killed=(table --beta log:1:1000:30 --mu1 0.001,0.05 --digits 1000)
 OMP_NUM_THREADS=1 "$pendavg" "${killed[@]}" --output "$work/killed_reference.csv" 2>/dev/null
 OMP_NUM_THREADS=1 killed_and_resumed "table" "$work/killed_reference.csv" "$work/killed.csv" \
   "$faulty" "${killed[@]}"
+}
+case:resume.dead_writer() {
 # Temporaries of a writer that has ended (made here, named with the pid of a process that
 # exited): one cut within its header has no rows (the sweep is written, the temporary removed
 # once it is); one of another sweep is refused in one line that names it, and nothing is written.
-true &
-dead_pid=$!
-wait "$dead_pid"
-host=$(hostname | tr -cd 'A-Za-z0-9-' | cut -c1-64)
+dead_writer
 quick=(table --beta log:0.1:10:20 --mu1 0.1,0.5)
 "$pendavg" "${quick[@]}" --output "$work/quick_reference.csv" 2>/dev/null
 head -c 30 "$work/quick_reference.csv" >"$work/quick.csv.tmp.$host.$dead_pid.aaaaaa"
@@ -315,14 +363,17 @@ bad "a dead writer's temporary of another sweep" "${quick[@]}" --resume "$work/q
 check "... named in the refusal" grep -q "quick2.csv.tmp.$host.$dead_pid.bbbbbb', left by a killed run" "$work/err"
 check "... and nothing written" test ! -e "$work/quick2.csv"
 rm -f "$work/quick2.csv.tmp."*
+}
 
 # ---------------------------------------------------------------- 11. files of another output schema
+case:schema.other_schemas() {
 # Files pendavg 0.2.0 wrote with output schema 0 (tests/cli/schema0/: interrupted files of a
 # table and of average --cases, and the two shards of a table; other column names and number
 # formats, no '# schema:' line) are never completed with schema 1 rows: --resume refuses them in
 # one line that names the schemata, and leaves them as they were; so does a file of a later
 # schema, and a killed old run's temporary. merge joins shards of one schema only.
 schema0="$(cd "$(dirname "$0")" && pwd)/schema0"
+dead_writer
 mkdir "$work/old" "$work/schema0" && cp "$schema0"/*.csv "$work/old/" && cp "$schema0"/*.csv "$work/schema0/"
 schema0_reason="was written with output schema 0 (pendavg 0.2.0: it has no '# schema:' line); this pendavg writes schema 1 -- "
 old_table=(table --beta log:0.1:10:3 --mu1 0.5 --l1 1,2 --g 1,9.81)
@@ -377,6 +428,7 @@ merged = open(sys.argv[1]).read().splitlines(keepends=True)
 assert not any(l.startswith("# schema:") for l in merged), "a schema line"
 assert merged == expected, merged
 PY
+}
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+
+cases_main "$@"

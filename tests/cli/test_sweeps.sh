@@ -6,11 +6,11 @@
 # temporary file left by a signal, finished rows kept on SIGINT/SIGTERM, and --resume giving the
 # file an uninterrupted run writes (issues 11 and 14). MPI runs: test_mpi.sh.
 #
-# Usage: test_sweeps.sh PATH/TO/pendavg
-# Prints "N passed, M failed" last and exits non-zero on any failure.
+# Usage: test_sweeps.sh PATH/TO/pendavg CASE    (test_sweeps.sh --list: the cases)
+# Prints "CASE: N passed, M failed" last and exits non-zero on any failure.
 set -u
 
-pendavg=${1:?usage: test_sweeps.sh PATH/TO/pendavg}
+pendavg=${1:?usage: test_sweeps.sh PATH/TO/pendavg CASE, or test_sweeps.sh --list}
 here=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=sweep_harness.sh
 source "$here/sweep_harness.sh"
@@ -48,9 +48,12 @@ signal_after_progress() {
 
 # ---------------------------------------------------------------- every row checked first
 # These computed for seconds to minutes before they were refused (or never ended).
+case:checked_first.table() {
 bad "table beta 1e300 at 16 digits, refused before the 600-digit rows" \
   table --beta log:1e-3:1e300:60 --digits 16,600 --output "$work/late.csv"
 check "table refused: no file" test ! -e "$work/late.csv"
+}
+case:checked_first.cases_last_row() {
 "$python" - "$work/late_cases.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -60,7 +63,9 @@ with open(sys.argv[1], "w") as f:
     f.write("1,1,0.5,0.5,1,-1\n")  # bad last row: refused before 2000 rows at 1000 digits
 PY
 bad "cases bad last row, refused before any row" average --cases "$work/late_cases.csv" --digits 1000
-grep -q 'line 2002: l2' "$work/err" && pass || fail "cases bad last row: stderr does not name line 2002"
+check "cases bad last row: stderr names line 2002" grep -q 'line 2002: l2' "$work/err"
+}
+case:checked_first.transfer_row() {
 # A transfer row (N >= 5) whose beta g S_j l_j overflows is refused before the 200 rows above it
 # (N = 64, about 0.4 s each) are computed: it was found only when its turn came.
 "$python" - "$work/late_transfer.csv" <<'PY'
@@ -73,8 +78,10 @@ with open(sys.argv[1], "w") as f:
     f.write(",".join(["1e10", "1e200"] + ["1"] * n + ["1e200"] * n) + "\n")
 PY
 bad "cases transfer row out of the double range, refused before any row" average --cases "$work/late_transfer.csv"
-grep -q "line 202: average: the joints' coefficients g S_j l_j sum to .*beyond double's range" "$work/err" && pass ||
-  fail "cases transfer row: stderr does not name line 202 and the overflow"
+check "cases transfer row: stderr names line 202 and the overflow" \
+  grep -q "line 202: average: the joints' coefficients g S_j l_j sum to .*beyond double's range" "$work/err"
+}
+case:checked_first.wide_header() {
 # A cases header of 100,000 columns (N = 49999) is read in linear time (it took minutes).
 "$python" - "$work/wide.csv" <<'PY'
 import random, sys
@@ -85,9 +92,11 @@ with open(sys.argv[1], "w") as f:
     f.write(",".join(columns) + "\n" + ",".join("1" for _ in columns) + "\n")
 PY
 bad "cases header of 100,000 columns" average --cases "$work/wide.csv"
-grep -q "transfer takes N <= 16384, not N = 49999" "$work/err" && pass || fail "wide header: N read from 100,000 columns"
+check "wide header: N read from 100,000 columns" grep -q "transfer takes N <= 16384, not N = 49999" "$work/err"
+}
 
 # ---------------------------------------------------------------- streaming, bounded memory
+case:memory.cases_1e5_rows() {
 # 1e5 rows at 1000 digits (each row's line ~7 kB; 720 MB were reserved up front before): the
 # peak once rows are being computed stays under 100 MB; SIGINT keeps the finished rows, in order.
 "$python" - "$work/many.csv" <<'PY'
@@ -108,14 +117,18 @@ rows = [l for l in lines if not l.startswith("#")][1:]
 assert 0 < len(rows) < 100000, len(rows)
 PY
 check "cases SIGINT: no temporary" no_temporaries
+}
+case:memory.chain_256() {
 # A chain of 256 over 1e5 betas (1.6 GB of decimal strings were built before the first row).
 signal_after_progress '^\[table\] [1-9]' TERM table --chain 256 --beta lin:0.1:10:100000 --method qmc --samples 1024 --shifts 4 \
   --output "$work/chain256.csv"
 check "table chain 256 x 1e5 betas: peak ${peak} kB < 100 MB" test "$peak" -gt 0 -a "$peak" -lt 102400
 check "table SIGTERM: exit 0 and footer" \
   bash -c "[ $rc -eq 0 ] && tail -1 '$work/chain256.csv' | grep -q '^# interrupted: [0-9]* of 100000 points computed'"
+}
 
 # ---------------------------------------------------------------- thread counts
+case:threads.tables() {
 for args in "table --chain 3,5 --beta 0.5,2 --g 1,2 --digits 16,20" \
             "table --chain 3,5 --beta 0.5,2 --g 1,2 --method qmc --samples 1024 --shifts 4" \
             "table --beta log:0.01:100:30 --mu1 0.01,0.5 --digits 16,25"; do
@@ -127,8 +140,10 @@ for args in "table --chain 3,5 --beta 0.5,2 --g 1,2 --digits 16,20" \
   check "$args: 1 and 3 threads give the same file" \
     bash -c "[ -s '$work/t1.csv' ] && cmp -s '$work/t1.csv' '$work/t3.csv'"
 done
+}
 
 # ---------------------------------------------------------------- output files
+case:output.links() {
 echo old >"$work/target.csv"
 ln -s target.csv "$work/link.csv"
 run table --beta 1 --output "$work/link.csv"
@@ -139,12 +154,16 @@ bad "--output onto a dangling symlink" table --beta 1 --output "$work/dangling.c
 ln -s loop_a "$work/loop_b"
 ln -s loop_b "$work/loop_a"
 bad "--output onto a loop of symlinks" table --beta 1 --output "$work/loop_a"
+}
+case:output.device() {
 # A device node is written in place, never replaced by a regular file (as root, --output
 # /dev/null used to replace the real device). A private copy of /dev/null when we may make one.
 device=/dev/null
 mknod "$work/null" c 1 3 2>/dev/null && device="$work/null"
 run table --beta 1,2 --output "$device"
 check "--output $device: exit 0, still a character device" bash -c "[ $rc -eq 0 ] && [ -c '$device' ]"
+}
+case:output.fifo() {
 mkfifo "$work/fifo"
 cat "$work/fifo" >"$work/from_fifo.csv" &
 reader=$!
@@ -152,11 +171,15 @@ run table --beta 1,2 --output "$work/fifo"
 wait "$reader"
 check "--output onto a FIFO streams through it" \
   bash -c "[ $rc -eq 0 ] && [ -p '$work/fifo' ] && [ \"\$(grep -c '^2,16,' '$work/from_fifo.csv')\" -eq 2 ]"
+}
+case:output.pipe() {
 # /dev/stdout onto a pipe is a link to "pipe:[N]", a name no readlink can follow: written in place.
 "$pendavg" table --beta 1,2 --output /dev/stdout 2>/dev/null | cat >"$work/from_pipe.csv"
 pipe_rc=${PIPESTATUS[0]}
 check "--output /dev/stdout onto a pipe streams through it" \
   bash -c "[ $pipe_rc -eq 0 ] && [ \"\$(grep -c '^2,16,' '$work/from_pipe.csv')\" -eq 2 ]"
+}
+case:output.refusals() {
 printf 'beta,g,m1,m2,l1,l2\n1,1,0.5,0.5,1,1\n2,1,0.2,0.8,1,2\n' >"$work/cases.csv"
 ln -s cases.csv "$work/cases_link.csv"
 bad "--timing-rows = the cases file"     average --cases "$work/cases.csv" --timing-rows "$work/cases.csv"
@@ -168,6 +191,8 @@ bad "--resume and another --output"     table --beta 1 --resume "$work/r1.csv" -
 bad "--resume without --cases"          average --masses 1,1 --lengths 1,1 --beta 1 --resume "$work/o.csv"
 check "--resume without --cases: no file" test ! -e "$work/o.csv"
 check "cases file untouched" grep -q '^2,1,0.2,0.8,1,2$' "$work/cases.csv"
+}
+case:signals.sigterm_table() {
 # SIGTERM at any moment of a table written to a file: no temporary file survives, and the file
 # is either absent (the signal came before it existed) or complete (all rows, or the finished
 # ones and the footer).
@@ -176,7 +201,7 @@ for delay in 0.05 0.15 0.3 0.45 0.6 0.8 1.0 1.3; do
   start_then_signal "$delay" TERM table --beta log:1:1000:40 --mu1 0.001,0.3 --digits 300 \
     --output "$work/sig.csv"
   if ! no_temporaries; then
-    fail "SIGTERM after $delay s left a temporary file"
+    fail "SIGTERM after $delay s" "no temporary file left" "$(find "$work" -name '*.tmp.*')"
   elif [ -e "$work/sig.csv" ] && ! "$python" - "$work/sig.csv" <<'PY'; then
 import sys
 text = open(sys.argv[1]).read()
@@ -185,18 +210,22 @@ lines = text.splitlines()
 rows = [l for l in lines if not l.startswith("#")][1:]
 assert len(rows) == 80 or lines[-1].startswith("# interrupted: %d of 80" % len(rows)), (len(rows), lines[-1])
 PY
-    fail "SIGTERM after $delay s: an incomplete file"
+    fail "SIGTERM after $delay s" "no file, or all 80 rows, or the finished rows and the footer" "an incomplete file (the check's message above)"
   else
     pass
   fi
 done
+}
+case:signals.poincare() {
 # poincare writes its file at the end, with the signals deferred meanwhile.
 for delay in 0.2 0.5; do
   start_then_signal "$delay" TERM poincare --masses 1,1 --lengths 1,1 --energy -1 --orbits 4 \
     --points 3000 --output "$work/section.csv"
   check "poincare SIGTERM after $delay s: no temporary" no_temporaries
 done
+}
 
+case:signals.sigkill_temporary() {
 # SIGKILL (no handler runs) leaves the temporary; the next write of the same file, once it is
 # committed, removes it (its process is gone; --resume would have taken its rows: see
 # test_sweep_files.sh), and leaves a live writer's temporary alone.
@@ -216,8 +245,10 @@ run table --beta 1,2 --mu1 0.5 --output "$work/killed.csv"
 check "the next write, committed, removes the killed run's temporary" \
   test "$(find "$work" -name 'killed.csv.tmp.*')" = "$live"
 rm -f "$live"
+}
 
 # ---------------------------------------------------------------- resume
+case:resume.table() {
 # A sweep killed at a random moment, then resumed: the same file as an uninterrupted run.
 sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 350)
 "$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
@@ -238,17 +269,24 @@ run "${sweep[@]}" --resume "$work/fresh.csv"
 check "--resume of a file not there yet writes it" cmp -s "$work/fresh.csv" "$work/reference.csv"
 cp "$work/reference.csv" "$work/other.csv"
 bad "resume with other digits" table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 300 --resume "$work/other.csv"
-grep -q 'digits = 350' "$work/err" && pass || fail "resume mismatch: the differing line is named"
+check "resume mismatch: the differing line is named" grep -q 'digits = 350' "$work/err"
 bad "resume with another beta range" table --beta log:1:100:50 --mu1 0.001,0.05 --digits 350 --resume "$work/other.csv"
 sed 's/^# pendavg [0-9.]*,/# pendavg 0.0.1,/' "$work/reference.csv" >"$work/old_version.csv"
 bad "resume of another version's file" "${sweep[@]}" --resume "$work/old_version.csv"
 sed '20s/^2,350,[^,]*,/2,350,7.5,/' "$work/reference.csv" >"$work/foreign_row.csv"
 bad "resume of a file with a foreign row" "${sweep[@]}" --resume "$work/foreign_row.csv"
 check "failed resumes leave the file" cmp -s "$work/other.csv" "$work/reference.csv"
+strip_added_columns "$work/reference.csv" "$work/before_issue10.csv"
+cp "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
+bad "table resume of a file with the columns before issue 10" "${sweep[@]}" --resume "$work/before_issue10.csv"
+check "table resume before issue 10: reason" grep -q "is not an output of this sweep" "$work/err"
+check "table resume before issue 10: the file is left as it was" cmp -s "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
+}
 
 # Microcanonical sweeps (issue 15) share the engine: a table at fixed excitation and cases with
 # an energy column, rows missing anywhere, resumed = uninterrupted.
 punch_holes() { "$python" "$here/punch_holes.py" "$1" "$2"; }  # FILE OUT (punch_holes.py)
+case:resume.microcanonical() {
 micro_sweep=(table --excitation log:1e-9:1:10 --g 1,9.81 --chain 3)
 "$pendavg" "${micro_sweep[@]}" --output "$work/micro_reference.csv" 2>/dev/null
 punch_holes "$work/micro_reference.csv" "$work/micro_holes.csv"
@@ -264,10 +302,12 @@ check "microcanonical cases with missing rows resumed = uninterrupted" \
   cmp -s "$work/micro_cases_holes.csv" "$work/micro_cases_reference.csv"
 bad "microcanonical resume of a beta file" table --beta log:1e-9:1:10 --g 1,9.81 --chain 3 \
   --resume "$work/micro_reference.csv"
+}
 
 # average --cases --output: the schema line, then '#' lines that name the cases (by hash),
 # digits, method, version; the rows are stdout's (stdout: the schema line, the column line, the
 # rows); interrupted and resumed gives the uninterrupted file.
+case:resume.cases() {
 "$python" - "$work/cases300.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -306,6 +346,10 @@ sed '2s/^0.001,/0.002,/' "$work/cases300.csv" >"$work/cases300b.csv"
 cp "$work/cases_reference.csv" "$work/cases_other.csv"
 bad "cases resume with other cases" average --cases "$work/cases300b.csv" --digits 250 --resume "$work/cases_other.csv"
 bad "cases resume with another method" average --cases "$work/cases300.csv" --digits 250 --method series --resume "$work/cases_other.csv"
+strip_added_columns "$work/cases_reference.csv" "$work/cases_before_issue10.csv"
+bad "cases resume of a file with the columns before issue 10" average --cases "$work/cases300.csv" --digits 250 \
+  --resume "$work/cases_before_issue10.csv"
+}
 # Issue 10 added columns (the kinds of every error, work_unit, the equipartition residual,
 # beta<K_i^(c)>), which output schema 1 places after cos_phi_error_kind: the resumed files above
 # carry them; a file written with the columns before them (same version and schema) is refused,
@@ -325,16 +369,9 @@ out = [l if l.startswith("#") else ",".join(l.rstrip("\n").split(",")[:keep]) + 
 open(sys.argv[2], "w").write("".join(out))
 PY
 }
-strip_added_columns "$work/reference.csv" "$work/before_issue10.csv"
-cp "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
-bad "table resume of a file with the columns before issue 10" "${sweep[@]}" --resume "$work/before_issue10.csv"
-grep -q "is not an output of this sweep" "$work/err" && pass || fail "table resume before issue 10: reason"
-check "table resume before issue 10: the file is left as it was" cmp -s "$work/before_issue10.csv" "$work/before_issue10_copy.csv"
-strip_added_columns "$work/cases_reference.csv" "$work/cases_before_issue10.csv"
-bad "cases resume of a file with the columns before issue 10" average --cases "$work/cases300.csv" --digits 250 \
-  --resume "$work/cases_before_issue10.csv"
 
 # ---------------------------------------------------------------- simulate --replicas
+case:replicas.langevin() {
 replicas=(simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 4 --format json)
 OMP_NUM_THREADS=1 "$pendavg" "${replicas[@]}" >"$work/rep1.json" 2>/dev/null
 OMP_NUM_THREADS=2 "$pendavg" "${replicas[@]}" >"$work/rep2.json" 2>/dev/null
@@ -354,6 +391,8 @@ PY
 "$pendavg" simulate --masses 1,1 --lengths 1,1 --theta 0 --time 100 --thermostat langevin --beta 1 --seed 7 --replicas 1 --format json >"$work/rep_one.json" 2>/dev/null
 check "--replicas 1 is the single run" \
   bash -c "diff <(sed 's/\"seconds\": [^,}]*//' '$work/single.json') <(sed 's/\"seconds\": [^,}]*//' '$work/rep_one.json') >/dev/null"
+}
+case:replicas.nve() {
 run simulate --masses 1,1,1 --lengths 1,1,1 --theta 90deg --time 30 --replicas 3 --seed 2 --format csv --exact no
 check "NVE replicas (perturbed starts), csv" "$python" - "$work/out" "$rc" <<'PY'
 import csv, sys
@@ -366,10 +405,14 @@ for i in (1, 2, 3):
     for column in (f"K_autocorrelation_time{i}", f"K{i}_error_blocking", f"K{i}_error_replicas"):
         assert float(r[column]) > 0, column
 PY
+}
+case:replicas.refusals() {
 bad "replicas with --trajectory" simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --trajectory "$work/t.csv" --every 1
 bad "replicas 0"                 simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 0
 bad "perturb with langevin"      simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --replicas 2 --thermostat langevin --beta 1 --perturb 1e-3
 bad "seed, one NVE run"          simulate --masses 1,1 --lengths 1,1 --theta 1 --time 1 --seed 3
+}
+case:replicas.sigint() {
 start_then_signal 1 INT simulate --masses 1,1,1 --lengths 1,1,1 --theta 0 --time 1e6 --thermostat langevin --beta 1 --replicas 4 --exact no --format json
 check "replicas SIGINT: exit 0, interrupted averages of the replicas so far" "$python" - "$work/out" "$rc" <<'PY'
 import json, sys
@@ -377,6 +420,7 @@ assert sys.argv[2] == "0", sys.argv[2]
 d = json.load(open(sys.argv[1]))
 assert d["interrupted"] and 1 <= d["replicas"] <= 4 and d["steps"] > 0, d
 PY
+}
 
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+
+cases_main "$@"
