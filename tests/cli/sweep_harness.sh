@@ -82,3 +82,50 @@ killed_and_resumed() {
     pass
   fi
 }
+# killed_ahead NAME FORMAT LAUNCH...: a sweep killed outright keeps the rows it finished ahead of
+# an unfinished one. LAUNCH starts the test build (alone, or under mpiexec); its row 0 sleeps
+# (PENDAVG_TEST_SLOW_ROW=0:60), so every other finished row waits behind it and the file's own
+# temporary holds only the header: rank 0 copies the waiting rows to a second temporary about
+# every second. Once the copy holds rows the run is killed (SIGKILL); --resume must then compute
+# only what the copy did not hold (row 0 among them) and write the uninterrupted run's file.
+killed_ahead() {
+  local name=$1 format=$2 k rows computed copy temporary
+  shift 2
+  local sweep=(table --beta log:0.01:100:120 --mu1 0.3 --digits 24 --format "$format")
+  local out=$work/ahead.$format reference=$work/ahead_reference.$format
+  local row='^,\?{"N"\|^[0-9 ]'  # a row's line in csv, json (after the first: a comma) and text
+  OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$reference" 2>/dev/null ||
+    { fail "$name" "the uninterrupted run exits 0" "it failed"; return; }
+  rows=$(grep -c "$row" "$reference")
+  PENDAVG_TEST_SLOW_ROW=0:60 OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$out" >/dev/null 2>&1 &
+  local pid=$!
+  copy=
+  for ((k = 0; k < 300; ++k)); do
+    [ -n "$copy" ] && break
+    for temporary in "$out".tmp.*; do
+      [ -e "$temporary" ] && [ "$(grep -c "$row" "$temporary")" -ge 2 ] && copy=$temporary
+    done
+    sleep 0.1
+  done
+  { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null  # (no "Killed" job notice)
+  for ((k = 0; k < 100; ++k)); do pgrep -f -- "--output $out" >/dev/null || break; sleep 0.1; done
+  if [ -z "$copy" ] || [ -e "$out" ]; then
+    fail "$name" "a temporary with rows ahead of the slow row 0 within 30 s" "none (or the run finished)"
+    return
+  fi
+  PENDAVG_SWEEP_REPORT=1 OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --resume "$out" >"$work/out" 2>"$work/err"
+  rc=$?
+  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
+  local expected="resumed after SIGKILL: exit 0, the uninterrupted file, no temporary, at most $((rows - 2)) of $rows rows computed"
+  if [ "$rc" -ne 0 ]; then
+    fail "$name" "$expected" "the resumed run exited $rc"
+  elif ! cmp -s "$out" "$reference"; then
+    fail "$name" "$expected" "a file that differs from an uninterrupted run's"
+  elif [ -n "$(find "$work" -name "ahead.$format.tmp.*" | head -1)" ]; then
+    fail "$name" "$expected" "a temporary left"
+  elif ! [ "${computed:-$rows}" -le $((rows - 2)) ]; then
+    fail "$name" "$expected" "${computed:-?} computed: the rows finished ahead of row 0 were lost"
+  else
+    pass
+  fi
+}

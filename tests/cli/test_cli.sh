@@ -344,7 +344,9 @@ expect "cases bad row: stderr names line 3" 'grep -q "line 3" "$work/err"'
 bad "cases short row"        average --cases "$work/short_row.csv"
 bad "cases with --beta"      average --cases "$work/bad_row.csv" --beta 1
 bad "cases is a directory"   average --cases "$work"
-bad "cases --format json"    average --cases "$work/bad_row.csv" --format json
+printf 'm1,m2,l1,l2,g,beta\n0.5,0.5,1,1,1,1\n' >"$work/one_row.csv"
+bad "cases --format xml"     average --cases "$work/one_row.csv" --format xml
+expect "cases --format xml: stderr names the formats" 'grep -q "json" "$work/err"'
 }
 
 # ---------------------------------------------------------------- good input

@@ -161,6 +161,10 @@ killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed
 # written afresh, on 2 and 3 ranks with a reorder window of 16 rows (PENDAVG_SWEEP_WINDOW_ROWS:
 # rows wait for the window to move), are the serial file; the ranks other than 0 computed rows
 # (PENDAVG_SWEEP_REPORT); every run ends (a bound of 120 s: a liveness check, not a timing).
+# Rows finished on rank 1 ahead of rank 0's slow row 0 survive a SIGKILL of the whole job.
+case:resume.killed_ahead() {
+killed_ahead "rows ahead kept under mpirun" csv "${launcher[@]}" -n 2 "$faulty"
+}
 case:resume.window() {
 export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null

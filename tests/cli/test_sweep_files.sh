@@ -345,6 +345,11 @@ OMP_NUM_THREADS=1 "$pendavg" "${killed[@]}" --output "$work/killed_reference.csv
 OMP_NUM_THREADS=1 killed_and_resumed "table" "$work/killed_reference.csv" "$work/killed.csv" \
   "$faulty" "${killed[@]}"
 }
+# The rows finished ahead of an unfinished one (rank 0's reorder buffer) survive a SIGKILL, in
+# every format.
+case:resume.killed_ahead_csv() { killed_ahead "rows ahead kept (csv)" csv "$faulty"; }
+case:resume.killed_ahead_json() { killed_ahead "rows ahead kept (json)" json "$faulty"; }
+case:resume.killed_ahead_text() { killed_ahead "rows ahead kept (text)" text "$faulty"; }
 case:resume.dead_writer() {
 # Temporaries of a writer that has ended (made here, named with the pid of a process that
 # exited): one cut within its header has no rows (the sweep is written, the temporary removed
