@@ -39,25 +39,65 @@ bad() {
   fi
 }
 no_temporaries() { [ -z "$(find "$work" -name '*.tmp.*' | head -1)" ]; }
+# row_count FILE...: the row lines the sweep files hold, in any format (JSON: the lines of
+# "rows", each '{' or ',{'; CSV and text: the lines after the column line that are not '#' lines);
+# files that do not exist count none.
+row_count() {
+  local file n=0 lines
+  for file in "$@"; do
+    [ -e "$file" ] || continue
+    if [ "$(head -c 1 "$file")" = "{" ]; then
+      n=$((n + $(grep -c '^,\?{"' "$file")))
+    else
+      lines=$(grep -vc '^#' "$file")
+      ((lines > 1)) && n=$((n + lines - 1))
+    fi
+  done
+  echo "$n"
+}
+# resumed_whole NAME REFERENCE OUT MOST WHAT COMMAND...: COMMAND --resume OUT after WHAT (a
+# kill) must exit 0, leave OUT equal to REFERENCE byte for byte and no temporary of OUT, and have
+# computed at most MOST rows (the test build's PENDAVG_SWEEP_REPORT=1 says how many): the rest
+# it took from the killed run's files.
+resumed_whole() {
+  local name=$1 reference=$2 out=$3 most=$4 what=$5 computed
+  shift 5
+  PENDAVG_SWEEP_REPORT=1 "$@" --resume "$out" >"$work/out" 2>"$work/err"
+  rc=$?
+  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
+  local expected="$what and resumed: exit 0, the uninterrupted file, no temporary, at most $most rows computed"
+  if [ "$rc" -ne 0 ]; then
+    fail "$name" "$expected" "the resumed run exited $rc"
+  elif ! cmp -s "$out" "$reference"; then
+    fail "$name" "$expected" "a file that differs from an uninterrupted run's"
+  elif [ -n "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
+    fail "$name" "$expected" "a temporary left"
+  elif ! [ "${computed:-$((most + 1))}" -le "$most" ]; then
+    fail "$name" "$expected" "${computed:-?} rows computed"
+  else
+    pass
+  fi
+}
 # killed_and_resumed NAME REFERENCE OUT COMMAND...: runs COMMAND --output OUT in the background
-# (COMMAND: the test build pendavg_row_faults with its arguments, alone or under mpiexec), kills
-# it with SIGKILL once OUT's temporary holds a row and a random 0-1 s more (no handler runs: the
-# rows it had written are all that is left), then runs COMMAND --resume OUT. OUT must be REFERENCE
-# byte for byte, no temporary may be left, and the resumed run must have computed fewer rows than
-# the sweep has: it took the killed run's rows from its temporary (the test build's
-# PENDAVG_SWEEP_REPORT=1 says how many it computed).
+# (COMMAND: the test build pendavg_row_faults with its arguments, alone or under mpiexec; any
+# --format), kills it with SIGKILL once OUT's temporary holds a row and a random 0 to
+# $kill_delay_max (default 1) s more (no handler runs: the rows it had written are all that is
+# left), then runs COMMAND --resume OUT. OUT must be REFERENCE byte for byte, no temporary may be
+# left, and the resumed run must have computed fewer rows than the sweep has: it took the killed
+# run's rows from its temporary (the test build's PENDAVG_SWEEP_REPORT=1 says how many it
+# computed).
 killed_and_resumed() {
-  local name=$1 reference=$2 out=$3 k rows computed delay
+  local name=$1 reference=$2 out=$3 k rows delay
   shift 3
-  rows=$(($(grep -vc '^#' "$reference") - 1))  # without the column line
+  rows=$(row_count "$reference")
   rm -f "$out"
   "$@" --output "$out" >/dev/null 2>&1 &
   local pid=$!
-  for ((k = 0; k < 600; ++k)); do  # a data row after the header's '#' lines and column line
-    [ "$(cat "$out".tmp.* 2>/dev/null | grep -vc '^#')" -ge 2 ] && break
+  for ((k = 0; k < 600; ++k)); do
+    [ "$(row_count "$out".tmp.*)" -ge 1 ] && break
     sleep 0.1
   done
-  delay=$(/usr/bin/python3 -c 'import random; print(round(random.uniform(0, 1), 2))')
+  delay=$(/usr/bin/python3 -c "import random; print(round(random.uniform(0, ${kill_delay_max:-1}), 2))")
   sleep "$delay"
   { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null  # (no "Killed" job notice)
   # The processes of the killed run (an orphaned rank) are gone before it is resumed.
@@ -66,21 +106,7 @@ killed_and_resumed() {
     fail "$name" "a temporary left by the run killed after $delay s" "the run had finished or left no temporary (too fast a sweep?)"
     return
   fi
-  PENDAVG_SWEEP_REPORT=1 "$@" --resume "$out" >"$work/out" 2>"$work/err"
-  rc=$?
-  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
-  local expected="killed (SIGKILL) after $delay s and resumed: exit 0, the uninterrupted file, no temporary, fewer than $rows rows computed"
-  if [ "$rc" -ne 0 ]; then
-    fail "$name" "$expected" "the resumed run exited $rc"
-  elif ! cmp -s "$out" "$reference"; then
-    fail "$name" "$expected" "a file that differs from an uninterrupted run's"
-  elif [ -n "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
-    fail "$name" "$expected" "a temporary left"
-  elif ! [ "${computed:-$rows}" -lt "$rows" ]; then
-    fail "$name" "$expected" "${computed:-?} of $rows rows computed (none taken from the temporary)"
-  else
-    pass
-  fi
+  resumed_whole "$name" "$reference" "$out" $((rows - 1)) "killed (SIGKILL) after $delay s" "$@"
 }
 # killed_ahead NAME FORMAT LAUNCH...: a sweep killed outright keeps the rows it finished ahead of
 # an unfinished one. LAUNCH starts the test build (alone, or under mpiexec); its row 0 sleeps
@@ -89,21 +115,21 @@ killed_and_resumed() {
 # every second. Once the copy holds rows the run is killed (SIGKILL); --resume must then compute
 # only what the copy did not hold (row 0 among them) and write the uninterrupted run's file.
 killed_ahead() {
-  local name=$1 format=$2 k rows computed copy temporary
+  local name=$1 format=$2 k rows copy temporary
   shift 2
   local sweep=(table --beta log:0.01:100:120 --mu1 0.3 --digits 24 --format "$format")
   local out=$work/ahead.$format reference=$work/ahead_reference.$format
   local row='^,\?{"N"\|^[0-9 ]'  # a row's line in csv, json (after the first: a comma) and text
   OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$reference" 2>/dev/null ||
     { fail "$name" "the uninterrupted run exits 0" "it failed"; return; }
-  rows=$(grep -c "$row" "$reference")
+  rows=$(row_count "$reference")
   PENDAVG_TEST_SLOW_ROW=0:60 OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --output "$out" >/dev/null 2>&1 &
   local pid=$!
   copy=
   for ((k = 0; k < 300; ++k)); do
     [ -n "$copy" ] && break
     for temporary in "$out".tmp.*; do
-      [ -e "$temporary" ] && [ "$(grep -c "$row" "$temporary")" -ge 2 ] && copy=$temporary
+      [ "$(row_count "$temporary")" -ge 2 ] && copy=$temporary
     done
     sleep 0.1
   done
@@ -113,19 +139,6 @@ killed_ahead() {
     fail "$name" "a temporary with rows ahead of the slow row 0 within 30 s" "none (or the run finished)"
     return
   fi
-  PENDAVG_SWEEP_REPORT=1 OMP_NUM_THREADS=2 "$@" "${sweep[@]}" --resume "$out" >"$work/out" 2>"$work/err"
-  rc=$?
-  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
-  local expected="resumed after SIGKILL: exit 0, the uninterrupted file, no temporary, at most $((rows - 2)) of $rows rows computed"
-  if [ "$rc" -ne 0 ]; then
-    fail "$name" "$expected" "the resumed run exited $rc"
-  elif ! cmp -s "$out" "$reference"; then
-    fail "$name" "$expected" "a file that differs from an uninterrupted run's"
-  elif [ -n "$(find "$work" -name "ahead.$format.tmp.*" | head -1)" ]; then
-    fail "$name" "$expected" "a temporary left"
-  elif ! [ "${computed:-$rows}" -le $((rows - 2)) ]; then
-    fail "$name" "$expected" "${computed:-?} computed: the rows finished ahead of row 0 were lost"
-  else
-    pass
-  fi
+  OMP_NUM_THREADS=2 resumed_whole "$name" "$reference" "$out" $((rows - 2)) \
+    "killed (SIGKILL) with the rows ahead of row 0 finished" "$@" "${sweep[@]}"
 }

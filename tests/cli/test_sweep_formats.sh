@@ -16,13 +16,7 @@
 # Prints "N passed, M failed" last and exits non-zero on any failure.
 set -u
 
-all_cases=(values output resume interrupted failed shards columns timing mpi)
-if [ "${1:-}" = --list ]; then
-  printf '%s\n' "${all_cases[@]}"
-  exit 0
-fi
-pendavg=${1:?usage: test_sweep_formats.sh PENDAVG CASE [PENDAVG_ROW_FAULTS [MPIEXEC]]}
-case_name=${2:?usage: test_sweep_formats.sh PENDAVG CASE [PENDAVG_ROW_FAULTS [MPIEXEC]]}
+pendavg=${1:?usage: test_sweep_formats.sh PENDAVG CASE [PENDAVG_ROW_FAULTS [MPIEXEC]], or --list}
 faulty=${3:-}
 mpiexec=${4:-}
 progress_lines_allowed=1
@@ -31,6 +25,7 @@ source "$(cd "$(dirname "$0")" && pwd)/sweep_harness.sh"
 formats=(csv json text)
 host=$(hostname | tr -cd 'A-Za-z0-9-' | cut -c1-64)
 
+cases_setup() {
 # Cases files: N = 2 with inputs as people write them (".5", "+1", "2.", "007"), N = 3, and an
 # energy column.
 "$python" - "$work" <<'PY'
@@ -78,47 +73,8 @@ else:
     text = "\n".join(header + [rows[int(k)] for k in arg.split(",")]) + "\n"
 open(target, "w").write(text)
 PY
-sweepfile() { "$python" "$work/sweepfile.py" "$@"; }
-# data_rows_in FILES...: how many row lines the files hold (JSON: ,{"... lines; text: lines
-# that start with spaces and a digit; CSV: lines that start with a digit)
-data_rows_in() { cat "$@" 2>/dev/null | grep -c '^,\?{"[A-Za-z]\|^ *[0-9]'; }
-# killed_and_resumed_format NAME REFERENCE OUT COMMAND...: as sweep_harness.sh's
-# killed_and_resumed (SIGKILL once the temporary holds a row and a random 0-0.3 s more, then
-# --resume: OUT = REFERENCE, no temporary left, the killed run's rows taken), for any format.
-killed_and_resumed_format() {
-  local name=$1 reference=$2 out=$3 k rows computed delay pid
-  shift 3
-  rows=$(data_rows_in "$reference")
-  rm -f "$out"
-  "$@" --output "$out" >/dev/null 2>&1 &
-  pid=$!
-  for ((k = 0; k < 600; ++k)); do
-    [ "$(data_rows_in "$out".tmp.*)" -ge 1 ] && break
-    sleep 0.05
-  done
-  delay=$("$python" -c 'import random; print(round(random.uniform(0, 0.3), 2))')
-  sleep "$delay"
-  { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null
-  if [ -e "$out" ] || [ -z "$(ls "$out".tmp.* 2>/dev/null)" ]; then
-    fail "$name: the run killed after $delay s finished or left no temporary"
-    return
-  fi
-  PENDAVG_SWEEP_REPORT=1 "$@" --resume "$out" >"$work/out" 2>"$work/err"
-  rc=$?
-  computed=$(sed -n 's/^pendavg: test: sweep of [0-9]* rows, \([0-9]*\) computed.*/\1/p' "$work/err")
-  if [ "$rc" -ne 0 ]; then
-    fail "$name: killed (SIGKILL) after $delay s, the resumed run exited $rc"
-  elif ! cmp -s "$out" "$reference"; then
-    fail "$name: killed (SIGKILL) after $delay s and resumed: differs from an uninterrupted run"
-  elif [ -n "$(ls "$out".tmp.* 2>/dev/null)" ]; then
-    fail "$name: killed (SIGKILL) after $delay s and resumed: a temporary is left"
-  elif ! [ "${computed:-$rows}" -lt "$rows" ]; then
-    fail "$name: killed (SIGKILL) after $delay s: the resume computed ${computed:-?} of $rows rows"
-  else
-    pass
-  fi
 }
-
+sweepfile() { "$python" "$work/sweepfile.py" "$@"; }
 # same_values CSV JSON TEXT [DIGITS]: the JSON document and the text file hold the CSV file's
 # header, columns, rows and values: every JSON value is the CSV text (a number written as the
 # same text, or the same exact decimal where the CSV's text is no JSON number: ".5" -> 0.5), a
@@ -210,7 +166,7 @@ three_formats() {
     same_values "$work/$name.csv" "$work/$name.json" "$work/$name.text" "${DIGITS:-}"
 }
 
-case_values() {
+case:values() {
   three_formats table_inputs table --beta .5,+1,2.,007 --mu1 0.1,.25 --l2 1,2.
   three_formats table_digits table --beta 0.5,1 --mu1 0.3,0.5 --digits 16,20
   three_formats table_chains table --chain 3,5 --beta 0.5,2 --digits 16
@@ -236,7 +192,7 @@ PY
   fi
 }
 
-case_output() {
+case:output() {
   local f
   for f in "${formats[@]}"; do
     # stdout and --output: the same bytes (table's header names no file)
@@ -266,7 +222,7 @@ case_output() {
   bad "average --cases --format xml" average --cases "$work/n3.csv" --format xml
 }
 
-case_resume() {
+case:resume() {
   local f g
   table=(table --beta log:0.1:10:15 --mu1 0.1,0.5)
   cases=(average --cases "$work/n2.csv" --digits 20)
@@ -315,7 +271,7 @@ case_resume() {
 # closed file with the finished rows; SIGKILL leaves the temporary; a dead writer's temporary
 # holding rows in increasing order with gaps (rows it had waiting to be written); each resumed
 # = an uninterrupted run.
-case_interrupted() {
+case:interrupted() {
   local f signal pid k rows
   slow=(table --beta log:1:1000:15 --mu1 0.001,0.05 --digits 700)
   true &
@@ -328,7 +284,7 @@ case_interrupted() {
     OMP_NUM_THREADS=1 "$pendavg" "${slow[@]}" --format "$f" --output "$work/stopped.$f" >"$work/out" 2>"$work/err" &
     pid=$!
     for ((k = 0; k < 300; ++k)); do  # a data row in the temporary
-      [ "$(data_rows_in "$work/stopped.$f".tmp.*)" -ge 1 ] && break
+      [ "$(row_count "$work/stopped.$f".tmp.*)" -ge 1 ] && break
       sleep 0.05
     done
     kill "-$signal" "$pid"
@@ -352,7 +308,7 @@ PY
     fi
     run "${slow[@]}" --format "$f" --resume "$work/stopped.$f"
     check "SIG$signal --format $f, resumed = an uninterrupted run" cmp -s "$work/stopped.$f" "$work/slow.$f"
-    OMP_NUM_THREADS=1 killed_and_resumed_format "SIGKILL --format $f" "$work/slow.$f" "$work/killed.$f" \
+    OMP_NUM_THREADS=1 kill_delay_max=0.3 killed_and_resumed "SIGKILL --format $f" "$work/slow.$f" "$work/killed.$f" \
       "$faulty" "${slow[@]}" --format "$f"
     # A dead writer's temporary: the header, then rows 3, 4, 10..19 and 25 (in order, gaps; the
     # rows a writer had waiting to be written).
@@ -365,7 +321,7 @@ PY
   done
 }
 
-case_failed() {
+case:failed() {
   local f last
   table=(table --beta log:0.1:10:10 --mu1 0.1,0.5)
   cases=(average --cases "$work/n3.csv")
@@ -412,7 +368,7 @@ print(",".join(map(str, sorted(out))))
 PY
 }
 
-case_shards() {
+case:shards() {
   local f k
   table=(table --beta log:0.1:10:17 --mu1 0.1,0.5 --digits 16,18)
   cases=(average --cases "$work/n2.csv")
@@ -460,7 +416,7 @@ PY
   check "... named as incomplete" grep -q "stopped_3.json' is incomplete (interrupted: " "$work/err"
 }
 
-case_columns() {
+case:columns() {
   local f
   cases=(average --cases "$work/n2.csv" --columns beta_K,error_K,ratio,cos_phi,method,evaluations,converged)
   for f in "${formats[@]}"; do
@@ -481,7 +437,7 @@ case_columns() {
   bad "--columns: --resume with other columns" average --cases "$work/n2.csv" --columns ratio --format json --resume "$work/cols.json"
 }
 
-case_timing() {
+case:timing() {
   local f
   for f in "${formats[@]}"; do
     run average --cases "$work/n3.csv" --format "$f"
@@ -493,7 +449,7 @@ case_timing() {
   done
 }
 
-case_mpi() {
+case:mpi() {
   [ -n "$mpiexec" ] || { fail "mpi: no MPIEXEC given"; return; }
   local launcher=("$mpiexec") f ranks
   if "$mpiexec" --version 2>&1 | grep -q "Open MPI\|OpenRTE"; then
@@ -515,9 +471,4 @@ case_mpi() {
   done
 }
 
-case " ${all_cases[*]} " in
-  *" $case_name "*) "case_$case_name" ;;
-  *) echo "unknown case '$case_name' (--list names them)" >&2; exit 2 ;;
-esac
-echo "$passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+cases_main "$@"
