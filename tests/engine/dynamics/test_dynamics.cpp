@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_dynamics.cpp -- RATTLE + compositions, constrained Langevin, time averages with
+// tests/engine/dynamics/test_dynamics.cpp -- RATTLE + compositions, constrained Langevin, time averages with
 // blocking error bars, and the Poincare section (pendavg/dynamics.hpp), checked against
 // independent references: dense-matrix Lagrangian mechanics (Eigen), the exact microcanonical
 // (microcanonical.hpp) and canonical (double_pendulum.hpp, torus.hpp) averages, and AR(1)

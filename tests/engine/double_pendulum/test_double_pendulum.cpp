@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_double_pendulum.cpp -- the N = 2 engines on their hard cases, by name, and the
+// tests/engine/double_pendulum/test_double_pendulum.cpp -- the N = 2 engines on their hard cases, by name, and the
 // library's own cross-checks: exact Graf-moment sums against sinh-mapped quadrature, the
 // beta -> 0 limit in Boost.Math (Carlson) against GSL's Legendre-form elliptic integrals, and
 // validation of the model.

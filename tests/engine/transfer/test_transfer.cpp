@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_transfer.cpp -- the transfer operator along the chain
+// tests/engine/transfer/test_transfer.cpp -- the transfer operator along the chain
 // (src/engine/transfer/chain_transfer.hpp, README "Large N"; method transfer of pendavg::average) against independent methods and exact
 // identities:
 //  * N = 3, 4 and 5 against the tensor torus (engine/torus/: psi-reduced relative angles,
