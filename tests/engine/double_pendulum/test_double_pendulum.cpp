@@ -9,6 +9,7 @@
 #include "engine/double_pendulum/double_pendulum.hpp"
 #include "engine/limits/limits.hpp"
 #include "engine/numerics/precision.hpp"
+#include "real_types.hpp"
 
 #include <gsl/gsl_mode.h>
 #include <gsl/gsl_sf_ellint.h>
@@ -34,66 +35,118 @@ Chain<mpfr_real> chain2_mpfr(double m1, double m2, double l1, double l2, double 
                           mpfr_real(g));
 }
 
-/// Double result against a 40-digit MPFR result of the identical (double-valued) problem:
-/// beta<K_i> to 2e-15 relative and inside the reported error.
-void check_double_against_mpfr(double m1, double m2, double l2, double beta) {
-  const auto d = pendavg::reduced_integral_average(chain2(m1, m2, 1, l2), beta, 16);
-  pendavg::working_precision guard(40 + pendavg::guard_digits);
-  const auto m = pendavg::reduced_integral_average(chain2_mpfr(m1, m2, 1, l2), mpfr_real(beta), 40);
+template <class Real>
+Chain<Real> chain2_real(double m1, double m2, double l1, double l2, double g = 1) {
+  return Chain<Real>({Real(m1), Real(m2)}, {Real(l1), Real(l2)}, Real(g));
+}
+
+/// The reduced integral in Real (double at 16 digits, MPFR at test_digits) against the identical
+/// (double-valued) problem at reference_digits: beta<K_i> to 9 units of the type's precision
+/// relative (2e-15 in double) and inside the reported error.
+template <class Real>
+void check_against_reference(double m1, double m2, double l2, double beta) {
+  using namespace pendavg::test;
+  using std::isfinite;
+  const TypePrecision<Real> precision;
+  const int digits = pendavg::is_mpfr_v<Real> ? test_digits : 16;
+  const auto r = pendavg::reduced_integral_average(chain2_real<Real>(m1, m2, 1, l2), Real(beta),
+                                                   digits);
+  std::array<mpfr_real, 2> reference;
+  {
+    const ReferencePrecision wide;
+    const auto m = pendavg::reduced_integral_average(chain2_mpfr(m1, m2, 1, l2), mpfr_real(beta),
+                                                     reference_digits);
+    REQUIRE(m.converged);
+    for (int i = 0; i < 2; ++i) reference[i] = m.beta_kinetic[i].value;
+  }
   INFO("m1 = " << m1 << " m2 = " << m2 << " l2 = " << l2 << " beta = " << beta);
-  REQUIRE(d.converged);
-  REQUIRE(m.converged);
+  REQUIRE(r.converged);
   for (int i = 0; i < 2; ++i) {
-    const double ref = static_cast<double>(m.beta_kinetic[i].value);
-    const double err = std::abs(d.beta_kinetic[i].value - ref);
-    CHECK(std::isfinite(d.beta_kinetic[i].value));
-    CHECK(err <= 2e-15 * ref);
-    CHECK(err <= d.beta_kinetic[i].error);
-    CHECK(std::isfinite(d.cos_angle[i].value));
-    CHECK(std::isfinite(d.beta2_kinetic_variance[i].value));
+    INFO("beta<K" << i + 1 << "> = " << as_double(r.beta_kinetic[i].value) << " +- "
+                  << as_double(r.beta_kinetic[i].error) << ", off by "
+                  << relative_distance(r.beta_kinetic[i].value, reference[i]) / unit<Real>()
+                  << " units relative");
+    CHECK(relative_distance(r.beta_kinetic[i].value, reference[i]) <= 9 * unit<Real>());
+    CHECK(distance(r.beta_kinetic[i].value, reference[i]) <= as_double(r.beta_kinetic[i].error));
+    CHECK(isfinite(r.cos_angle[i].value));
+    CHECK(isfinite(r.beta2_kinetic_variance[i].value));
   }
 }
 
 }  // namespace
 
-TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pendulum]") {
+// The hard cases in every number type the N = 2 engine is instantiated for (double, MPFR).
+TEMPLATE_TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pendulum]",
+                   double, mpfr_real) {
   for (double mu1 : {1e-6, 1e-9, 1e-12}) {
-    for (double beta : {1e-3, 1.0, 30.0}) check_double_against_mpfr(mu1, 1 - mu1, 1.0, beta);
+    for (double beta : {1e-3, 1.0, 30.0}) check_against_reference<TestType>(mu1, 1 - mu1, 1.0, beta);
   }
   // The limit value is approached: beta<K1> ~ (mu1/2) K/E -> 0 like mu1 log(1/mu1).
-  const auto r = pendavg::reduced_integral_average(chain2(1e-12, 1, 1, 1), 1e-6, 16);
+  const pendavg::test::TypePrecision<TestType> precision;
+  const auto r = pendavg::reduced_integral_average(chain2_real<TestType>(1e-12, 1, 1, 1),
+                                                   TestType(1e-6),
+                                                   pendavg::is_mpfr_v<TestType>
+                                                       ? pendavg::test::test_digits
+                                                       : 16);
   CHECK(r.beta_kinetic[0].value > 0);
   CHECK(r.beta_kinetic[0].value < 1e-10);
 }
 
-TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]") {
-  for (double beta : {1e-2, 1.0, 1e3, 1e6}) check_double_against_mpfr(1.0, 1e-10, 1.0, beta);
+TEMPLATE_TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]", double, mpfr_real) {
+  for (double beta : {1e-2, 1.0, 1e3, 1e6}) check_against_reference<TestType>(1.0, 1e-10, 1.0, beta);
 }
 
-TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow", "[double_pendulum]") {
-  for (double beta : {1e3, 1e6, 1e8}) check_double_against_mpfr(0.5, 0.5, 1.0, beta);
-  // Far beyond double's exp range in MPFR: beta = 1e300 gives 1/2 - O(1/beta).
-  pendavg::working_precision guard(30 + pendavg::guard_digits);
-  const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
-  CHECK(r.converged);
-  CHECK(abs(r.beta_kinetic[0].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
-  CHECK(abs(r.beta_kinetic[1].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
-}
-
-TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow", "[double_pendulum]") {
-  const auto limit = pendavg::elliptic_high_temperature_limit(chain2(0.5, 0.5, 1, 1), 16);
-  for (double beta : {1e-8, 1e-100, 1e-300}) {
-    const auto r = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), beta, 16);
-    INFO("beta = " << beta);
-    CHECK(r.beta_kinetic[0].value == Approx(limit.beta_kinetic[0].value).epsilon(1e-14));
-    CHECK(std::isfinite(r.cos_angle[0].value));
-    CHECK(r.cos_angle[0].value == Approx(beta / 2).epsilon(1e-6));  // <cos phi1> ~ a1/2, a1 = beta M g l1
+TEMPLATE_TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow",
+                   "[double_pendulum]", double, mpfr_real) {
+  for (double beta : {1e3, 1e6, 1e8}) check_against_reference<TestType>(0.5, 0.5, 1.0, beta);
+  if constexpr (pendavg::is_mpfr_v<TestType>) {
+    // Far beyond double's exp range in MPFR: beta = 1e300 gives 1/2 - O(1/beta).
+    pendavg::working_precision guard(30 + pendavg::guard_digits);
+    const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
+    CHECK(r.converged);
+    CHECK(abs(r.beta_kinetic[0].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
+    CHECK(abs(r.beta_kinetic[1].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
   }
 }
 
-TEST_CASE("hard case extreme length ratios", "[double_pendulum]") {
+TEMPLATE_TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow",
+                   "[double_pendulum]", double, mpfr_real) {
+  // Against the closed form (mu1/2) K(k)/E(k) at reference_digits (limits.hpp, an independent
+  // method): the finite-beta corrections are O(beta), below the type's precision here.
+  using Real = TestType;
+  using namespace pendavg::test;
+  using std::isfinite;
+  mpfr_real limit;
+  {
+    const ReferencePrecision wide;
+    limit = pendavg::elliptic_high_temperature_limit(chain2_mpfr(0.5, 0.5, 1, 1), reference_digits)
+                .beta_kinetic[0]
+                .value;
+  }
+  const TypePrecision<Real> precision;
+  const std::vector<const char*> betas = pendavg::is_mpfr_v<Real>
+                                             ? std::vector<const char*>{"1e-30", "1e-300", "1e-3000"}
+                                             : std::vector<const char*>{"1e-8", "1e-100", "1e-300"};
+  for (const char* text : betas) {
+    Real beta;
+    if constexpr (pendavg::is_mpfr_v<Real>) {
+      beta = Real(text);
+    } else {
+      beta = std::stod(text);
+    }
+    const auto r = pendavg::reduced_integral_average(chain2_real<Real>(0.5, 0.5, 1, 1), beta,
+                                                     pendavg::is_mpfr_v<Real> ? test_digits : 16);
+    INFO("beta = " << text);
+    CHECK(relative_distance(r.beta_kinetic[0].value, limit) <= 45 * unit<Real>());
+    CHECK(isfinite(r.cos_angle[0].value));
+    // <cos phi1> ~ a1/2, a1 = beta M g l1
+    CHECK(relative_distance(r.cos_angle[0].value, mpfr_real(beta) / 2) <= 1e-6);
+  }
+}
+
+TEMPLATE_TEST_CASE("hard case extreme length ratios", "[double_pendulum]", double, mpfr_real) {
   for (double l2 : {1e-4, 1e4}) {
-    for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_double_against_mpfr(0.3, 0.7, l2, beta);
+    for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_against_reference<TestType>(0.3, 0.7, l2, beta);
   }
 }
 
