@@ -4,10 +4,12 @@
 //  * N = 2 against the library's 1-D reduced integral (double_pendulum.hpp), which shares none of
 //    the torus code (Graf sums or sinh-mapped Clenshaw-Curtis over t = phi2 - phi1), over betas,
 //    masses and lengths; and g = 0 against the public beta -> 0 limit (elliptic K/E);
+//  * the same in double, long double and MPFR against the reduced integral at reference_digits,
+//    with the hard cases by name;
 //  * N = 3 against the public reference row of tests/data/public_values.csv, to the digits given;
 //  * the psi reduction of src/engine/README.md, 'Reduction' against a brute-force trapezoid over
 //    all N angles with the plain Boltzmann factor exp(sum_j alpha_j cos phi_j) and plain cos phi_j;
-//  * trapezoid against Gauss-Legendre, double against MPFR and long double;
+//  * trapezoid against Gauss-Legendre, each number type against a higher-precision run;
 //  * identities: sum_i beta<K_i> = N/2, beta<K_i^(c)> = 1/2, N = 1 in closed form;
 //  * the reported errors against true errors, including a run stopped before the peak at
 //    large beta is resolved (converged = false must come with an error bar that covers);
@@ -23,6 +25,7 @@
 #include "pendavg/chain.hpp"
 #include "engine/double_pendulum/double_pendulum.hpp"
 #include "engine/numerics/precision.hpp"
+#include "real_types.hpp"
 #include "pendavg/result.hpp"
 #include "engine/torus/torus.hpp"
 #include "pendavg/trace_formula.hpp"
@@ -436,27 +439,123 @@ TEST_CASE("torus hard cases: light particles and large beta, mapped nodes", "[to
   }
 }
 
-TEST_CASE("torus in long double and MPFR agrees with double within the error bars", "[torus]") {
-  const Chain<double> chain({1.2, 0.8, 0.5}, {1.0, 0.7, 1.3}, 1.0);
-  const double beta = 0.9;
-  const auto d = torus_average(chain, beta);
-  const auto ld = torus_average(chain.cast<long double>(), static_cast<long double>(beta));
-  pendavg::working_precision wp(24 + pendavg::guard_digits);
-  TorusOptions mp_options;
-  mp_options.digits = 24;
-  const auto mp = torus_average(chain.cast<mpfr_real>(), mpfr_real(beta), mp_options);
-  REQUIRE(mp.converged);
-  for (std::size_t i = 0; i < 3; ++i) {
-    const double exact = static_cast<double>(mp.beta_kinetic[i].value);
-    INFO("particle " << i + 1);
-    CHECK(mp.beta_kinetic[i].error < 1e-24);
-    CHECK(std::abs(d.beta_kinetic[i].value - exact) <= d.beta_kinetic[i].error);
-    CHECK(std::abs(d.beta_kinetic[i].value - exact) <= 1e-15);
-    CHECK(std::abs(static_cast<double>(ld.beta_kinetic[i].value) - exact) <= 1e-16);
-    CHECK(std::abs(d.cos_angle[i].value - static_cast<double>(mp.cos_angle[i].value)) <= d.cos_angle[i].error);
-    CHECK(std::abs(d.beta2_kinetic_variance[i].value - static_cast<double>(mp.beta2_kinetic_variance[i].value)) <=
-          d.beta2_kinetic_variance[i].error);
+namespace {
+
+/// Torus options for a number type: the tolerance at 450 units of its precision (in double
+/// 1e-13, the default), MPFR at test_digits.
+template <class Real>
+TorusOptions typed_options() {
+  TorusOptions options;
+  if constexpr (pendavg::is_mpfr_v<Real>) {
+    options.digits = pendavg::test::test_digits;
+  } else {
+    options.tolerance = 450 * pendavg::test::unit<Real>();
   }
+  return options;
+}
+
+/// Every reported quantity of `r` against `reference`: the error bars cover the difference, and
+/// it is within `units` of the type's precision relative to the quantity's scale (the torus'
+/// tolerance's: beta<K_i> itself, beta^2 <K_i^2> for the variance, <cos phi_i> its size with a
+/// floor of 1e-3).
+template <class Real>
+void check_against(const pendavg::Averages<Real>& r, const pendavg::Averages<mpfr_real>& reference,
+                   double units) {
+  using namespace pendavg::test;
+  const double tolerance = units * unit<Real>();
+  for (std::size_t i = 0; i < r.beta_kinetic.size(); ++i) {
+    INFO("particle " << i + 1 << ": beta<K> " << as_double(r.beta_kinetic[i].value) << " +- "
+                     << as_double(r.beta_kinetic[i].error) << " against "
+                     << as_double(reference.beta_kinetic[i].value) << ", off by "
+                     << relative_distance(r.beta_kinetic[i].value, reference.beta_kinetic[i].value) /
+                            unit<Real>()
+                     << " units");
+    CHECK(distance(r.beta_kinetic[i].value, reference.beta_kinetic[i].value) <=
+          as_double(r.beta_kinetic[i].error));
+    CHECK(relative_distance(r.beta_kinetic[i].value, reference.beta_kinetic[i].value) <= tolerance);
+    CHECK(distance(r.beta2_kinetic_variance[i].value, reference.beta2_kinetic_variance[i].value) <=
+          as_double(r.beta2_kinetic_variance[i].error));
+    const ReferencePrecision wide;
+    const mpfr_real second_moment = reference.beta2_kinetic_variance[i].value +
+                                    reference.beta_kinetic[i].value * reference.beta_kinetic[i].value;
+    CHECK(relative_distance(r.beta2_kinetic_variance[i].value,
+                            reference.beta2_kinetic_variance[i].value, second_moment) <= tolerance);
+    const mpfr_real cos_scale = abs(reference.cos_angle[i].value) > mpfr_real("1e-3")
+                                    ? mpfr_real(abs(reference.cos_angle[i].value))
+                                    : mpfr_real("1e-3");
+    CHECK(distance(r.cos_angle[i].value, reference.cos_angle[i].value) <=
+          as_double(r.cos_angle[i].error));
+    CHECK(relative_distance(r.cos_angle[i].value, reference.cos_angle[i].value, cos_scale) <=
+          tolerance);
+  }
+}
+
+}  // namespace
+
+// The torus in every number type it is instantiated for, N = 2 against the reduced integral at
+// reference_digits (an independent method), the hard cases by name.
+TEMPLATE_TEST_CASE("torus N = 2 in every number type against the 40-digit reduced integral",
+                   "[torus]", double, long double, mpfr_real) {
+  using Real = TestType;
+  struct Case {
+    const char* name;
+    double m1, m2, l1, l2, g, beta;
+  };
+  for (const Case c : {Case{"moderate", 1.2, 0.8, 1.0, 0.7, 1.0, 0.9},
+                       Case{"mu1 -> 0", 1e-6, 1.0, 1.0, 1.0, 1.0, 1.0},
+                       Case{"mu1 -> 0, g = 0", 1e-12, 1.0, 1.0, 1.0, 0.0, 1.0},
+                       Case{"mu1 -> 0, large beta", 1e-8, 1.0, 1.0, 1.0, 1.0, 1e4},
+                       Case{"beta -> 0", 0.3, 0.7, 1.0, 2.0, 1.0, 1e-6},
+                       Case{"large beta", 1.0, 1.0, 1.0, 1.0, 1.0, 1e3},
+                       Case{"long lower link", 1.0, 1.0, 1.0, 1e3, 1.0, 1.0},
+                       Case{"short lower link", 1.0, 1.0, 1.0, 1e-3, 1.0, 1.0}}) {
+    const Chain<double> chain({c.m1, c.m2}, {c.l1, c.l2}, c.g);
+    // Outside the MPFR torus' domain (m_i / S_i < 1e-6 at g = 0: average() refuses it, tested in
+    // tests/test_fail_closed.cpp, "the MPFR torus without gravity ...").
+    if (pendavg::is_mpfr_v<Real> && c.g == 0 && c.m1 / (c.m1 + c.m2) < 1e-6) continue;
+    pendavg::Averages<mpfr_real> reference;
+    {
+      const pendavg::test::ReferencePrecision wide;
+      reference = pendavg::reduced_integral_average(chain.cast<mpfr_real>(), mpfr_real(c.beta),
+                                                    pendavg::test::reference_digits);
+      REQUIRE(reference.converged);
+    }
+    const pendavg::test::TypePrecision<Real> precision;
+    const auto r = torus_average(chain.cast<Real>(), Real(c.beta), typed_options<Real>());
+    INFO(c.name << ": m = (" << c.m1 << ", " << c.m2 << "), l = (" << c.l1 << ", " << c.l2
+                << "), beta = " << c.beta);
+    REQUIRE(r.converged);
+    check_against(r, reference, 450);
+  }
+}
+
+namespace {
+
+/// The N = 3 reference: Gauss-Legendre (the other rule) at 30 digits, computed once.
+const pendavg::Averages<mpfr_real>& n3_reference() {
+  static const pendavg::Averages<mpfr_real> reference = [] {
+    const pendavg::working_precision wp(30 + pendavg::guard_digits);
+    TorusOptions options;
+    options.digits = 30;
+    options.rule = TorusRule::gauss_legendre;
+    return torus_average(Chain<double>({1.2, 0.8, 0.5}, {1.0, 0.7, 1.3}, 1.0).cast<mpfr_real>(),
+                         mpfr_real(0.875), options);
+  }();
+  return reference;
+}
+
+}  // namespace
+
+TEMPLATE_TEST_CASE("torus N = 3 in every number type against Gauss-Legendre at 30 digits",
+                   "[torus]", double, long double, mpfr_real) {
+  using Real = TestType;
+  const auto& reference = n3_reference();
+  REQUIRE(reference.converged);
+  const pendavg::test::TypePrecision<Real> precision;
+  const auto r = torus_average(Chain<double>({1.2, 0.8, 0.5}, {1.0, 0.7, 1.3}, 1.0).cast<Real>(),
+                               Real(0.875), typed_options<Real>());
+  REQUIRE(r.converged);
+  check_against(r, reference, 450);
 }
 
 TEST_CASE("torus N = 3 at 30 digits: trapezoid, Gauss-Legendre and the public value", "[torus][.slow]") {
