@@ -5,7 +5,7 @@
 // >= 95 of 100 seeds, against the tensor torus; no NaN from the bottom of the well to far above
 // it; the two proposals agree within their bars at N = 8; sum_i beta<K_i> = N/2 at N = 64 and
 // N = 300; determinism across thread counts; the CBC table against the fast and the plain CBC
-// constructions.
+// constructions; in double, long double and MPFR the identities to rounding and the bars.
 // Tags: [torus][qmc] (default), [torus][qmc][.slow] for the longer variants.
 #include <catch2/catch.hpp>
 
@@ -15,6 +15,7 @@
 #include "engine/qmc/lattice_table.hpp"
 #include "engine/qmc/qmc.hpp"
 #include "engine/torus/torus.hpp"
+#include "real_types.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -26,6 +27,7 @@
 namespace {
 
 using pendavg::Chain;
+using pendavg::mpfr_real;
 using pendavg::torus_average;
 using pendavg::TorusOptions;
 
@@ -261,6 +263,56 @@ TEST_CASE("qmc is deterministic per seed and honours the identities", "[torus][q
   // The Best-Fisher acceptance ratio and sqrt(det A) keep the weights even.
   CHECK(a.qmc->effective_sample_fraction > 0.3);
   CHECK(a.qmc->effective_sample_fraction <= 1.0);
+}
+
+// qmc_average is instantiated for double, long double and MPFR (the beta -> 0 limit of long
+// chains): in each, the identities to rounding (45 units of the type's precision: 1e-14 in
+// double) and the bars covering the exact values (the torus, an independent method), the light
+// particle and large beta included.
+TEMPLATE_TEST_CASE("qmc in every number type: identities to rounding, bars cover the torus",
+                   "[torus][qmc]", double, long double, mpfr_real) {
+  using Real = TestType;
+  const pendavg::test::TypePrecision<Real> precision;
+  pendavg::QmcOptions options;
+  options.points = 1024;
+  options.shifts = 8;
+  options.seed = 1;
+  const double tolerance = 45 * pendavg::test::unit<Real>();
+
+  struct Case {
+    const char* name;
+    Chain<double> chain;
+    double beta;
+  };
+  for (const Case& c : {Case{"unit chain", uniform_chain(3), 1.0},
+                        Case{"a light first particle", Chain<double>({1e-3, 1.0, 1.0},
+                                                                      {1.0, 1.0, 1.0}, 1.0), 1.0},
+                        Case{"large beta", uniform_chain(3), 100.0}}) {
+    TorusOptions exact_options;
+    exact_options.tolerance = 1e-12;
+    const auto exact = torus_average(c.chain, c.beta, exact_options);
+    REQUIRE(exact.converged);
+    {
+      const auto q = pendavg::qmc_average(c.chain.template cast<Real>(), Real(c.beta), options);
+      INFO(c.name);
+      Real sum = 0;
+      for (const pendavg::Estimate<Real>& k : q.beta_kinetic) sum += k.value;
+      CHECK(pendavg::test::distance(sum, mpfr_real(1.5)) <= tolerance);
+      CHECK(q.equipartition_residual <= tolerance);
+      for (const pendavg::Estimate<Real>& kc : q.beta_kinetic_canonical) CHECK(kc.value == Real(1) / 2);
+      for (std::size_t i = 0; i < 3; ++i) {
+        INFO(c.name << ", particle " << i + 1 << ": "
+                    << pendavg::test::as_double(q.beta_kinetic[i].value) << " +- "
+                    << pendavg::test::as_double(q.beta_kinetic[i].error) << " against "
+                    << exact.beta_kinetic[i].value);
+        CHECK(std::abs(pendavg::test::as_double(q.beta_kinetic[i].value) -
+                       exact.beta_kinetic[i].value) <=
+              pendavg::test::as_double(q.beta_kinetic[i].error) + exact.beta_kinetic[i].error);
+        CHECK(std::abs(pendavg::test::as_double(q.cos_angle[i].value) - exact.cos_angle[i].value) <=
+              pendavg::test::as_double(q.cos_angle[i].error) + exact.cos_angle[i].error);
+      }
+    }
+  }
 }
 
 TEST_CASE("qmc built-in lattices are the CBC construction; options are checked", "[torus][qmc]") {
