@@ -15,6 +15,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -248,6 +249,41 @@ TEST_CASE("trace formula: N = 2 reproduces the paper's closed forms (eqs. detA, 
     CHECK(static_cast<double>(abs(node.log_sqrt_det_A - log(det) / 2)) < 1e-45);
     // X_1 has rank one (src/engine/README.md, 'Isserlis'): tr X_1^2 = (tr X_1)^2.
     CHECK(static_cast<double>(relative_error(node.trace_X_squared[0], mpfr_real(tr1 * tr1))) < 1e-45);
+  }
+}
+
+TEMPLATE_TEST_CASE("trace formula: N = 2 in every number type against the paper's closed forms",
+                   "[trace]", double, long double, mpfr_real) {
+  // The closed forms (eqs. detA, trA1Ainv-dp, trA2Ainv-dp) at 60 digits from the inputs as the
+  // type holds them, including mu1 -> 0 with nearly parallel links (q = 1 - mu2 C12^2 ~ 1e-6)
+  // and extreme lengths.
+  using Real = TestType;
+  using pendavg::test::relative_distance;
+  const pendavg::test::TypePrecision<Real> precision;
+  const double tolerance = 450 * pendavg::test::unit<Real>();
+  for (const auto& [m1, m2, l1, l2, dphi] :
+       std::vector<std::array<double, 5>>{{0.5, 0.5, 1, 1, 0.7},
+                                          {0.05, 0.95, 1, 2, 2.9},
+                                          {3.0, 1e-3, 0.3, 1.7, -1.3},
+                                          {1e-3, 1e3, 1, 1, 1e-9},
+                                          {1.0, 1.0, 1e-4, 1e4, 1.1}}) {
+    INFO("m = (" << m1 << ", " << m2 << "), l = (" << l1 << ", " << l2 << "), dphi = " << dphi);
+    const Chain<Real> chain({Real(m1), Real(m2)}, {Real(l1), Real(l2)});
+    TraceWorkspace<Real> ws(chain);
+    const std::vector<Real> phi{Real(0.25), Real(0.25) + Real(dphi)};
+    const pendavg::NodeTraces<Real> node = node_traces(chain, phi.data(), ws);
+    const pendavg::working_precision guard(60);
+    const mpfr_real total = mpfr_real(m1) + mpfr_real(m2);
+    const mpfr_real mu1 = mpfr_real(m1) / total, mu2 = mpfr_real(m2) / total;
+    const mpfr_real c12 = cos(mpfr_real(phi[1]) - mpfr_real(phi[0]));
+    const mpfr_real q = 1 - mu2 * c12 * c12;
+    const mpfr_real tr1 = mu1 / q;
+    const mpfr_real tr2 = ((1 + mu2) - 2 * mu2 * c12 * c12) / q;
+    const mpfr_real det = total * total * mu2 * l1 * l1 * l2 * l2 * q;
+    CHECK(relative_distance(node.trace_X[0], tr1) <= tolerance);
+    CHECK(relative_distance(node.trace_X[1], tr2) <= tolerance);
+    CHECK(pendavg::test::distance(node.log_sqrt_det_A, mpfr_real(log(det) / 2)) <= tolerance);
+    CHECK(relative_distance(node.trace_X_squared[0], mpfr_real(tr1 * tr1)) <= tolerance);
   }
 }
 
