@@ -18,6 +18,8 @@
 #include <cmath>
 #include <numbers>
 #include <limits>
+#include <iterator>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -148,6 +150,108 @@ TEMPLATE_TEST_CASE("hard case extreme length ratios", "[double_pendulum]", doubl
   for (double l2 : {1e-4, 1e4}) {
     for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_against_reference<TestType>(0.3, 0.7, l2, beta);
   }
+}
+
+namespace {
+
+struct SeriesCase {
+  const char* name;
+  double m1, m2, l2, beta;
+};
+const SeriesCase series_cases[] = {{"moderate", 0.5, 0.5, 1.0, 1.0},
+                                   {"mu2 -> 0", 1.0, 1e-10, 1.0, 1.0},
+                                   {"beta -> 0", 0.3, 0.7, 1.0, 1e-3},
+                                   {"large beta", 0.5, 0.5, 1.0, 30.0},
+                                   {"short lower link", 0.3, 0.7, 1e-4, 1.0},
+                                   {"long lower link", 0.3, 0.7, 1e4, 1.0}};
+
+/// beta<K_i> of the reduced integral at reference_digits, once per case.
+const std::array<mpfr_real, 2>& integral_reference(const SeriesCase& c) {
+  static std::map<std::string, std::array<mpfr_real, 2>> references;
+  if (!references.count(c.name)) {
+    const pendavg::test::ReferencePrecision wide;
+    const auto m = pendavg::reduced_integral_average(chain2_mpfr(c.m1, c.m2, 1, c.l2),
+                                                     mpfr_real(c.beta),
+                                                     pendavg::test::reference_digits);
+    REQUIRE(m.converged);
+    references[c.name] = {m.beta_kinetic[0].value, m.beta_kinetic[1].value};
+  }
+  return references.at(c.name);
+}
+
+/// The series in Real (double at 16 digits, MPFR at test_digits) on `c`; max_terms = 0: until
+/// the bound meets the digits.
+template <class Real>
+pendavg::Averages<Real> series_in(const SeriesCase& c, std::size_t max_terms = 0) {
+  return pendavg::series_average(chain2_real<Real>(c.m1, c.m2, 1, c.l2), Real(c.beta),
+                                 pendavg::is_mpfr_v<Real> ? pendavg::test::test_digits : 16,
+                                 max_terms);
+}
+
+/// Counts the quantities of the series in Real whose certified bound covers the distance from the
+/// 40-digit integral (two per case).
+template <class Real>
+int covered_by_series_bound(std::size_t max_terms = 0) {
+  using namespace pendavg::test;
+  int covered = 0;
+  for (const SeriesCase& c : series_cases) {
+    const auto& reference = integral_reference(c);
+    const TypePrecision<Real> precision;
+    const auto s = series_in<Real>(c, max_terms);
+    for (int i = 0; i < 2; ++i) {
+      const bool ok = distance(s.beta_kinetic[i].value, reference[i]) <=
+                      as_double(s.beta_kinetic[i].error);
+      if (!ok)
+        WARN(c.name << ", particle " << i + 1 << ": off by "
+                    << distance(s.beta_kinetic[i].value, reference[i]) << ", bound "
+                    << as_double(s.beta_kinetic[i].error));
+      covered += ok;
+    }
+  }
+  return covered;
+}
+
+}  // namespace
+
+// The paper's series (double, MPFR) on the hard cases against the reduced integral at 40 digits
+// (mu1 -> 0 is beyond the series: hundreds of terms, tested by non-convergence below). Slow: the
+// series in double takes seconds per case.
+TEMPLATE_TEST_CASE("the series in double and MPFR on the hard cases against the 40-digit integral",
+                   "[double_pendulum][.slow]", double, mpfr_real) {
+  using Real = TestType;
+  using namespace pendavg::test;
+  for (const SeriesCase& c : series_cases) {
+    const auto& reference = integral_reference(c);
+    const TypePrecision<Real> precision;
+    const auto s = series_in<Real>(c);
+    INFO(c.name);
+    REQUIRE(s.converged);
+    for (int i = 0; i < 2; ++i) {
+      INFO("particle " << i + 1 << ": " << as_double(s.beta_kinetic[i].value) << " +- "
+                       << as_double(s.beta_kinetic[i].error) << ", off by "
+                       << relative_distance(s.beta_kinetic[i].value, reference[i]) / unit<Real>()
+                       << " units");
+      CHECK(relative_distance(s.beta_kinetic[i].value, reference[i]) <= 9 * unit<Real>());
+    }
+  }
+}
+
+TEST_CASE("the series' certified bound covers the true error in double",
+          "[double_pendulum][.slow]") {
+  CHECK(covered_by_series_bound<double>() == 2 * static_cast<int>(std::size(series_cases)));
+}
+
+TEST_CASE("the series' certified bound covers the true error in MPFR", "[double_pendulum][mpfr]") {
+  CHECK(covered_by_series_bound<mpfr_real>() == 2 * static_cast<int>(std::size(series_cases)));
+}
+
+// Known failure, kept visible: given max_terms, the MPFR series sums past its digits (to a bound
+// ~1e-33 at test_digits = 24) and its bound (error kind bound) covers the truncation but not the
+// rounding of the sums at the working precision, which is then several times larger.
+// [!shouldfail]: a fix makes this test fail, and the tag goes.
+TEST_CASE("the series' certified bound covers the true error in MPFR with max_terms given",
+          "[double_pendulum][mpfr][!shouldfail]") {
+  CHECK(covered_by_series_bound<mpfr_real>(400) == 2 * static_cast<int>(std::size(series_cases)));
 }
 
 TEST_CASE("g = 0 is the beta -> 0 limit exactly, with <cos phi> = 0", "[double_pendulum]") {
