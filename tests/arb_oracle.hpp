@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // tests/arb_oracle.hpp -- Arb's rigorous integrator (acb_calc_integrate) on the double
 // pendulum's reduced integrand: the independent oracle of the certified engine's tests
-// (tests/test_certified.cpp) and of bench_arb_cases (issue 30). Needs Arb (PENDAVG_HAS_ARB).
+// (tests/engine/certified/test_certified.cpp) and of bench_arb_cases (issue 30). Needs Arb (PENDAVG_HAS_ARB).
 //
 // The integrals, unfolded to [0, pi] (engine/double_pendulum/integral.cpp folds them onto [0, pi/2]):
 //   J_s = int_0^pi q(t)^s e^{-A} I_0(R(t)) dt,  q = mu1 + mu2 sin^2 t,  A = a1 + a2,

@@ -296,7 +296,7 @@ TEST_CASE("fail closed: a tolerance finer than double resolves is refused", "[fa
 TEST_CASE("fail closed: transfer refuses two adjacent light particles it cannot resolve",
           "[fail_closed][transfer]") {
   // Four unit masses before a tail of 1e10 (every m_i / S_(i+1) = 1e-10) ran unbounded; one light
-  // particle anywhere converges in seconds (tests/test_transfer.cpp).
+  // particle anywhere converges in seconds (tests/engine/transfer/test_transfer.cpp).
   CHECK_THAT(rejection([] {
                pendavg::check_average(Chain<double>({1, 1, 1, 1, 1e10}, std::vector<double>(5, 1.0)),
                                       1.0, {});

@@ -57,7 +57,7 @@
 // if the motion is ergodic there; regular islands (see the Poincare section) make time
 // averages differ from ensemble averages. With g = 0 the angular momentum is conserved too.
 //
-// Accuracy (tests/test_dynamics.cpp, tests/bench/bench_dynamics.cpp, tables/dynamics_*.csv).
+// Accuracy (tests/engine/dynamics/test_dynamics.cpp, tests/bench/bench_dynamics.cpp, tables/dynamics_*.csv).
 // Constraint residuals stay at rounding level (<= 2e-15 relative over 1e7 steps). The observed
 // orders are 2, 4, 4, 6, 6 (rattle2, yoshida4, suzuki4, yoshida6, kahan_li6). The paper's
 // N = 16 run (unit chain from phi_i = pi/2, E = 0, dt = 1e-3, T = 1e4): max |E(t) - E(0)| /

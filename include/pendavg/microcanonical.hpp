@@ -34,7 +34,7 @@
 // S - rho can be ~S while E + rho is ~rho, for a folded chain with z ~ 0.) The cuts of the
 // nested integral, which near the bottom sit within ~sqrt(D) of 0, are kept to relative (not
 // absolute) accuracy too. Relative accuracy then stays near the tolerance down to D = 1e-12
-// |E_min| (tests/test_microcanonical.cpp, the near-minimum ladder, against an independent
+// |E_min| (tests/engine/microcanonical/test_microcanonical.cpp, the near-minimum ladder, against an independent
 // long-double quadrature of the definition) and far below (D = 1e-250 |E_min| for N = 2, against
 // the harmonic limit).
 // Harmonic limit (D -> 0): H -> (1/2) phidot^T A_0 phidot + (1/2) phi^T Gamma phi. On the energy
@@ -100,7 +100,7 @@
 // value (scanning it did not help).
 // Why: README, Design notes, 'Measurements behind the design choices'
 // (microcanonical: nodes, times and bars for N = 2, 3, 4, 7, 16; the beta* scan).
-// Cross-checks (tests/test_microcanonical.cpp): N = 2 against a 2-D brute-force quadrature of
+// Cross-checks (tests/engine/microcanonical/test_microcanonical.cpp): N = 2 against a 2-D brute-force quadrature of
 // the definition (dense A, exact phi_1 limits; 1e-11); integral vs QMC vs torus trapezoid vs a
 // 3-angle brute force for N = 3; Laplace transforms of Omega(E) <K_i>_E against the canonical
 // engines (N = 2: 1e-9; N = 3: 1e-7, slow test) and of Omega against Z(beta) of N = 1 (1e-9); the

@@ -39,7 +39,7 @@
 // formula 2 - [G_ii + G_{i+1,i+1} - 2 c G_{i,i+1}] / m_i cancels when tr X_i << 1, losing about
 // log10(1 / tr X_i) digits, which is why the library uses the articulated-body sweeps instead.
 //
-// Accuracy (tests/test_trace_formula.cpp, against the dense oracle in 50-digit MPFR): traces,
+// Accuracy (tests/engine/numerics/test_trace_formula.cpp, against the dense oracle in 50-digit MPFR): traces,
 // squared traces and log sqrt(det A) within ~8 ulps for random chains (masses over 1e-3..1e3,
 // N <= 12) when the relative angles are given exactly. At N = 10^4 the traces sum to N within
 // ~1e-17 relative and log sqrt(det A) ~ 1e4 is off by ~5e-13 absolute. From absolute angles

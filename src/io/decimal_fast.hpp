@@ -9,7 +9,7 @@
 // x 10^k = m 5^k 2^(e + k) is formed exactly in 128-bit integers (5^k < 2^64: 0 <= k <= 27),
 // then shifted with an exact remainder for the rounding (~10-20 ns). Outside that range
 // (|x| >= 10^(digits - 1), |x| below ~10^(digits - 29), zero, subnormal, non-finite) the
-// caller falls back to std::to_chars. tests/test_cli_decimal.cpp compares both on millions of
+// caller falls back to std::to_chars. tests/io/test_number_text.cpp compares both on millions of
 // values, ties and boundaries included.
 #pragma once
 

@@ -128,7 +128,7 @@ def test_double_agrees_with_cli(masses, lengths, beta, options):
 
 
 TINY = 1e-12
-HARD_N2 = [  # tests/test_cross_check.cpp named_hard_cases: m1, m2, l1, l2, g, beta
+HARD_N2 = [  # tests/validation/test_cross_check.cpp named_hard_cases: m1, m2, l1, l2, g, beta
     (TINY, 1.0 - TINY, 1, 1, 1, 1), (1.0 - TINY, TINY, 1, 1, 1, 1), (0.5, 0.5, 1, 1, 1, 1e8),
     (0.5, 0.5, 1, 1, 1, 1e-8), (0.5, 0.5, 1, 1e-4, 1, 1), (0.5, 0.5, 1, 1e4, 1, 1),
     (0.5, 0.5, 1, 1, 0, 1), (TINY, 1.0 - TINY, 1, 1, 1, 1e8), (TINY, 1.0 - TINY, 1, 1, 1, 1e-8),

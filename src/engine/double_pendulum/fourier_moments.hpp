@@ -60,7 +60,7 @@
 //    k = 0 is compared with the exact Q_0 (a-posteriori check, added to the reported error)
 //    and Q_0 is set to the exact value; values below the underflow threshold become 0.
 //
-// ACCURACY (tests/test_fourier_moments.cpp, mu1 in [1e-15, 1), count <= 5000): max_k
+// ACCURACY (tests/engine/double_pendulum/test_fourier_moments.cpp, mu1 in [1e-15, 1), count <= 5000): max_k
 // |Q_k - exact| / max_k |Q_k| <= ~2 eps in double, <= ~7 eps in long double (mostly Boost's
 // long double Carlson E, ~3 eps), <= 0.5 u for MPFR (up to 1000 digits); per element it is
 // a few ulps of |Q_k| wherever the Q_k decay algebraically (k d << 1). `relative_error` is a

@@ -79,7 +79,7 @@ inline std::vector<std::uint32_t> cbc_generating_vector(unsigned m, std::size_t 
 /// In-place complex FFT of a power-of-two length (sign -1: forward, +1: inverse without the
 /// 1/n), by GSL's radix-2 transform (std::complex<double> is laid out as GSL's packed {re, im}
 /// pairs). The generating vectors it gives are those of the hand-written radix-2 FFT it replaced,
-/// for every size and dimension the library uses (tests/test_lattice_fft.cpp).
+/// for every size and dimension the library uses (tests/engine/qmc/test_lattice_fft.cpp).
 inline void lattice_fft(std::vector<std::complex<double>>& a, int sign) {
   double* data = reinterpret_cast<double*>(a.data());
   const int status = sign < 0 ? gsl_fft_complex_radix2_forward(data, 1, a.size())

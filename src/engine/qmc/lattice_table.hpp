@@ -6,8 +6,8 @@
 // entries: CBC vectors are extensible in dimension). Each row is the output of
 // fast_cbc_generating_vector(m, 256, gamma_j = 0.01 for every j, alpha = 2) (lattice_rules.hpp): the
 // component-by-component construction for the Korobov space of smoothness 2 with equal product
-// weights, run offline (~2 min for all rows). tests/test_torus.cpp and
-// tests/test_lattice_fft.cpp recompute them.
+// weights, run offline (~2 min for all rows). tests/engine/torus/test_torus.cpp and
+// tests/engine/qmc/test_lattice_fft.cpp recompute them.
 // Every z_j is odd, so each one-dimensional projection is the full grid {k / n}.
 #pragma once
 

@@ -82,14 +82,14 @@
 //     converged = false when an error exceeds the tolerance (e.g. that budget does).
 // Progress and stop (TransferOptions::control) are polled between links: a run stopped after two
 // levels reports the first of them, verified by the second (interrupted, not converged).
-// Measured coverage and pessimism: README "Large N"; tests/test_transfer.cpp.
+// Measured coverage and pessimism: README "Large N"; tests/engine/transfer/test_transfer.cpp.
 //
 // When to prefer something else. N = 2: the 1-D integral (double_pendulum.hpp) is faster and
 // exact. N = 3, 4: torus_average is exact to 1e-13 in milliseconds to a fraction of a second,
 // robust for light particles, and is the independent check; the transfer operator's rounding
 // budget stops it near 1e-13. The microcanonical weight (E - U)_+^{N/2-1} is not a product over the links: use
 // microcanonical.hpp. A very light particle (m_j down to 1e-12 of its neighbours, at the root,
-// inside or at the tail) converges in about the work of an ordinary chain (tests/test_transfer.cpp,
+// inside or at the tail) converges in about the work of an ordinary chain (tests/engine/transfer/test_transfer.cpp,
 // bench_large_n light); its beta<K_j> ~ m_j log(1/m_j) keeps ~1e-12 relative accuracy, but the
 // pairings still cancel by up to S_{j+1}/m_{j+1} (the tail's inertia over the next particle's,
 // squared for the variance): at N = 64 a light root's Var K carries ~1e-10 relative rounding,

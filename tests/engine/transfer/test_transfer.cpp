@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_transfer.cpp -- the transfer operator along the chain
+// tests/engine/transfer/test_transfer.cpp -- the transfer operator along the chain
 // (src/engine/transfer/chain_transfer.hpp, README "Large N"; method transfer of pendavg::average) against independent methods and exact
 // identities:
 //  * N = 3, 4 and 5 against the tensor torus (engine/torus/: psi-reduced relative angles,
@@ -22,8 +22,10 @@
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
+#include "real_types.hpp"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <random>
 #include <string>
@@ -653,23 +655,85 @@ TEST_CASE("transfer N = 1024 to 1e-8 through average()", "[transfer][.slow]") {
         a.beta_kinetic.back().error + short_chain.beta_kinetic.back().error);
 }
 
-TEST_CASE("transfer in long double agrees with double within the error bars", "[transfer]") {
-  const std::vector<double> m = {1.0, 0.5, 2.0, 0.8, 1.2}, l = {1.0, 1.2, 0.8, 1.0, 0.9};
-  const Chain<double> chain(m, l, 1.0);
-  const Chain<long double> chain_ld = chain.cast<long double>();
-  const auto d = chain_transfer_average(chain, 0.7, with_tolerance(1e-10));
-  const auto x = chain_transfer_average(chain_ld, 0.7L, with_tolerance(1e-12));
-  for (std::size_t i = 0; i < m.size(); ++i) {
-    INFO("particle " << i + 1);
-    const auto close = [](const Estimate<double>& a, const Estimate<long double>& b) {
-      return std::abs(a.value - static_cast<double>(b.value)) <=
-             a.error + static_cast<double>(b.error);
-    };
-    CHECK(close(d.beta_kinetic[i], x.beta_kinetic[i]));
-    CHECK(close(d.beta2_kinetic_variance[i], x.beta2_kinetic_variance[i]));
-    CHECK(close(d.cos_angle[i], x.cos_angle[i]));
-    CHECK(x.beta_kinetic[i].error < d.beta_kinetic[i].error);  // the long double bars are tighter
+namespace {
+
+/// The torus in long double at 450 epsilon, computed once for both types.
+const Averages<long double>& long_double_torus(const std::string& name, const Chain<double>& chain,
+                                              double beta) {
+  static std::map<std::string, Averages<long double>> references;
+  if (!references.count(name)) {
+    pendavg::TorusOptions options;
+    options.tolerance = 450 * pendavg::test::unit<long double>();
+    options.threads = 2;
+    references[name] = pendavg::torus_average(chain.cast<long double>(),
+                                              static_cast<long double>(beta), options);
   }
+  return references.at(name);
+}
+
+}  // namespace
+
+namespace {
+
+struct NamedChain {
+  const char* name;
+  std::vector<double> masses, lengths;
+  double g, beta;
+};
+
+/// The transfer operator in Real at a tolerance scaled to the type's epsilon (45000 epsilon:
+/// 1e-11 in double, 5e-15 in long double) against the torus (an independent method) in long
+/// double at 450 epsilon: the bars cover, and are within 10 times the tolerance.
+template <class Real>
+void check_against_long_double_torus(const std::vector<NamedChain>& cases) {
+  const double tolerance = 45000 * pendavg::test::unit<Real>();
+  for (const NamedChain& c : cases) {
+    const Chain<double> chain(c.masses, c.lengths, c.g);
+    const Averages<long double>& ref = long_double_torus(c.name, chain, c.beta);
+    REQUIRE(ref.converged);
+    const auto a = chain_transfer_average(chain.cast<Real>(), Real(c.beta), with_tolerance(tolerance));
+    INFO(c.name << " (tolerance " << tolerance << ")");
+    CHECK(a.converged);
+    const auto field = [](const auto& averages, int q) -> const auto& {
+      return q == 0 ? averages.beta_kinetic
+                    : q == 1 ? averages.beta2_kinetic_variance : averages.cos_angle;
+    };
+    for (int q = 0; q < 3; ++q) {
+      for (std::size_t i = 0; i < c.masses.size(); ++i) {
+        const auto& x = field(a, q)[i];
+        const auto& r = field(ref, q)[i];
+        const long double d = std::abs(static_cast<long double>(x.value) - r.value);
+        INFO(observables[q].name << " of particle " << i + 1 << ": "
+                                 << static_cast<double>(x.value) << " +- "
+                                 << static_cast<double>(x.error) << " against "
+                                 << static_cast<double>(r.value) << " +- "
+                                 << static_cast<double>(r.error));
+        CHECK(d <= static_cast<long double>(x.error) + r.error);
+        CHECK(static_cast<double>(x.error) <= 10 * tolerance);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+// The transfer operator is generic over double and long double: both against the long double
+// torus, the hard cases by name.
+TEMPLATE_TEST_CASE("transfer hard cases in double and long double against the long double torus",
+                   "[transfer]", double, long double) {
+  check_against_long_double_torus<TestType>(
+      {{"beta -> 0", {1, 1, 1}, {1, 1, 1}, 1, 1e-3},
+       {"large beta", {1, 1, 1}, {1, 1, 1}, 1, 100},
+       {"a light particle at the tail", {1, 1, 1e-3}, {1, 1, 1}, 1, 1},
+       {"extreme lengths", {1, 1, 1}, {1e-4, 1, 1e4}, 1, 0.5}});
+}
+
+// Unequal masses at moderate beta take the long double operator ~10 s to 5e-15.
+TEMPLATE_TEST_CASE("transfer N = 3 and 4 in double and long double against the long double torus",
+                   "[transfer][.slow]", double, long double) {
+  check_against_long_double_torus<TestType>(
+      {{"unequal masses", {0.3, 1, 3}, {1, 0.7, 1.4}, 0.6, 2},
+       {"N = 4", {1, 2, 0.5, 3}, {0.5, 1, 2, 1}, 2.5, 0.7}});
 }
 
 TEST_CASE("transfer through average(): automatic for N >= 5, options checked", "[transfer][api]") {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_certified.cpp -- the certified N = 2 engine (src/engine/certified.md): a test per
+// tests/engine/certified/test_certified.cpp -- the certified N = 2 engine (src/engine/certified.md): a test per
 // bound (Bessel tables by the mediant and by Arb's top orders, the Fourier moments, the tails of
 // the Graf sums, the a priori ranges), the whole against Arb's rigorous integrator
 // (tests/arb_oracle.hpp) and against higher-precision runs, and the refusals. Default: the fixed

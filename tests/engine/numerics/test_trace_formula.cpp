@@ -8,12 +8,14 @@
 #include "pendavg/chain.hpp"
 #include "engine/numerics/precision.hpp"
 #include "pendavg/trace_formula.hpp"
+#include "real_types.hpp"
 
 #include <catch2/catch.hpp>
 
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -72,36 +74,45 @@ double node_error(const pendavg::NodeTraces<Real>& fast, const pendavg::oracle::
 
 }  // namespace
 
-TEST_CASE("trace formula: O(N) in double matches the dense oracle in MPFR", "[trace]") {
-  // Two inputs per node: the absolute angles (the double code forms phi_{i+1} - phi_i, whose
-  // rounding is part of its error), and relative angles given exactly (the oracle sums them
-  // in MPFR), which isolates the error of the recurrences themselves.
+// Generic over the number type (double, long double, MPFR at test_digits): each against the
+// dense oracle at 50 digits, tolerances in units of the type's precision.
+TEMPLATE_TEST_CASE("trace formula: O(N) matches the dense oracle in 50-digit MPFR", "[trace]",
+                   double, long double, mpfr_real) {
+  // Two inputs per node: the absolute angles (the code forms phi_{i+1} - phi_i, whose rounding is
+  // part of its error), and relative angles given exactly (the oracle sums them in MPFR), which
+  // isolates the error of the recurrences themselves.
+  using Real = TestType;
+  const pendavg::test::TypePrecision<Real> precision;
   std::mt19937_64 rng(20240611);
-  const pendavg::working_precision guard(50);
   double worst_absolute = 0, worst_relative = 0;
   for (std::size_t n = 1; n <= 12; ++n) {
     for (int trial = 0; trial < 8; ++trial) {
       const RandomNode node = random_node(rng, n);
-      const Chain<double> chain(node.masses, node.lengths);
-      TraceWorkspace<double> ws(chain);
+      const Chain<Real> chain(cast_vector<Real>(node.masses), cast_vector<Real>(node.lengths));
+      TraceWorkspace<Real> ws(chain);
+      const std::vector<Real> phi = cast_vector<Real>(node.phi);
+      const pendavg::NodeTraces<Real> fast = node_traces(chain, phi.data(), ws);
+      const pendavg::NodeTraces<Real> from_delta =
+          pendavg::node_traces_relative(chain, phi.data() + 1, ws);
+      const pendavg::working_precision guard(50);
       const std::vector<mpfr_real> masses = cast_vector<mpfr_real>(node.masses);
       const std::vector<mpfr_real> lengths = cast_vector<mpfr_real>(node.lengths);
-      const auto& fast = node_traces(chain, node.phi.data(), ws);
       const auto ref = pendavg::oracle::dense_traces(masses, lengths,
                                                      cast_vector<mpfr_real>(node.phi));
       worst_absolute = std::max(worst_absolute, node_error(fast, ref));
 
       std::vector<mpfr_real> phi_exact(n, mpfr_real(0));
       for (std::size_t i = 1; i < n; ++i) phi_exact[i] = phi_exact[i - 1] + mpfr_real(node.phi[i]);
-      const auto& from_delta = pendavg::node_traces_relative(chain, node.phi.data() + 1, ws);
       const auto ref_delta = pendavg::oracle::dense_traces(masses, lengths, phi_exact);
       worst_relative = std::max(worst_relative, node_error(from_delta, ref_delta));
     }
   }
-  INFO("largest relative error, double O(N) vs 50-digit dense: absolute angles "
-       << worst_absolute << ", exact relative angles " << worst_relative);
-  CHECK(worst_absolute < 1e-13);
-  CHECK(worst_relative < 32 * std::numeric_limits<double>::epsilon());
+  const double unit = pendavg::test::unit<Real>();
+  INFO("largest relative error against 50-digit dense, in units of the type's precision: "
+       "absolute angles " << worst_absolute / unit << ", exact relative angles "
+       << worst_relative / unit);
+  CHECK(worst_absolute < 450 * unit);
+  CHECK(worst_relative < 32 * unit);
 }
 
 TEST_CASE("trace formula: O(N) in MPFR matches the dense oracle to 40 digits", "[trace]") {
@@ -148,52 +159,68 @@ TEST_CASE("trace formula: src/engine/README.md, 'Traces in O(N)' (Fixman's tridi
   CHECK(worst < 1e-40);
 }
 
-TEST_CASE("trace formula: tiny traces keep their relative accuracy in double", "[trace]") {
+TEMPLATE_TEST_CASE("trace formula: tiny traces keep their relative accuracy", "[trace]", double,
+                   long double, mpfr_real) {
   // Light particles between heavy ones: tr X_i ~ m_i / (neighbouring masses) ~ 1e-16. The O(N)
   // sweeps add only non-negative terms, so these stay accurate to a few ulps relative; the
   // 2 - [...] / m_i would lose every digit here.
-  const pendavg::working_precision guard(80);
+  using Real = TestType;
+  const pendavg::test::TypePrecision<Real> precision;
   const std::vector<double> masses{1e8, 1e-8, 1e8, 1e-8, 1e8, 1e-8, 1e8, 1e-8};
   const std::vector<double> lengths{1, 2, 0.5, 1, 3, 1, 1, 0.7};
   const std::vector<double> phi{0.3, -1.2, 2.0, 2.0001, -0.4, 1.1, 3.0, -2.5};
-  const Chain<double> chain(masses, lengths);
-  TraceWorkspace<double> ws(chain);
-  const auto& fast = node_traces(chain, phi.data(), ws);
+  const Chain<Real> chain(cast_vector<Real>(masses), cast_vector<Real>(lengths));
+  TraceWorkspace<Real> ws(chain);
+  const std::vector<Real> phi_real = cast_vector<Real>(phi);
+  const pendavg::NodeTraces<Real> fast = node_traces(chain, phi_real.data(), ws);
+  const pendavg::working_precision guard(80);
   const auto ref = pendavg::oracle::dense_traces(cast_vector<mpfr_real>(masses),
                                                  cast_vector<mpfr_real>(lengths),
                                                  cast_vector<mpfr_real>(phi));
   CHECK(fast.trace_X[1] < 1e-10);
   const double err = node_error(fast, ref);
-  INFO("largest relative error: " << err);
-  CHECK(err < 1e-13);
+  INFO("largest relative error, in units of the type's precision: "
+       << err / pendavg::test::unit<Real>());
+  CHECK(err < 450 * pendavg::test::unit<Real>());
 }
 
-TEST_CASE("trace formula: traces sum to N and equal 1 at phi = 0", "[trace]") {
+TEMPLATE_TEST_CASE("trace formula: traces sum to N and equal 1 at phi = 0", "[trace]", double,
+                   long double, mpfr_real) {
+  using Real = TestType;
+  using pendavg::test::relative_distance;
+  const pendavg::test::TypePrecision<Real> precision;
+  const double tolerance = 45 * pendavg::test::unit<Real>();
   std::mt19937_64 rng(11);
   for (std::size_t n : {1u, 2u, 3u, 7u, 30u, 200u}) {
+    INFO("N = " << n);
     const RandomNode node = random_node(rng, n);
-    const Chain<double> chain(node.masses, node.lengths);
-    TraceWorkspace<double> ws(chain);
-    const auto& at_node = node_traces(chain, node.phi.data(), ws);
-    double sum = 0;
-    for (double t : at_node.trace_X) sum += t;
-    CHECK(sum == Approx(double(n)).epsilon(1e-14));
+    const Chain<Real> chain(cast_vector<Real>(node.masses), cast_vector<Real>(node.lengths));
+    TraceWorkspace<Real> ws(chain);
+    const std::vector<Real> phi = cast_vector<Real>(node.phi);
+    const pendavg::NodeTraces<Real> at_node = node_traces(chain, phi.data(), ws);
+    Real sum = 0;
+    for (const Real& t : at_node.trace_X) sum += t;
+    CHECK(relative_distance(sum, mpfr_real(n)) <= tolerance);
     for (std::size_t i = 0; i < n; ++i) {
       // X_i has rank <= 2 and non-negative eigenvalues: tr X^2 lies in [(tr X)^2 / 2, (tr X)^2].
-      const double t = at_node.trace_X[i], t2 = at_node.trace_X_squared[i];
-      CHECK(t2 <= t * t * (1 + 1e-14));
-      CHECK(t2 >= t * t / 2 * (1 - 1e-14));
+      const Real t = at_node.trace_X[i], t2 = at_node.trace_X_squared[i];
+      CHECK(t2 <= t * t * (1 + tolerance));
+      CHECK(t2 >= t * t / 2 * (1 - tolerance));
     }
 
-    const std::vector<double> zero(n, 0.0);
-    const auto& at_rest = node_traces(chain, zero.data(), ws);
-    double log_sqrt_det = 0;  // at phi = 0, det A = prod m_j l_j^2
+    const std::vector<Real> zero(n, Real(0));
+    const pendavg::NodeTraces<Real> at_rest = node_traces(chain, zero.data(), ws);
     for (std::size_t i = 0; i < n; ++i) {
-      CHECK(at_rest.trace_X[i] == Approx(1.0).epsilon(1e-14));
-      CHECK(at_rest.trace_X_squared[i] == Approx(1.0).epsilon(1e-14));
-      log_sqrt_det += std::log(node.masses[i]) / 2 + std::log(node.lengths[i]);
+      CHECK(relative_distance(at_rest.trace_X[i], mpfr_real(1)) <= tolerance);
+      CHECK(relative_distance(at_rest.trace_X_squared[i], mpfr_real(1)) <= tolerance);
     }
-    CHECK(at_rest.log_sqrt_det_A == Approx(log_sqrt_det).epsilon(1e-13).margin(1e-13));
+    // at phi = 0, det A = prod m_j l_j^2: its logarithm in MPFR from the same (exact) inputs
+    const pendavg::test::ReferencePrecision reference;
+    mpfr_real log_sqrt_det = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      log_sqrt_det += log(mpfr_real(node.masses[i])) / 2 + log(mpfr_real(node.lengths[i]));
+    const mpfr_real scale = abs(log_sqrt_det) > 1 ? mpfr_real(abs(log_sqrt_det)) : mpfr_real(1);
+    CHECK(relative_distance(at_rest.log_sqrt_det_A, log_sqrt_det, scale) <= 10 * tolerance);
   }
 }
 
@@ -225,6 +252,41 @@ TEST_CASE("trace formula: N = 2 reproduces the paper's closed forms (eqs. detA, 
   }
 }
 
+TEMPLATE_TEST_CASE("trace formula: N = 2 in every number type against the paper's closed forms",
+                   "[trace]", double, long double, mpfr_real) {
+  // The closed forms (eqs. detA, trA1Ainv-dp, trA2Ainv-dp) at 60 digits from the inputs as the
+  // type holds them, including mu1 -> 0 with nearly parallel links (q = 1 - mu2 C12^2 ~ 1e-6)
+  // and extreme lengths.
+  using Real = TestType;
+  using pendavg::test::relative_distance;
+  const pendavg::test::TypePrecision<Real> precision;
+  const double tolerance = 450 * pendavg::test::unit<Real>();
+  for (const auto& [m1, m2, l1, l2, dphi] :
+       std::vector<std::array<double, 5>>{{0.5, 0.5, 1, 1, 0.7},
+                                          {0.05, 0.95, 1, 2, 2.9},
+                                          {3.0, 1e-3, 0.3, 1.7, -1.3},
+                                          {1e-3, 1e3, 1, 1, 1e-9},
+                                          {1.0, 1.0, 1e-4, 1e4, 1.1}}) {
+    INFO("m = (" << m1 << ", " << m2 << "), l = (" << l1 << ", " << l2 << "), dphi = " << dphi);
+    const Chain<Real> chain({Real(m1), Real(m2)}, {Real(l1), Real(l2)});
+    TraceWorkspace<Real> ws(chain);
+    const std::vector<Real> phi{Real(0.25), Real(0.25) + Real(dphi)};
+    const pendavg::NodeTraces<Real> node = node_traces(chain, phi.data(), ws);
+    const pendavg::working_precision guard(60);
+    const mpfr_real total = mpfr_real(m1) + mpfr_real(m2);
+    const mpfr_real mu1 = mpfr_real(m1) / total, mu2 = mpfr_real(m2) / total;
+    const mpfr_real c12 = cos(mpfr_real(phi[1]) - mpfr_real(phi[0]));
+    const mpfr_real q = 1 - mu2 * c12 * c12;
+    const mpfr_real tr1 = mu1 / q;
+    const mpfr_real tr2 = ((1 + mu2) - 2 * mu2 * c12 * c12) / q;
+    const mpfr_real det = total * total * mu2 * l1 * l1 * l2 * l2 * q;
+    CHECK(relative_distance(node.trace_X[0], tr1) <= tolerance);
+    CHECK(relative_distance(node.trace_X[1], tr2) <= tolerance);
+    CHECK(pendavg::test::distance(node.log_sqrt_det_A, mpfr_real(log(det) / 2)) <= tolerance);
+    CHECK(relative_distance(node.trace_X_squared[0], mpfr_real(tr1 * tr1)) <= tolerance);
+  }
+}
+
 TEST_CASE("trace formula: N = 10^4 stays finite and sums to N", "[trace]") {
   std::mt19937_64 rng(123);
   const std::size_t n = 10000;
@@ -253,15 +315,19 @@ TEST_CASE("trace formula: N = 10^4 stays finite and sums to N", "[trace]") {
   CHECK(u.log_sqrt_det_A > 300.0);  // det A > 1e260 here: the renormalization is exercised
 }
 
-TEST_CASE("trace formula: double matches MPFR at N = 50", "[trace]") {
-  // Double against the same O(N) code in 40-digit MPFR at a longer chain (dense would be slow):
-  // the damped recurrences keep the error at a few ulps, not N ulps.
+TEMPLATE_TEST_CASE("trace formula: matches a 50-digit run at N = 50", "[trace]", double,
+                   long double, mpfr_real) {
+  // Against the same O(N) code at 50 digits on a longer chain (dense would be slow): the damped
+  // recurrences keep the error at a few ulps, not N ulps.
+  using Real = TestType;
+  const pendavg::test::TypePrecision<Real> precision;
   std::mt19937_64 rng(9);
-  const pendavg::working_precision guard(40);
   const RandomNode node = random_node(rng, 50);
-  const Chain<double> chain(node.masses, node.lengths);
-  TraceWorkspace<double> ws(chain);
-  const auto fast = node_traces(chain, node.phi.data(), ws);  // a copy
+  const Chain<Real> chain(cast_vector<Real>(node.masses), cast_vector<Real>(node.lengths));
+  TraceWorkspace<Real> ws(chain);
+  const std::vector<Real> phi_real = cast_vector<Real>(node.phi);
+  const pendavg::NodeTraces<Real> fast = node_traces(chain, phi_real.data(), ws);
+  const pendavg::working_precision guard(50);
   const Chain<mpfr_real> wide(cast_vector<mpfr_real>(node.masses),
                               cast_vector<mpfr_real>(node.lengths));
   TraceWorkspace<mpfr_real> wide_ws(wide);
@@ -273,8 +339,9 @@ TEST_CASE("trace formula: double matches MPFR at N = 50", "[trace]") {
     worst = std::max(worst, static_cast<double>(relative_error(mpfr_real(fast.trace_X_squared[i]),
                                                                ref.trace_X_squared[i])));
   }
-  INFO("largest relative error, double vs 40-digit O(N), N = 50: " << worst);
-  CHECK(worst < 1e-13);
+  INFO("largest relative error against the 50-digit run, N = 50, in units of the type's precision: "
+       << worst / pendavg::test::unit<Real>());
+  CHECK(worst < 450 * pendavg::test::unit<Real>());
 }
 
 TEST_CASE("trace formula: relative angles give the same node", "[trace]") {

@@ -30,7 +30,7 @@ namespace {
 
 // Generated with (python3, mpmath 1.2.1) -- run as `python3 gen_ref2.py check` to also print
 // the cross-checks to stderr (all agreed to <= 1e-44 relative, or relative to Q_0 for quad):
-//   # Reference values for tests/test_fourier_moments.cpp.
+//   # Reference values for tests/engine/double_pendulum/test_fourier_moments.cpp.
 //   # Q_k(s) = int_0^{pi/2} (mu1 + mu2 sin^2 t)^s cos(2kt) dt, mu2 = 1 - mu1 exactly, mu1 = the
 //   # binary double nearest the listed decimal (mpf(float) is exact).
 //   # Value: (pi/2) C^s r^k (-s)_k/k! 2F1(-s, k-s; k+1; r^2), C = ((1+sqrt mu1)/2)^2,

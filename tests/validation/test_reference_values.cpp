@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_reference_values.cpp -- the library against the public reference values in
+// tests/validation/test_reference_values.cpp -- the library against the public reference values in
 // tests/data/public_values.csv (a verbatim copy of shared/reference/public_values.csv; its
 // comment lines name the source: an independent high-precision evaluation of the 1-D reduced
 // integral at 30 and 40 digits, and the paper's own quoted limits, eq. aveK1-beta0).

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_double_pendulum.cpp -- the N = 2 engines on their hard cases, by name, and the
+// tests/engine/double_pendulum/test_double_pendulum.cpp -- the N = 2 engines on their hard cases, by name, and the
 // library's own cross-checks: exact Graf-moment sums against sinh-mapped quadrature, the
 // beta -> 0 limit in Boost.Math (Carlson) against GSL's Legendre-form elliptic integrals, and
 // validation of the model.
@@ -9,6 +9,7 @@
 #include "engine/double_pendulum/double_pendulum.hpp"
 #include "engine/limits/limits.hpp"
 #include "engine/numerics/precision.hpp"
+#include "real_types.hpp"
 
 #include <gsl/gsl_mode.h>
 #include <gsl/gsl_sf_ellint.h>
@@ -17,6 +18,8 @@
 #include <cmath>
 #include <numbers>
 #include <limits>
+#include <iterator>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -34,67 +37,221 @@ Chain<mpfr_real> chain2_mpfr(double m1, double m2, double l1, double l2, double 
                           mpfr_real(g));
 }
 
-/// Double result against a 40-digit MPFR result of the identical (double-valued) problem:
-/// beta<K_i> to 2e-15 relative and inside the reported error.
-void check_double_against_mpfr(double m1, double m2, double l2, double beta) {
-  const auto d = pendavg::reduced_integral_average(chain2(m1, m2, 1, l2), beta, 16);
-  pendavg::working_precision guard(40 + pendavg::guard_digits);
-  const auto m = pendavg::reduced_integral_average(chain2_mpfr(m1, m2, 1, l2), mpfr_real(beta), 40);
+template <class Real>
+Chain<Real> chain2_real(double m1, double m2, double l1, double l2, double g = 1) {
+  return Chain<Real>({Real(m1), Real(m2)}, {Real(l1), Real(l2)}, Real(g));
+}
+
+/// The reduced integral in Real (double at 16 digits, MPFR at test_digits) against the identical
+/// (double-valued) problem at reference_digits: beta<K_i> to 9 units of the type's precision
+/// relative (2e-15 in double) and inside the reported error.
+template <class Real>
+void check_against_reference(double m1, double m2, double l2, double beta) {
+  using namespace pendavg::test;
+  using std::isfinite;
+  const TypePrecision<Real> precision;
+  const int digits = pendavg::is_mpfr_v<Real> ? test_digits : 16;
+  const auto r = pendavg::reduced_integral_average(chain2_real<Real>(m1, m2, 1, l2), Real(beta),
+                                                   digits);
+  std::array<mpfr_real, 2> reference;
+  {
+    const ReferencePrecision wide;
+    const auto m = pendavg::reduced_integral_average(chain2_mpfr(m1, m2, 1, l2), mpfr_real(beta),
+                                                     reference_digits);
+    REQUIRE(m.converged);
+    for (int i = 0; i < 2; ++i) reference[i] = m.beta_kinetic[i].value;
+  }
   INFO("m1 = " << m1 << " m2 = " << m2 << " l2 = " << l2 << " beta = " << beta);
-  REQUIRE(d.converged);
-  REQUIRE(m.converged);
+  REQUIRE(r.converged);
   for (int i = 0; i < 2; ++i) {
-    const double ref = static_cast<double>(m.beta_kinetic[i].value);
-    const double err = std::abs(d.beta_kinetic[i].value - ref);
-    CHECK(std::isfinite(d.beta_kinetic[i].value));
-    CHECK(err <= 2e-15 * ref);
-    CHECK(err <= d.beta_kinetic[i].error);
-    CHECK(std::isfinite(d.cos_angle[i].value));
-    CHECK(std::isfinite(d.beta2_kinetic_variance[i].value));
+    INFO("beta<K" << i + 1 << "> = " << as_double(r.beta_kinetic[i].value) << " +- "
+                  << as_double(r.beta_kinetic[i].error) << ", off by "
+                  << relative_distance(r.beta_kinetic[i].value, reference[i]) / unit<Real>()
+                  << " units relative");
+    CHECK(relative_distance(r.beta_kinetic[i].value, reference[i]) <= 9 * unit<Real>());
+    CHECK(distance(r.beta_kinetic[i].value, reference[i]) <= as_double(r.beta_kinetic[i].error));
+    CHECK(isfinite(r.cos_angle[i].value));
+    CHECK(isfinite(r.beta2_kinetic_variance[i].value));
   }
 }
 
 }  // namespace
 
-TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pendulum]") {
+// The hard cases in every number type the N = 2 engine is instantiated for (double, MPFR).
+TEMPLATE_TEST_CASE("hard case mu1 -> 0: the integral stays exact and cheap", "[double_pendulum]",
+                   double, mpfr_real) {
   for (double mu1 : {1e-6, 1e-9, 1e-12}) {
-    for (double beta : {1e-3, 1.0, 30.0}) check_double_against_mpfr(mu1, 1 - mu1, 1.0, beta);
+    for (double beta : {1e-3, 1.0, 30.0}) check_against_reference<TestType>(mu1, 1 - mu1, 1.0, beta);
   }
   // The limit value is approached: beta<K1> ~ (mu1/2) K/E -> 0 like mu1 log(1/mu1).
-  const auto r = pendavg::reduced_integral_average(chain2(1e-12, 1, 1, 1), 1e-6, 16);
+  const pendavg::test::TypePrecision<TestType> precision;
+  const auto r = pendavg::reduced_integral_average(chain2_real<TestType>(1e-12, 1, 1, 1),
+                                                   TestType(1e-6),
+                                                   pendavg::is_mpfr_v<TestType>
+                                                       ? pendavg::test::test_digits
+                                                       : 16);
   CHECK(r.beta_kinetic[0].value > 0);
   CHECK(r.beta_kinetic[0].value < 1e-10);
 }
 
-TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]") {
-  for (double beta : {1e-2, 1.0, 1e3, 1e6}) check_double_against_mpfr(1.0, 1e-10, 1.0, beta);
+TEMPLATE_TEST_CASE("hard case mu2 -> 0: a light lower bob", "[double_pendulum]", double, mpfr_real) {
+  for (double beta : {1e-2, 1.0, 1e3, 1e6}) check_against_reference<TestType>(1.0, 1e-10, 1.0, beta);
 }
 
-TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow", "[double_pendulum]") {
-  for (double beta : {1e3, 1e6, 1e8}) check_double_against_mpfr(0.5, 0.5, 1.0, beta);
-  // Far beyond double's exp range in MPFR: beta = 1e300 gives 1/2 - O(1/beta).
-  pendavg::working_precision guard(30 + pendavg::guard_digits);
-  const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
-  CHECK(r.converged);
-  CHECK(abs(r.beta_kinetic[0].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
-  CHECK(abs(r.beta_kinetic[1].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
-}
-
-TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow", "[double_pendulum]") {
-  const auto limit = pendavg::elliptic_high_temperature_limit(chain2(0.5, 0.5, 1, 1), 16);
-  for (double beta : {1e-8, 1e-100, 1e-300}) {
-    const auto r = pendavg::reduced_integral_average(chain2(0.5, 0.5, 1, 1), beta, 16);
-    INFO("beta = " << beta);
-    CHECK(r.beta_kinetic[0].value == Approx(limit.beta_kinetic[0].value).epsilon(1e-14));
-    CHECK(std::isfinite(r.cos_angle[0].value));
-    CHECK(r.cos_angle[0].value == Approx(beta / 2).epsilon(1e-6));  // <cos phi1> ~ a1/2, a1 = beta M g l1
+TEMPLATE_TEST_CASE("hard case beta -> infinity: scaled Bessel functions, no overflow",
+                   "[double_pendulum]", double, mpfr_real) {
+  for (double beta : {1e3, 1e6, 1e8}) check_against_reference<TestType>(0.5, 0.5, 1.0, beta);
+  if constexpr (pendavg::is_mpfr_v<TestType>) {
+    // Far beyond double's exp range in MPFR: beta = 1e300 gives 1/2 - O(1/beta).
+    pendavg::working_precision guard(30 + pendavg::guard_digits);
+    const auto r = pendavg::reduced_integral_average(chain2_mpfr(0.5, 0.5, 1, 1), mpfr_real("1e300"), 30);
+    CHECK(r.converged);
+    CHECK(abs(r.beta_kinetic[0].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
+    CHECK(abs(r.beta_kinetic[1].value - mpfr_real(0.5)) < mpfr_real("1e-290"));
   }
 }
 
-TEST_CASE("hard case extreme length ratios", "[double_pendulum]") {
+TEMPLATE_TEST_CASE("hard case beta -> 0: the elliptic limit is reached without underflow",
+                   "[double_pendulum]", double, mpfr_real) {
+  // Against the closed form (mu1/2) K(k)/E(k) at reference_digits (limits.hpp, an independent
+  // method): the finite-beta corrections are O(beta), below the type's precision here.
+  using Real = TestType;
+  using namespace pendavg::test;
+  using std::isfinite;
+  mpfr_real limit;
+  {
+    const ReferencePrecision wide;
+    limit = pendavg::elliptic_high_temperature_limit(chain2_mpfr(0.5, 0.5, 1, 1), reference_digits)
+                .beta_kinetic[0]
+                .value;
+  }
+  const TypePrecision<Real> precision;
+  const std::vector<const char*> betas = pendavg::is_mpfr_v<Real>
+                                             ? std::vector<const char*>{"1e-30", "1e-300", "1e-3000"}
+                                             : std::vector<const char*>{"1e-8", "1e-100", "1e-300"};
+  for (const char* text : betas) {
+    Real beta;
+    if constexpr (pendavg::is_mpfr_v<Real>) {
+      beta = Real(text);
+    } else {
+      beta = std::stod(text);
+    }
+    const auto r = pendavg::reduced_integral_average(chain2_real<Real>(0.5, 0.5, 1, 1), beta,
+                                                     pendavg::is_mpfr_v<Real> ? test_digits : 16);
+    INFO("beta = " << text);
+    CHECK(relative_distance(r.beta_kinetic[0].value, limit) <= 45 * unit<Real>());
+    CHECK(isfinite(r.cos_angle[0].value));
+    // <cos phi1> ~ a1/2, a1 = beta M g l1
+    CHECK(relative_distance(r.cos_angle[0].value, mpfr_real(beta) / 2) <= 1e-6);
+  }
+}
+
+TEMPLATE_TEST_CASE("hard case extreme length ratios", "[double_pendulum]", double, mpfr_real) {
   for (double l2 : {1e-4, 1e4}) {
-    for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_double_against_mpfr(0.3, 0.7, l2, beta);
+    for (double beta : {1e-2, 1.0, 1e2, 1e5}) check_against_reference<TestType>(0.3, 0.7, l2, beta);
   }
+}
+
+namespace {
+
+struct SeriesCase {
+  const char* name;
+  double m1, m2, l2, beta;
+};
+const SeriesCase series_cases[] = {{"moderate", 0.5, 0.5, 1.0, 1.0},
+                                   {"mu2 -> 0", 1.0, 1e-10, 1.0, 1.0},
+                                   {"beta -> 0", 0.3, 0.7, 1.0, 1e-3},
+                                   {"large beta", 0.5, 0.5, 1.0, 30.0},
+                                   {"short lower link", 0.3, 0.7, 1e-4, 1.0},
+                                   {"long lower link", 0.3, 0.7, 1e4, 1.0}};
+
+/// beta<K_i> of the reduced integral at reference_digits, once per case.
+const std::array<mpfr_real, 2>& integral_reference(const SeriesCase& c) {
+  static std::map<std::string, std::array<mpfr_real, 2>> references;
+  if (!references.count(c.name)) {
+    const pendavg::test::ReferencePrecision wide;
+    const auto m = pendavg::reduced_integral_average(chain2_mpfr(c.m1, c.m2, 1, c.l2),
+                                                     mpfr_real(c.beta),
+                                                     pendavg::test::reference_digits);
+    REQUIRE(m.converged);
+    references[c.name] = {m.beta_kinetic[0].value, m.beta_kinetic[1].value};
+  }
+  return references.at(c.name);
+}
+
+/// The series in Real (double at 16 digits, MPFR at test_digits) on `c`; max_terms = 0: until
+/// the bound meets the digits.
+template <class Real>
+pendavg::Averages<Real> series_in(const SeriesCase& c, std::size_t max_terms = 0) {
+  return pendavg::series_average(chain2_real<Real>(c.m1, c.m2, 1, c.l2), Real(c.beta),
+                                 pendavg::is_mpfr_v<Real> ? pendavg::test::test_digits : 16,
+                                 max_terms);
+}
+
+/// Counts the quantities of the series in Real whose certified bound covers the distance from the
+/// 40-digit integral (two per case).
+template <class Real>
+int covered_by_series_bound(std::size_t max_terms = 0) {
+  using namespace pendavg::test;
+  int covered = 0;
+  for (const SeriesCase& c : series_cases) {
+    const auto& reference = integral_reference(c);
+    const TypePrecision<Real> precision;
+    const auto s = series_in<Real>(c, max_terms);
+    for (int i = 0; i < 2; ++i) {
+      const bool ok = distance(s.beta_kinetic[i].value, reference[i]) <=
+                      as_double(s.beta_kinetic[i].error);
+      if (!ok)
+        WARN(c.name << ", particle " << i + 1 << ": off by "
+                    << distance(s.beta_kinetic[i].value, reference[i]) << ", bound "
+                    << as_double(s.beta_kinetic[i].error));
+      covered += ok;
+    }
+  }
+  return covered;
+}
+
+}  // namespace
+
+// The paper's series (double, MPFR) on the hard cases against the reduced integral at 40 digits
+// (mu1 -> 0 is beyond the series: hundreds of terms, tested by non-convergence below). Slow: the
+// series in double takes seconds per case.
+TEMPLATE_TEST_CASE("the series in double and MPFR on the hard cases against the 40-digit integral",
+                   "[double_pendulum][.slow]", double, mpfr_real) {
+  using Real = TestType;
+  using namespace pendavg::test;
+  for (const SeriesCase& c : series_cases) {
+    const auto& reference = integral_reference(c);
+    const TypePrecision<Real> precision;
+    const auto s = series_in<Real>(c);
+    INFO(c.name);
+    REQUIRE(s.converged);
+    for (int i = 0; i < 2; ++i) {
+      INFO("particle " << i + 1 << ": " << as_double(s.beta_kinetic[i].value) << " +- "
+                       << as_double(s.beta_kinetic[i].error) << ", off by "
+                       << relative_distance(s.beta_kinetic[i].value, reference[i]) / unit<Real>()
+                       << " units");
+      CHECK(relative_distance(s.beta_kinetic[i].value, reference[i]) <= 9 * unit<Real>());
+    }
+  }
+}
+
+TEST_CASE("the series' certified bound covers the true error in double",
+          "[double_pendulum][.slow]") {
+  CHECK(covered_by_series_bound<double>() == 2 * static_cast<int>(std::size(series_cases)));
+}
+
+TEST_CASE("the series' certified bound covers the true error in MPFR", "[double_pendulum][mpfr]") {
+  CHECK(covered_by_series_bound<mpfr_real>() == 2 * static_cast<int>(std::size(series_cases)));
+}
+
+// Known failure, kept visible: given max_terms, the MPFR series sums past its digits (to a bound
+// ~1e-33 at test_digits = 24) and its bound (error kind bound) covers the truncation but not the
+// rounding of the sums at the working precision, which is then several times larger.
+// [!shouldfail]: a fix makes this test fail, and the tag goes. Slow: 400 MPFR terms per case.
+TEST_CASE("the series' certified bound covers the true error in MPFR with max_terms given",
+          "[double_pendulum][mpfr][.slow][!shouldfail]") {
+  CHECK(covered_by_series_bound<mpfr_real>(400) == 2 * static_cast<int>(std::size(series_cases)));
 }
 
 TEST_CASE("g = 0 is the beta -> 0 limit exactly, with <cos phi> = 0", "[double_pendulum]") {

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_sweep.cpp -- the sweep engine (src/cli/sweep.hpp) without mpirun: its chunk rule,
+// tests/cli/test_sweep.cpp -- the sweep engine (src/cli/sweep.hpp) without mpirun: its chunk rule,
 // and K ranks as threads of this process joined by an in-process SweepLink (the counters as
 // atomics, rank 0's messages in a queue), against the serial run: the same output for any rank
 // and thread count, resumed rows kept, failed rows in place, a failing row or a stop ending the

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_io_simulate.cpp -- the output schema's tables of `simulate`, `poincare` and
+// tests/io/test_results.cpp -- the output schema's tables of `simulate`, `poincare` and
 // `series` (src/io/results.hpp): every name follows the naming rules, and the records the
 // builders fill agree with their tables in every format.
 #include <catch2/catch.hpp>

@@ -27,6 +27,7 @@
 #include "engine/double_pendulum/double_pendulum.hpp"
 #include "engine/microcanonical/microcanonical.hpp"
 #include "engine/torus/torus.hpp"
+#include "real_types.hpp"
 
 #include <boost/math/quadrature/exp_sinh.hpp>
 #include <boost/math/quadrature/gauss.hpp>
@@ -39,6 +40,7 @@
 #include <limits>
 #include <map>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -428,21 +430,26 @@ TEST_CASE("far below the ladder (D = 1e-20..1e-250 |E_min|) the bars cover the h
   }
 }
 
-TEST_CASE("excitation_energy keeps every digit of E - E_min (double-double, against MPFR)",
-          "[microcanonical]") {
-  const Chain<double> c({0.7, 1.9, 0.4}, {0.8, 1.1, 1.7}, 2.5);
-  const double e_min = minimum_energy(c);
+TEMPLATE_TEST_CASE("excitation_energy keeps every digit of E - E_min (against MPFR at 60 digits)",
+                   "[microcanonical]", double, long double, mpfr_real) {
+  // E a hair above E_min (D down to 1e-14 |E_min|): D to 1.35 units of the type's precision
+  // (3e-16 in double, where the subtraction is carried in double-double).
+  using Real = TestType;
+  const test::TypePrecision<Real> precision;
+  const Chain<Real> c = Chain<double>({0.7, 1.9, 0.4}, {0.8, 1.1, 1.7}, 2.5).cast<Real>();
+  const Real e_min = minimum_energy(c);
   for (double fraction : {1e-3, 1e-9, 1e-14}) {
-    const double energy = std::nextafter(e_min * (1 - fraction), 0.0);
-    // the exact value of E + sum_j g S_j l_j for the stored doubles, at 200 bits
+    const Real energy = e_min * (1 - Real(fraction));
+    const Real d = excitation_energy(c, energy);
+    // the exact value of E + sum_j g S_j l_j for the stored values, at 60 digits
     const working_precision guard(60);
     mpfr_real exact(energy);
     for (std::size_t j = 0; j < c.size(); ++j)
       for (std::size_t k = j; k < c.size(); ++k)
         exact += mpfr_real(c.mass(k)) * mpfr_real(c.length(j)) * mpfr_real(c.gravity());
-    const double d = excitation_energy(c, energy);
-    INFO("E - E_min ~ " << fraction << " |E_min|");
-    CHECK(abs(mpfr_real(mpfr_real(d) / exact - 1)) < 3e-16);
+    INFO("E - E_min ~ " << fraction << " |E_min|: off by "
+                        << test::relative_distance(d, exact) / test::unit<Real>() << " units");
+    CHECK(test::relative_distance(d, exact) <= 1.35 * test::unit<Real>());
   }
 }
 
@@ -601,29 +608,91 @@ TEST_CASE("errors cover the truth a hair off the N = 3 separatrices and at E = 0
   }
 }
 
-TEST_CASE("microcanonical in MPFR agrees with double within the error bars", "[microcanonical]") {
-  const Chain<double> c({1.0, 0.3}, {1.3, 0.6}, 9.81);
-  const double e_min = minimum_energy(c);
-  MicrocanonicalOptions d16;
-  d16.tolerance = 1e-13;
-  MicrocanonicalOptions d30;
-  d30.digits = 30;
-  for (double excitation : {1e-10 * -e_min, 0.5 * -e_min, 3 * -e_min}) {
-    const auto r = microcanonical_average_excitation(c, excitation, d16);
-    const working_precision guard(30 + guard_digits);
-    const Chain<mpfr_real> cm = c.cast<mpfr_real>();
-    const auto m = microcanonical_average_excitation(cm, mpfr_real(excitation), d30);
-    INFO("D = " << excitation);
-    CHECK(m.converged);
+namespace {
+
+/// Microcanonical options for a number type: the tolerance at 450 units of its precision (in
+/// double 1e-13, the N = 2 default), MPFR at test_digits.
+template <class Real>
+MicrocanonicalOptions typed_options() {
+  MicrocanonicalOptions options;
+  if constexpr (is_mpfr_v<Real>) {
+    options.digits = test::test_digits;
+  } else {
+    options.tolerance = 450 * test::unit<Real>();
+  }
+  return options;
+}
+
+/// The chain at excitation D and reference_digits, computed once for the three types.
+const MicrocanonicalAverages<mpfr_real>& reference_run(const std::string& name,
+                                                       const Chain<double>& chain, double excitation) {
+  static std::map<std::string, MicrocanonicalAverages<mpfr_real>> references;
+  if (!references.count(name)) {
+    const test::ReferencePrecision wide;
+    MicrocanonicalOptions options;
+    options.digits = test::reference_digits;
+    references[name] = microcanonical_average_excitation(chain.cast<mpfr_real>(),
+                                                         mpfr_real(excitation), options);
+  }
+  return references.at(name);
+}
+
+}  // namespace
+
+// Generic over the number type (double, long double, MPFR at test_digits): N = 2 at excitations
+// from the bottom of the well to above the top, on a separatrix, with a light first mass and an
+// extreme length, against the same chain at reference_digits.
+TEMPLATE_TEST_CASE("microcanonical N = 2 in every number type against a 40-digit run",
+                   "[microcanonical]", double, long double, mpfr_real) {
+  using Real = TestType;
+  struct Case {
+    const char* name;
+    Chain<double> chain;
+    double excitation;  // D = E - E_min, as a fraction of |E_min| (exact in every type)
+  };
+  const Chain<double> c({1.0, 0.3}, {1.3, 0.6}, 9.81), unit({1.0, 1.0}, {1.0, 1.0}, 1.0);
+  for (const Case& k : {Case{"near the minimum", c, 1e-10}, Case{"inside the well", c, 0.5},
+                        Case{"above the top", c, 3.0},
+                        Case{"on the separatrix E = gamma_2 - gamma_1", unit, 2.0 / 3.0},
+                        Case{"light first mass", Chain<double>({1e-6, 1.0}, {1.0, 1.0}, 1.0), 0.5},
+                        Case{"short lower link", Chain<double>({1.0, 1.0}, {1.0, 1e-3}, 1.0), 0.5}}) {
+    const double depth = -minimum_energy(k.chain);
+    const double excitation = k.excitation * depth;
+    const MicrocanonicalAverages<mpfr_real>& reference =
+        reference_run(k.name, k.chain, excitation);
+    REQUIRE(reference.converged);
+    const test::TypePrecision<Real> precision;
+    const auto r = microcanonical_average_excitation(k.chain.template cast<Real>(), Real(excitation),
+                                                     typed_options<Real>());
+    INFO(k.name << ": D = " << excitation);
+    CHECK(r.converged);
     for (std::size_t i = 0; i < 2; ++i) {
-      CHECK(std::abs(double(m.kinetic[i].value) - r.kinetic[i].value) <= r.kinetic[i].error);
-      CHECK(m.kinetic[i].error < 1e-29 * m.kinetic[i].value);
-      CHECK(std::abs(double(m.kinetic_variance[i].value) - r.kinetic_variance[i].value) <=
-            r.kinetic_variance[i].error);
+      const test::ReferencePrecision wide;
+      const mpfr_real second_moment = reference.kinetic_variance[i].value +
+                                      reference.kinetic[i].value * reference.kinetic[i].value;
+      INFO("particle " << i + 1 << ": <K> " << test::as_double(r.kinetic[i].value) << " +- "
+                       << test::as_double(r.kinetic[i].error) << ", off by "
+                       << test::relative_distance(r.kinetic[i].value, reference.kinetic[i].value) /
+                              test::unit<Real>()
+                       << " units");
+      CHECK(test::distance(r.kinetic[i].value, reference.kinetic[i].value) <=
+            test::as_double(r.kinetic[i].error));
+      CHECK(test::relative_distance(r.kinetic[i].value, reference.kinetic[i].value) <=
+            450 * test::unit<Real>());
+      CHECK(test::distance(r.kinetic_variance[i].value, reference.kinetic_variance[i].value) <=
+            test::as_double(r.kinetic_variance[i].error));
+      CHECK(test::relative_distance(r.kinetic_variance[i].value, reference.kinetic_variance[i].value,
+                                    second_moment) <= 450 * test::unit<Real>());
+      CHECK(test::distance(r.cos_angle[i].value, reference.cos_angle[i].value) <=
+            test::as_double(r.cos_angle[i].error));
     }
   }
-  // qmc has no MPFR run
+}
+
+TEST_CASE("microcanonical qmc has no MPFR run", "[microcanonical]") {
   const working_precision guard(30 + guard_digits);
+  MicrocanonicalOptions d30;
+  d30.digits = 30;
   const Chain<mpfr_real> c5(std::vector<mpfr_real>(5, mpfr_real(1)),
                             std::vector<mpfr_real>(5, mpfr_real(1)), mpfr_real(1));
   CHECK_THROWS_AS(microcanonical_average(c5, mpfr_real(0), d30), invalid_input);

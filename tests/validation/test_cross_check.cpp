@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// tests/test_cross_check.cpp -- independent methods checked against each other.
+// tests/validation/test_cross_check.cpp -- independent methods checked against each other.
 //
 //  * the test oracle itself: Gauss-Legendre nodes against GSL, the oracle's matrices against the
 //    paper's closed forms, the 2-D definition against Graf's series, and its own refinement;
