@@ -160,6 +160,14 @@ std::vector<Real> paper_R(const Real& a1, const Real& a2, std::size_t count,
   return R;
 }
 
+/// The guard digits of a series of M terms: every term of the series and of R_n is positive, so
+/// rounding errors only add up along the O(M) operations of a path: log10(4M) + 3 digits (not
+/// the global guard_digits; fewer limbs make the O(M^2) loop faster). The sums' rounding bound
+/// (series_average) uses the unit of this precision, not the caller's finer one.
+int series_guard_digits(std::size_t M) {
+  return 3 + static_cast<int>(std::ceil(std::log10(4.0 * static_cast<double>(M) + 4.0)));
+}
+
 /// A priori number of terms M that certainly reaches relative tolerance tol, from the bound
 /// with R_n <= R_0: rel. error <= c_{M+1} mu2^{M+1} (1 + 1/mu1) / (mu1 (1 - mu2)), where
 /// c_n <= 1/sqrt(pi n) (Wallis). Computed in double from log(mu1), log(mu2); a double, since
@@ -255,10 +263,7 @@ std::vector<SeriesRow<Real>> series_convergence(const Chain<Real>& chain_argumen
   if (M > max_series_terms)
     throw invalid_input("at most " + std::to_string(max_series_terms) +
                         " series terms can be requested");
-  // Every term of the series and of R_n is positive, so rounding errors only add up along the
-  // O(M) operations of a path: carry log10(4M) + 3 guard digits (not the global 12; fewer
-  // limbs make this O(M^2) loop faster).
-  const int series_guard = 3 + static_cast<int>(std::ceil(std::log10(4.0 * M + 4.0)));
+  const int series_guard = series_guard_digits(M);
   std::vector<SeriesRow<Real>> rows;
   {
   // The inputs keep the caller's precision while the sums run at digits + series_guard (an
@@ -346,9 +351,16 @@ Averages<Real> series_average(const Chain<Real>& chain, const Real& beta, int di
   // The series gives beta<K1>; <cos phi_i> and Var K_i come from the reduced integral.
   Averages<Real> out = reduced_integral_average(chain, beta, is_mpfr_v<Real> ? digits : 16);
   const Real u = unit_roundoff<Real>();
+  // The sums ran at digits + series_guard_digits(M), M >= rows.size() the terms planned: the
+  // unit at digits + series_guard_digits(rows.size()) is at least theirs.
+  Real sums_unit;
+  {
+    const precision_guard<Real> sums(digits + series_guard_digits(rows.size()));
+    sums_unit = unit_roundoff<Real>();
+  }
   const Real half_width = last.bound / 2;
   const Real k1 = last.beta_kinetic1 + half_width;
-  const Real rounding = 16 * u * Real(rows.size()) * k1;
+  const Real rounding = 16 * (sums_unit + u) * Real(rows.size()) * k1;
   const Real k1_err = half_width + rounding;
   const Real k2 = 1 - k1;
   constexpr ErrorKind bound = ErrorKind::bound;
