@@ -5,6 +5,8 @@
 #include "distribute.hpp"
 #include "files.hpp"
 
+#include "io/results.hpp"
+
 #include <algorithm>
 
 namespace pendavg::cli {
@@ -52,27 +54,13 @@ void check_output_option(const Options& options, std::string_view command) {
 
 template <class Real>
 std::string run_json(const Averages<Real>& a) {
-  if (a.torus)
-    return JsonObject()
-        .integer("points_per_dim", static_cast<long long>(a.torus->points_per_dim))
-        .integer("levels", static_cast<long long>(a.torus->levels))
-        .raw("grid_points", io::seconds_text(a.torus->grid_points))
-        .str();
-  if (a.qmc)
-    return JsonObject()
-        .integer("points", static_cast<long long>(a.qmc->points))
-        .integer("shifts", static_cast<long long>(a.qmc->shifts))
-        .raw("sigmas", io::seconds_text(a.qmc->sigmas))
-        .raw("effective_sample_fraction",
-             decimal(a.qmc->effective_sample_fraction, error_digits))
-        .str();
-  if (a.transfer)
-    return JsonObject()
-        .integer("angle_nodes", static_cast<long long>(a.transfer->angle_nodes))
-        .integer("pivot_nodes", static_cast<long long>(a.transfer->pivot_nodes))
-        .integer("levels", static_cast<long long>(a.transfer->levels))
-        .str();
-  return "null";
+  const std::span<const io::Field> fields = io::run_fields(a);
+  if (fields.empty()) return "null";
+  io::Record run(fields, 0);
+  io::append_run(run, a);
+  std::string out = "{";
+  io::append_json_members(out, run);
+  return out + "}";
 }
 
 template std::string run_json<double>(const Averages<double>&);

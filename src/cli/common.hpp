@@ -102,8 +102,8 @@ std::string deliver(const Options& options, std::string_view command, std::strin
 /// --output FILE of a single-result command: checked before any work.
 void check_output_option(const Options& options, std::string_view command);
 
-/// The torus grid, the qmc run or the transfer operator's resolution of `a` as a JSON object,
-/// "null" for the other methods.
+/// The run diagnostics of `a` (io::run_fields: the torus grid, the qmc run or the transfer
+/// operator's final resolution) as a JSON object, "null" for the other methods.
 template <class Real>
 std::string run_json(const Averages<Real>& a);
 

@@ -10,28 +10,34 @@ namespace {
 
 constexpr Rename renames[] = {
     {"error_K", "beta_K_error", true, "average --format csv, average --cases, table"},
-    {"error", "beta_K_error", false, "average and limit JSON (an array)", true},
+    {"error", "beta_K_error", false, "average and limit JSON (an array)", "Averages"},
     {"K_error", "K_error", true, "CSV: K_error1..N became K1_error..N"},
     {"cos_phi_error", "cos_phi_error", true, "CSV: cos_phi_error1..N became cos_phi1_error..N"},
     {"var_K_error", "var_K_error", true, "CSV: var_K_error1..N became var_K1_error..N"},
     {"beta_Kc_error", "beta_Kc_error", true, "CSV: beta_Kc_error1..N became beta_Kc1_error..N"},
     {"beta2_var_K_error", "beta2_var_K_error", true,
      "limit CSV: beta2_var_K_error1..N became beta2_var_K1_error..N"},
-    {"var_K_beta2", "beta2_var_K", false, "limit JSON", true},
-    {"var_K_beta2_error", "beta2_var_K_error", false, "limit JSON", true},
+    {"var_K_beta2", "beta2_var_K", false, "limit JSON", "Averages"},
+    {"var_K_beta2_error", "beta2_var_K_error", false, "limit JSON", "Averages"},
     {"error_kind", "beta_K_error_kind", false,
      "average, limit, table, --cases: the kind of beta_K's and ratio's errors (now also "
      "ratio_error_kind and K_error_kind)",
-     true},
+     "Averages"},
     {"error_kinds", "X_error_kind", false, "average and limit JSON: error_kinds.X became X_error_kind",
-     true},
+     "Averages"},
     {"particles", "N", false, "simulate"},
     {"exact_error_kinds", "exact_X_error_kind", false, "simulate JSON"},
     // simulate (after the averages': --columns takes the first entry of an old name)
     {"error_kind", "K_error_kind", false,
      "simulate: the kind of K_error, Kc_error and cos_phi_error (now K_error_kind, Kc_error_kind, "
-     "cos_phi_error_kind, and the new K_total_error_kind and potential_error_kind)"},
-    {"exact_error_kind", "exact_K_error_kind", false, "simulate"},
+     "cos_phi_error_kind, and the new K_total_error_kind and potential_error_kind)",
+     "SimulationResult"},
+    {"exact_error_kind", "exact_K_error_kind", false, "simulate", "SimulationResult"},
+    {"method", "", false,
+     "Python simulate: method ('dynamics-nve', 'dynamics-langevin') went away; ensemble says the "
+     "same ('microcanonical', 'canonical')"},
+    {"final_energy", "", false,
+     "Python simulate: final_energy went away; E(T) = energy + energy_drift (sum m) g (sum l)"},
     {"i", "", false,
      "simulate CSV: one row per particle i became one row per run (the '#' lines' values are "
      "columns): a per-particle column X became X1..XN, its error X_error X1_error..XN_error and "

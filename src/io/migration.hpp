@@ -19,9 +19,10 @@ struct Rename {
   std::string_view new_name;  ///< schema 1's field (empty: a column that went away)
   bool per_particle;          ///< CSV: old_name + i -> column_name(new field, i)
   std::string_view where;     ///< the outputs that used the old name
-  /// pendavg 0.2's Python result objects had old_name as an attribute: the package keeps it as
-  /// a deprecated alias of new_name (where the result has that field).
-  bool python = false;
+  /// The Python result class of pendavg 0.2 that had old_name as an attribute (Averages,
+  /// SimulationResult; empty: none): the package keeps it there as a deprecated alias of
+  /// new_name (where the class has that field).
+  std::string_view python = {};
 };
 
 /// Every rename of schema 0 -> 1.

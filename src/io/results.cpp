@@ -118,6 +118,30 @@ constexpr Field excitation_inputs[] = {canonical_inputs[0], canonical_inputs[1],
                                        canonical_inputs[3], canonical_inputs[4],
                                        canonical_inputs[5]};
 
+// ---------------------------------------------------------------- the run diagnostics
+
+constexpr Field torus_run_table[] = {
+    {"points_per_dim", K::count, one, "torus: n, the nodes per angle of the final level"},
+    {"levels", K::count, one, "the refinement levels evaluated"},
+    {"grid_points", K::count, one, "n^(N-1), the nodes of the final level (before the mirror halving)"},
+};
+
+constexpr Field qmc_run_table[] = {
+    {"points", K::count, one, "qmc: the lattice points per shift"},
+    {"shifts", K::count, one, "the independent random shifts"},
+    {"sigmas", K::real, one,
+     "the errors are sigmas times the jackknife standard error over the shifts (by default the "
+     "99.9% two-sided Student-t quantile)"},
+    {"effective_sample_fraction", K::real, one,
+     "(sum w)^2 / (n sum w^2) of the weights of all points * shifts samples (Kish)"},
+};
+
+constexpr Field transfer_run_table[] = {
+    {"angle_nodes", K::count, one, "transfer: n, the nodes per angle of the final level"},
+    {"pivot_nodes", K::count, one, "m, the Chebyshev nodes per pivot u_j of the final level"},
+    {"levels", K::count, one, "the levels evaluated (the angle ladder and the pivot checks)"},
+};
+
 // ---------------------------------------------------------------- simulate and poincare
 
 constexpr Field simulation_inputs[] = {
@@ -221,6 +245,11 @@ constexpr Field section_point_table[] = {
     {"time", K::real, one, "the time of the crossing"},
 };
 
+constexpr Field orbit_start_table[] = {
+    {"start_phi2", K::real, one, "phi_2 where the orbit starts on the section"},
+    {"start_p2", K::real, one, "p_2 where the orbit starts on the section"},
+};
+
 // ---------------------------------------------------------------- series
 
 constexpr Field series_run_table[] = {
@@ -246,6 +275,10 @@ constexpr NamedTable tables[] = {
     {"microcanonical inputs (--energy)", energy_inputs},
     {"microcanonical inputs (--excitation)", excitation_inputs},
     {"canonical averages", averages_table},
+    {"torus run (the run of canonical averages and limits by a torus rule)", torus_run_table},
+    {"qmc run (the run of canonical averages by qmc)", qmc_run_table},
+    {"transfer run (the run of canonical averages and limits by the transfer operator)",
+     transfer_run_table},
     {"microcanonical averages (after --energy)", microcanonical_after_energy},
     {"microcanonical averages (after --excitation)", microcanonical_after_excitation},
     {"simulation inputs", simulation_inputs},
@@ -253,6 +286,7 @@ constexpr NamedTable tables[] = {
     {"simulation replicas", replica_table},
     {"poincare section", poincare_table},
     {"section point", section_point_table},
+    {"orbit start (Python's PoincareSection; the CLI prints the crossings)", orbit_start_table},
     {"series run (after the canonical inputs)", series_run_table},
     {"series row", series_row_table},
 };
@@ -441,6 +475,38 @@ std::span<const Field> microcanonical_fields(std::string_view state) {
                            : std::span<const Field>(microcanonical_after_excitation);
 }
 std::span<const NamedTable> all_tables() { return tables; }
+
+std::span<const Field> torus_run_fields() { return torus_run_table; }
+std::span<const Field> qmc_run_fields() { return qmc_run_table; }
+std::span<const Field> transfer_run_fields() { return transfer_run_table; }
+
+template <class Real>
+std::span<const Field> run_fields(const Averages<Real>& a) {
+  if (a.torus) return torus_run_table;
+  if (a.qmc) return qmc_run_table;
+  if (a.transfer) return transfer_run_table;
+  return {};
+}
+
+template <class Real>
+void append_run(Record& r, const Averages<Real>& a) {
+  const auto count = [&](std::size_t n) { r.integer(static_cast<long long>(n)); };
+  if (a.torus) {
+    count(a.torus->points_per_dim);
+    count(a.torus->levels);
+    r.integer(static_cast<long long>(a.torus->grid_points));  // (at most max_grid_points, 1e9)
+  } else if (a.qmc) {
+    count(a.qmc->points);
+    count(a.qmc->shifts);
+    r.number(a.qmc->sigmas);
+    r.number(static_cast<double>(a.qmc->effective_sample_fraction));  // (qmc runs in double)
+  } else if (a.transfer) {
+    count(a.transfer->angle_nodes);
+    count(a.transfer->pivot_nodes);
+    count(a.transfer->levels);
+  }
+  r.complete();
+}
 template <class Real>
 void append_canonical_inputs(Record& r, const Chain<Real>& chain, const Real& beta,
                              Printing p, std::span<const std::string_view> texts) {
@@ -631,6 +697,7 @@ std::span<const Field> simulation_fields() { return simulation_table; }
 std::span<const Field> replica_fields() { return replica_table; }
 std::span<const Field> poincare_fields() { return poincare_table; }
 std::span<const Field> section_point_fields() { return section_point_table; }
+std::span<const Field> orbit_start_fields() { return orbit_start_table; }
 
 namespace {
 
@@ -798,6 +865,12 @@ void append_section_point(Record& r, const SectionPoint<double>& p) {
   r.complete();
 }
 
+void append_orbit_start(Record& r, const PoincareSection<double>& section, std::size_t orbit) {
+  r.number(section.start_phi2[orbit]);
+  r.number(section.start_p2[orbit]);
+  r.complete();
+}
+
 // ---------------------------------------------------------------- series
 
 std::span<const Field> series_run_fields() { return series_run_table; }
@@ -877,7 +950,9 @@ void append_series_row(Record& r, const SeriesRow<mpfr_real>& row, Printing p, b
   template void append_microcanonical_inputs<Real>(Record&, const Chain<Real>&, const Real&,      \
                                                    Printing, std::span<const std::string_view>); \
   template void append_averages<Real>(Record&, const Averages<Real>&, const Real*, Printing);    \
-  template void append_microcanonical<Real>(Record&, const MicrocanonicalAverages<Real>&, Printing);
+  template void append_microcanonical<Real>(Record&, const MicrocanonicalAverages<Real>&, Printing); \
+  template std::span<const Field> run_fields<Real>(const Averages<Real>&);                        \
+  template void append_run<Real>(Record&, const Averages<Real>&);
 PENDAVG_IO_RESULTS(double)
 PENDAVG_IO_RESULTS(mpfr_real)
 #undef PENDAVG_IO_RESULTS

@@ -74,6 +74,23 @@ template <class Real>
 void append_averages(Record& record, const Averages<Real>& averages, const Real* beta,
                      Printing printing);
 
+// ---------------------------------------------------------------- the run diagnostics
+
+/// How the method of canonical averages ran (the JSON `run` object of `average --beta` and
+/// `limit`, Python's Averages.run), one table per kind of run: the torus rule's final grid, the
+/// qmc run, the transfer operator's final resolution.
+std::span<const Field> torus_run_fields();
+std::span<const Field> qmc_run_fields();
+std::span<const Field> transfer_run_fields();
+
+/// The table of the run of `averages` (empty: a method without run diagnostics).
+template <class Real>
+std::span<const Field> run_fields(const Averages<Real>& averages);
+
+/// Fills `record` (reset to run_fields(averages), not empty).
+template <class Real>
+void append_run(Record& record, const Averages<Real>& averages);
+
 // ---------------------------------------------------------------- microcanonical averages
 
 /// MicrocanonicalAverages<Real> (`average --energy/--excitation`, `table --energy`), after the
@@ -137,6 +154,13 @@ void append_poincare(Record& record, const Chain<double>& chain, const PoincareO
 std::span<const Field> section_point_fields();
 
 void append_section_point(Record& record, const SectionPoint<double>& point);
+
+/// Where each orbit starts on the section: start_phi2, start_p2 (Python's PoincareSection; the
+/// CLI prints the crossings only).
+std::span<const Field> orbit_start_fields();
+
+void append_orbit_start(Record& record, const PoincareSection<double>& section,
+                        std::size_t orbit);
 
 // ---------------------------------------------------------------- series
 

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -44,63 +45,63 @@ using namespace pybind11::literals;
 
 // ---------------------------------------------------------------- the result class
 
-/// What `run` reports of one point: the torus grid, the qmc run or the transfer operator's
-/// final resolution (as the CLI's "run" object).
-struct RunDetails {
-  std::optional<std::array<std::size_t, 2>> torus;  ///< points_per_dim, levels
-  double grid_points = 0;
-  std::optional<std::array<std::size_t, 2>> qmc;    ///< points, shifts
-  double sigmas = 0, effective_sample_fraction = 0;
-  std::optional<std::array<std::size_t, 3>> transfer;  ///< angle_nodes, pivot_nodes, levels
+/// One point's run diagnostics (io::run_fields: the torus grid, the qmc run or the transfer
+/// operator's final resolution; the CLI's `run` object): the table and its cells' numbers, kept
+/// small (a grid keeps one per point).
+struct RunCells {
+  std::span<const io::Field> fields;  ///< empty: none
+  std::array<double, 4> numbers{};    ///< per field: a count (exact in a double) or a real
 };
 
 template <class Real>
-RunDetails run_details_of(const Averages<Real>& a) {
-  RunDetails d;
-  if (a.torus) {
-    d.torus = {a.torus->points_per_dim, a.torus->levels};
-    d.grid_points = a.torus->grid_points;
+RunCells run_cells_of(const Averages<Real>& a) {
+  RunCells out;
+  out.fields = io::run_fields(a);
+  if (out.fields.empty()) return out;
+  if (out.fields.size() > out.numbers.size())
+    throw std::logic_error("pendavg internal error: a run table wider than RunCells");
+  thread_local io::Record record;  // (reused: a point's call allocates nothing here)
+  record.reset(out.fields, 0);
+  io::append_run(record, a);
+  for (std::size_t k = 0; k < out.fields.size(); ++k) {
+    const io::Cell& cell = record.cells_of(k)[0];
+    out.numbers[k] = cell.tag == io::Cell::Tag::integer ? static_cast<double>(cell.integer)
+                                                        : cell.number;
   }
-  if (a.qmc) {
-    d.qmc = {a.qmc->points, a.qmc->shifts};
-    d.sigmas = a.qmc->sigmas;
-    d.effective_sample_fraction = static_cast<double>(a.qmc->effective_sample_fraction);
-  }
-  if (a.transfer)
-    d.transfer = {a.transfer->angle_nodes, a.transfer->pivot_nodes, a.transfer->levels};
-  return d;
+  return out;
 }
 
-py::object run_object(const RunDetails& d) {
-  if (d.torus) {
-    py::dict out;
-    out["points_per_dim"] = (*d.torus)[0];
-    out["levels"] = (*d.torus)[1];
-    out["grid_points"] = d.grid_points;
-    return out;
+/// {field: value} of the run's table (counts int, reals float), or None.
+py::object run_object(const RunCells& run) {
+  if (run.fields.empty()) return py::none();
+  py::dict out;
+  for (std::size_t k = 0; k < run.fields.size(); ++k) {
+    const io::Field& f = run.fields[k];
+    const std::string name(f.name);
+    if (f.kind == io::Kind::count) out[name.c_str()] = static_cast<long long>(run.numbers[k]);
+    else out[name.c_str()] = run.numbers[k];
   }
-  if (d.qmc) {
-    py::dict out;
-    out["points"] = (*d.qmc)[0];
-    out["shifts"] = (*d.qmc)[1];
-    out["sigmas"] = d.sigmas;
-    out["effective_sample_fraction"] = d.effective_sample_fraction;
-    return out;
+  return out;
+}
+
+/// The docstring of Averages.run: each run table's fields with their meanings.
+std::string run_doc() {
+  std::string doc = "How the method ran (the CLI's `run`): a dict of one of these tables, None for "
+                    "the other methods (a grid: an object array of them).";
+  for (const std::span<const io::Field> table :
+       {io::torus_run_fields(), io::qmc_run_fields(), io::transfer_run_fields()}) {
+    doc += "\n";
+    for (std::size_t k = 0; k < table.size(); ++k)
+      doc += std::string(k ? "; " : "\n") + std::string(table[k].name) + ": " +
+             std::string(table[k].meaning);
   }
-  if (d.transfer) {
-    py::dict out;
-    out["angle_nodes"] = (*d.transfer)[0];
-    out["pivot_nodes"] = (*d.transfer)[1];
-    out["levels"] = (*d.transfer)[2];
-    return out;
-  }
-  return py::none();
+  return doc;
 }
 
 /// The Python class Averages: the records of every point (the inputs', then the averages'), and
 /// each point's run diagnostics.
 struct AveragesResult : TableResult {
-  std::vector<RunDetails> runs;
+  std::vector<RunCells> runs;
 
   /// Lays out a call of `points` points (shape set before); `beta`: a canonical call (a limit
   /// has no beta).
@@ -149,7 +150,7 @@ void keep_point(AveragesResult& result, std::size_t k, const Chain<Real>& chain,
   const std::array<const io::Record*, 2> both{&records.inputs, &records.values};
   result.store(k, both);
   result.set_run(k, seconds, a.interrupted);
-  result.runs[k] = run_details_of(a);
+  result.runs[k] = run_cells_of(a);
 }
 
 /// An empty grid's call-wide fields (N, digits), from a unit chain's inputs.
@@ -591,8 +592,8 @@ std::string averages_doc() {
 
 void expose_average(py::module_& m) {
   using namespace pybind11::literals;
-  py::class_<AveragesResult> c(m, "Averages", py::dynamic_attr(), averages_doc().c_str());
-  define_table_class(c, averages_class_fields());
+  auto c = table_class<AveragesResult>(m, "Averages", averages_doc().c_str(),
+                                       averages_class_fields());
   c.def_property_readonly(
       "run",
       [](const AveragesResult& r) -> py::object {
@@ -601,9 +602,7 @@ void expose_average(py::module_& m) {
         for (std::size_t k = 0; k < r.runs.size(); ++k) out[py::int_(k)] = run_object(r.runs[k]);
         return out.attr("reshape")(py::cast(r.shape));
       },
-      "The torus grid {points_per_dim, levels, grid_points}, the qmc run {points, shifts, "
-      "sigmas, effective_sample_fraction} or the transfer operator's final resolution "
-      "{angle_nodes, pivot_nodes, levels} (the CLI's `run`); None for the other methods.");
+      [] { static const std::string doc = run_doc(); return doc.c_str(); }());
 
   m.def("average_point", &average_point, "masses"_a, "lengths"_a, "beta"_a, "g"_a, "digits"_a,
         "method"_a, "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "certified"_a, "progress"_a,

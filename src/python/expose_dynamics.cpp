@@ -12,9 +12,11 @@
 #include "bindings.hpp"
 #include "inputs.hpp"
 #include "parallel.hpp"
+#include "table_result.hpp"
 
 #include "io/exact_values.hpp"
 #include "io/parse.hpp"
+#include "io/results.hpp"
 
 #include "pendavg/pendavg.hpp"
 
@@ -85,6 +87,11 @@ double option_double(py::handle x, const char* fallback, std::string_view what, 
   return number_double(x, what, domain);
 }
 
+/// The Python class SimulationResult: the run's records (table_result.hpp) and the trajectory.
+struct SimulationTable : TableResult {
+  py::object trajectory = py::none();  ///< {t, E, phi, phidot} every `every` steps, or None
+};
+
 py::array_t<double> array(const std::vector<double>& v) {
   return py::array_t<double>(static_cast<py::ssize_t>(v.size()), v.data());
 }
@@ -94,7 +101,7 @@ py::array_t<double> matrix(const std::vector<double>& v, std::size_t columns) {
   return py::array_t<double>({rows, static_cast<py::ssize_t>(columns)}, v.data());
 }
 
-py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handle theta,
+SimulationTable simulate(py::handle masses, py::handle lengths, py::handle g, py::handle theta,
                   py::handle phi, py::handle phidot, py::handle time, py::handle dt,
                   py::handle burn_in, py::handle integrator, py::handle thermostat,
                   py::handle beta, py::handle friction, py::handle seed, py::handle exact,
@@ -195,156 +202,33 @@ py::dict simulate(py::handle masses, py::handle lengths, py::handle g, py::handl
   const double seconds = watch.seconds();
   const SimulationResult<double>& r = *result;
 
-  std::vector<double> k(n), k_error(n), kc(n), kc_error(n), tau(n), cosine(n), cosine_error(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    k[i] = r.kinetic[i].value;
-    k_error[i] = r.kinetic[i].error;
-    kc[i] = r.kinetic_canonical[i].value;
-    kc_error[i] = r.kinetic_canonical[i].error;
-    tau[i] = r.kinetic[i].autocorrelation_time;
-    cosine[i] = r.cos_angle[i].value;
-    cosine_error[i] = r.cos_angle[i].error;
-  }
-  // No NaN or infinity reaches Python silently (ValueError, one line): every average and
-  // energy is finite; an error bar (and what derives from it) may be NaN only when too few
-  // blocks finished to estimate it, which error_reason then says. A run stopped by Ctrl-C before
-  // its first sample has no average: KeyboardInterrupt.
+  // A run stopped by Ctrl-C before its first sample has no average: KeyboardInterrupt. The
+  // library refused any other result that is not finite (check_simulation_result).
   if (r.interrupted && r.samples == 0) {
     PyErr_SetString(PyExc_KeyboardInterrupt, "simulate: interrupted before the first sample");
     throw py::error_already_set();
   }
-  const bool unknown_errors =
-      std::any_of(k_error.begin(), k_error.end(), [](double e) { return !std::isfinite(e); });
-  {
-    const auto refuse = [](const std::string& name, double x) {
-      throw invalid_input("simulate: the result is not finite (" + name + " = " +
-                          (std::isnan(x) ? "nan" : x > 0 ? "inf" : "-inf") +
-                          "): the trajectory left the finite numbers (try a smaller dt)");
-    };
-    const auto value = [&](const std::string& name, double x) {
-      if (!std::isfinite(x)) refuse(name, x);
-    };
-    const auto bar = [&](const std::string& name, double x) {
-      if (!std::isfinite(x) && !(unknown_errors && std::isnan(x))) refuse(name, x);
-    };
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::string at = "[" + std::to_string(i) + "]";
-      value("K" + at, k[i]);
-      value("Kc" + at, kc[i]);
-      value("cos_phi" + at, cosine[i]);
-      bar("K_error" + at, k_error[i]);
-      bar("Kc_error" + at, kc_error[i]);
-      bar("cos_phi_error" + at, cosine_error[i]);
-      bar("K_autocorrelation_time" + at, tau[i]);
-    }
-    value("K_total", r.kinetic_total.value);
-    value("potential", r.potential.value);
-    bar("K_total_error", r.kinetic_total.error);
-    bar("potential_error", r.potential.error);
-    value("energy", energy);
-    value("final_energy", r.final_energy);
-    value("energy_drift", r.energy_drift);
-    value("energy_error_max", r.energy_error_max);
-    value("energy_error_rms", r.energy_error_rms);
-    bar("energy_trend", r.energy_trend);
-    value("constraint_residual", r.constraint_residual);
-    if (reference) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::string at = "[" + std::to_string(i) + "]";
-        value("exact_K" + at, reference->kinetic[i]);
-        value("exact_K_error" + at, reference->kinetic_error[i]);
-        value("exact_cos_phi" + at, reference->cos_angle[i]);
-        value("exact_cos_phi_error" + at, reference->cos_angle_error[i]);
-      }
-      value("exact_Kc", reference->kinetic_canonical);
-      value("exact_Kc_error", reference->kinetic_canonical_error);
-      if (!langevin) {
-        value("exact_excitation", reference->excitation);
-        for (std::size_t i = 0; i < n; ++i) {
-          value("exact_var_K[" + std::to_string(i) + "]", reference->variance[i]);
-          value("exact_var_K_error[" + std::to_string(i) + "]", reference->variance_error[i]);
-        }
-      }
-    }
-  }
-  py::dict out;
-  out["ensemble"] = langevin ? "canonical" : "microcanonical";
-  out["integrator"] = langevin ? std::string("baoab-rattle")
-                               : std::string(integrator_names[static_cast<std::size_t>(
-                                     run.integrator.value_or(default_integrator))]);
-  out["method"] = method_name(r.method);
-  out["N"] = n;
-  out["dt"] = run.time_step;
-  out["time"] = r.simulated_time;
-  out["energy"] = energy;
-  out["K"] = array(k);
-  out["K_error"] = array(k_error);
-  out["Kc"] = array(kc);
-  out["Kc_error"] = array(kc_error);
-  out["K_autocorrelation_time"] = array(tau);
-  out["cos_phi"] = array(cosine);
-  out["cos_phi_error"] = array(cosine_error);
-  out["K_total"] = r.kinetic_total.value;
-  out["K_total_error"] = r.kinetic_total.error;
-  out["potential"] = r.potential.value;
-  out["potential_error"] = r.potential.error;
-  out["error_kind"] = error_kind_name(ErrorKind::statistical);
-  if (reference) {
-    std::vector<double> deviation(n);
-    for (std::size_t i = 0; i < n; ++i)
-      deviation[i] = (k[i] - reference->kinetic[i]) / std::hypot(k_error[i], reference->kinetic_error[i]);
-    out["exact_K"] = array(reference->kinetic);
-    out["exact_K_error"] = array(reference->kinetic_error);
-    out["exact_Kc"] = reference->kinetic_canonical;
-    out["exact_Kc_error"] = reference->kinetic_canonical_error;
-    out["exact_cos_phi"] = array(reference->cos_angle);
-    out["exact_cos_phi_error"] = array(reference->cos_angle_error);
-    out["K_deviation_sigmas"] = array(deviation);
-    out["exact_method"] = reference->method;
-    out["exact_error_kind"] = reference->error_kind;
-  } else {
-    for (const char* name : {"exact_K", "exact_K_error", "exact_Kc", "exact_Kc_error",
-                             "exact_cos_phi", "exact_cos_phi_error", "K_deviation_sigmas",
-                             "exact_method", "exact_error_kind"})
-      out[name] = py::none();
-  }
-  // NVE: the microcanonical state as D = E - E_min (excitation form) and Var K_i, as the CLI.
-  if (reference && !langevin) {
-    out["exact_excitation"] = reference->excitation;
-    out["exact_var_K"] = array(reference->variance);
-    out["exact_var_K_error"] = array(reference->variance_error);
-  } else {
-    for (const char* name : {"exact_excitation", "exact_var_K", "exact_var_K_error"})
-      out[name] = py::none();
-  }
-  out["error_reason"] =
-      unknown_errors ? py::object(py::str(
-                           "fewer than 16 averaging blocks finished (interrupted early, or time "
-                           "too short for the block length): the error bars are unknown (NaN)"))
-                     : py::none();
-  out["beta"] = langevin ? py::object(py::float_(*run.beta)) : py::none();
-  out["friction"] = langevin ? py::object(py::float_(run.friction.value_or(1))) : py::none();
-  out["energy_drift"] = r.energy_drift;
-  out["energy_error_max"] = r.energy_error_max;
-  out["energy_error_rms"] = r.energy_error_rms;
-  out["energy_trend"] = r.energy_trend;
-  out["final_energy"] = r.final_energy;
-  out["constraint_residual"] = r.constraint_residual;
-  out["steps"] = r.steps;
-  out["samples"] = r.samples;
-  out["newton_solves"] = r.newton_solves;
-  out["unconverged_stages"] = r.unconverged_stages;
-  out["interrupted"] = r.interrupted;
-  out["seconds"] = seconds;
+  // The records `pendavg simulate` prints (io::append_simulation_inputs, io::append_simulation).
+  SimulationTable out;
+  out.particles = n;
+  out.layout({{io::simulation_input_fields(), true}, {io::simulation_fields(), false}}, false);
+  io::Record inputs(io::simulation_input_fields(), n), values(io::simulation_fields(), n);
+  io::append_simulation_inputs(
+      inputs, chain, run,
+      langevin ? std::string_view("baoab-rattle")
+               : integrator_names[static_cast<std::size_t>(run.integrator.value_or(default_integrator))]);
+  io::append_simulation(values, r, energy, reference ? &*reference : nullptr, langevin);
+  const std::array<const io::Record*, 2> records{&inputs, &values};
+  out.store(0, records);
+  out.set_run(0, seconds, r.interrupted);
+  out.require_finite("simulate", "the trajectory left the finite numbers (try a smaller dt)");
   if (trajectory_every) {
     py::dict trajectory;
     trajectory["t"] = array(t);
     trajectory["E"] = array(e);
     trajectory["phi"] = matrix(phis, n);
     trajectory["phidot"] = matrix(phidots, n);
-    out["trajectory"] = trajectory;
-  } else {
-    out["trajectory"] = py::none();
+    out.trajectory = trajectory;
   }
   return out;
 }
@@ -372,38 +256,78 @@ py::dict poincare(py::handle masses, py::handle lengths, py::handle g, py::handl
   run_interruptible([&] { section = poincare_section(chain, e, run, observer); }, stop, fraction,
                progress);
   const double seconds = watch.seconds();
-  const std::size_t count = section->points.size();
-  py::array_t<std::int64_t> orbit(static_cast<py::ssize_t>(count));
-  std::vector<double> phi2, p2, when;
-  for (std::size_t k = 0; k < count; ++k) {
-    const SectionPoint<double>& p = section->points[k];
-    orbit.mutable_data()[k] = static_cast<std::int64_t>(p.orbit);
-    phi2.push_back(p.phi2);
-    p2.push_back(p.p2);
-    when.push_back(p.time);
+  // The records `pendavg poincare` prints (io::append_poincare, io::append_section_point), and
+  // the orbits' starts (io::append_orbit_start): the call's fields single values, the crossings'
+  // and the starts' arrays. The library refused a point that is not finite.
+  const std::size_t n = chain.size();
+  TableResult call, crossings, starts;
+  call.particles = crossings.particles = starts.particles = n;
+  call.layout({{io::poincare_fields(), false}}, false);
+  io::Record record(io::poincare_fields(), n);
+  io::append_poincare(record, chain, run, *section);
+  call.store(0, std::array<const io::Record*, 1>{&record});
+  crossings.shape = {static_cast<py::ssize_t>(section->points.size())};
+  crossings.layout({{io::section_point_fields(), false}}, false);
+  for (std::size_t k = 0; k < section->points.size(); ++k) {
+    record.reset(io::section_point_fields(), n);
+    io::append_section_point(record, section->points[k]);
+    crossings.store(k, std::array<const io::Record*, 1>{&record});
   }
-  for (std::size_t k = 0; k < count; ++k)
-    if (!std::isfinite(phi2[k]) || !std::isfinite(p2[k]) || !std::isfinite(when[k]))
-      throw invalid_input("poincare: the result is not finite (crossing " + std::to_string(k) +
-                          "): the trajectory left the finite numbers (try a smaller dt)");
-  if (!std::isfinite(section->energy_error_max))
-    throw invalid_input("poincare: the result is not finite (energy_error_max): the trajectory "
-                        "left the finite numbers (try a smaller dt)");
-  py::dict out;
-  out["orbit"] = orbit;
-  out["phi2"] = array(phi2);
-  out["p2"] = array(p2);
-  out["time"] = array(when);
-  out["start_phi2"] = array(section->start_phi2);
-  out["start_p2"] = array(section->start_p2);
-  out["energy"] = section->energy;
-  out["energy_error_max"] = section->energy_error_max;
-  out["orbits"] = run.orbits;
-  out["dt"] = run.time_step;
-  out["steps"] = section->steps;
-  out["interrupted"] = section->interrupted;
+  starts.shape = {static_cast<py::ssize_t>(section->start_phi2.size())};
+  starts.layout({{io::orbit_start_fields(), false}}, false);
+  for (std::size_t k = 0; k < section->start_phi2.size(); ++k) {
+    record.reset(io::orbit_start_fields(), n);
+    io::append_orbit_start(record, *section, k);
+    starts.store(k, std::array<const io::Record*, 1>{&record});
+  }
+  for (const TableResult* part : {&call, &crossings, &starts})
+    part->require_finite("poincare", "the trajectory left the finite numbers (try a smaller dt)");
+  py::dict out, decimal;
+  for (const TableResult* part : {&call, &crossings, &starts}) {
+    const py::dict strings = part->decimal();
+    for (const Column& c : part->columns()) {
+      const std::string name(c.field.name);
+      out[name.c_str()] = part->value(c.field.name);
+      if (strings.contains(name))
+        decimal[name.c_str()] = part->single() ? strings[name.c_str()]
+                                               : strings[name.c_str()].attr("tolist")();
+    }
+  }
   out["seconds"] = seconds;
+  out["decimal"] = decimal;
   return out;
+}
+
+/// The fields of pendavg.PoincareSection: the call's, each crossing's, each orbit's start.
+py::tuple poincare_fields() {
+  return py::make_tuple(field_tuples(class_fields({{io::poincare_fields(), false}})),
+                        field_tuples(class_fields({{io::section_point_fields(), false}})),
+                        field_tuples(class_fields({{io::orbit_start_fields(), false}})));
+}
+
+/// The fields of SimulationResult: the run's inputs, then its result (the CLI's tables).
+const std::vector<ClassField>& simulation_class_fields() {
+  static const std::vector<ClassField> fields =
+      class_fields({{io::simulation_input_fields(), true}, {io::simulation_fields(), false}});
+  return fields;
+}
+
+std::string simulation_doc() {
+  std::string doc =
+      "Time averages along one trajectory beside the exact values of its ensemble: the result "
+      "of pendavg.simulate.\n\n"
+      "Per-particle fields are arrays of shape (N,), the others Python scalars; index i is\n"
+      "particle i + 1; a value that does not exist is None (an error bar of too few blocks,\n"
+      "the exact values of exact=False), with a *_reason field where the run says why. The\n"
+      "fields (the CLI's JSON keys of `pendavg simulate`, from the output schema's field\n"
+      "tables):\n\n";
+  for (const ClassField& f : simulation_class_fields())
+    doc += "  " + std::string(f.field.name) +
+           (f.field.shape == io::Shape::per_particle ? " (per particle)" : "") + ": " +
+           std::string(f.field.meaning) + "\n";
+  doc += "\nBesides: shape (()), seconds (the run's wall time), trajectory, decimal (the CLI's\n"
+         "strings), mpf (exact mpmath values), to_dict(), to_dataframe(), to_xarray().";
+  return doc;
 }
 
 /// The CLI's messages without its advice to use --digits > 16 (a number beyond double's range):
@@ -426,6 +350,13 @@ auto without_digits_advice(Function function) {
 
 void expose_dynamics(py::module_& m) {
   using namespace pybind11::literals;
+  auto c = table_class<SimulationTable>(m, "SimulationResult", simulation_doc().c_str(),
+                                        simulation_class_fields());
+  c.def_property_readonly(
+      "trajectory", [](const SimulationTable& r) { return r.trajectory; },
+      "The trajectory every `every` steps: {'t': times, 'E': energies, 'phi': (T, N) angles, "
+      "'phidot': (T, N) angular velocities} (numpy arrays; as `pendavg simulate --trajectory`), "
+      "or None.");
   m.def("simulate",
         [](py::handle masses, py::handle lengths, py::handle g, py::handle theta, py::handle phi,
            py::handle phidot, py::handle time, py::handle dt, py::handle burn_in,
@@ -437,7 +368,7 @@ void expose_dynamics(py::module_& m) {
         }, "masses"_a, "lengths"_a, "g"_a, "theta"_a, "phi"_a, "phidot"_a,
         "time"_a, "dt"_a, "burn_in"_a, "integrator"_a, "thermostat"_a, "beta"_a, "friction"_a,
         "seed"_a, "exact"_a, "every"_a, "progress"_a,
-        "A trajectory's time averages as a dict (see pendavg.simulate).");
+        "A trajectory's time averages (see pendavg.simulate).");
   m.def("poincare",
         [](py::handle masses, py::handle lengths, py::handle g, py::handle energy,
            py::handle orbits, py::handle points, py::handle dt, const py::object& progress) {
@@ -445,6 +376,9 @@ void expose_dynamics(py::module_& m) {
                                                   progress);
         }, "masses"_a, "lengths"_a, "g"_a, "energy"_a, "orbits"_a, "points"_a,
         "dt"_a, "progress"_a, "The double pendulum's Poincare section as a dict (see pendavg.poincare).");
+  m.def("poincare_fields", &poincare_fields,
+        "(the section's fields, each crossing's, each orbit start's) as (name, kind, "
+        "per_particle, meaning, input) tuples.");
   m.def("dynamics_instruction_set", &dynamics_instruction_set,
         "'x86-64-v3' or 'base': the instruction set of the dynamics kernels on this CPU.");
 }

@@ -158,9 +158,8 @@ std::string microcanonical_doc() {
 
 void expose_microcanonical(py::module_& m) {
   using namespace pybind11::literals;
-  py::class_<MicrocanonicalResult> c(m, "MicrocanonicalResult", py::dynamic_attr(),
-                                     microcanonical_doc().c_str());
-  define_table_class(c, microcanonical_class_fields());
+  table_class<MicrocanonicalResult>(m, "MicrocanonicalResult", microcanonical_doc().c_str(),
+                                    microcanonical_class_fields());
   m.def("microcanonical", &microcanonical, "masses"_a, "lengths"_a, "energy"_a, "g"_a,
         "digits"_a, "method"_a, "tol"_a, "samples"_a, "shifts"_a, "seed"_a, "excitation"_a,
         "Microcanonical averages at one energy (see pendavg.microcanonical).");

@@ -79,15 +79,17 @@ PYBIND11_MODULE(_pendavg, m) {
     return out;
   });
   // The names of schema 0 that schema 1 renamed (src/io/migration.cpp): (old, new,
-  // per_particle, python, where) tuples; `python`: pendavg 0.2's result objects had the old name
-  // as an attribute (the package keeps it as a deprecated alias).
+  // per_particle, python, where) tuples; `python`: the result class of pendavg 0.2 that had the
+  // old name as an attribute ('' none; the package keeps it there as a deprecated alias).
   m.def("renames", [] {
     pybind11::list out;
     for (const pendavg::io::Rename& r : pendavg::io::schema0_renames())
       out.append(pybind11::make_tuple(std::string(r.old_name), std::string(r.new_name),
-                                      r.per_particle, r.python, std::string(r.where)));
+                                      r.per_particle, std::string(r.python),
+                                      std::string(r.where)));
     return out;
   });
+  pendavg::python::expose_table_result(m);  // (the result classes' base, registered first)
   pendavg::python::expose_average(m);
   pendavg::python::expose_series(m);
   pendavg::python::expose_microcanonical(m);

@@ -381,4 +381,29 @@ void TableResult::require_finite(const std::string& command, const std::string& 
   }
 }
 
+void expose_table_result(py::module_& m) {
+  py::class_<TableResult>(m, "_TableResult", py::dynamic_attr(),
+                          "The base of the result classes generated from the output schema's "
+                          "field tables (Averages, MicrocanonicalResult, SimulationResult).")
+      .def_property_readonly(
+          "shape", [](const TableResult& r) { return py::tuple(py::cast(r.shape)); },
+          "Broadcast shape of the arguments: () for one point.")
+      .def_property_readonly(
+          "seconds",
+          [](const TableResult& r) -> py::object {
+            if (r.single()) return py::float_(r.points() ? r.seconds()[0] : 0.0);
+            py::array_t<double> out(r.shape);
+            std::copy(r.seconds(), r.seconds() + r.points(), out.mutable_data());
+            return out;
+          },
+          "Wall time of the library call (the CLI's `seconds`): a float, an array for a grid.")
+      .def_property_readonly("decimal", [](const TableResult& r) { return r.decimal(); },
+                             "Every number as the CLI prints it (`--format json`): a double "
+                             "run's shortest round-trip text, an MPFR run's `digits` digits; "
+                             "errors with 3 significant digits rounded up, covering the printed "
+                             "value's rounding. One point: str, or a list per particle; a grid: "
+                             "numpy arrays. None: an empty cell.")
+      .def("_exact_values", [](const TableResult& r) { return r.exact(); });
+}
+
 }  // namespace pendavg::python

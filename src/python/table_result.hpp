@@ -99,6 +99,8 @@ class TableResult {
   /// The call-wide fields of an empty grid, from records of any point of the call.
   void store_call(std::span<const io::Record* const> records);
 
+  /// The columns, in the tables' order.
+  std::span<const Column> columns() const { return columns_; }
   /// The field `name` as a Python value (None: the result has no such field).
   py::object value(std::string_view name) const;
   /// {field: its cells as the CLI prints them} for every real and error field: str (None: an
@@ -173,38 +175,26 @@ py::object numpy_array(const py::list& items, const std::vector<py::ssize_t>& sh
 /// Python package generates its conversions and documentation from them).
 py::list field_tuples(const std::vector<ClassField>& fields);
 
-/// Adds a read-only property for every field (its meaning as the docstring), which returns
-/// TableResult::value, and .decimal, ._exact_values(), .shape and .seconds, to a result class;
+/// Registers the base class of the result classes, pendavg._pendavg._TableResult: .shape,
+/// .seconds, .decimal and ._exact_values() (the Python package adds the conversions to it).
+void expose_table_result(py::module_& m);
+
+/// The result class `Result` (a TableResult) as a subclass of _TableResult: a read-only
+/// property for every field (its meaning as the docstring), which returns TableResult::value;
 /// `fields()` lists the class's fields (field_tuples).
 template <class Result>
-void define_table_class(py::class_<Result>& c, const std::vector<ClassField>& fields) {
+py::class_<Result, TableResult> table_class(py::handle scope, const char* name, const char* doc,
+                                            const std::vector<ClassField>& fields) {
+  py::class_<Result, TableResult> c(scope, name, py::dynamic_attr(), doc);
   for (const ClassField& f : fields)
     c.def_property_readonly(
         f.field.name.data(),  // (the tables' names and meanings are NUL-terminated literals)
         [name = f.field.name](const Result& r) { return r.value(name); },
         f.field.meaning.data());
-  c.def_property_readonly(
-       "shape", [](const Result& r) { return py::tuple(py::cast(r.shape)); },
-       "Broadcast shape of the arguments: () for one point.")
-      .def_property_readonly(
-          "seconds",
-          [](const Result& r) -> py::object {
-            if (r.single()) return py::float_(r.points() ? r.seconds()[0] : 0.0);
-            py::array_t<double> out(r.shape);
-            std::copy(r.seconds(), r.seconds() + r.points(), out.mutable_data());
-            return out;
-          },
-          "Wall time of the library call (the CLI's `seconds`): a float, an array for a grid.")
-      .def_property_readonly("decimal", [](const Result& r) { return r.decimal(); },
-                             "Every number as the CLI prints it (`--format json`): a double "
-                             "run's shortest round-trip text, an MPFR run's `digits` digits; "
-                             "errors with 3 significant digits rounded up, covering the printed "
-                             "value's rounding. One point: str, or a list per particle; a grid: "
-                             "numpy arrays. None: an empty cell.")
-      .def("_exact_values", [](const Result& r) { return r.exact(); })
-      .def_static("fields", [fields]() { return field_tuples(fields); },
-                  "The result's fields: (name, kind, per_particle, meaning, input) tuples, kind "
-                  "one of real, error, count, text, flag.");
+  c.def_static("fields", [fields]() { return field_tuples(fields); },
+               "The result's fields: (name, kind, per_particle, meaning, input) tuples, kind one "
+               "of real, error, count, text, flag.");
+  return c;
 }
 
 }  // namespace pendavg::python

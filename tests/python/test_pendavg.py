@@ -256,7 +256,8 @@ def test_sweep_agrees_with_table():
 
 # What a result object has besides its fields: the call's shape and wall time, the CLI's strings
 # and the exact values, a grid's axes, the conversions and the field list (the same for every
-# call; the canonical averages also have the method's run diagnostics).
+# call; the canonical averages also have the method's run diagnostics, a simulation its
+# trajectory).
 RESULT_EXTRAS = {"shape", "seconds", "decimal", "mpf", "dims", "coords", "fields", "to_dict",
                  "as_dict", "to_dataframe", "to_xarray", "_exact_values"}
 
@@ -272,10 +273,11 @@ def table_names(*tables):
     return set(table_order(*tables))
 
 
-def deprecated_aliases(names):
-    """The migration table's renames of pendavg 0.2's attributes whose new name is in names."""
+def deprecated_aliases(names, cls="Averages"):
+    """The migration table's renames of pendavg 0.2's attributes of class `cls` whose new name is
+    in names."""
     return {old: new for old, new, _, python, _ in pendavg._pendavg.renames()
-            if python and new in names and old not in names}
+            if python == cls and new in names and old not in names}
 
 
 def public_attributes(cls):
@@ -290,13 +292,17 @@ def test_result_attributes_are_the_field_tables():
         pendavg.MicrocanonicalResult: [
             "microcanonical inputs (--energy)", "microcanonical inputs (--excitation)",
             "microcanonical averages (after --energy)",
-            "microcanonical averages (after --excitation)"]}
+            "microcanonical averages (after --excitation)"],
+        pendavg.SimulationResult: ["simulation inputs", "simulation"]}
     averages = table_order(*tables_of[pendavg.Averages])
     micro = table_order(*tables_of[pendavg.MicrocanonicalResult])
+    simulation = table_order(*tables_of[pendavg.SimulationResult])
     for cls, order, extras in ((pendavg.Averages, averages, RESULT_EXTRAS | {"run"}),
-                               (pendavg.MicrocanonicalResult, micro, RESULT_EXTRAS)):
+                               (pendavg.MicrocanonicalResult, micro, RESULT_EXTRAS),
+                               (pendavg.SimulationResult, simulation,
+                                RESULT_EXTRAS | {"trajectory"})):
         names = set(order)
-        aliases = deprecated_aliases(names)
+        aliases = deprecated_aliases(names, cls.__name__)
         assert public_attributes(cls) == names | set(aliases) | extras, cls.__name__
         assert [f[0] for f in cls.fields()] == order
         tables = [pendavg._pendavg.tables()[t] for t in tables_of[cls]]
@@ -306,16 +312,49 @@ def test_result_attributes_are_the_field_tables():
         for name, kind, per_particle, meaning, _ in cls.fields():  # the tables' own description
             assert (name, kind, per_particle, meaning) == known[name], name
             assert getattr(cls, name).__doc__ == meaning, name
+    simulation_aliases = deprecated_aliases(set(simulation), "SimulationResult")
     assert deprecated_aliases(set(averages)) == {"error": "beta_K_error", "var_K_beta2": "beta2_var_K",
                                             "var_K_beta2_error": "beta2_var_K_error",
                                             "error_kind": "beta_K_error_kind"}
     assert deprecated_aliases(set(micro)) == {}
+    assert simulation_aliases == {"error_kind": "K_error_kind",
+                                  "exact_error_kind": "exact_K_error_kind"}
     s = pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20)
     call, terms = pendavg.SeriesResult.fields()
     assert set(s.__dict__) == {f[0] for f in call + terms} | {"decimal", "exact"}
     assert {f[0] for f in call} == table_names("canonical inputs",
                                                "series run (after the canonical inputs)")
     assert {f[0] for f in terms} == table_names("series row")
+    p = pendavg.poincare([1, 1], [1, 1], -2, orbits=1, points=2)
+    call, crossings, starts = pendavg.PoincareSection.fields()
+    assert set(p.__dict__) == {f[0] for f in call + crossings + starts} | {"seconds", "decimal"}
+    assert [f[0] for f in call] == table_order("poincare section")
+    assert [f[0] for f in crossings] == table_order("section point")
+    assert [f[0] for f in starts] == table_order(
+        "orbit start (Python's PoincareSection; the CLI prints the crossings)")
+
+
+def test_run_diagnostics_are_the_run_tables():
+    """Averages.run is a dict of one run table (the torus grid, the qmc run, the transfer
+    operator's resolution), its values of the fields' kinds, and equal to the CLI's `run`."""
+    tables = {name.split(" (")[0]: fields for name, fields in pendavg._pendavg.tables().items()}
+    python_type = {"real": float, "count": int}
+    calls = {"torus run": ([1] * 3, [1] * 3, {}), "qmc run": ([1] * 3, [1] * 3, {"method": "qmc",
+                                                                              "samples": 1024}),
+             "transfer run": ([1] * 5, [1] * 5, {})}
+    for table, (masses, lengths, options) in calls.items():
+        r = pendavg.average(masses, lengths, 1.0, **options)
+        assert list(r.run) == [f[0] for f in tables[table]], table
+        for name, kind, _, _ in tables[table]:
+            assert type(r.run[name]) is python_type[kind], (table, name)
+        args = ["average", "--masses", ",".join(map(str, masses)), "--lengths",
+                ",".join(map(str, lengths)), "--beta", 1, "--format", "json"]
+        for option, value in options.items():
+            args += [f"--{option}", value]
+        assert cli_json(*args)["run"] == r.run, table
+    assert pendavg.average([0.5, 0.5], [1, 1], 1.0).run is None  # the integral: no run table
+    grid = pendavg.average([1] * 3, [1] * 3, [1.0, 2.0])
+    assert grid.run.shape == (2,) and all(set(run) == set(grid.run[0]) for run in grid.run)
 
 
 def test_result_values_follow_the_field_kinds():
@@ -338,12 +377,18 @@ def test_result_values_follow_the_field_kinds():
 
 
 def test_deprecated_aliases_warn_and_answer_the_new_field():
-    r = pendavg.average([0.5, 0.5], [1, 2], 1.0)
-    for old, new in deprecated_aliases({f[0] for f in r.fields()}).items():
-        with pytest.warns(DeprecationWarning, match=rf"Averages\.{old} is deprecated .* use \.{new}$"):
-            value = getattr(r, old)
-        np.testing.assert_array_equal(value, getattr(r, new))
-    assert "error" not in r.to_dict() and "beta_K_error" in r.to_dict()
+    results = (pendavg.average([0.5, 0.5], [1, 2], 1.0),
+               pendavg.simulate([1, 1], [1, 1], theta=1, time=0.5))
+    for r in results:
+        name = type(r).__name__
+        aliases = deprecated_aliases({f[0] for f in r.fields()}, name)
+        assert aliases, name
+        for old, new in aliases.items():
+            with pytest.warns(DeprecationWarning,
+                              match=rf"{name}\.{old} is deprecated .* use \.{new}$"):
+                value = getattr(r, old)
+            np.testing.assert_array_equal(value, getattr(r, new))
+            assert old not in r.to_dict() and new in r.to_dict()
 
 
 # ---------------------------------------------------------------- the C++ library's own bits

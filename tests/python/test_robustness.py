@@ -253,7 +253,7 @@ def test_a_coarse_trajectory_is_finite_or_refused(dt):
     except ValueError as refused:
         assert "\n" not in str(refused) and ("dt" in str(refused) or "not finite" in str(refused))
         return
-    assert np.all(np.isfinite(r.K)) and math.isfinite(r.final_energy)
+    assert np.all(np.isfinite(r.K)) and math.isfinite(r.energy_drift)
 
 
 # ---------------------------------------------------------------- the locale

@@ -87,18 +87,28 @@ def stub_order(tree, name):
 
 
 def test_table_class_stubs_list_every_field():
-    """Averages and MicrocanonicalResult (generated from the field tables): the stub has a
-    property per runtime attribute, the fields first and in the tables' order, and every stubbed
-    property answers."""
+    """Averages, MicrocanonicalResult and SimulationResult (generated from the field tables): the
+    stub has a property per runtime attribute -- the class's own (its fields first, in the
+    tables' order) and their base _TableResult's, which the runtime classes share (the stub's
+    base is the runtime's) -- and every stubbed property answers."""
     results = {"Averages": pendavg.average([0.5, 0.5], [1, 1], 1.0),
-               "MicrocanonicalResult": pendavg.microcanonical([1, 1], [1, 1], 0.5)}
+               "MicrocanonicalResult": pendavg.microcanonical([1, 1], [1, 1], 0.5),
+               "SimulationResult": pendavg.simulate([1, 1], [1, 1], theta=1, time=0.5)}
+    tree = stub("_pendavg.pyi")
+    base = class_members(tree, "_TableResult")
+    assert set(base) - {"__init__"} == {n for n in dir(pendavg._pendavg._TableResult)
+                                        if not n.startswith("__")}
     for name, result in results.items():
         cls = getattr(pendavg, name)
-        members = class_members(stub("_pendavg.pyi"), name)
+        assert cls.__bases__ == (pendavg._pendavg._TableResult,), name
+        assert stub_bases(tree, name) == ["_TableResult"], name
+        own = class_members(tree, name)
+        assert not set(own) & set(base), name  # shared members are stubbed once, on the base
+        members = {**base, **own}
         runtime = {n for n in dir(cls) if not n.startswith("__")}
         assert set(members) - {"__init__"} == runtime, name
         fields = [f[0] for f in cls.fields()]
-        assert stub_order(stub("_pendavg.pyi"), name)[1:1 + len(fields)] == fields, name
+        assert stub_order(tree, name)[:len(fields)] == fields, name
         with warnings.catch_warnings():  # (the deprecated aliases answer with a warning)
             warnings.simplefilter("ignore", DeprecationWarning)
             for member, kind in members.items():
@@ -106,12 +116,18 @@ def test_table_class_stubs_list_every_field():
                     getattr(result, member)  # every stubbed property answers
 
 
+def stub_bases(tree, name):
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef) and node.name == name:
+            return [b.id for b in node.bases]
+    raise AssertionError(f"no class {name} in the stub")
+
+
 def test_result_stubs_list_every_field():
     """The attributes a result object has at runtime are the ones its stub annotates."""
     tree = stub("__init__.pyi")
     results = {
         "SeriesResult": pendavg.series(["0.8", "0.2"], [1, 1], 2, digits=20),
-        "SimulationResult": pendavg.simulate([1, 1], [1, 1], theta=1, time=0.5),
         "PoincareSection": pendavg.poincare([1, 1], [1, 1], -2, orbits=1, points=2),
     }
     record = class_members(tree, "_Record")

@@ -60,7 +60,7 @@ from collections import namedtuple as _namedtuple
 import numpy as _np
 
 from . import _pendavg as _core
-from ._pendavg import Averages, MicrocanonicalResult
+from ._pendavg import Averages, MicrocanonicalResult, SimulationResult
 
 __version__ = _core.__version__
 __all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
@@ -295,12 +295,14 @@ def limit(masses, lengths=None, g=1.0, digits=16, progress=None, certified=False
 # ---------------------------------------------------------------- series, microcanonical
 
 class _Record:
-    """Plain result: named fields (numpy arrays, numbers, strings) as attributes."""
+    """A result that is a list of rows of one table after its call's fields (pendavg.series'
+    terms, pendavg.poincare's crossings): every field an attribute, the call's as single values,
+    the rows' as arrays (fields() lists them: the call's, then the rows')."""
+
+    _index = None  # to_dataframe's index: a row field, or the name of the rows' positions
 
     def __init__(self, fields):
         self.__dict__.update(fields)
-
-    _rows = None  # the array that indexes the rows of to_dataframe (None: one per particle)
 
     def as_dict(self):
         """The fields as a dict."""
@@ -311,33 +313,25 @@ class _Record:
         return self.as_dict()
 
     def to_dataframe(self):
-        """The result as a pandas DataFrame: one row per particle (per term of a series, per
-        crossing of a Poincare section); the arrays of that length are columns, and each
-        single number or string is a column repeated on every row. Needs pandas."""
+        """The rows as a pandas DataFrame: a column per row field, then every single value of
+        the call repeated on each row; indexed by a series' n, a section's crossing (0, 1, ...).
+        Needs pandas."""
         pandas = _optional("pandas", "to_dataframe")
-        if self._rows is None:
-            rows, index = self.N, pandas.RangeIndex(1, self.N + 1, name="particle")
-        else:
-            rows, index = len(getattr(self, self._rows)), None
-        columns = {}
-        for name, value in self.__dict__.items():
-            if name.startswith("_") or isinstance(value, dict):
-                continue
-            if isinstance(value, _np.ndarray):
-                if value.ndim == 1 and len(value) == rows:
-                    columns[name] = value
-            elif value is None or isinstance(value, (int, float, str, bool, _np.generic)):
-                columns[name] = [value] * rows
-        frame = pandas.DataFrame(columns, index=index)
-        if self._rows == "n":
-            return frame.set_index("n")
-        if self._rows is not None:
-            frame.index.name = self._rows_name
+        call, rows = self.fields()[:2]
+        columns = {f[0]: getattr(self, f[0]) for f in rows}
+        count = len(columns[rows[0][0]])
+        for name, _, per_particle, _, _ in call:
+            if not per_particle:
+                columns[name] = [getattr(self, name)] * count
+        frame = pandas.DataFrame(columns)
+        if self._index in columns:
+            return frame.set_index(self._index)
+        frame.index.name = self._index
         return frame
 
     def __repr__(self):
         shown = ", ".join(f"{k}={_short(v)}" for k, v in self.__dict__.items()
-                          if not k.startswith("_") and k not in ("decimal", "exact", "trajectory"))
+                          if not k.startswith("_") and k not in ("decimal", "exact"))
         return f"pendavg.{type(self).__name__}({shown})"
 
 
@@ -353,7 +347,7 @@ class SeriesResult(_Record):
     mpf: the exact MPFR values.
     """
 
-    _rows = "n"
+    _index = "n"
 
     @staticmethod
     def fields():
@@ -365,17 +359,6 @@ class SeriesResult(_Record):
     def mpf(self):
         """Every term field as a list of mpmath.mpf (the exact MPFR values)."""
         return {name: [_to_mpf(x) for x in values] for name, values in self.exact.items()}
-
-    def to_dataframe(self):
-        """The terms as a pandas DataFrame indexed by n: a column per term field, then every
-        single value of the call repeated on each row. Needs pandas."""
-        pandas = _optional("pandas", "to_dataframe")
-        call, terms = self.fields()
-        columns = {f[0]: getattr(self, f[0]) for f in terms}
-        for name, _, per_particle, _, _ in call:
-            if not per_particle:
-                columns[name] = [getattr(self, name)] * len(self.n)
-        return pandas.DataFrame(columns).set_index("n")
 
 
 SeriesResult.__doc__ = SeriesResult.__doc__.replace(
@@ -457,35 +440,33 @@ def microcanonical(masses, lengths, energy=None, g=1.0, digits=16, method="auto"
 
 # ---------------------------------------------------------------- dynamics
 
-class SimulationResult(_Record):
-    """Time averages along one trajectory (pendavg.simulate), beside the exact values.
-
-    K, K_error: time average of K_i = |p_i|^2 / 2 m_i with one standard error (1 sigma, from
-    blocking; NaN, with error_reason saying why, when fewer than 16 blocks finished); Kc, Kc_error: of K_i^(c) = p_phi_i phidot_i / 2; K_autocorrelation_time;
-    cos_phi, cos_phi_error; K_total, potential (with errors). exact_K, exact_K_error, exact_Kc,
-    exact_cos_phi (+ errors): the exact microcanonical values at the run's energy (NVE) or the
-    exact canonical ones (Langevin), exact_method, exact_error_kind; NVE also exact_excitation
-    (D = E - E_min of the initial state, formed without cancellation) and exact_var_K,
-    exact_var_K_error (Var K_i on the energy shell; None for Langevin); K_deviation_sigmas =
-    (K - exact_K) / combined error. ensemble, integrator, method, N, dt, time (simulated),
-    energy (initial), final_energy, energy_drift, energy_error_max, energy_error_rms,
-    energy_trend (relative to (sum m) g (sum l)), constraint_residual, steps, samples,
-    newton_solves, unconverged_stages, interrupted (Ctrl-C: the averages of the run so far),
-    seconds, beta and friction (Langevin), trajectory (None, or a dict of arrays t, E, phi (T, N),
-    phidot (T, N) when `every` was given), error_kind ('statistical').
-    """
-
-
 class PoincareSection(_Record):
-    """The double pendulum's Poincare section phi_1 = 0, phidot_1 > 0 (pendavg.poincare).
+    """The double pendulum's Poincare section phi_1 = 0, phidot_1 > 0 (pendavg.poincare), from
+    the output schema's tables (PoincareSection.fields(): the section's, its crossings', its
+    orbits' starts').
 
-    orbit, phi2, p2, time: one entry per crossing (grouped by orbit, in time order; phi2 in
-    (-pi, pi], p2 the canonical momentum of phi_2); start_phi2, start_p2: the orbits' initial
-    points on the section; energy, energy_error_max (relative to (sum m) g (sum l)), orbits, dt,
-    steps, interrupted, seconds.
+    The section's fields (single values; m and l per particle):
+<call fields>
+    The crossings' fields (arrays, one entry per crossing, grouped by orbit, in time order):
+<crossing fields>
+    The orbits' starts (arrays, one entry per orbit):
+<start fields>
+    seconds: the run's wall time; decimal: the CLI's strings of every number.
     """
 
-    _rows, _rows_name = "phi2", "crossing"
+    _index = "crossing"
+
+    @staticmethod
+    def fields():
+        """(the section's fields, the crossings' fields, the orbit starts' fields) as (name,
+        kind, per_particle, meaning, input) tuples."""
+        return _core.poincare_fields()
+
+
+PoincareSection.__doc__ = PoincareSection.__doc__.replace(
+    "<call fields>\n", _fields_doc(_core.poincare_fields()[0])).replace(
+    "<crossing fields>\n", _fields_doc(_core.poincare_fields()[1])).replace(
+    "<start fields>\n", _fields_doc(_core.poincare_fields()[2]))
 
 
 def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time, dt=None,
@@ -528,12 +509,16 @@ def simulate(masses, lengths, g=1.0, *, theta=None, phi=None, phidot=None, time,
     integration). Ctrl-C (KeyboardInterrupt) ends the run cleanly: the averages of the run so far
     are returned with interrupted = True. Same checks and messages as `pendavg simulate`; in
     double.
-    Returns a SimulationResult.
+    Returns a SimulationResult with the fields of `pendavg simulate --format json`:
+
+<fields>
+    and seconds (the run's wall time), trajectory (None, or the arrays t, E, phi (T, N) and
+    phidot (T, N) every `every` steps), decimal (the CLI's strings) and mpf (mpmath values).
+    Conversions: to_dict(), to_dataframe() (pandas: a row per particle), to_xarray().
     """
     callback = _progress_callback(progress, "simulate")
-    out = SimulationResult(_core.simulate(masses, lengths, g, theta, phi, phidot, time, dt, burn_in,
-                                          integrator, thermostat, beta, friction, seed, exact,
-                                          every, callback))
+    out = _core.simulate(masses, lengths, g, theta, phi, phidot, time, dt, burn_in, integrator,
+                         thermostat, beta, friction, seed, exact, every, callback)
     if out.interrupted:
         print(f"[simulate] interrupted at t = {out.time:.6g}: averages of the run so far",
               file=_sys.stderr, flush=True)
@@ -583,9 +568,10 @@ class _TextProgress:
 
 # ---------------------------------------------------------------- result classes from the tables
 #
-# Averages and MicrocanonicalResult are made in C++ from the output schema's field tables: a
-# property per field (cls.fields(): name, kind, per_particle, meaning, input), .decimal,
-# .seconds, .shape. Everything below works from cls.fields() alone: no field is named here.
+# Averages, MicrocanonicalResult and SimulationResult are made in C++ from the output schema's
+# field tables: a property per field (cls.fields(): name, kind, per_particle, meaning, input);
+# their base _TableResult has .decimal, .seconds, .shape. Everything below works from cls.fields() alone: no field is named
+# here.
 
 def _class_fields(result):
     """(name, kind, per_particle, meaning, input) of every field of result's class."""
@@ -649,12 +635,13 @@ def _result_repr(self):
 
 def _result_as_dict(self):
     """Every field as a dict, in the output schema's order (the CLI's JSON keys; numbers as
-    floats or numpy arrays, None for a field without a value), then seconds (and run); a grid
-    adds shape, dims and coords."""
+    floats or numpy arrays, None for a field without a value), then seconds (and run, or
+    trajectory); a grid adds shape, dims and coords."""
     out = {f[0]: getattr(self, f[0]) for f in _class_fields(self)}
     out["seconds"] = self.seconds
-    if hasattr(type(self), "run"):
-        out["run"] = self.run
+    for extra in ("run", "trajectory"):  # Averages' run diagnostics, a simulation's trajectory
+        if hasattr(type(self), extra):
+            out[extra] = getattr(self, extra)
     if self.shape != ():
         out["shape"], out["dims"], out["coords"] = self.shape, self.dims, self.coords
     return out
@@ -738,22 +725,23 @@ def _deprecated_alias(old, new):
 
 
 def _aliases(cls):
-    """{old name: new name} of the migration table's renames of pendavg 0.2's attributes that
-    cls has (src/io/migration.cpp)."""
+    """{old name: new name} of the migration table's renames of pendavg 0.2's attributes of
+    cls (src/io/migration.cpp)."""
     names = {f[0] for f in cls.fields()}
     return {old: new for old, new, _, python, _ in _core.renames()
-            if python and new in names and old not in names}
+            if python == cls.__name__ and new in names and old not in names}
 
 
-for _cls in (Averages, MicrocanonicalResult):
-    _cls.dims = property(_result_dims)
-    _cls.coords = property(_result_coords)
-    _cls.to_dataframe = _result_to_dataframe
-    _cls.to_xarray = _result_to_xarray
-    _cls.mpf = property(_result_mpf)
-    _cls.as_dict = _result_as_dict
-    _cls.to_dict = _result_as_dict
-    _cls.__repr__ = _result_repr
+# What every result class has (their base, _TableResult), then each class's deprecated aliases.
+_core._TableResult.dims = property(_result_dims)
+_core._TableResult.coords = property(_result_coords)
+_core._TableResult.to_dataframe = _result_to_dataframe
+_core._TableResult.to_xarray = _result_to_xarray
+_core._TableResult.mpf = property(_result_mpf)
+_core._TableResult.as_dict = _result_as_dict
+_core._TableResult.to_dict = _result_as_dict
+_core._TableResult.__repr__ = _result_repr
+for _cls in (Averages, MicrocanonicalResult, SimulationResult):
     for _old, _new in _aliases(_cls).items():
         setattr(_cls, _old, _deprecated_alias(_old, _new))
 del _cls
@@ -761,6 +749,7 @@ del _cls
 average.__doc__ = average.__doc__.replace("<fields>\n", _fields_doc(Averages.fields()))
 microcanonical.__doc__ = microcanonical.__doc__.replace("<fields>\n",
                                                         _fields_doc(MicrocanonicalResult.fields()))
+simulate.__doc__ = simulate.__doc__.replace("<fields>\n", _fields_doc(SimulationResult.fields()))
 
 
 # ---------------------------------------------------------------- helpers

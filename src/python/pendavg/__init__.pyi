@@ -9,6 +9,7 @@ import numpy.typing as npt
 
 from ._pendavg import Averages as Averages
 from ._pendavg import MicrocanonicalResult as MicrocanonicalResult
+from ._pendavg import SimulationResult as SimulationResult
 
 __version__: str
 __all__ = ["average", "sweep", "limit", "series", "microcanonical", "simulate", "poincare",
@@ -70,7 +71,6 @@ class SeriesResult(_Record):
                           list[tuple[str, str, bool, str, bool]]]: ...
     @property
     def mpf(self) -> dict[str, list[Any]]: ...
-    def to_dataframe(self) -> Any: ...
 
 def series(masses: _Numbers, lengths: _Numbers, beta: _Number, g: _Number = ..., digits: int = ...,
            terms: int = ..., progress: _Progress = ...) -> SeriesResult: ...
@@ -80,69 +80,30 @@ def microcanonical(masses: _Numbers, lengths: _Numbers, energy: _Number | None =
                    seed: int | None = ...,
                    excitation: _Number | None = ...) -> MicrocanonicalResult: ...
 
-class SimulationResult(_Record):
-    ensemble: str
-    integrator: str
-    method: str
-    N: int
-    dt: float
-    time: float
-    energy: float
-    K: npt.NDArray[np.float64]
-    K_error: npt.NDArray[np.float64]
-    Kc: npt.NDArray[np.float64]
-    Kc_error: npt.NDArray[np.float64]
-    K_autocorrelation_time: npt.NDArray[np.float64]
-    cos_phi: npt.NDArray[np.float64]
-    cos_phi_error: npt.NDArray[np.float64]
-    K_total: float
-    K_total_error: float
-    potential: float
-    potential_error: float
-    error_kind: str
-    exact_K: npt.NDArray[np.float64] | None
-    exact_K_error: npt.NDArray[np.float64] | None
-    exact_Kc: float | None
-    exact_Kc_error: float | None
-    exact_cos_phi: npt.NDArray[np.float64] | None
-    exact_cos_phi_error: npt.NDArray[np.float64] | None
-    K_deviation_sigmas: npt.NDArray[np.float64] | None
-    exact_method: str | None
-    exact_error_kind: str | None
-    exact_excitation: float | None
-    exact_var_K: npt.NDArray[np.float64] | None
-    exact_var_K_error: npt.NDArray[np.float64] | None
-    error_reason: str | None
-    beta: float | None
-    friction: float | None
-    energy_drift: float
-    energy_error_max: float
-    energy_error_rms: float
-    energy_trend: float
-    final_energy: float
-    constraint_residual: float
-    steps: int
-    samples: int
-    newton_solves: int
-    unconverged_stages: int
-    interrupted: bool
-    seconds: float
-    trajectory: dict[str, npt.NDArray[np.float64]] | None
-
 class PoincareSection(_Record):
+    N: int
+    g: float
+    m: npt.NDArray[np.float64]
+    l: npt.NDArray[np.float64]
+    energy: float
+    orbits: int
+    points_per_orbit: int
+    dt: float
+    steps: int
+    energy_error_max: float
+    interrupted: bool
     orbit: npt.NDArray[np.int64]
     phi2: npt.NDArray[np.float64]
     p2: npt.NDArray[np.float64]
     time: npt.NDArray[np.float64]
     start_phi2: npt.NDArray[np.float64]
     start_p2: npt.NDArray[np.float64]
-    energy: float
-    energy_error_max: float
-    orbits: int
-    dt: float
-    steps: int
-    interrupted: bool
     seconds: float
+    decimal: dict[str, Any]
+    @staticmethod
+    def fields() -> tuple[list[tuple[str, str, bool, str, bool]],
+                          list[tuple[str, str, bool, str, bool]],
+                          list[tuple[str, str, bool, str, bool]]]: ...
 
 def simulate(masses: _Numbers, lengths: _Numbers, g: _Number = ..., *, theta: _Number | None = ...,
              phi: _Numbers | None = ..., phidot: _Numbers | None = ..., time: _Number,
