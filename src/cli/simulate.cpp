@@ -443,10 +443,10 @@ class TrajectoryFile {
       : chain_(chain), every_(every) {
     if (!options.has("trajectory")) return;
     file_.emplace(std::string(options.required("trajectory")), "simulate");
-    buffer_ = io::schema_line() + "# pendavg simulate --trajectory\nt,E";
-    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phi" + std::to_string(i);
-    for (std::size_t i = 1; i <= chain.size(); ++i) buffer_ += ",phidot" + std::to_string(i);
-    buffer_ += "\n";
+    buffer_ = io::schema_line() + "# pendavg simulate --trajectory\n";
+    for (const std::string& column : io::column_names(io::trajectory_fields(), chain.size()))
+      (buffer_ += column) += ',';
+    buffer_.back() = '\n';
   }
   TrajectoryFile(const TrajectoryFile&) = delete;
   TrajectoryFile& operator=(const TrajectoryFile&) = delete;

@@ -250,6 +250,13 @@ constexpr Field orbit_start_table[] = {
     {"start_p2", K::real, one, "p_2 where the orbit starts on the section"},
 };
 
+constexpr Field trajectory_table[] = {
+    {"t", K::real, one, "the time"},
+    {"E", K::real, one, "the total energy (its drift from E(0) measures the integration error)"},
+    {"phi", K::real, each, "the angle phi_i of link i from the downward vertical"},
+    {"phidot", K::real, each, "the angular velocity dphi_i/dt"},
+};
+
 // ---------------------------------------------------------------- series
 
 constexpr Field series_run_table[] = {
@@ -287,6 +294,8 @@ constexpr NamedTable tables[] = {
     {"poincare section", poincare_table},
     {"section point", section_point_table},
     {"orbit start (Python's PoincareSection; the CLI prints the crossings)", orbit_start_table},
+    {"trajectory (simulate --trajectory FILE --every K; Python's SimulationResult.trajectory)",
+     trajectory_table},
     {"series run (after the canonical inputs)", series_run_table},
     {"series row", series_row_table},
 };
@@ -698,6 +707,7 @@ std::span<const Field> replica_fields() { return replica_table; }
 std::span<const Field> poincare_fields() { return poincare_table; }
 std::span<const Field> section_point_fields() { return section_point_table; }
 std::span<const Field> orbit_start_fields() { return orbit_start_table; }
+std::span<const Field> trajectory_fields() { return trajectory_table; }
 
 namespace {
 

@@ -159,6 +159,10 @@ void append_section_point(Record& record, const SectionPoint<double>& point);
 /// CLI prints the crossings only).
 std::span<const Field> orbit_start_fields();
 
+/// A trajectory's samples (simulate --trajectory, Python's SimulationResult.trajectory): t, E,
+/// phi, phidot.
+std::span<const Field> trajectory_fields();
+
 void append_orbit_start(Record& record, const PoincareSection<double>& section,
                         std::size_t orbit);
 

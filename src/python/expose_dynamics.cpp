@@ -223,11 +223,13 @@ SimulationTable simulate(py::handle masses, py::handle lengths, py::handle g, py
   out.set_run(0, seconds, r.interrupted);
   out.require_finite("simulate", "the trajectory left the finite numbers (try a smaller dt)");
   if (trajectory_every) {
+    // In the trajectory table's order (io/results.hpp): t, E, phi, phidot.
+    const auto fields = io::trajectory_fields();
     py::dict trajectory;
-    trajectory["t"] = array(t);
-    trajectory["E"] = array(e);
-    trajectory["phi"] = matrix(phis, n);
-    trajectory["phidot"] = matrix(phidots, n);
+    trajectory[py::str(std::string(fields[0].name))] = array(t);
+    trajectory[py::str(std::string(fields[1].name))] = array(e);
+    trajectory[py::str(std::string(fields[2].name))] = matrix(phis, n);
+    trajectory[py::str(std::string(fields[3].name))] = matrix(phidots, n);
     out.trajectory = trajectory;
   }
   return out;
