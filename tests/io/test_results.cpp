@@ -109,7 +109,7 @@ void check_record(const io::Record& record) {
   io::append_json_members(json, record);
   json += "}";
   for (const Field& f : record.fields()) {
-    const std::string key = "\"" + std::string(f.name) + "\": ";
+    const std::string key = io::json_string(f.name) + ": ";
     INFO(key);
     const std::size_t at = json.find(key);
     CHECK(at != std::string::npos);
