@@ -267,13 +267,13 @@ case:resume() {
   check "... the line names the schema" grep -qF "was written with output schema '2'; this pendavg writes schema 1" "$work/err"
 }
 
-# The interrupted sweeps (one thread: 30 rows at 700 digits, ~1 s): SIGTERM and SIGINT leave a
+# The interrupted sweeps (one thread: 30 rows at 1000 digits, ~1-2 s: long enough that a kill lands mid-run): SIGTERM and SIGINT leave a
 # closed file with the finished rows; SIGKILL leaves the temporary; a dead writer's temporary
 # holding rows in increasing order with gaps (rows it had waiting to be written); each resumed
 # = an uninterrupted run.
 case:interrupted() {
   local f signal pid k rows
-  slow=(table --beta log:1:1000:15 --mu1 0.001,0.05 --digits 700)
+  slow=(table --beta log:1:1000:15 --mu1 0.001,0.05 --digits 1000)
   true &
   dead=$!
   wait "$dead"
