@@ -11,6 +11,7 @@
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <stdexcept>
 #include <string_view>
 #include <thread>
@@ -194,6 +195,7 @@ class MpiSweepLink final : public SweepLink {
   ~MpiSweepLink() override {
     if (sweep_window != MPI_WIN_NULL && !sweep_window_released) MPI_Win_unlock_all(sweep_window);
     sweep_window_released = true;
+    for (Outgoing& message : outgoing_) MPI_Wait(&message.request, MPI_STATUS_IGNORE);
   }
   int rank() const override { return my_rank; }
   int ranks() const override { return my_size; }
@@ -208,8 +210,19 @@ class MpiSweepLink final : public SweepLink {
     check(MPI_Win_flush(0, sweep_window), "MPI_Win_flush");
     return before;
   }
+  /// Rank 0 receives when its coordinator polls (every 2 ms): a blocking send of a long message
+  /// would spin on this rank's core until then, time taken from its compute threads.
   void send(int tag, std::string payload) override {
-    check(MPI_Send(payload.data(), byte_count(payload.size()), MPI_BYTE, 0, tag, comm_), "MPI_Send");
+    while (!outgoing_.empty()) {  // let go of the payloads that have gone
+      int gone = 0;
+      check(MPI_Test(&outgoing_.front().request, &gone, MPI_STATUS_IGNORE), "MPI_Test");
+      if (!gone) break;
+      outgoing_.pop_front();
+    }
+    Outgoing& message = outgoing_.emplace_back(Outgoing{MPI_REQUEST_NULL, std::move(payload)});
+    check(MPI_Isend(message.payload.data(), byte_count(message.payload.size()), MPI_BYTE, 0, tag,
+                    comm_, &message.request),
+          "MPI_Isend");
   }
   std::optional<Message> receive() override {
     int arrived = 0;
@@ -233,6 +246,11 @@ class MpiSweepLink final : public SweepLink {
   /// later sweep and freed by MPI_Finalize.
   static inline MPI_Comm comm_ = MPI_COMM_NULL;
   std::uint64_t* counters_ = nullptr;
+  struct Outgoing {
+    MPI_Request request;
+    std::string payload;
+  };
+  std::deque<Outgoing> outgoing_;  ///< sent, not known to have gone (a deque: payloads stay put)
 };
 
 }  // namespace

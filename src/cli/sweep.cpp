@@ -42,11 +42,17 @@ using Clock = std::chrono::steady_clock;
 constexpr std::size_t reorder_budget_bytes = 32u << 20;
 constexpr std::size_t reorder_budget_per_thread = 128u << 10;
 constexpr std::size_t max_chunk_rows = 1u << 14;
-constexpr int chunks_per_thread = 2;  ///< queued per compute thread
+/// A thread's next chunk is taken when its running chunk is expected to end within this time
+/// (its rows so far give the estimate): long enough to cover the coordinator's wake-up and one
+/// fetch from rank 0, short enough that a chunk taken ahead cannot unbalance the ranks. (Taking
+/// chunks ahead from the start made a rank hold a fifth of a sweep while another went idle.)
+constexpr auto take_ahead = std::chrono::milliseconds(1);
 /// How often a coordinator looks for messages and at the stop counter when nothing wakes it (a
 /// finished chunk does): rank 0 receives rows, the others only watch for a stop.
-constexpr auto root_poll = std::chrono::milliseconds(2);
-constexpr auto rank_poll = std::chrono::milliseconds(10);
+constexpr std::chrono::microseconds root_poll{2000}, rank_poll{10000};
+/// Rank 0's poll once its own rows are done and it only waits for the others' last rows: its
+/// core is idle then, and the sweep ends as soon as they arrive.
+constexpr std::chrono::microseconds root_poll_idle{100};
 /// How long a running chunk keeps its finished rows (ComputeTeam::compute): 1 s, or 1 ms per
 /// compute thread of the job, so that rank 0 gets at most ~1000 such handovers a second.
 Clock::duration handover_period(std::size_t threads) {
@@ -190,11 +196,12 @@ class ComputeTeam {
     }
     work_.notify_all();
   }
-  /// Chunks wanted to keep every thread busy with some in reserve.
+  /// Chunks wanted: one for every thread that is idle or about to be (its chunk ends within
+  /// take_ahead), less those queued.
   std::size_t wanted() const {
     const std::lock_guard lock(mutex_);
-    const auto target = static_cast<std::size_t>(chunks_per_thread * threads_);
-    const std::size_t have = queue_.size() + static_cast<std::size_t>(running_);
+    const std::size_t have = queue_.size() + static_cast<std::size_t>(running_ - ending_);
+    const auto target = static_cast<std::size_t>(threads_);
     return have < target ? target - have : 0;
   }
   /// No row is running and none will start (queue empty, or stopping). Every finished row is
@@ -203,14 +210,17 @@ class ComputeTeam {
     const std::lock_guard lock(mutex_);
     return running_ == 0 && (queue_.empty() || stopping_.load());
   }
+  /// The threads' CPU time in the rows they finished.
+  double busy_seconds() const { return 1e-6 * static_cast<double>(busy_us_.load()); }
   std::vector<Finished> take() {
     const std::lock_guard lock(mutex_);
     return std::exchange(results_, {});
   }
-  /// Waits until a result is ready or `timeout` passed.
-  void wait(std::chrono::milliseconds timeout) {
+  /// Waits until a result is ready, a thread wants its next chunk, or `timeout` passed.
+  void wait(std::chrono::microseconds timeout) {
     std::unique_lock lock(mutex_);
-    done_.wait_for(lock, timeout, [&] { return !results_.empty(); });
+    done_.wait_for(lock, timeout,
+                   [&] { return !results_.empty() || std::exchange(asked_, false); });
   }
 
  private:
@@ -224,15 +234,28 @@ class ComputeTeam {
 
   /// Rows range.first.. until the range ends, a stop, or a row that fails (without failed_row),
   /// into results_: at the end, and every `handover_` while the chunk runs (the first chunks
-  /// are long, a 1/(2T) share of the sweep each: their rows reach rank 0's file as they are
+  /// are long, a 1/(8T) share of the sweep each: their rows reach rank 0's file as they are
   /// finished, and a run killed outright does not lose them).
   void compute(Range range, int thread) {
     Finished done;
     done.first = range.first;
     done.text.reserve(std::min(range.count * rows_.row_bytes, reorder_budget_bytes));
-    Clock::time_point handed = Clock::now();
+    const double cpu_begun = thread_cpu_microseconds();
+    const Clock::time_point begun = Clock::now();
+    Clock::time_point handed = begun;
+    bool ending = false;
     const std::size_t end = range.first + range.count;
     for (std::size_t i = range.first; i < end && !stopped(); ++i) {
+      const auto done_rows = static_cast<long>(i - range.first), left = static_cast<long>(end - i);
+      if (!ending && done_rows > 0 && (Clock::now() - begun) * left < take_ahead * done_rows) {
+        ending = true;  // the rows left will take less than take_ahead at this pace
+        {
+          const std::lock_guard lock(mutex_);
+          ++ending_;
+          asked_ = true;
+        }
+        done_.notify_all();
+      }
       const std::size_t text_before = done.text.size();
       std::optional<RowFailure> failure;
       try {
@@ -267,14 +290,16 @@ class ComputeTeam {
         handed = Clock::now();
       }
     }
-    deliver(std::move(done), true);
+    busy_us_.fetch_add(static_cast<std::uint64_t>(thread_cpu_microseconds() - cpu_begun));
+    deliver(std::move(done), true, ending);
   }
 
-  void deliver(Finished&& done, bool last) {
+  void deliver(Finished&& done, bool last, bool ending = false) {
     {
       const std::lock_guard lock(mutex_);
       results_.push_back(std::move(done));
       if (last) --running_;
+      if (ending) --ending_;
     }
     done_.notify_all();
   }
@@ -311,9 +336,10 @@ class ComputeTeam {
   std::condition_variable work_, done_;
   std::deque<Range> queue_;
   std::vector<Finished> results_;
-  bool closed_ = false;
+  bool closed_ = false, asked_ = false;
   std::atomic<bool> stopping_{false};
-  int running_ = 0;
+  std::atomic<std::uint64_t> busy_us_{0};
+  int running_ = 0, ending_ = 0;  ///< chunks running; those of them about to end
   std::thread thread_;
 };
 
@@ -467,7 +493,8 @@ class RankSweep {
         if (!stopping_) feed();
         if (root_) write_ready();
         if (ended()) break;
-        team_.wait(root_ ? root_poll : window_wait_ ? std::chrono::milliseconds(1) : rank_poll);
+        team_.wait(root_ ? (exhausted_ && team_.idle() ? root_poll_idle : root_poll)
+                         : window_wait_ ? std::chrono::microseconds(1000) : rank_poll);
       }
     } catch (...) {
       // This rank cannot go on: the others stop, and rank 0 writes what was finished. Its rows
@@ -482,7 +509,9 @@ class RankSweep {
     for (Finished& f : team_.take()) finished(std::move(f), 0);
     const bool abandoned = !team_.idle();
     if (!root_) {
-      link_.send(SweepLink::finished, abandoned ? "1" : "0");
+      // "<abandoned rows: 1, else 0> <busy seconds>"
+      link_.send(SweepLink::finished,
+                 (abandoned ? "1 " : "0 ") + std::to_string(team_.busy_seconds()));
       if (abandoned) exit_process(0);  // rank 0 reports
       return outcome_;
     }
@@ -517,7 +546,8 @@ class RankSweep {
         finished(unpack_finished(std::move(message->payload)), message->source);
       } else {
         ++peers_finished_;
-        abandoned_elsewhere_ = abandoned_elsewhere_ || message->payload != "0";
+        abandoned_elsewhere_ = abandoned_elsewhere_ || message->payload[0] != '0';
+        outcome_.busy_seconds += std::strtod(message->payload.c_str() + 1, nullptr);
       }
     }
   }
@@ -630,6 +660,7 @@ class RankSweep {
       failure_ = RowFailure{rows_.count, false, "sweep: rows went missing"};
     outcome_.written = writer_->written();
     outcome_.seconds = seconds_since(start_);
+    outcome_.busy_seconds += team_.busy_seconds();
     if (failure_) {
       outcome_.failed = true;
       outcome_.failed_row = failure_->row;
@@ -692,7 +723,7 @@ class RankSweep {
 
 std::vector<std::size_t> guided_chunks(std::size_t rows, std::size_t threads, std::size_t largest) {
   std::vector<std::size_t> bounds{0};
-  const std::size_t share = 2 * std::max<std::size_t>(threads, 1);
+  const std::size_t share = 8 * std::max<std::size_t>(threads, 1);
   for (std::size_t first = 0; first < rows;) {
     const std::size_t size = std::clamp<std::size_t>((rows - first) / share, 1,
                                                      std::max<std::size_t>(largest, 1));

@@ -4,12 +4,14 @@
 // written in index order by rank 0.
 //
 // Work distribution. The rows still to compute (not kept from a resumed file) are cut into
-// chunks by a fixed rule (guided_chunks: a chunk is 1/(2T) of the rows left, T the job's compute
+// chunks by a fixed rule (guided_chunks: a chunk is 1/(8T) of the rows left, T the job's compute
 // threads, capped so the reorder buffer stays small), the same on every rank; one counter kept
 // by rank 0 (SweepLink: MPI_Fetch_and_op on a window in rank 0's memory) hands out the next
-// chunk, so a rank takes work without waiting for rank 0. Each rank keeps about two chunks per
-// thread queued. Every rank's main thread coordinates (takes chunks, sends finished rows to rank
-// 0, which writes them) while a team of OpenMP threads computes.
+// chunk, so a rank takes work without waiting for rank 0. A thread's next chunk is taken only
+// when its running chunk is about to end (within 1 ms at its pace so far): a chunk taken earlier
+// would sit in one rank's queue while another rank runs out. Every rank's main thread
+// coordinates (takes chunks, sends finished rows to rank 0, which writes them, without waiting
+// for rank 0 to receive them) while a team of OpenMP threads computes.
 // Order and memory. Rank 0 writes the rows in index order as soon as they are contiguous; rows
 // that arrive early wait in a reorder buffer. No chunk starting more than `window` rows past the
 // first unwritten row starts (a second counter: rank 0's first unwritten row), so the buffer
@@ -89,6 +91,9 @@ struct SweepOutcome {
   bool interrupted = false;  ///< a signal stopped the sweep (rows may be missing)
   int threads = 1;           ///< compute threads over all ranks
   double seconds = 0;        ///< wall time of the sweep
+  /// The compute threads' CPU time in rows, over all ranks: busy_seconds / (threads x seconds)
+  /// is the share of the job's threads the sweep kept busy (what chunking and messages lose).
+  double busy_seconds = 0;
   /// A row that could not be computed (the first by index among those seen): the sweep stopped
   /// and nothing should be kept. Rethrown by rethrow_failure().
   bool failed = false;
@@ -126,9 +131,11 @@ void report_sweep(const SweepOutcome& outcome, std::span<const std::size_t> rows
 
 /// The chunks of `rows` rows for a job of `threads` compute threads: the boundaries
 /// 0 = b_0 < b_1 < ... < b_m = rows of chunk k = rows b_k..b_{k+1}-1. Guided: each chunk is
-/// 1/(2 threads) of the rows left (the first chunks keep every thread busy long; the last ones,
-/// of one row, balance the end), at most `largest` rows. A pure function: every rank computes
-/// the same chunks.
+/// 1/(8 threads) of the rows left (the first chunks keep every thread busy long; the last ones,
+/// of one row, balance the end), at most `largest` rows. An eighth, not a half: rows' costs
+/// vary along a sweep (77-digit rows at small beta cost 10x those at large beta), and a first
+/// chunk of 1/(2T) of the rows can hold more than 1/T of the work. A pure function: every rank
+/// computes the same chunks.
 std::vector<std::size_t> guided_chunks(std::size_t rows, std::size_t threads, std::size_t largest);
 
 class SweepLink;

@@ -4,11 +4,11 @@
 ranks, to estimate the parallel efficiency of a 10^6-row 77-digit sweep on 1,000 ranks.
 
 It replays the engine's policy event by event:
-  * the rows are cut into guided chunks (sweep.hpp, guided_chunks: 1/(2T) of the rows left, T
+  * the rows are cut into guided chunks (sweep.hpp, guided_chunks: 1/(8T) of the rows left, T
     the job's threads, at most window / (4T) rows, window = (32 MB + 128 kB T) / row bytes);
   * a thread that needs work takes the next chunk from rank 0's counter (MPI_Fetch_and_op): one
-    network round trip, `latency_us` each way (a thread keeps a second chunk queued, so this is
-    hidden unless the chunks are shorter than the round trip);
+    network round trip, `latency_us` each way (taken 1 ms before the running chunk ends, so
+    this is hidden unless the round trip is longer);
   * a finished chunk goes to rank 0 in one message; rank 0's coordinator is one server that
     costs `message_us` per message and `write_us` per row (receiving, reordering, writing);
   * the rows' costs are the measured per-row thread CPU times of a 77-digit sweep, repeated in
@@ -32,7 +32,7 @@ import heapq
 def guided_chunks(rows, threads, largest):
     bounds, first = [0], 0
     while first < rows:
-        first += min(max((rows - first) // (2 * threads), 1), max(largest, 1))
+        first += min(max((rows - first) // (8 * threads), 1), max(largest, 1))
         bounds.append(first)
     return bounds
 

@@ -9,10 +9,16 @@
 #   cases     `average --cases` of 20,000 rows in double (tests/bench/cases.hpp x 20).
 # The sweep's own time comes from the test build's report (pendavg_row_faults beside pendavg,
 # PENDAVG_SWEEP_REPORT=1: from the sweep's start to its last row written; mpirun's start-up,
-# reading and checking excluded); runs alternate 1 and 2 ranks, REPEATS times each, and the
-# medians are compared: efficiency = T(1) / (2 T(2)). The load average is printed before and
-# after (the machine is shared). Then the per-row costs of sweep77 go to mpi_model.py, the model
-# of a 10^6-row sweep on 1,000 ranks.
+# reading and checking excluded), with the share of that time the compute threads spent in rows
+# ("busy"). Runs alternate 1 rank, 2 ranks and a pair (two 1-rank runs of the whole sweep at
+# once, one per core), REPEATS times each, and the medians are compared:
+#   efficiency     T(1) / (2 T(2)), the target's measure;
+#   machine        T(1) / T(pair): how much slower a row is when both cores compute (the VM's
+#                  share of any loss; 100% = none);
+#   distribution   T(pair) / (2 T(2)): the 2-rank run against two serial runs on the same loaded
+#                  machine, and busy(2) / busy(1): both are the distribution's own share.
+# The load average is printed before and after (the machine is shared). Then the per-row costs
+# of sweep77 go to mpi_model.py, the model of a 10^6-row sweep on 1,000 ranks.
 #
 #   bash tests/bench/mpi_scaling.sh build/pendavg [REPEATS] [NAMES]
 # (REPEATS default 5; NAMES: the workloads to run, default "sweep77 torus4 transfer cases" --
@@ -39,16 +45,24 @@ workloads=(
   "cases|average --cases $work/cases.csv"
 )
 echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the start ($(nproc) cores)"
+# "seconds busy%" from the test build's report line
+report() { sed -n 's/^pendavg: test: sweep .*computed, \([0-9.]*\) s.*threads busy \([0-9.]*\)%.*/\1 \2/p'; }
 for workload in "${workloads[@]}"; do
   name=${workload%%|*}
   [[ $names == *" $name "* ]] || continue
   read -r -a args <<<"${workload#*|}"
   for ((k = 0; k < repeats; ++k)); do
     for ranks in 1 2; do
-      seconds=$("${mpirun[@]}" -n "$ranks" "$faulty" "${args[@]}" --output "$work/out.csv" 2>&1 \
-                  >/dev/null | sed -n 's/^pendavg: test: sweep .*computed, \([0-9.]*\) s.*/\1/p')
-      echo "$name $ranks $seconds"
+      echo "$name $ranks $("${mpirun[@]}" -n "$ranks" "$faulty" "${args[@]}" \
+                            --output "$work/out.csv" 2>&1 >/dev/null | report)"
     done
+    for core in 0 1; do
+      OMP_NUM_THREADS=1 PENDAVG_SWEEP_REPORT=1 taskset -c "$core" "$faulty" "${args[@]}" \
+        --output "$work/pair$core.csv" 2>&1 >/dev/null | report >"$work/pair$core" &
+    done
+    wait
+    echo "$name pair $(cat "$work/pair0")"
+    echo "$name pair $(cat "$work/pair1")"
   done
 done | tee "$work/runs.txt"
 echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the end"
@@ -56,12 +70,15 @@ python3 - "$work/runs.txt" <<'PY'
 import statistics, sys
 runs = {}
 for line in open(sys.argv[1]):
-    name, ranks, seconds = line.split()
-    runs.setdefault(name, {}).setdefault(ranks, []).append(float(seconds))
+    name, ranks, seconds, busy = line.split()
+    runs.setdefault(name, {}).setdefault(ranks, []).append((float(seconds), float(busy)))
 for name, r in runs.items():
-    t1, t2 = statistics.median(r["1"]), statistics.median(r["2"])
-    print(f"{name:8s} 1 rank {t1:.3f} s, 2 ranks {t2:.3f} s (medians of {len(r['1'])}): "
-          f"efficiency {t1 / (2 * t2):.1%}")
+    t = {k: statistics.median(s for s, _ in v) for k, v in r.items()}
+    b = {k: statistics.median(u for _, u in v) for k, v in r.items()}
+    print(f"{name:8s} 1 rank {t['1']:.3f} s (busy {b['1']:.1f}%), 2 ranks {t['2']:.3f} s "
+          f"(busy {b['2']:.1f}%), pair {t['pair']:.3f} s (medians of {len(r['1'])}): "
+          f"efficiency {t['1'] / (2 * t['2']):.1%}; machine {t['1'] / t['pair']:.1%}; "
+          f"distribution {t['pair'] / (2 * t['2']):.1%}, busy {b['2'] / b['1']:.1%}")
 PY
 "$pendavg" table --beta log:1e-3:1e3:100 --mu1 0.001,0.05,0.5,0.95,0.999 --digits 77 2>/dev/null |
   python3 -c '

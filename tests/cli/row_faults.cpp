@@ -75,8 +75,9 @@ void report_sweep(const SweepOutcome& outcome, std::span<const std::size_t> rows
   if (variable("PENDAVG_SWEEP_REPORT") != "1") return;
   std::string per_rank;
   for (const std::size_t rows : rows_per_rank) (per_rank += ' ') += std::to_string(rows);
-  std::fprintf(stderr, "pendavg: test: sweep of %zu rows, %zu computed, %.6f s; rows per rank:%s\n",
-               outcome.count, outcome.computed, outcome.seconds, per_rank.c_str());
+  std::fprintf(stderr, "pendavg: test: sweep of %zu rows, %zu computed, %.6f s; rows per rank:%s; "
+               "threads busy %.1f%%\n", outcome.count, outcome.computed, outcome.seconds,
+               per_rank.c_str(), 100 * outcome.busy_seconds / (outcome.threads * outcome.seconds));
 }
 
 }  // namespace pendavg::cli

@@ -177,7 +177,7 @@ for ranks in 2 3; do
     PENDAVG_SWEEP_WINDOW_ROWS=16 PENDAVG_SWEEP_REPORT=1 timeout 120 "${launcher[@]}" -n "$ranks" \
       "$faulty" average --cases "$work/cases.csv" --digits 38 "${target[@]}" 2>"$work/err"
     rc=$?
-    others=$(sed -n 's/^pendavg: test: sweep .*rows per rank: [0-9]*//p' "$work/err" |
+    others=$(sed -n 's/^pendavg: test: sweep .*rows per rank: [0-9]*\([0-9 ]*\);.*/\1/p' "$work/err" |
              tr ' ' '\n' | awk '{ s += $1 } END { print s + 0 }')
     what="$out on $ranks ranks, a window of 16 rows"
     expected="exit 0, rows computed by the ranks other than 0, the serial file"

@@ -12,7 +12,9 @@
 
 #include <atomic>
 #include <chrono>
+#include <ctime>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -140,14 +142,44 @@ TEST_CASE("guided chunks cover the rows in shrinking chunks, the same for every 
         const std::size_t size = b[k + 1] - b[k], left = rows - b[k];
         CHECK(size >= 1);
         CHECK(size <= 4000);
-        CHECK(size <= std::max<std::size_t>(1, left / (2 * threads)));  // the last ones balance
+        CHECK(size <= std::max<std::size_t>(1, left / (8 * threads)));  // the last ones balance
         if (k > 0) CHECK(size <= b[k] - b[k - 1]);                     // never growing
       }
       CHECK(b == guided_chunks(rows, threads, 4000));
     }
   }
-  // 20,000 rows on 2 threads: a few dozen chunks (each one fetch and one message).
-  CHECK(guided_chunks(20000, 2, 4000).size() < 60);
+  // 20,000 rows on 2 threads: a few hundred chunks (each one fetch and one message).
+  CHECK(guided_chunks(20000, 2, 4000).size() < 200);
+}
+
+TEST_CASE("a rank takes no chunk ahead of a running chunk that is not about to end", "[sweep]") {
+  // Two ranks of one thread. The first chunk's rows take 0.2 s each, the others ~10 us: the rank
+  // that runs the first chunk must leave every other row to the other rank, which finishes them
+  // long before. A rank that queued chunks ahead (as it once did, two per thread) would sit on
+  // rows the other rank could have computed.
+  constexpr std::size_t count = 64;
+  const std::size_t first_chunk = guided_chunks(count, 2, count)[1];
+  REQUIRE(first_chunk > 1);
+  std::mutex mutex;
+  std::map<std::thread::id, std::set<std::size_t>> rows_of_thread;
+  SweepRows rows = rows_of(count, 1);
+  rows.compute = [&](std::size_t i, int, std::string& out) {
+    if (i < first_chunk) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    row_text(i, out);
+    const std::lock_guard lock(mutex);
+    rows_of_thread[std::this_thread::get_id()].insert(i);
+  };
+  TextOutput output;
+  const SweepOutcome outcome = run_job(2, rows, output);
+  CHECK(output.text == serial_text(count));
+  CHECK(outcome.written == count);
+  REQUIRE(rows_of_thread.size() == 2);
+  for (const auto& [thread, computed] : rows_of_thread) {
+    if (!computed.contains(0)) continue;
+    INFO("rows of the thread that ran row 0: " << computed.size());
+    CHECK(computed.size() == first_chunk);
+    CHECK(*computed.rbegin() == first_chunk - 1);
+  }
 }
 
 TEST_CASE("a sweep on 1, 2 and 3 ranks of 1 or 2 threads writes the serial rows", "[sweep]") {
@@ -165,6 +197,32 @@ TEST_CASE("a sweep on 1, 2 and 3 ranks of 1 or 2 threads writes the serial rows"
       CHECK_FALSE(outcome.interrupted);
     }
   }
+}
+
+TEST_CASE("the outcome's busy time is every rank's compute threads' CPU time in rows",
+          "[sweep]") {
+  // Each row measures its own thread CPU time; the outcome (rank 0's) must hold the sum over the
+  // three ranks' threads (the others' comes in their last message), plus only the bookkeeping
+  // around the rows.
+  std::atomic<std::uint64_t> rows_ns{0};
+  SweepRows rows = rows_of(300, 2);
+  rows.compute = [&](std::size_t i, int, std::string& out) {
+    timespec a{}, b{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
+    std::string burnt;  // ~20 rows' CPU time
+    for (int k = 0; k < 20; ++k) row_text(i, burnt);
+    row_text(i, out);
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
+    rows_ns += static_cast<std::uint64_t>((b.tv_sec - a.tv_sec) * 1000000000L +
+                                          (b.tv_nsec - a.tv_nsec));
+  };
+  TextOutput output;
+  const SweepOutcome outcome = run_job(3, rows, output);
+  CHECK(output.text == serial_text(300));
+  const double rows_seconds = 1e-9 * static_cast<double>(rows_ns.load());
+  CHECK(outcome.threads == 6);
+  CHECK(outcome.busy_seconds >= 0.95 * rows_seconds);
+  CHECK(outcome.busy_seconds <= 1.2 * rows_seconds + 1e-3);
 }
 
 TEST_CASE("a resumed sweep computes only the rows not kept and writes them in place", "[sweep]") {
@@ -255,10 +313,10 @@ TEST_CASE("the ranks an MPI launcher started, from its environment", "[sweep]") 
 
 TEST_CASE("a long chunk's finished rows reach the output while it runs, and are flushed at once",
           "[sweep]") {
-  // One rank, one thread: the first guided chunk is half of the 24 rows, 12 x >= 0.1 s. A run
-  // killed outright keeps only what its output was given and flushed: the chunk hands its
-  // finished rows over after 1 s (after its 10th row at the latest), so its first piece written
-  // is shorter than the chunk, and every piece is flushed.
+  // One rank, one thread: the first guided chunk is an eighth of the 96 rows, 12 x >= 0.1 s (the
+  // others are fast). A run killed outright keeps only what its output was given and flushed:
+  // the chunk hands its finished rows over after 1 s (after its 10th row at the latest), so its
+  // first piece written is shorter than the chunk, and every piece is flushed.
   struct Flushed : TextOutput {
     std::string out;                 ///< what flush() let out
     std::vector<std::size_t> pieces;  ///< the rows of each write
@@ -269,10 +327,12 @@ TEST_CASE("a long chunk's finished rows reach the output while it runs, and are 
     }
     void flush() override { out = text; }
   };
-  constexpr std::size_t count = 24;
+  constexpr std::size_t count = 96;
+  const std::size_t first_chunk = guided_chunks(count, 1, count)[1];
+  REQUIRE(first_chunk == 12);
   SweepRows rows = rows_of(count, 1);
-  rows.compute = [](std::size_t i, int, std::string& out) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  rows.compute = [&](std::size_t i, int, std::string& out) {
+    if (i < first_chunk) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     row_text(i, out);
   };
   Flushed output;
@@ -280,6 +340,6 @@ TEST_CASE("a long chunk's finished rows reach the output while it runs, and are 
   CHECK(output.text == serial_text(count));
   CHECK(output.out == output.text);
   REQUIRE_FALSE(output.pieces.empty());
-  CHECK(output.pieces.front() < guided_chunks(count, 1, count)[1]);
+  CHECK(output.pieces.front() < first_chunk);
   CHECK(outcome.written == count);
 }
