@@ -6,7 +6,6 @@
 
 #include <mpi.h>
 
-#include <algorithm>
 #include <chrono>
 #include <climits>
 #include <cstdio>
@@ -34,9 +33,9 @@ bool met_at_farewell = false;
 int farewell_failed = 0, every_rank_failed = 0;  // the reduction's buffers (MPI_MIN)
 
 /// Arrives at the end of the job (`failed`: this rank ends with a failure) and waits until
-/// every rank has, or (`limit_seconds` >= 0) until that many seconds passed. Polls with short
-/// sleeps: a rank waiting here (for rank 0's computation, say) leaves its core to the others.
-/// Returns whether all met.
+/// every rank has, or (`limit_seconds` >= 0) until that many seconds passed. Polls every
+/// millisecond: a rank waiting here (for rank 0's computation, say) leaves its core to the
+/// others. Returns whether all met.
 bool meet_at_farewell(bool failed, double limit_seconds) {
   if (met_at_farewell || farewell == MPI_COMM_NULL) return true;
   static MPI_Request request = MPI_REQUEST_NULL;
@@ -45,7 +44,6 @@ bool meet_at_farewell(bool failed, double limit_seconds) {
     MPI_Iallreduce(&farewell_failed, &every_rank_failed, 1, MPI_INT, MPI_MIN, farewell, &request);
   }
   const double start = MPI_Wtime();
-  long pause_us = 50;
   for (;;) {
     int done = 0;
     MPI_Test(&request, &done, MPI_STATUS_IGNORE);
@@ -59,8 +57,7 @@ bool meet_at_farewell(bool failed, double limit_seconds) {
       return true;
     }
     if (limit_seconds >= 0 && MPI_Wtime() - start > limit_seconds) return false;
-    std::this_thread::sleep_for(std::chrono::microseconds(pause_us));
-    pause_us = std::min(2 * pause_us, 5000L);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
 }
 
