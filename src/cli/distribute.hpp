@@ -73,8 +73,8 @@ class SweepLink {
   /// Applies `op` with `operand` to the counter, atomically; returns its value before.
   virtual std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand = 0) = 0;
   /// From a rank other than 0: sends to rank 0 and returns without waiting for it to receive
-  /// (the link keeps the payload until it has gone, at the latest until the link's end);
-  /// messages arrive in the order sent.
+  /// (the link keeps the payload until it has gone), except the rank's last message (tag
+  /// finished), which returns once every message has gone; messages arrive in the order sent.
   virtual void send(int tag, std::string payload) = 0;
   /// On rank 0: a message that has arrived, if any (never waits).
   virtual std::optional<Message> receive() = 0;

@@ -192,6 +192,7 @@ class MpiSweepLink final : public SweepLink {
   ~MpiSweepLink() override {
     if (sweep_window != MPI_WIN_NULL && !sweep_window_released) MPI_Win_unlock_all(sweep_window);
     sweep_window_released = true;
+    // Normally none left: the last message waited for them.
     for (Outgoing& message : outgoing_) MPI_Wait(&message.request, MPI_STATUS_IGNORE);
   }
   int rank() const override { return my_rank; }
@@ -220,6 +221,11 @@ class MpiSweepLink final : public SweepLink {
     check(MPI_Isend(message.payload.data(), byte_count(message.payload.size()), MPI_BYTE, 0, tag,
                     comm_, &message.request),
           "MPI_Isend");
+    if (tag != finished) return;
+    // The rank's last message: everything it sent must reach rank 0 before the process may end
+    // (a rank with abandoned rows exits right after).
+    for (Outgoing& sent : outgoing_) check(MPI_Wait(&sent.request, MPI_STATUS_IGNORE), "MPI_Wait");
+    outgoing_.clear();
   }
   std::optional<Message> receive() override {
     int arrived = 0;

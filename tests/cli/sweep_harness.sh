@@ -82,7 +82,9 @@ resumed_whole() {
 # (COMMAND: the test build pendavg_row_faults with its arguments, alone or under mpiexec; any
 # --format), kills it with SIGKILL once OUT's temporary holds a row and a random 0 to
 # $kill_delay_max (default 1) s more (no handler runs: the rows it had written are all that is
-# left), then runs COMMAND --resume OUT. OUT must be REFERENCE byte for byte, no temporary may be
+# left), then runs COMMAND --resume OUT. Its last row sleeps 60 s first (PENDAVG_TEST_SLOW_ROW),
+# so that it cannot finish before the kill, however fast the other rows are (the ranks of a job
+# whose mpirun was killed went on for ~1 s, and a 2.4 s sweep once finished in that time). OUT must be REFERENCE byte for byte, no temporary may be
 # left, and the resumed run must have computed fewer rows than the sweep has: it took the killed
 # run's rows from its temporary (the test build's PENDAVG_SWEEP_REPORT=1 says how many it
 # computed).
@@ -91,7 +93,7 @@ killed_and_resumed() {
   shift 3
   rows=$(row_count "$reference")
   rm -f "$out"
-  "$@" --output "$out" >/dev/null 2>&1 &
+  PENDAVG_TEST_SLOW_ROW=$((rows - 1)):60 "$@" --output "$out" >/dev/null 2>&1 &
   local pid=$!
   for ((k = 0; k < 600; ++k)); do
     [ "$(row_count "$out".tmp.*)" -ge 1 ] && break

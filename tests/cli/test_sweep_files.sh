@@ -110,9 +110,10 @@ run "${table[@]}" --resume "$work/table_failed.csv"
 check "table failed points resumed = a full run" cmp -s "$work/table_failed.csv" "$work/table_reference.csv"
 }
 case:rows_lost.sigterm() {
-# A failed row and an interruption (SIGTERM once the progress line shows rows being computed:
-# 400 rows at 1000 digits, several seconds, so that the run is still going when the first
-# progress line shows at 2 s): the file has both lines and --resume completes it.
+# A failed row and an interruption (SIGTERM once the progress line shows rows being computed, at
+# 2 s; the last row sleeps 60 s first, so that the run is still going however fast the others
+# are -- 400 rows at 1000 digits took 1.9-2.7 s -- and is abandoned after the grace): the file
+# has both lines and --resume completes it.
 "$python" - "$work/cases_slow.csv" <<'PY'
 import sys
 with open(sys.argv[1], "w") as f:
@@ -121,7 +122,8 @@ with open(sys.argv[1], "w") as f:
         f.write(f"{1 + i % 7},1,1,{1 + i % 3},1,{1 + i % 5}\n")
 PY
 slow=(average --cases "$work/cases_slow.csv" --digits 1000)
-PENDAVG_TEST_FAILING_ROWS=1 "$faulty" "${slow[@]}" --output "$work/slow_failed.csv" \
+PENDAVG_TEST_FAILING_ROWS=1 PENDAVG_TEST_SLOW_ROW=399:60 "$faulty" "${slow[@]}" \
+  --output "$work/slow_failed.csv" \
   >"$work/out" 2>"$work/err" &
 pid=$!
 for ((k = 0; k < 300; ++k)); do
