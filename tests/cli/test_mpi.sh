@@ -58,16 +58,13 @@ on_ranks() {
 # without_timing FILE: the file minus what depends on the clock ("seconds" in JSON)
 without_timing() { sed 's/"seconds": [^,}]*//' "$1"; }
 # same_on_ranks NAME ARGS...: serial, then 1, 2 and 3 ranks (threads 2, 1, 2, 1), compared.
-# MPFR rows of N = 2 run with one thread per process (ONE_THREAD=1): with two threads in one
-# process their last digits vary from run to run (a race in the library, not in the sweep).
 same_on_ranks() {
   local name=$1
   shift
-  OMP_NUM_THREADS=${ONE_THREAD:-2} on_ranks 0 "$work/serial.out" "$@" || { fail "$name: serial run" "exit 0" "exit $?"; return; }
+  OMP_NUM_THREADS=2 on_ranks 0 "$work/serial.out" "$@" || { fail "$name: serial run" "exit 0" "exit $?"; return; }
   [ -s "$work/serial.out" ] || { fail "$name: serial run" "an output" "nothing printed"; return; }
   local ranks threads=1
   for ranks in 1 2 3; do
-    [ -n "${ONE_THREAD:-}" ] && threads=1
     OMP_NUM_THREADS=$threads on_ranks "$ranks" "$work/ranks.out" "$@"
     rc=$?
     if [ "$rc" -ne 0 ]; then
@@ -83,7 +80,7 @@ same_on_ranks() {
 
 # --cases: 2,000 rows at 38 digits, to stdout and to a file.
 case:ranks.cases_38_digits() {
-ONE_THREAD=1 same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
+same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
 }
 case:ranks.cases_columns() {
 same_on_ranks "cases 2000 rows, --columns" average --cases "$work/cases.csv" --columns var_K,ratio,beta_K2
@@ -107,7 +104,7 @@ case:ranks.table_auto() {
 same_on_ranks "table --chain 8 auto" table --chain 3,8 --beta log:0.1:10:6 --g 1,2 --tol 1e-8
 }
 case:ranks.table_mixed_digits() {
-ONE_THREAD=1 same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
+same_on_ranks "table mixed digits" table --beta log:0.01:100:40 --mu1 0.01,0.5 --digits 16,30
 }
 # One qmc point at N = 64: its shifts shared by the ranks. (JSON, whose "seconds" without_timing
 # leaves out: the default CSV has it as a column.)
@@ -128,7 +125,7 @@ same_on_ranks "limit on rank 0" limit --masses 0.5,0.5 --format json
 # A sweep under mpirun killed with SIGTERM (what a batch scheduler sends; mpirun forwards it)
 # at a random moment, then resumed on 3 ranks: the file of the uninterrupted serial run.
 case:resume.killed() {
-export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
+export OMP_NUM_THREADS=2
 sweep=(table --beta log:1:1000:50 --mu1 0.001,0.05 --digits 1000)
 "$pendavg" "${sweep[@]}" --output "$work/reference.csv" 2>/dev/null
 delay=$("$python" -c 'import random; print(round(random.uniform(0.8, 2.0), 2))')
@@ -166,7 +163,7 @@ case:resume.killed_ahead() {
 killed_ahead "rows ahead kept under mpirun" csv "${launcher[@]}" -n 2 "$faulty"
 }
 case:resume.window() {
-export OMP_NUM_THREADS=1  # MPFR rows of N = 2 (see same_on_ranks)
+export OMP_NUM_THREADS=2
 "$pendavg" average --cases "$work/cases.csv" --digits 38 --output "$work/cases38.csv" 2>/dev/null
 "$python" "$here/punch_holes.py" "$work/cases38.csv" "$work/holes.csv"
 for ranks in 2 3; do

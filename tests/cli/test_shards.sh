@@ -70,7 +70,7 @@ same_merged "average --cases" "${cases[@]}" --columns beta_K,ratio
 # merged with the other two, the serial file.
 case:resume.sigterm() {
 slow=(table --beta log:1:1000:60 --mu1 0.001,0.05 --digits 200)
-export OMP_NUM_THREADS=1  # MPFR rows of N = 2: their last digits vary with two threads (a race)
+export OMP_NUM_THREADS=2
 "$pendavg" "${slow[@]}" --output "$work/slow_serial.csv" 2>/dev/null
 for k in 1 3; do "$pendavg" "${slow[@]}" --shard "$k/3" --output "$work/slow$k.csv" 2>/dev/null; done
 delay=$("$python" -c 'import random; print(round(random.uniform(0.3, 1.5), 2))')
@@ -99,7 +99,7 @@ bad "--resume a shard with another --shard" "${slow[@]}" --shard 1/3 --resume "$
 # Shard 2/2 of a slower sweep killed outright (SIGKILL: a job array's task lost) and resumed:
 # the uninterrupted shard's file, its rows taken from the killed run's temporary.
 case:resume.sigkill() {
-export OMP_NUM_THREADS=1  # (as above)
+export OMP_NUM_THREADS=2
 killed=(table --beta log:1:1000:60 --mu1 0.001,0.05 --digits 1000 --shard 2/2)
 "$pendavg" "${killed[@]}" --output "$work/killed_reference.csv" 2>/dev/null
 killed_and_resumed "shard 2/2" "$work/killed_reference.csv" "$work/killed.csv" "$faulty" "${killed[@]}"

@@ -340,11 +340,11 @@ fi
 # ---------------------------------------------------------------- killed outright
 case:resume.killed() {
 # SIGKILL (the OOM killer, kill -9: no handler runs) at a random moment once rows are written,
-# then --resume: the killed run's rows are taken from its temporary (one thread: MPFR rows of
-# N = 2 vary in their last digits with two, a race outside the sweep).
+# then --resume: the killed run's rows are taken from its temporary (the reference on one thread,
+# the killed and resumed runs on two: the same bytes).
 killed=(table --beta log:1:1000:30 --mu1 0.001,0.05 --digits 1000)
 OMP_NUM_THREADS=1 "$pendavg" "${killed[@]}" --output "$work/killed_reference.csv" 2>/dev/null
-OMP_NUM_THREADS=1 killed_and_resumed "table" "$work/killed_reference.csv" "$work/killed.csv" \
+OMP_NUM_THREADS=2 killed_and_resumed "table" "$work/killed_reference.csv" "$work/killed.csv" \
   "$faulty" "${killed[@]}"
 }
 # The rows finished ahead of an unfinished one (rank 0's reorder buffer) survive a SIGKILL, in

@@ -461,10 +461,10 @@ case:mpi() {
     for sweep in "table --beta log:0.1:10:30 --mu1 0.1,0.5 --digits 16,20" \
                  "average --cases $work/$([ $f = json ] && echo n2.csv --digits 20 || echo n3.csv)"; do
       # shellcheck disable=SC2086
-      OMP_NUM_THREADS=1 "$pendavg" $sweep --format "$f" >"$work/serial" 2>/dev/null
-      for ranks in 1 2 3; do
+      OMP_NUM_THREADS=2 "$pendavg" $sweep --format "$f" >"$work/serial" 2>/dev/null
+      for ranks in 1 2 3; do  # threads 2, 1, 2
         # shellcheck disable=SC2086
-        OMP_NUM_THREADS=1 "${launcher[@]}" -n "$ranks" "$pendavg" $sweep --format "$f" >"$work/ranks" 2>"$work/err"
+        OMP_NUM_THREADS=$((ranks % 2 + 1)) "${launcher[@]}" -n "$ranks" "$pendavg" $sweep --format "$f" >"$work/ranks" 2>"$work/err"
         check "${sweep%% *} --format $f on $ranks ranks = the serial run" cmp -s "$work/ranks" "$work/serial"
       done
     done
