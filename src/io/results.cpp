@@ -774,7 +774,7 @@ void append_simulation(Record& r, const SimulationResult<double>& s, double ener
   for (const auto* list : {&s.kinetic, &s.kinetic_canonical, &s.cos_angle})
     for (const TimeAverage<double>& x : *list) unknown = unknown || !std::isfinite(x.error);
   put_reason(r, unknown,
-             "fewer than 16 averaging blocks finished (an early interrupt or a --time too short "
+             "fewer than 16 averaging blocks finished (an early interrupt or a run time too short "
              "for the block length): the error bars are unknown");
   // the exact values (all empty with --exact no)
   const auto values = [&](const std::vector<double>* v, const std::vector<double>* e,
