@@ -82,9 +82,9 @@ resumed_whole() {
 # (COMMAND: the test build pendavg_row_faults with its arguments, alone or under mpiexec; any
 # --format), kills it with SIGKILL once OUT's temporary holds a row and a random 0 to
 # $kill_delay_max (default 1) s more (no handler runs: the rows it had written are all that is
-# left), then runs COMMAND --resume OUT. Its last row sleeps 60 s first (PENDAVG_TEST_SLOW_ROW),
-# so that it cannot finish before the kill, however fast the other rows are (the ranks of a job
-# whose mpirun was killed went on for ~1 s, and a 2.4 s sweep once finished in that time). OUT must be REFERENCE byte for byte, no temporary may be
+# left; under mpiexec every process of the job is killed), then runs COMMAND --resume OUT. Its
+# last row sleeps 60 s first (PENDAVG_TEST_SLOW_ROW), so that it cannot finish before the kill
+# however fast the other rows are. OUT must be REFERENCE byte for byte, no temporary may be
 # left, and the resumed run must have computed fewer rows than the sweep has: it took the killed
 # run's rows from its temporary (the test build's PENDAVG_SWEEP_REPORT=1 says how many it
 # computed).
@@ -102,7 +102,9 @@ killed_and_resumed() {
   delay=$(/usr/bin/python3 -c "import random; print(round(random.uniform(0, ${kill_delay_max:-1}), 2))")
   sleep "$delay"
   { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null  # (no "Killed" job notice)
-  # The processes of the killed run (an orphaned rank) are gone before it is resumed.
+  # The whole job goes, as when its node is lost: the ranks of a SIGKILLed mpirun can live on as
+  # orphans (once for over a minute, finishing the sweep), so they are killed too.
+  pkill -KILL -f -- "--output $out" 2>/dev/null
   for ((k = 0; k < 100; ++k)); do pgrep -f -- "--output $out" >/dev/null || break; sleep 0.1; done
   if [ -e "$out" ] || [ -z "$(find "$(dirname "$out")" -name "$(basename "$out").tmp.*" | head -1)" ]; then
     fail "$name" "a temporary left by the run killed after $delay s" "the run had finished or left no temporary (too fast a sweep?)"
