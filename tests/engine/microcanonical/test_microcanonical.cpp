@@ -507,10 +507,8 @@ TEST_CASE("Var K_i: momenta sampled on the energy shell give <K_i^2 | phi, E> = 
 
 namespace {
 
-/// Every critical energy sum_j (+-gamma_j) > E_min (the separatrices and the top of the
-/// potential), each exactly and, with `hair`, 1e-9 of the top above and below it; then 1.5, 10
-/// and 1000 times the top.
-std::vector<double> separatrix_energies(const Chain<double>& c, bool hair) {
+/// The critical energies sum_j (+-gamma_j) of the potential, sorted, each once.
+std::vector<double> critical_energies(const Chain<double>& c) {
   std::vector<double> critical{0.0};
   for (std::size_t j = 0; j < c.size(); ++j) {
     std::vector<double> next;
@@ -522,6 +520,14 @@ std::vector<double> separatrix_energies(const Chain<double>& c, bool hair) {
   }
   std::sort(critical.begin(), critical.end());
   critical.erase(std::unique(critical.begin(), critical.end()), critical.end());
+  return critical;
+}
+
+/// Every critical energy sum_j (+-gamma_j) > E_min (the separatrices and the top of the
+/// potential), each exactly and, with `hair`, 1e-9 of the top above and below it; then 1.5, 10
+/// and 1000 times the top.
+std::vector<double> separatrix_energies(const Chain<double>& c, bool hair) {
+  const std::vector<double> critical = critical_energies(c);
   const double top = critical.back();
   std::vector<double> energies;
   for (std::size_t k = 1; k < critical.size(); ++k) {
@@ -811,17 +817,7 @@ TEST_CASE("ensemble equivalence: Laplace transforms give the canonical averages"
   const auto laplace = [](const Chain<double>& c, double beta, const MicrocanonicalOptions& o,
                           double tolerance) {
     const std::size_t n = c.size();
-    std::vector<double> critical{0.0};
-    for (std::size_t j = 0; j < n; ++j) {
-      std::vector<double> next;
-      for (double v : critical) {
-        next.push_back(v + c.potential_coefficient(j));
-        next.push_back(v - c.potential_coefficient(j));
-      }
-      critical.swap(next);
-    }
-    std::sort(critical.begin(), critical.end());
-    critical.erase(std::unique(critical.begin(), critical.end()), critical.end());
+    const std::vector<double> critical = critical_energies(c);
     const double bottom = critical.front();
     std::vector<double> out(n + 1, 0.0);  // Z, then numerators
     boost::math::quadrature::tanh_sinh<double> finite(8);

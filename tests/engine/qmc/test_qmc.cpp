@@ -15,6 +15,7 @@
 #include "engine/qmc/lattice_table.hpp"
 #include "engine/qmc/qmc.hpp"
 #include "engine/torus/torus.hpp"
+#include "chains.hpp"
 #include "real_types.hpp"
 
 #include <algorithm>
@@ -31,9 +32,7 @@ using pendavg::mpfr_real;
 using pendavg::torus_average;
 using pendavg::TorusOptions;
 
-Chain<double> uniform_chain(std::size_t n, double mass = 1, double length = 1, double g = 1) {
-  return Chain<double>(std::vector<double>(n, mass), std::vector<double>(n, length), g);
-}
+using pendavg::test::uniform_chain;
 
 }  // namespace
 

@@ -25,6 +25,7 @@
 #include "pendavg/chain.hpp"
 #include "engine/double_pendulum/double_pendulum.hpp"
 #include "engine/numerics/precision.hpp"
+#include "chains.hpp"
 #include "real_types.hpp"
 #include "pendavg/result.hpp"
 #include "engine/torus/torus.hpp"
@@ -49,13 +50,10 @@ namespace {
 using pendavg::Chain;
 using pendavg::mpfr_real;
 using pendavg::torus_average;
-using pendavg::torus_average;
 using pendavg::TorusOptions;
 using pendavg::TorusRule;
 
-Chain<double> uniform_chain(std::size_t n, double mass = 1, double length = 1, double g = 1) {
-  return Chain<double>(std::vector<double>(n, mass), std::vector<double>(n, length), g);
-}
+using pendavg::test::uniform_chain;
 
 /// |a - b| <= both reported errors (each method's estimate must cover the difference) and
 /// <= rel * scale (the target accuracy).

@@ -22,6 +22,7 @@
 #include "pendavg/average.hpp"
 #include "pendavg/chain.hpp"
 #include "pendavg/result.hpp"
+#include "chains.hpp"
 #include "real_types.hpp"
 
 #include <algorithm>
@@ -41,9 +42,7 @@ using pendavg::chain_transfer_level;
 using pendavg::Estimate;
 using pendavg::TransferOptions;
 
-Chain<double> uniform_chain(std::size_t n, double mass = 1, double length = 1, double g = 1) {
-  return Chain<double>(std::vector<double>(n, mass), std::vector<double>(n, length), g);
-}
+using pendavg::test::uniform_chain;
 
 TransferOptions with_tolerance(double tolerance, int threads = 1) {
   TransferOptions options;
