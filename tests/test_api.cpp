@@ -3,6 +3,7 @@
 // against the method they select, error kinds, workspaces, and thread safety across precisions.
 #include <catch2/catch.hpp>
 
+#include "refusals.hpp"
 #include "pendavg/mpfr.hpp"
 #include "pendavg/pendavg.hpp"
 
@@ -80,17 +81,12 @@ TEST_CASE("api: automatic picks the documented method for every N", "[api]") {
 }
 
 TEST_CASE("api: an option the chosen method does not use is refused with one line", "[api]") {
+  // Refused with one line that names `needle`.
   const auto refused = [](std::size_t n, const AverageOptions& o, const std::string& needle) {
-    try {
-      pendavg::resolve_average_method(n, o);
-    } catch (const pendavg::invalid_input& bad) {
-      const std::string message = bad.what();
-      INFO(message);
-      CHECK(message.find('\n') == std::string::npos);
-      CHECK(message.find(needle) != std::string::npos);
-      return true;
-    }
-    return false;
+    const std::string message =
+        pendavg_test::rejection([&] { pendavg::resolve_average_method(n, o); });
+    UNSCOPED_INFO(message);  // shown by the CHECK of the result
+    return message.find(needle) != std::string::npos && message.find('\n') == std::string::npos;
   };
   AverageOptions o;
   o.tolerance = 1e-10;
