@@ -14,7 +14,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -25,6 +27,7 @@ namespace {
 
 constexpr std::size_t blocks_per_shard = 16;
 constexpr std::string_view shard_prefix = "# shard ";
+constexpr std::string_view row_entry = "{\"row\": ", interrupted_item = "\"interrupted\": ";
 
 /// "K/N" as two integers (at most 9 digits each), or nothing.
 std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
@@ -40,126 +43,76 @@ std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_vi
 
 [[noreturn]] void refuse(const std::string& what) { throw usage_error("merge: " + what); }
 
-/// A failed row of a JSON shard: its row of the sweep and its entry.
-struct FailedEntry {
-  std::size_t row = 0;
-  std::string entry;
-};
-
-/// One shard file being merged: its header, then its rows on demand.
+/// One shard's file being merged: its header without the shard line, then its rows on demand.
 struct ShardFile {
   std::string path;
   std::ifstream in;
-  io::Format format = io::Format::csv;
-  std::string schema;               ///< its output schema ("0": before schema 1)
-  std::string shard_line;           ///< its shard line, as CSV writes it
-  std::vector<std::string> header;  ///< the header without the shard line (up to the column
-                                    ///< line; JSON: up to the "rows": [ line)
-  std::vector<FailedEntry> failed;  ///< JSON: its failed rows (in order)
-  std::size_t next_failed = 0;
-  std::size_t number = 0, shards = 0, rows = 0, block = 0;
-};
+  bool json = false;
+  std::vector<std::string> header;  ///< up to the column line (JSON: the "rows": [ line)
+  unsigned long long number = 0, shards = 0, rows = 0, block = 0;
+  std::map<std::size_t, std::string> failed;  ///< JSON: the failed rows' entries, by row
+  std::size_t failed_taken = 0;
 
-constexpr std::string_view json_start = "{\"schema\": ";
+  explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
+    if (!in) refuse("cannot read '" + path + "': " + std::strerror(errno));
+    std::string line, shard;  // the shard line: CSV's first line, JSON's first header item
+    while (std::getline(in, line)) {
+      json = json || (header.empty() && shard.empty() && line.starts_with("{\"schema\": "));
+      if (shard.empty() && line.starts_with(json ? "\"shard " : "# shard ")) {
+        shard = line.substr(json ? 1 : 2);
+        continue;
+      }
+      header.push_back(line);
+      if (json ? line == "\"rows\": [" : !line.starts_with('#')) break;
+    }
+    if (shard.empty())
+      refuse("'" + path + "' is not a shard (it has no line '# shard K/N ...', or JSON header "
+             "item 'shard K/N ...', written by table or average --cases with --shard K/N)");
+    if (std::sscanf(shard.c_str(), "shard %llu/%llu: blocks of %llu of the %llu rows", &number,
+                    &shards, &block, &rows) != 4 || number < 1 || number > shards || block < 1)
+      refuse("'" + path + "': its shard line '" + shard.substr(0, 120) + "' cannot be read");
+    if (!in) refuse("'" + path + "' ends before its rows begin");
+    if (!json) return;
+    // JSON: the failed rows' entries and the interruption follow the rows; read them first.
+    const std::streampos rows_at = in.tellg();
+    std::string interrupted = "it ends before its document does";
+    for (bool after_rows = false; std::getline(in, line);) {
+      if (!after_rows) {
+        after_rows = line.starts_with(']');
+      } else if (line.starts_with(row_entry)) {
+        if (line.ends_with(',')) line.pop_back();
+        failed.emplace(std::strtoull(line.c_str() + row_entry.size(), nullptr, 10), line);
+      } else if (line.starts_with(interrupted_item)) {
+        const std::string what = line.substr(interrupted_item.size(), line.size() - 16);
+        interrupted = what == "null" ? "" : "interrupted: " + what.substr(0, 80);
+      }
+    }
+    if (!interrupted.empty()) incomplete(interrupted);
+    in.clear();
+    in.seekg(rows_at);
+  }
 
-/// JSON: reads the failed rows and the interruption after the rows (then returns to them).
-void read_json_end(ShardFile& f) {
-  const std::streampos rows_at = f.in.tellg();
-  std::string line;
-  while (std::getline(f.in, line) && !line.starts_with(']')) {
+  std::string_view format() const {
+    return json ? "json" : header.back().find(',') == std::string::npos ? "text" : "csv";
   }
-  constexpr std::string_view row_prefix = "{\"row\": ";
-  bool in_failed = false;
-  while (std::getline(f.in, line)) {
-    if (line == "\"failed\": [") {
-      in_failed = true;
-    } else if (in_failed && line.starts_with(row_prefix)) {
-      if (line.ends_with(',')) line.pop_back();
-      const std::size_t row = std::strtoull(line.c_str() + row_prefix.size(), nullptr, 10);
-      if (!f.failed.empty() && row <= f.failed.back().row)
-        refuse("'" + f.path + "': its failed rows are out of order");
-      f.failed.push_back({row, line});
-    } else if (line.starts_with("\"interrupted\": ")) {
-      if (line != "\"interrupted\": null}")
-        refuse("'" + f.path + "' is incomplete (interrupted: " + line.substr(15, 80) +
-               "): complete it with --resume '" + f.path + "' and the same --shard, then merge");
-      f.in.clear();
-      f.in.seekg(rows_at);
-      return;
-    } else {
-      in_failed = false;
-    }
-  }
-  refuse("'" + f.path + "' ends before its document does (a shard cut short: --resume it)");
-}
 
-void open_shard(ShardFile& f) {
-  f.in.open(f.path, std::ios::binary);
-  if (!f.in) refuse("cannot read '" + f.path + "': " + std::strerror(errno));
-  std::string first;
-  std::getline(f.in, first);
-  if (first.starts_with(json_start)) {  // JSON: the shard line is the first header item
-    f.format = io::Format::json;
-    f.schema = first.substr(json_start.size(), first.find(',') - json_start.size());
-    f.header.push_back(first);
-    std::string line;
-    if (std::getline(f.in, line)) f.header.push_back(line);
-    if (std::getline(f.in, line) && line.starts_with("\"shard ")) {
-      if (line.ends_with(',')) line.pop_back();
-      f.shard_line = "# " + line.substr(1, line.size() - 2);
-    }
-  } else {
-    f.shard_line = first;
+  [[noreturn]] void incomplete(const std::string& why) const {
+    refuse("'" + path + "' is incomplete (" + why + "): complete it with --resume '" + path +
+           "' and the same --shard, then merge");
   }
-  if (!f.shard_line.starts_with(shard_prefix))
-    refuse("'" + f.path + "' is not a shard (its first line is not '# shard K/N ...' or a JSON "
-           "document whose first header item is 'shard K/N ...': written by table or average "
-           "--cases with --shard K/N)");
-  unsigned long long k = 0, n = 0, rows = 0, block = 0;
-  if (std::sscanf(f.shard_line.c_str(), "# shard %llu/%llu: blocks of %llu of the %llu rows",
-                  &k, &n, &block, &rows) != 4 || k < 1 || k > n || block < 1)
-    refuse("'" + f.path + "': its shard line '" + f.shard_line + "' cannot be read");
-  f.number = k, f.shards = n, f.rows = rows, f.block = block;
-  std::string line;
-  if (f.format == io::Format::json) {
-    while (std::getline(f.in, line)) {
-      f.header.push_back(line);
-      if (line == "\"rows\": [") return read_json_end(f);
-    }
-    refuse("'" + f.path + "' ends before its rows begin");
-  }
-  f.schema.assign(1, '0');  // none before schema 1
-  while (std::getline(f.in, line)) {
-    f.header.push_back(line);
-    if (line.starts_with("# schema: ")) f.schema = line.substr(10);
-    if (!line.starts_with("#")) {  // the column line: CSV's has commas, text's spaces
-      f.format = line.find(',') == std::string::npos ? io::Format::text : io::Format::csv;
-      return;
-    }
-  }
-  refuse("'" + f.path + "' ends before its column line");
-}
 
-/// The next row of `f` (a data line, or a '# failed:' line in place of a row); false at its end.
-/// An '# interrupted' line means rows are missing.
-bool next_row(ShardFile& f, std::string& line) {
-  if (!std::getline(f.in, line)) return false;
-  if (f.format == io::Format::json) {  // ,{...} (the first without its comma), up to the ]
-    if (line.starts_with(']')) return false;
-    if (line.starts_with(',')) line.erase(0, 1);
-    if (!line.starts_with('{'))
-      refuse("'" + f.path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
-    if (f.in.eof()) refuse("'" + f.path + "' ends in the middle of a row");
+  /// The next row (a data line, or a '# failed:' line in place of a row); false at the end.
+  bool next_row(std::string& line) {
+    if (!std::getline(in, line) || (json && line.starts_with(']'))) return false;
+    if (line.starts_with("# interrupted")) incomplete(line.substr(2));
+    if (json ? !line.starts_with('{') && !line.starts_with(",{")
+             : line.starts_with('#') && !line.starts_with("# failed: "))
+      refuse("'" + path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
+    if (in.eof()) refuse("'" + path + "' ends in the middle of a row");
+    if (line.starts_with(',')) line.erase(0, 1);  // JSON: the separating comma is the merge's
     return true;
   }
-  if (line.starts_with("# interrupted"))
-    refuse("'" + f.path + "' is incomplete (" + line.substr(2) + "): complete it with --resume '" +
-           f.path + "' and the same --shard, then merge");
-  if (line.starts_with("#") && !line.starts_with("# failed: "))
-    refuse("'" + f.path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
-  if (f.in.eof()) refuse("'" + f.path + "' ends in the middle of a row");
-  return true;
-}
+};
 
 }  // namespace
 
@@ -209,16 +162,15 @@ constexpr std::string_view merge_usage =
 std::string run_merge(const Options& options) {
   const std::string output(options.required("output"));
   if (output.empty()) refuse("--output needs a file name");
-  const std::vector<std::string>& paths = options.operands();
-  if (paths.empty()) refuse("no shard files given (pendavg merge --output FILE SHARD...)");
+  if (options.operands().empty())
+    refuse("no shard files given (pendavg merge --output FILE SHARD...)");
   std::vector<std::unique_ptr<ShardFile>> files;
-  for (const std::string& path : paths) {
+  for (const std::string& path : options.operands()) {
     refuse_same_file(output, "output", path, "a shard", "merge");
-    files.push_back(std::make_unique<ShardFile>());
-    files.back()->path = path;
-    open_shard(*files.back());
+    files.push_back(std::make_unique<ShardFile>(path));
   }
-  // One sweep: the same N, rows and blocks, the same header (up to the date), each K once.
+  // One sweep: the same N, rows and blocks, the same header (up to the date), each K once. A
+  // shard of another format or output schema has another header line: the refusal names it.
   const ShardFile& first = *files.front();
   std::vector<ShardFile*> by_number(first.shards, nullptr);
   for (const auto& f : files) {
@@ -227,19 +179,17 @@ std::string run_merge(const Options& options) {
              std::to_string(f->shards) + " of " + std::to_string(f->rows) + " rows, '" +
              first.path + "' of " + std::to_string(first.shards) + " shards of " +
              std::to_string(first.rows) + " rows: not shards of one sweep");
-    if (f->format != first.format)
-      refuse("'" + f->path + "' is a " + std::string(format_name(f->format)) + " shard, '" +
-             first.path + "' a " + std::string(format_name(first.format)) +
-             " shard: the shards of one sweep are written in one format");
-    if (f->schema != first.schema)
-      refuse("'" + f->path + "' has output schema " + f->schema + ", '" + first.path +
-             "' schema " + first.schema + ": shards written by different pendavg versions");
-    bool same = f->header.size() == first.header.size();
-    for (std::size_t k = 0; same && k < first.header.size(); ++k)
-      same = same_header_line(first.header[k], f->header[k]);
-    if (!same)
-      refuse("'" + f->path + "' and '" + first.path + "' are shards of different sweeps (their "
-             "headers differ)");
+    if (f->format() != first.format())
+      refuse("'" + f->path + "' is a " + std::string(f->format()) + " shard, '" + first.path +
+             "' a " + std::string(first.format()) + " shard: one sweep's shards have one format");
+    const auto [theirs, ours] =
+        std::ranges::mismatch(f->header, first.header, [](const auto& a, const auto& b) {
+          return same_header_line(b, a);
+        });
+    if (theirs != f->header.end() || ours != first.header.end())
+      refuse("'" + f->path + "' and '" + first.path + "' are shards of different sweeps: the "
+             "line '" + (theirs == f->header.end() ? "" : theirs->substr(0, 100)) + "' of one "
+             "is '" + (ours == first.header.end() ? "" : ours->substr(0, 100)) + "' in the other");
     ShardFile*& slot = by_number[f->number - 1];
     if (slot)
       refuse("'" + slot->path + "' and '" + f->path + "' are both shard " +
@@ -250,44 +200,41 @@ std::string run_merge(const Options& options) {
     if (!by_number[k])
       refuse("shard " + std::to_string(k + 1) + "/" + std::to_string(first.shards) +
              " is missing (its rows would be missing)");
-  std::string text;
-  for (const std::string& line : first.header) text += line + "\n";
+  std::string text, line;
+  for (const std::string& header_line : first.header) (text += header_line) += '\n';
   AtomicFile file(output, "merge");
-  std::string line;
-  std::size_t failed = 0;
-  const bool json = first.format == io::Format::json;
+  std::size_t failed = 0, written = 0;
   std::vector<std::string> failed_entries;  // JSON: after the rows
-  bool first_row = true;
-  for (std::size_t b = 0; b * first.block < first.rows; ++b) {
-    ShardFile& f = *by_number[b % first.shards];
-    for (std::size_t r = b * first.block; r < std::min(first.rows, (b + 1) * first.block); ++r) {
-      if (json && f.next_failed < f.failed.size() && f.failed[f.next_failed].row == r) {
-        failed_entries.push_back(std::move(f.failed[f.next_failed++].entry));
-        ++failed;
-        continue;
-      }
-      if (!next_row(f, line))
-        refuse("'" + f.path + "' ends before its rows do (row " + std::to_string(r) +
-               " of the sweep is missing)");
-      failed += line.starts_with("#");
-      if (json && !std::exchange(first_row, false)) text += ',';
-      (text += line) += '\n';
+  for (std::size_t r = 0; r < first.rows; ++r) {
+    ShardFile& f = *by_number[r / first.block % first.shards];
+    if (const auto entry = f.failed.find(r); entry != f.failed.end()) {
+      failed_entries.push_back(std::move(entry->second));
+      ++f.failed_taken, ++failed;
+      continue;
     }
+    if (!f.next_row(line))
+      refuse("'" + f.path + "' ends before its rows do (row " + std::to_string(r) +
+             " of the sweep is missing)");
+    failed += line.starts_with('#');
+    if (first.json && written++ > 0) text += ',';
+    (text += line) += '\n';
     if (text.size() >= (1u << 20)) {
       file.append(text);
       text.clear();
     }
   }
   for (const auto& f : files)
-    if (next_row(*f, line) || f->next_failed < f->failed.size())
+    if (f->next_row(line) || f->failed_taken < f->failed.size())
       refuse("'" + f->path + "' has more rows than its shard's blocks");
-  if (json) text += json_end(failed_entries, {});
+  if (first.json) text += json_end(failed_entries, {});
   file.append(text);
   file.commit();
   if (failed > 0)
     throw rows_failed("merge: " + std::to_string(failed) + " of " + std::to_string(first.rows) +
-                      " rows failed while they were computed; '" + output + "' has a '# failed:' "
-                      "line in place of each; --resume the shards that have them, then merge again");
+                      " rows failed while they were computed; '" + output + "' has " +
+                      (first.json ? "an entry in \"failed\" for each"
+                                  : "a '# failed:' line in place of each") +
+                      "; --resume the shards that have them, then merge again");
   return {};
 }
 
