@@ -24,22 +24,17 @@ constexpr int exit_internal_error = 1;
 constexpr int exit_interrupted = 130;  // 128 + SIGINT, as a shell reports it
 
 int report(std::string_view kind, std::string_view text, int exit_code) {
-  // One line, whatever the message, with what it echoes made safe for a terminal and capped.
-  const std::string message = one_line(text);
   const FailureReach reach = failure_reach();
-  if (reach == FailureReach::others_went_on) {  // this rank says it and stops the others
-    std::fprintf(stderr, "pendavg: %.*s: %s (rank %d alone; stopping the job)\n",
-                 static_cast<int>(kind.size()), kind.data(), message.c_str(), rank());
-    abort_job(exit_code);
-  }
-  if (reach == FailureReach::not_every_rank) {  // a failure of its own to report
-    std::fprintf(stderr, "pendavg: %.*s: %s (rank %d)\n", static_cast<int>(kind.size()),
-                 kind.data(), message.c_str(), rank());
-    return exit_code;
-  }
-  if (!is_root()) return exit_code;  // every rank meets the same bad input; rank 0 says it
-  std::fprintf(stderr, "pendavg: %.*s: %s\n", static_cast<int>(kind.size()), kind.data(),
-               message.c_str());
+  if (reach == FailureReach::every_rank && !is_root()) return exit_code;  // rank 0 says it
+  // A failure of this rank's own names the rank; when the others went on, it stops them.
+  const std::string who =
+      reach == FailureReach::every_rank ? ""
+      : " (rank " + std::to_string(rank()) +
+            (reach == FailureReach::others_went_on ? " alone; stopping the job)" : ")");
+  // One line, whatever the message, with what it echoes made safe for a terminal and capped.
+  std::fprintf(stderr, "pendavg: %.*s: %s%s\n", static_cast<int>(kind.size()), kind.data(),
+               one_line(text).c_str(), who.c_str());
+  if (reach == FailureReach::others_went_on) abort_job(exit_code);
   return exit_code;
 }
 

@@ -33,12 +33,10 @@ constexpr std::string_view row_entry = "{\"row\": ", interrupted_item = "\"inter
 std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
   std::size_t k = 0, n = 0;
   const char* const end = text.data() + text.size();
-  const auto [slash, k_error] = std::from_chars(text.data(), end, k);
-  if (k_error != std::errc() || slash == end || *slash != '/' || slash - text.data() > 9)
-    return std::nullopt;
-  const auto [last, n_error] = std::from_chars(slash + 1, end, n);
-  if (n_error != std::errc() || last != end || last - slash > 10) return std::nullopt;
-  return std::pair{k, n};
+  const auto [slash, k_error] = std::from_chars(text.data(), std::min(end, text.data() + 9), k);
+  if (k_error != std::errc() || slash == end || *slash != '/') return std::nullopt;
+  const auto [last, n_error] = std::from_chars(slash + 1, std::min(end, slash + 10), n);
+  return n_error == std::errc() && last == end ? std::optional(std::pair{k, n}) : std::nullopt;
 }
 
 [[noreturn]] void refuse(const std::string& what) { throw usage_error("merge: " + what); }
