@@ -677,8 +677,8 @@ std::string average_cases(const CasesFile& file, const std::string& path,
                                                    plan.microcanonical, where.format);
   const std::string header = sweep_header(
       row_format, "average",
-      (where.shard ? where.shard->header_line() : "") +
-          cases_header(file, path, settings, columns, output_names, !where.path.empty()));
+      marked(where.shard,
+             cases_header(file, path, settings, columns, output_names, !where.path.empty())));
   std::optional<ResumedRows> resumed;
   std::optional<AtomicFile> timing_file;  // --timing-rows, on rank 0
   std::string timing_text;                // its lines not yet written

@@ -53,7 +53,7 @@ struct ShardFile {
 
   explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
     if (!in) refuse("cannot read '" + path + "': " + std::strerror(errno));
-    std::string line, shard;  // the shard line: CSV's first line, JSON's first header item
+    std::string line, shard;  // the shard line: after '# schema: 1', JSON's first header item
     while (std::getline(in, line)) {
       json = json || (header.empty() && shard.empty() && line.starts_with("{\"schema\": "));
       if (shard.empty() && line.starts_with(json ? "\"shard " : "# shard ")) {
@@ -122,11 +122,13 @@ Shard::Shard(std::size_t number, std::size_t shards, std::size_t rows)
     count_ += std::min(block_, rows - b * block_);
 }
 
-std::string Shard::header_line() const {
-  return std::string(shard_prefix) + std::to_string(number_) + "/" + std::to_string(shards_) +
-         ": blocks of " + std::to_string(block_) + " of the " + std::to_string(rows_) +
-         " rows, those numbered " + std::to_string(number_ - 1) + " mod " +
-         std::to_string(shards_) + " (pendavg merge joins the shards)\n";
+std::string Shard::marked(std::string header) const {
+  return header.insert(header.find('\n') + 1,
+                       std::string(shard_prefix) + std::to_string(number_) + "/" +
+                           std::to_string(shards_) + ": blocks of " + std::to_string(block_) +
+                           " of the " + std::to_string(rows_) + " rows, those numbered " +
+                           std::to_string(number_ - 1) + " mod " + std::to_string(shards_) +
+                           " (pendavg merge joins the shards)\n");
 }
 
 std::optional<Shard> shard_option(const Options& options, std::string_view command,

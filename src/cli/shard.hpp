@@ -7,7 +7,8 @@
 // shard gets ~16 blocks spread over the sweep, whose cost often grows along it); shard K takes
 // blocks K-1, K-1+N, K-1+2N, ... A pure function of the row count and N: no timing, no
 // coordination. A shard's file is the sweep's file (header, column line, its rows in order) with
-// one more first line naming the shard, which --resume and merge check.
+// one more header line after '# schema: 1' (JSON: the first header item) naming the shard, which
+// --resume and merge check.
 #pragma once
 
 #include "args.hpp"
@@ -16,6 +17,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace pendavg::cli {
 
@@ -28,12 +30,17 @@ class Shard {
   std::size_t row(std::size_t local) const {
     return (number_ - 1 + shards_ * (local / block_)) * block_ + local % block_;
   }
-  /// The first line of the shard's file (with its newline).
-  std::string header_line() const;
+  /// The sweep's CSV header `header` with the shard's line after its first line (the schema's).
+  std::string marked(std::string header) const;
 
  private:
   std::size_t number_, shards_, rows_, block_, count_ = 0;
 };
+
+/// `header` as a shard's file has it (Shard::marked), or as it is without a shard.
+inline std::string marked(const std::optional<Shard>& shard, std::string header) {
+  return shard ? shard->marked(std::move(header)) : header;
+}
 
 /// --shard K/N of `command` (nothing when not given) for a sweep of `rows` rows; usage_error for
 /// a malformed value or K outside 1..N.

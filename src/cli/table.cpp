@@ -910,9 +910,8 @@ std::string run_table(const Options& options) {
 
   const io::RowWriter rows_format = table_row_writer(options, request, methods);
   run_table(request, space, row_options, target, rows_format,
-            sweep_header(rows_format, "table",
-                         (shard ? shard->header_line() : "") +
-                             table_header(request, methods, space.count())),
+            sweep_header(rows_format, "table", marked(shard, table_header(request, methods,
+                                                                          space.count()))),
             threads, shard);
   return {};
 }

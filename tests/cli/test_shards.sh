@@ -46,6 +46,9 @@ same_merged() {
       "$pendavg" "$@" --shard "$k/$n" --output "$work/shard$k.csv" 2>/dev/null ||
         fail "$name: shard $k/$n" "exit 0" "exit $?"
     done
+    # A shard's file starts as every output does; its shard line follows the schema's.
+    check "$name: shard 1/$n starts with '# schema: 1', then its shard line" \
+      test "$(head -c 20 "$work/shard1.csv")" = "$(printf '# schema: 1\n# shard ')"
     local expected="exit 0, nothing printed, the serial file"
     run merge --output "$work/merged.csv" $(ls "$work"/shard*.csv | sort -r)
     if [ "$rc" -ne 0 ]; then
