@@ -99,7 +99,7 @@ killed_and_resumed() {
     [ "$(row_count "$out".tmp.*)" -ge 1 ] && break
     sleep 0.1
   done
-  delay=$(/usr/bin/python3 -c "import random; print(round(random.uniform(0, ${kill_delay_max:-1}), 2))")
+  delay=$("$python" -c "import random; print(round(random.uniform(0, ${kill_delay_max:-1}), 2))")
   sleep "$delay"
   { kill -KILL "$pid" && wait "$pid"; } 2>/dev/null  # (no "Killed" job notice)
   # The whole job goes, as when its node is lost: the ranks of a SIGKILLed mpirun can live on as

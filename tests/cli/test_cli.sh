@@ -820,7 +820,7 @@ case:table.methods() {
 good "table chain torus-gauss" 'grep -q "^3,16," "$work/out"' table --chain 3 --beta 1 --method torus-gauss --tol 1e-8
 good "table pendulum torus"   'grep -q "^2,16," "$work/out"' table --beta 1 --method torus-trapezoid --tol 1e-10
 # Microcanonical qmc runs as far as its lattices go (N <= 256), from the CLI as from the library.
-good "micro qmc N = 40"       'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert o[\"N\"] == 40 and len(o[\"K\"]) == 40" "$work/out"' \
+good "micro qmc N = 40"       '"$python" -c "import json,sys; o=json.load(open(sys.argv[1])); assert o[\"N\"] == 40 and len(o[\"K\"]) == 40" "$work/out"' \
   average --masses "$(printf '1%.0s,' {1..39})1" --lengths "$(printf '1%.0s,' {1..39})1" --energy 0 --samples 1024 --shifts 8 --format json
 good "table --help"           'grep -q "usage" "$work/out"' table --help
 }
@@ -1259,7 +1259,7 @@ bad "micro mass ratio 1e300"   average --masses 1,1,1e300 --lengths 1,1,1 --ener
 bad "micro subnormal excitation" average --masses 1,1 --lengths 1,1 --excitation 1e-310
 printf 'energy,m1,m2,l1,l2\n0,1,1,1,1\n1e308,1,1,1,1\n' >"$work/micro_far.csv"
 bad "micro cases energy 1e308" average --cases "$work/micro_far.csv"
-good "micro energy 1e300 in MPFR" 'python3 -c "import json,sys; o=json.load(open(sys.argv[1])); assert abs(float(o[\"K\"][0]) / 1e300 - 0.3431834814709248549) < 1e-15" "$work/out"' \
+good "micro energy 1e300 in MPFR" '"$python" -c "import json,sys; o=json.load(open(sys.argv[1])); assert abs(float(o[\"K\"][0]) / 1e300 - 0.3431834814709248549) < 1e-15" "$work/out"' \
   average --masses 1,1 --lengths 1,1 --energy 1e300 --digits 20 --format json
 # The transfer operator's double range (total over lightest mass <= 1e150), before any work.
 bad "transfer mass ratio 1e200" average --masses 1e-100,1e100,1,1e-100,1e100 --lengths 1,1,1,1,1 --beta 1
