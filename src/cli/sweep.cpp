@@ -85,55 +85,42 @@ struct Finished {
 
 // ---------------------------------------------------------------- wire format
 
-/// A rows message: the rows' text as it is (moved, not copied), the times, the failures'
+/// A rows message: the rows' text as it is (moved, not copied), the times, the two failures'
 /// messages, then a Tail that says how long each part is (messages stay within one job: one
 /// binary, one byte order).
 struct Tail {
   std::uint64_t first, count, failed_rows, times;
-  std::uint64_t failure[3], first_failed[3];  ///< kind (0: none, 2: bad input), row, length
+  std::uint64_t kind[2], row[2], length[2];  ///< failure, first_failed: 0 none, 2 bad input
 };
 
-void put_failure(std::uint64_t (&slot)[3], std::string& bytes,
-                 const std::optional<RowFailure>& failure) {
-  slot[0] = failure ? 1 + failure->bad_input : 0;
-  slot[1] = failure ? failure->row : 0;
-  slot[2] = failure ? failure->message.size() : 0;
-  if (failure) bytes += failure->message;
-}
-
 std::string pack_finished(Finished&& f) {
-  Tail tail{f.first, f.count, f.failed_rows, f.row_us.size(), {}, {}};
+  Tail tail{f.first, f.count, f.failed_rows, f.row_us.size(), {}, {}, {}};
   std::string bytes = std::move(f.text);
-  if (!f.row_us.empty())
-    bytes.append(reinterpret_cast<const char*>(f.row_us.data()), f.row_us.size() * sizeof(double));
-  put_failure(tail.failure, bytes, f.failure);
-  put_failure(tail.first_failed, bytes, f.first_failed);
+  bytes.append(reinterpret_cast<const char*>(f.row_us.data()), f.row_us.size() * sizeof(double));
+  for (int k = 0; k < 2; ++k)
+    if (const std::optional<RowFailure>& failure = k == 0 ? f.failure : f.first_failed) {
+      tail.kind[k] = 1 + failure->bad_input, tail.row[k] = failure->row;
+      tail.length[k] = failure->message.size();
+      bytes += failure->message;
+    }
   return bytes.append(reinterpret_cast<const char*>(&tail), sizeof tail);
 }
 
 Finished unpack_finished(std::string&& bytes) {
   Tail tail{};
   std::size_t end = bytes.size();
-  // The parts, taken from the end; the text is what is left.
-  const auto take = [&](std::uint64_t size) {
+  const auto take = [&](std::uint64_t size) {  // the parts, from the end
     if (size > end) throw std::runtime_error("sweep: truncated message");
     end -= static_cast<std::size_t>(size);
     return std::string_view(bytes).substr(end, static_cast<std::size_t>(size));
   };
   std::memcpy(&tail, take(sizeof tail).data(), sizeof tail);
-  const auto failure = [&](const std::uint64_t (&slot)[3]) -> std::optional<RowFailure> {
-    const std::string_view message = take(slot[2]);
-    if (slot[0] == 0) return std::nullopt;
-    return RowFailure{slot[1], slot[0] == 2, std::string(message)};
-  };
-  Finished f;
-  f.first = tail.first;
-  f.count = tail.count;
-  f.failed_rows = tail.failed_rows;
-  f.first_failed = failure(tail.first_failed);
-  f.failure = failure(tail.failure);
+  Finished f{tail.first, tail.count, {}, std::vector<double>(tail.times), {}, tail.failed_rows, {}};
+  for (int k = 1; k >= 0; --k)
+    if (const std::string_view message = take(tail.length[k]); tail.kind[k] != 0)
+      (k == 0 ? f.failure : f.first_failed) =
+          RowFailure{tail.row[k], tail.kind[k] == 2, std::string(message)};
   const std::string_view times = take(tail.times * sizeof(double));
-  f.row_us.resize(tail.times);
   if (!times.empty()) std::memcpy(f.row_us.data(), times.data(), times.size());
   bytes.resize(end);
   f.text = std::move(bytes);
