@@ -8,6 +8,7 @@
 #include "distribute.hpp"
 #include "files.hpp"
 #include "interrupt.hpp"
+#include "one_line.hpp"
 #include "shard.hpp"
 #include "sweep.hpp"
 #include "sweep_file.hpp"
@@ -512,7 +513,7 @@ std::string cases_header(const CasesFile& file, const std::string& path,
     if (settings.shifts) header += ", shifts = " + std::to_string(*settings.shifts);
     if (settings.seed) header += ", seed = " + std::to_string(*settings.seed);
     header += "\n# pendavg " + std::string(version()) + ", generated " + utc_timestamp() +
-              " (UTC) from " + path + "\n";
+              " (UTC) from " + escaped_line(path) + "\n";  // a line, whatever the name
   }
   append_csv_line(header, columns);
   header.pop_back();

@@ -285,7 +285,9 @@ void refuse_same_file(const std::string& output, std::string_view output_option,
   }
   if (same)
     throw usage_error(std::string(command) + ": --" + std::string(output_option) + " '" + output +
-                      "' names the same file as --" + std::string(input_option) +
+                      "' names the same file as " +
+                      (input_option.find(' ') == std::string_view::npos ? "--" : "") +
+                      std::string(input_option) +
                       ", which writing it would overwrite; choose another file");
 }
 

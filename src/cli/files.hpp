@@ -64,7 +64,8 @@ void probe_output(const std::string& path, std::string_view command);
 std::string resolved_path(const std::string& path, std::string_view command);
 
 /// Refuses (usage_error, one line) an output path that names the same file as an input path
-/// (or as another output): `--<output_option> X` would overwrite what `--<input_option>` reads.
+/// (or as another output): `--<output_option> X` would overwrite what `--<input_option>` reads
+/// (an `input_option` with a space says what the input is, e.g. "a shard", and is shown as is).
 void refuse_same_file(const std::string& output, std::string_view output_option,
                       const std::string& input, std::string_view input_option,
                       std::string_view command);

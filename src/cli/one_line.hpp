@@ -104,6 +104,10 @@ inline std::size_t after_characters(std::string_view text, std::size_t n) {
 
 }  // namespace one_line_detail
 
+/// `text` as one line with every character kept (escaped as above), never cut: a name written
+/// into a file's header line.
+inline std::string escaped_line(std::string_view text) { return one_line_detail::escaped(text); }
+
 /// `text` made safe to print as one line (see above).
 inline std::string one_line(std::string_view text) {
   using namespace one_line_limits;

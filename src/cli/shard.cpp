@@ -5,6 +5,7 @@
 #include "common.hpp"
 
 #include "files.hpp"
+#include "interrupt.hpp"
 #include "sweep.hpp"
 #include "sweep_file.hpp"
 #include "sweep_format.hpp"
@@ -15,11 +16,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <utility>
 #include <vector>
+
+#include <sys/resource.h>
 
 namespace pendavg::cli {
 
@@ -27,7 +32,8 @@ namespace {
 
 constexpr std::size_t blocks_per_shard = 16;
 constexpr std::string_view shard_prefix = "# shard ";
-constexpr std::string_view row_entry = "{\"row\": ", interrupted_item = "\"interrupted\": ";
+/// Beyond any sweep: a shard line claiming more is not one --shard wrote.
+constexpr unsigned long long max_shards = 999'999'999, max_rows = 1ull << 53;
 
 /// "K/N" as two integers (at most 9 digits each), or nothing.
 std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
@@ -52,7 +58,10 @@ struct ShardFile {
   std::size_t failed_taken = 0;
 
   explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
-    if (!in) refuse("cannot read '" + path + "': " + std::strerror(errno));
+    if (!in)
+      refuse("cannot read '" + path + "': " + std::strerror(errno) +
+             (errno == EMFILE ? " (more shards than this process may open: see ulimit -n)" : ""));
+    if (std::filesystem::is_directory(path)) refuse("'" + path + "' is a directory, not a shard");
     std::string line, shard;  // the shard line: after '# schema: 1', JSON's first header item
     while (std::getline(in, line)) {
       json = json || (header.empty() && shard.empty() && line.starts_with("{\"schema\": "));
@@ -66,28 +75,44 @@ struct ShardFile {
     if (shard.empty())
       refuse("'" + path + "' is not a shard (it has no line '# shard K/N ...', or JSON header "
              "item 'shard K/N ...', written by table or average --cases with --shard K/N)");
+    // The line --shard writes: K/N as --shard takes them, B as the rule makes it of N and rows.
     if (std::sscanf(shard.c_str(), "shard %llu/%llu: blocks of %llu of the %llu rows", &number,
-                    &shards, &block, &rows) != 4 || number < 1 || number > shards || block < 1)
-      refuse("'" + path + "': its shard line '" + shard.substr(0, 120) + "' cannot be read");
+                    &shards, &block, &rows) != 4 || number < 1 || number > shards ||
+        shards > max_shards || rows > max_rows || block != Shard(1, shards, rows).block())
+      refuse("'" + path + "': its shard line '" + shard.substr(0, 120) + "' is not one that "
+             "--shard K/N writes");
     if (!in) refuse("'" + path + "' ends before its rows begin");
-    if (!json) return;
-    // JSON: the failed rows' entries and the interruption follow the rows; read them first.
+    if (json) read_json_end();
+  }
+
+  /// JSON: the failed rows' entries and the interruption follow the rows: read first, and
+  /// checked to be the end the writer gives a complete shard (json_end) byte for byte.
+  void read_json_end() {
     const std::streampos rows_at = in.tellg();
-    std::string interrupted = "it ends before its document does";
-    for (bool after_rows = false; std::getline(in, line);) {
-      if (!after_rows) {
-        after_rows = line.starts_with(']');
-      } else if (line.starts_with(row_entry)) {
-        if (line.ends_with(',')) line.pop_back();
-        failed.emplace(std::strtoull(line.c_str() + row_entry.size(), nullptr, 10), line);
-      } else if (line.starts_with(interrupted_item)) {
-        const std::string what = line.substr(interrupted_item.size(), line.size() - 16);
-        interrupted = what == "null" ? "" : "interrupted: " + what.substr(0, 80);
-      }
+    std::string line, end;
+    while (std::getline(in, line) && !line.starts_with(']')) {
     }
-    if (!interrupted.empty()) incomplete(interrupted);
+    end = line + "\n" + std::string(std::istreambuf_iterator<char>(in), {});
+    std::vector<std::string> entries;
+    for (std::size_t at = end.find("\n{\"row\": "); at != std::string::npos;
+         at = end.find("\n{\"row\": ", at + 1)) {
+      std::string entry = end.substr(at + 1, end.find('\n', at + 1) - at - 1);
+      if (entry.ends_with(',')) entry.pop_back();
+      const std::size_t row = std::strtoull(entry.c_str() + 8, nullptr, 10);
+      if (!failed.empty() && row <= failed.rbegin()->first) break;  // out of order: refused below
+      failed.emplace(row, entry);
+      entries.push_back(std::move(entry));
+    }
+    if (end != json_end(entries, {})) {
+      if (!line.starts_with(']')) incomplete("it ends before its document does");
+      if (const std::size_t at = end.find("\n\"interrupted\": \""); at != std::string::npos)
+        incomplete("interrupted: " +
+                   end.substr(at + 16, std::min<std::size_t>(80, end.find("\"}", at) - at - 15)));
+      refuse("'" + path + "': what follows its rows is not the end of a shard pendavg writes");
+    }
     in.clear();
-    in.seekg(rows_at);
+    if (!in.seekg(rows_at))
+      refuse("'" + path + "' cannot be read twice (a pipe?): a JSON shard must be a file");
   }
 
   std::string_view format() const {
@@ -116,8 +141,8 @@ struct ShardFile {
 
 Shard::Shard(std::size_t number, std::size_t shards, std::size_t rows)
     : number_(number), shards_(shards), rows_(rows),
-      block_(std::max<std::size_t>(1, (rows + blocks_per_shard * shards - 1) /
-                                          (blocks_per_shard * shards))) {
+      block_(std::max<std::size_t>(1, rows / (blocks_per_shard * shards) +
+                                          (rows % (blocks_per_shard * shards) != 0))) {
   for (std::size_t b = number - 1; b * block_ < rows; b += shards)
     count_ += std::min(block_, rows - b * block_);
 }
@@ -151,7 +176,7 @@ constexpr std::string_view merge_usage =
     "\n"
     "Joins the files of the shards of one sweep (pendavg table or average with a cases file, run\n"
     "as shard K of N for K = 1..N, e.g. the tasks of a job array: see their help) into FILE,\n"
-    "written atomically: the header (without the shard line, with the first shard's date) and\n"
+    "written atomically: the header (shard 1's, without the shard line: its date) and\n"
     "every row in the order of the whole sweep, the file one run of the sweep writes. Refuses\n"
     "shards of different sweeps (any other header line differing), a shard given twice, one\n"
     "missing, and a shard that is incomplete (interrupted: resume it as the same shard first)\n"
@@ -164,6 +189,12 @@ std::string run_merge(const Options& options) {
   if (output.empty()) refuse("--output needs a file name");
   if (options.operands().empty())
     refuse("no shard files given (pendavg merge --output FILE SHARD...)");
+  const StopOnSignal signals;
+  // Every shard stays open (the rows interleave by blocks): as many files as the system allows.
+  if (rlimit limit{}; getrlimit(RLIMIT_NOFILE, &limit) == 0 && limit.rlim_cur < limit.rlim_max) {
+    limit.rlim_cur = limit.rlim_max;
+    setrlimit(RLIMIT_NOFILE, &limit);
+  }
   std::vector<std::unique_ptr<ShardFile>> files;
   for (const std::string& path : options.operands()) {
     refuse_same_file(output, "output", path, "a shard", "merge");
@@ -172,9 +203,9 @@ std::string run_merge(const Options& options) {
   // One sweep: the same N, rows and blocks, the same header (up to the date), each K once. A
   // shard of another format or output schema has another header line: the refusal names it.
   const ShardFile& first = *files.front();
-  std::vector<ShardFile*> by_number(first.shards, nullptr);
+  std::map<unsigned long long, ShardFile*> numbered;
   for (const auto& f : files) {
-    if (f->shards != first.shards || f->rows != first.rows || f->block != first.block)
+    if (f->shards != first.shards || f->rows != first.rows)
       refuse("'" + f->path + "' is shard " + std::to_string(f->number) + "/" +
              std::to_string(f->shards) + " of " + std::to_string(f->rows) + " rows, '" +
              first.path + "' of " + std::to_string(first.shards) + " shards of " +
@@ -190,22 +221,26 @@ std::string run_merge(const Options& options) {
       refuse("'" + f->path + "' and '" + first.path + "' are shards of different sweeps: the "
              "line '" + (theirs == f->header.end() ? "" : theirs->substr(0, 100)) + "' of one "
              "is '" + (ours == first.header.end() ? "" : ours->substr(0, 100)) + "' in the other");
-    ShardFile*& slot = by_number[f->number - 1];
-    if (slot)
-      refuse("'" + slot->path + "' and '" + f->path + "' are both shard " +
+    if (const auto [at, added] = numbered.emplace(f->number, f.get()); !added)
+      refuse("'" + at->second->path + "' and '" + f->path + "' are both shard " +
              std::to_string(f->number) + "/" + std::to_string(f->shards) + " (overlapping rows)");
-    slot = f.get();
   }
-  for (std::size_t k = 0; k < by_number.size(); ++k)
-    if (!by_number[k])
-      refuse("shard " + std::to_string(k + 1) + "/" + std::to_string(first.shards) +
-             " is missing (its rows would be missing)");
-  std::string text, line;
-  for (const std::string& header_line : first.header) (text += header_line) += '\n';
+  if (numbered.size() != first.shards) {  // the first number not given
+    unsigned long long missing = 1;
+    for (auto at = numbered.begin(); at != numbered.end() && at->first == missing; ++at) ++missing;
+    refuse("shard " + std::to_string(missing) + "/" + std::to_string(first.shards) +
+           " is missing (its rows would be missing)");
+  }
+  std::vector<ShardFile*> by_number;
+  for (const auto& [number, f] : numbered) by_number.push_back(f);
+  std::string text, line;  // the header: shard 1's (its date, its cases file's path)
+  for (const std::string& header_line : by_number[0]->header) (text += header_line) += '\n';
   AtomicFile file(output, "merge");
   std::size_t failed = 0, written = 0;
   std::vector<std::string> failed_entries;  // JSON: after the rows
   for (std::size_t r = 0; r < first.rows; ++r) {
+    if (stop_flag().load(std::memory_order_relaxed))
+      throw interrupted("merge: stopped by a signal; nothing written to '" + output + "'");
     ShardFile& f = *by_number[r / first.block % first.shards];
     if (const auto entry = f.failed.find(r); entry != f.failed.end()) {
       failed_entries.push_back(std::move(entry->second));

@@ -26,6 +26,7 @@ class Shard {
   /// Shard `number` (1..shards) of a sweep of `rows` rows.
   Shard(std::size_t number, std::size_t shards, std::size_t rows);
   std::size_t count() const { return count_; }  ///< rows of this shard
+  std::size_t block() const { return block_; }  ///< rows of a block
   /// The sweep's row of this shard's row `local` (0..count()-1).
   std::size_t row(std::size_t local) const {
     return (number_ - 1 + shards_ * (local / block_)) * block_ + local % block_;

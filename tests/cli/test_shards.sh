@@ -125,6 +125,80 @@ bad "merge: output is a shard" merge --output "$work/t1.csv" "$work/t1.csv" "$wo
 check "merge refusals wrote nothing" test ! -e "$work/m.csv"
 check "merge refusals left no temporary" no_temporaries
 }
+# Shards damaged after they were written, or that no --shard writes: refused in one line, and
+# nothing written (JSON's end after the rows is checked byte for byte as CSV's rows are).
+case:merge.damaged() {
+local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) f k
+for f in csv json; do
+  for k in 1 2 3; do "$pendavg" "${quick[@]}" --format "$f" --shard "$k/3" --output "$work/q$k.$f"; done
+done
+# JSON: something after the document, its "failed" line gone, a line of its end twice
+{ cat "$work/q3.json"; echo garbage; } >"$work/after.json"
+bad "merge: a JSON shard with text after its end" merge --output "$work/m.json" "$work/q1.json" "$work/q2.json" "$work/after.json"
+grep -v '^"failed": \[\],$' "$work/q2.json" >"$work/nofailed.json"
+bad "merge: a JSON shard without its failed list" merge --output "$work/m.json" "$work/q1.json" "$work/nofailed.json" "$work/q3.json"
+sed '/^"interrupted": null}$/i "interrupted": "SIGTERM",' "$work/q2.json" >"$work/twice.json"
+bad "merge: a JSON shard with two interruptions" merge --output "$work/m.json" "$work/q1.json" "$work/twice.json" "$work/q3.json"
+bad "merge: a JSON shard read from a pipe (it is read twice)" merge --output "$work/m.json" "$work/q1.json" <(cat "$work/q2.json") "$work/q3.json"
+# the shard lines: a block size the rule does not give, a shard count beyond --shard's
+sed -i '0,/blocks of 2 /s//blocks of 3 /' "$work/q1.csv" "$work/q2.csv" "$work/q3.csv"
+bad "merge: shards whose blocks are not the rule's" merge --output "$work/m.csv" "$work/q1.csv" "$work/q2.csv" "$work/q3.csv"
+sed '0,/shard 1\/3/s//shard 1\/18446744073709551615/' "$work/q1.json" >"$work/huge.json"
+bad "merge: a shard of 2^64 - 1 shards" merge --output "$work/m.json" "$work/huge.json"
+# one real shard of 999999999: the 999999998 missing are named at once (no table of N slots)
+"$pendavg" table --beta 0.5,1 --mu1 0.5 --shard 1/999999999 --output "$work/one.csv"
+bad "merge: shard 1 of 999999999 alone" merge --output "$work/m.csv" "$work/one.csv"
+expect "... names shard 2 as missing" 'grep -q "shard 2/999999999 is missing" "$work/err"'
+mkdir -p "$work/adir"
+bad "merge: a directory" merge --output "$work/m.csv" "$work/adir"
+check "merge of damaged shards wrote nothing" test ! -e "$work/m.csv" -a ! -e "$work/m.json"
+check "... and left no temporary" no_temporaries
+}
+# The merged header is shard 1's (its date, its cases file's name), in whatever order the
+# shards are given.
+case:merge.header() {
+local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) k
+SOURCE_DATE_EPOCH=86400 "$pendavg" "${quick[@]}" --shard 1/3 --output "$work/d1.csv"
+for k in 2 3; do SOURCE_DATE_EPOCH=0 "$pendavg" "${quick[@]}" --shard "$k/3" --output "$work/d$k.csv"; done
+SOURCE_DATE_EPOCH=86400 "$pendavg" "${quick[@]}" --output "$work/d_serial.csv"
+run merge --output "$work/d_merged.csv" "$work/d3.csv" "$work/d2.csv" "$work/d1.csv"
+check "shards in reverse order, shard 1 of another date: the serial file of shard 1's date" \
+  cmp -s "$work/d_merged.csv" "$work/d_serial.csv"
+# A cases file whose name holds a newline: the header line stays one line (escaped), and the
+# file resumes and merges.
+local odd=$'odd\nname.csv'
+cp "$work/cases.csv" "$work/$odd"
+(cd "$work" && "$pendavg" average --cases "$odd" --output "$work/o_serial.csv" &&
+  for k in 1 2; do "$pendavg" average --cases "$odd" --shard "$k/2" --output "$work/o$k.csv"; done)
+check "a cases file named with a newline: one header line" \
+  test "$(grep -c '^# pendavg .* from odd name.csv$' "$work/o_serial.csv")" = 1
+run merge --output "$work/o_merged.csv" "$work/o2.csv" "$work/o1.csv"
+check "... its shards merge into the serial file" cmp -s "$work/o_merged.csv" "$work/o_serial.csv"
+(cd "$work" && "$pendavg" average --cases "$odd" --resume "$work/o_serial.csv" 2>"$work/err")
+check "... and the file resumes" test $? -eq 0
+}
+# A signal stops a merge: exit 130, one line, no output and no temporary (a shard read from a
+# FIFO that stalls keeps the merge running when the signal comes).
+case:merge.signal() {
+local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) k
+for k in 1 2; do "$pendavg" "${quick[@]}" --shard "$k/2" --output "$work/g$k.csv"; done
+mkfifo "$work/stall"
+(head -c 3000 "$work/g2.csv"; sleep 3; tail -c +3001 "$work/g2.csv") >"$work/stall" &
+"$pendavg" merge --output "$work/g.csv" "$work/g1.csv" "$work/stall" >"$work/out" 2>"$work/err" &
+local pid=$!
+sleep 1
+kill -TERM "$pid"
+wait "$pid"
+rc=$?
+wait
+if [ "$rc" -eq 130 ] && [ ! -e "$work/g.csv" ] && no_temporaries && [ ! -s "$work/out" ] &&
+   [ "$(wc -l <"$work/err")" -eq 1 ] && grep -q '^pendavg: interrupted: merge: ' "$work/err"; then
+  pass
+else
+  fail "merge stopped by SIGTERM" "exit 130, one 'pendavg: interrupted: merge:' line, no output, no temporary" \
+    "exit $rc, $(wc -l <"$work/err") stderr lines, output $([ -e "$work/g.csv" ] && echo written || echo absent)"
+fi
+}
 case:shard.refusals() {
 for spec in 0/3 4/3 3 a/3 2/0 -1/3 1/-3 "1/3x"; do bad "--shard $spec" "${table[@]}" --shard "$spec"; done
 bad "--shard with --timing" "${cases[@]}" --shard 1/2 --timing
