@@ -95,6 +95,12 @@ const RankPartition rank_partition;
 
 ProcessGroup::ProcessGroup(int& argc, char**& argv) {
   if (!launched_by_mpi()) return;
+  // Open MPI's shared-memory one-sided component (osc/sm: on one node when the vader BTL has no
+  // single-copy mechanism, btl_vader_single_copy_mechanism=none, as in containers) did not show
+  // the other ranks rank 0's own updates of the sweep's counters (Open MPI 4.1.4: a stop set by
+  // rank 0 never reached rank 1, which computed every row left); the other components do.
+  // Unless the user chose the component.
+  setenv("OMPI_MCA_osc", "^sm", 0);
   int provided = 0;
   if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
     std::fprintf(stderr, "pendavg: internal error: MPI_Init_thread failed\n");

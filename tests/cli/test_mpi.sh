@@ -154,6 +154,36 @@ killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed
   "${launcher[@]}" -n 2 "$faulty" "${sweep[@]}"
 }
 
+# A signal to rank 0 alone (a stop set on rank 0's own window) stops every rank: with Open MPI's
+# osc/sm (the launcher here has no single-copy mechanism) rank 1 never saw it and computed every
+# row left. Rank 0 is signalled once its temporary holds 10 rows; the others stop within the
+# rows' grace, so the file ends with far fewer than its 600 rows and an '# interrupted' line.
+case:stops.rank0_alone() {
+export OMP_NUM_THREADS=1
+local out=$work/stop.csv rank0="" pid k rows=0 temporary
+"${launcher[@]}" -n 2 "$pendavg" table --beta log:1:1000:200 --mu1 0.001,0.05,0.3 --digits 1000 \
+  --output "$out" >/dev/null 2>"$work/stop.err" &
+pid=$!
+for ((k = 0; k < 600 && rows < 10; ++k)); do
+  sleep 0.05
+  temporary=$(find "$work" -name 'stop.csv.tmp.*' | head -1)
+  [ -n "$temporary" ] && rows=$(grep -c '^2,' "$temporary")
+done
+for k in $(pgrep -f -- "--output $out"); do
+  tr '\0' '\n' <"/proc/$k/environ" 2>/dev/null | grep -qxE '(OMPI_COMM_WORLD_RANK|PMI_RANK)=0' && rank0=$k
+done
+[ -n "$rank0" ] && kill -TERM "$rank0"
+wait "$pid"
+local written
+written=$(grep -c '^2,' "$out" 2>/dev/null)
+if [ -n "$rank0" ] && grep -q '^# interrupted: ' "$out" && [ "${written:-600}" -lt 300 ]; then
+  pass
+else
+  fail "SIGTERM to rank 0 alone" "an '# interrupted' line, fewer than 300 of the 600 rows" \
+    "rank 0 ${rank0:-not found}, $(tail -n 1 "$out" 2>/dev/null | cut -c1-60), $written rows"
+fi
+}
+
 # The test build: a resumed file with holes (every third row missing) completed, and a file
 # written afresh, on 2 and 3 ranks with a reorder window of 16 rows (PENDAVG_SWEEP_WINDOW_ROWS:
 # rows wait for the window to move), are the serial file; the ranks other than 0 computed rows
