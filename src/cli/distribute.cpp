@@ -50,6 +50,22 @@ int launched_ranks() {
   return most;
 }
 
+void refuse_copies(const char* why) {
+  // Each process would run the whole command and write the same files: refuse instead (the
+  // first rank says so; every rank exits 2).
+  const int launched = launched_ranks();
+  if (launched <= 1) return;
+  const char* first_rank = nullptr;
+  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "SLURM_PROCID"})
+    if (!first_rank) first_rank = std::getenv(name);
+  if (!first_rank || std::atoi(first_rank) == 0)
+    std::fprintf(stderr,
+                 "pendavg: error: started as %d ranks (mpirun/srun), but %s: every rank would run "
+                 "the whole command; run one process, or use --shard K/N for a job array\n",
+                 launched, why);
+  std::exit(2);
+}
+
 std::uint64_t LocalSweepLink::fetch(Counter counter, Op op, std::uint64_t operand) {
   std::uint64_t& value = counters_[counter];
   const std::uint64_t before = value;

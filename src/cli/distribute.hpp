@@ -36,6 +36,9 @@ class ProcessGroup {
 /// The number of ranks an MPI launcher (mpirun, mpiexec, srun) started, from the environment it
 /// gives each process (1 when none did).
 int launched_ranks();
+/// When an MPI launcher started several ranks: says so with `why` this process does not join
+/// them (rank 0 only) and exits 2 on every rank. A process not started so returns.
+void refuse_copies(const char* why);
 
 int rank();   ///< this process' rank (0 in a plain run)
 int ranks();  ///< the number of ranks (1 in a plain run)

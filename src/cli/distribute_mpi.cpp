@@ -94,7 +94,10 @@ const RankPartition rank_partition;
 }  // namespace
 
 ProcessGroup::ProcessGroup(int& argc, char**& argv) {
-  if (!launched_by_mpi()) return;
+  if (!launched_by_mpi()) {  // started as several ranks only with PENDAVG_MPI=0
+    refuse_copies("PENDAVG_MPI=0 keeps this pendavg out of MPI");
+    return;
+  }
   // Open MPI's shared-memory one-sided component (osc/sm: on one node when the vader BTL has no
   // single-copy mechanism, btl_vader_single_copy_mechanism=none, as in containers) did not show
   // the other ranks rank 0's own updates of the sweep's counters (Open MPI 4.1.4: a stop set by

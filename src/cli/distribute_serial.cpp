@@ -8,20 +8,7 @@
 namespace pendavg::cli {
 
 ProcessGroup::ProcessGroup(int&, char**&) {
-  // Started as one of several ranks, each process would run the whole command and write the same
-  // files: refuse instead (the first rank says so; every rank exits 2).
-  const int launched = launched_ranks();
-  if (launched <= 1) return;
-  const char* first_rank = nullptr;
-  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "SLURM_PROCID"})
-    if (!first_rank) first_rank = std::getenv(name);
-  if (!first_rank || std::atoi(first_rank) == 0)
-    std::fprintf(stderr,
-                 "pendavg: error: started as %d ranks (mpirun/srun), but this pendavg was built "
-                 "without MPI: every rank would run the whole command; run one process, or use "
-                 "--shard K/N for a job array\n",
-                 launched);
-  std::exit(2);
+  refuse_copies("this pendavg was built without MPI");
 }
 ProcessGroup::~ProcessGroup() = default;
 

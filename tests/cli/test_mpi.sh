@@ -221,6 +221,22 @@ for ranks in 2 3; do
 done
 }
 
+# PENDAVG_MPI=0 keeps the process out of MPI: started as several ranks, each would run the whole
+# command (silent copies), so it refuses as a build without MPI does: rank 0 in one line, every
+# rank exits 2, nothing written.
+case:refusals.mpi_off() {
+local refusal="^pendavg: error: started as 2 ranks (mpirun/srun), but PENDAVG_MPI=0 keeps this pendavg out of MPI: "
+PENDAVG_MPI=0 "${launcher[@]}" -x PENDAVG_MPI -n 2 "$pendavg" table --beta 1,2 --output "$work/off.csv" \
+  >"$work/out" 2>"$work/err"
+rc=$?
+if [ "$rc" -ne 0 ] && [ ! -s "$work/out" ] && [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
+   grep -q "$refusal" "$work/err" && [ -z "$(find "$work" -name 'off.csv*' | head -1)" ]; then
+  pass
+else
+  fail "PENDAVG_MPI=0 under mpirun -n 2" "a non-zero exit, one line '$refusal...', no file" \
+    "exit $rc, $(grep -c '^pendavg: ' "$work/err") pendavg lines"
+fi
+}
 # Bad input: every rank refuses it, rank 0 alone says so (mpirun may add its own lines).
 case:refusals.bad_input() {
 "${launcher[@]}" -n 2 "$pendavg" table --beta log:1e-3:1e300:60 --digits 16,600 >"$work/out" 2>"$work/err"
