@@ -78,6 +78,15 @@ same_on_ranks() {
   done
 }
 
+# 20,000 double rows (cases.csv ten times) on 1-3 ranks: with Open MPI's osc/sm under this
+# launcher (no single-copy mechanism) the ranks other than 0 never saw rank 0 move the reorder
+# window and the job hung; every run here is bounded (a liveness check, not a timing).
+case:ranks.many_rows() {
+{ head -n 1 "$work/cases.csv"; for k in 1 2 3 4 5 6 7 8 9 10; do tail -n +2 "$work/cases.csv"; done; } \
+  >"$work/many.csv"
+launcher=(timeout 120 "${launcher[@]}")
+same_on_ranks "20,000 double rows" average --cases "$work/many.csv"
+}
 # --cases: 2,000 rows at 38 digits, to stdout and to a file.
 case:ranks.cases_38_digits() {
 same_on_ranks "cases 2000 rows, 38 digits" average --cases "$work/cases.csv" --digits 38
