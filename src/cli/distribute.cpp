@@ -66,21 +66,31 @@ void refuse_copies(const char* why) {
   std::exit(2);
 }
 
-std::uint64_t LocalSweepLink::fetch(Counter counter, Op op, std::uint64_t operand) {
-  std::uint64_t& value = counters_[counter];
-  const std::uint64_t before = value;
-  switch (op) {
-    case Op::add: value += operand; break;
-    case Op::bit_or: value |= operand; break;
-    case Op::replace: value = operand; break;
-    case Op::read: break;
-  }
-  return before;
-}
+namespace {
 
-void LocalSweepLink::send(int, std::string) {
-  throw std::logic_error("LocalSweepLink::send: a single process has no rank 0 to send to");
-}
+class LocalSweepLink final : public SweepLink {
+ public:
+  int rank() const override { return 0; }
+  int ranks() const override { return 1; }
+  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override {
+    const std::uint64_t before = counters_[counter];
+    if (op == Op::add) counters_[counter] += operand;
+    if (op == Op::bit_or) counters_[counter] |= operand;
+    if (op == Op::replace) counters_[counter] = operand;
+    return before;
+  }
+  void send(int, std::string) override {
+    throw std::logic_error("sweep link: a single process has no rank 0 to send to");
+  }
+  std::optional<Message> receive() override { return std::nullopt; }
+
+ private:
+  std::uint64_t counters_[3] = {};
+};
+
+}  // namespace
+
+std::unique_ptr<SweepLink> local_sweep_link() { return std::make_unique<LocalSweepLink>(); }
 
 int report_failure(const std::exception_ptr& failure) {
   try {

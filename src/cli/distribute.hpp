@@ -57,7 +57,7 @@ const ShiftPartition* shift_partition();
 
 /// What the ranks of one sweep share (sweep.hpp), and all they need of each other: three
 /// counters kept by rank 0 that every rank changes atomically, and messages to rank 0. A plain
-/// run has one rank and keeps the counters in memory (LocalSweepLink); an MPI job keeps them in
+/// run has one rank and keeps the counters in memory (local_sweep_link); an MPI job keeps them in
 /// a window in rank 0's memory (MPI_Fetch_and_op: passive target, no answer from rank 0 awaited);
 /// the unit tests connect ranks that are threads of one process.
 class SweepLink {
@@ -84,19 +84,9 @@ class SweepLink {
 };
 
 /// The link of a single process: the counters in memory, no messages.
-class LocalSweepLink final : public SweepLink {
- public:
-  int rank() const override { return 0; }
-  int ranks() const override { return 1; }
-  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override;
-  void send(int, std::string) override;
-  std::optional<Message> receive() override { return std::nullopt; }
+std::unique_ptr<SweepLink> local_sweep_link();
 
- private:
-  std::uint64_t counters_[3] = {};
-};
-
-/// Collective: the link of the ranks of this job (a LocalSweepLink in a plain run or on one
+/// Collective: the link of the ranks of this job (local_sweep_link in a plain run or on one
 /// rank). Its destruction is collective too, except while an exception leaves the sweep on this
 /// rank: then its share is let go here and the rest waits for the ranks' farewell.
 std::unique_ptr<SweepLink> open_sweep_link();

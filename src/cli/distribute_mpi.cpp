@@ -268,7 +268,7 @@ class MpiSweepLink final : public SweepLink {
 }  // namespace
 
 std::unique_ptr<SweepLink> open_sweep_link() {
-  if (!joined || my_size == 1) return std::make_unique<LocalSweepLink>();
+  if (!joined || my_size == 1) return local_sweep_link();
   return std::make_unique<MpiSweepLink>();
 }
 

@@ -21,7 +21,7 @@ std::vector<double> all_gather(std::span<const double> local) {
   return {local.begin(), local.end()};
 }
 const ShiftPartition* shift_partition() { return nullptr; }
-std::unique_ptr<SweepLink> open_sweep_link() { return std::make_unique<LocalSweepLink>(); }
+std::unique_ptr<SweepLink> open_sweep_link() { return local_sweep_link(); }
 
 FailureReach failure_reach() { return FailureReach::every_rank; }
 void abort_job(int code) { exit_process(code); }
