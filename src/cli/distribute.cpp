@@ -38,6 +38,26 @@ int report(std::string_view kind, std::string_view text, int exit_code) {
   return exit_code;
 }
 
+class LocalSweepLink final : public SweepLink {
+ public:
+  int rank() const override { return 0; }
+  int ranks() const override { return 1; }
+  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override {
+    const std::uint64_t before = counters_[counter];
+    if (op == Op::add) counters_[counter] += operand;
+    if (op == Op::bit_or) counters_[counter] |= operand;
+    if (op == Op::replace) counters_[counter] = operand;
+    return before;
+  }
+  void send(int, std::string) override {
+    throw std::logic_error("sweep link: a single process has no rank 0 to send to");
+  }
+  std::optional<Message> receive() override { return std::nullopt; }
+
+ private:
+  std::uint64_t counters_[3] = {};
+};
+
 }  // namespace
 
 int launched_ranks() {
@@ -66,31 +86,15 @@ void refuse_copies(const char* why) {
   std::exit(2);
 }
 
-namespace {
-
-class LocalSweepLink final : public SweepLink {
- public:
-  int rank() const override { return 0; }
-  int ranks() const override { return 1; }
-  std::uint64_t fetch(Counter counter, Op op, std::uint64_t operand) override {
-    const std::uint64_t before = counters_[counter];
-    if (op == Op::add) counters_[counter] += operand;
-    if (op == Op::bit_or) counters_[counter] |= operand;
-    if (op == Op::replace) counters_[counter] = operand;
-    return before;
-  }
-  void send(int, std::string) override {
-    throw std::logic_error("sweep link: a single process has no rank 0 to send to");
-  }
-  std::optional<Message> receive() override { return std::nullopt; }
-
- private:
-  std::uint64_t counters_[3] = {};
-};
-
-}  // namespace
-
 std::unique_ptr<SweepLink> local_sweep_link() { return std::make_unique<LocalSweepLink>(); }
+
+ProcessGroup::~ProcessGroup() { leave_job(); }
+
+void exit_process(int code) {
+  std::fflush(nullptr);
+  leave_job();
+  std::_Exit(code);
+}
 
 int report_failure(const std::exception_ptr& failure) {
   try {

@@ -15,16 +15,15 @@
 #include <exception>
 #include <memory>
 #include <optional>
-#include <span>
 #include <string>
-#include <vector>
 
 namespace pendavg::cli {
 
 /// Joins the MPI job when the process was started by an MPI launcher (mpirun, mpiexec, srun;
 /// PENDAVG_MPI=1 forces it, =0 prevents it) and leaves it on destruction. One per process, in
-/// main(). A build without MPI started as one of several ranks (launched_ranks() > 1) refuses:
-/// each rank would run the whole command and write the same files.
+/// main(). A process started as one of several ranks (launched_ranks() > 1) that cannot join
+/// them refuses (refuse_copies): a build without MPI, PENDAVG_MPI=0, or ranks MPI does not
+/// connect (srun --mpi=none). Each would run the whole command and write the same files.
 class ProcessGroup {
  public:
   ProcessGroup(int& argc, char**& argv);
@@ -48,8 +47,6 @@ inline bool is_root() { return rank() == 0; }
 std::uint64_t min_over_ranks(std::uint64_t value);
 /// Collective: rank 0's `text` on every rank.
 std::string broadcast_from_root(std::string text);
-/// Collective: every rank's `local` values concatenated in rank order, on every rank.
-std::vector<double> all_gather(std::span<const double> local);
 
 /// The shifts of one qmc average shared by all ranks (pendavg::ShiftPartition); null in a plain
 /// run.
@@ -66,8 +63,7 @@ class SweepLink {
   enum class Op { add, bit_or, replace, read };
   enum Tag : int { rows = 1, finished = 2 };  ///< messages to rank 0: rows, then one finished
   struct Message {
-    int source = 0;
-    int tag = 0;
+    int source = 0, tag = 0;
     std::string payload;
   };
   virtual ~SweepLink() = default;
@@ -101,6 +97,9 @@ int report_failure(const std::exception_ptr& failure);
 /// Ends the process now with `code`, after flushing stdio and leaving the MPI job: for a run
 /// whose compute threads were left behind (an interrupted sweep with rows still running).
 [[noreturn]] void exit_process(int code);
+/// Leaves the MPI job, once (meets the other ranks at their end, MPI_Finalize); nothing in a
+/// plain run. For ~ProcessGroup and exit_process.
+void leave_job();
 
 /// After a failure on this rank, where the others are (every rank calls this or ends normally;
 /// the failed rank waits up to failure_agreement_seconds for them): every rank failed too (the

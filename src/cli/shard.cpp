@@ -11,7 +11,6 @@
 #include "sweep_format.hpp"
 
 #include <cerrno>
-#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -31,19 +30,8 @@ namespace pendavg::cli {
 namespace {
 
 constexpr std::size_t blocks_per_shard = 16;
-constexpr std::string_view shard_prefix = "# shard ";
 /// Beyond any sweep: a shard line claiming more is not one --shard wrote.
 constexpr unsigned long long max_shards = 999'999'999, max_rows = 1ull << 53;
-
-/// "K/N" as two integers (at most 9 digits each), or nothing.
-std::optional<std::pair<std::size_t, std::size_t>> parse_fraction(std::string_view text) {
-  std::size_t k = 0, n = 0;
-  const char* const end = text.data() + text.size();
-  const auto [slash, k_error] = std::from_chars(text.data(), std::min(end, text.data() + 9), k);
-  if (k_error != std::errc() || slash == end || *slash != '/') return std::nullopt;
-  const auto [last, n_error] = std::from_chars(slash + 1, std::min(end, slash + 10), n);
-  return n_error == std::errc() && last == end ? std::optional(std::pair{k, n}) : std::nullopt;
-}
 
 [[noreturn]] void refuse(const std::string& what) { throw usage_error("merge: " + what); }
 
@@ -54,8 +42,7 @@ struct ShardFile {
   bool json = false;
   std::vector<std::string> header;  ///< up to the column line (JSON: the "rows": [ line)
   unsigned long long number = 0, shards = 0, rows = 0, block = 0;
-  std::map<std::size_t, std::string> failed;  ///< JSON: the failed rows' entries, by row
-  std::size_t failed_taken = 0;
+  std::map<std::size_t, std::string> failed;  ///< JSON: the failed rows' entries not merged yet
 
   explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
     if (!in)
@@ -149,7 +136,7 @@ Shard::Shard(std::size_t number, std::size_t shards, std::size_t rows)
 
 std::string Shard::marked(std::string header) const {
   return header.insert(header.find('\n') + 1,
-                       std::string(shard_prefix) + std::to_string(number_) + "/" +
+                       "# shard " + std::to_string(number_) + "/" +
                            std::to_string(shards_) + ": blocks of " + std::to_string(block_) +
                            " of the " + std::to_string(rows_) + " rows, those numbered " +
                            std::to_string(number_ - 1) + " mod " + std::to_string(shards_) +
@@ -159,16 +146,20 @@ std::string Shard::marked(std::string header) const {
 std::optional<Shard> shard_option(const Options& options, std::string_view command,
                                   std::size_t rows) {
   if (!options.has("shard")) return std::nullopt;
-  const std::string_view text = options.get("shard", "");
-  const auto fraction = parse_fraction(text);
-  if (!fraction || fraction->first < 1 || fraction->first > fraction->second)
+  // K/N: digits only, at most 9 each (N <= max_shards), nothing after them.
+  const std::string text(options.get("shard", ""));
+  unsigned long k = 0, n = 0;
+  int length = 0;
+  if (text.find_first_not_of("0123456789/") != std::string::npos ||
+      std::sscanf(text.c_str(), "%9lu/%9lu%n", &k, &n, &length) != 2 ||
+      length != static_cast<int>(text.size()) || k < 1 || k > n)
     throw usage_error(std::string(command) + ": --shard takes K/N with 1 <= K <= N (e.g. 3/8), "
-                      "not '" + std::string(text) + "'");
+                      "not '" + text + "'");
   for (const std::string_view timing : {"timing", "timing-rows"})
     if (options.has(timing))
       throw usage_error(std::string(command) + ": --shard and --" + std::string(timing) +
                         " cannot be combined");
-  return Shard(fraction->first, fraction->second, rows);
+  return Shard(k, n, rows);
 }
 
 constexpr std::string_view merge_usage =
@@ -231,20 +222,18 @@ std::string run_merge(const Options& options) {
     refuse("shard " + std::to_string(missing) + "/" + std::to_string(first.shards) +
            " is missing (its rows would be missing)");
   }
-  std::vector<ShardFile*> by_number;
-  for (const auto& [number, f] : numbered) by_number.push_back(f);
   std::string text, line;  // the header: shard 1's (its date, its cases file's path)
-  for (const std::string& header_line : by_number[0]->header) (text += header_line) += '\n';
+  for (const std::string& header_line : numbered.at(1)->header) (text += header_line) += '\n';
   AtomicFile file(output, "merge");
   std::size_t failed = 0, written = 0;
   std::vector<std::string> failed_entries;  // JSON: after the rows
   for (std::size_t r = 0; r < first.rows; ++r) {
     if (stop_flag().load(std::memory_order_relaxed))
       throw interrupted("merge: stopped by a signal; nothing written to '" + output + "'");
-    ShardFile& f = *by_number[r / first.block % first.shards];
+    ShardFile& f = *numbered.at(r / first.block % first.shards + 1);
     if (const auto entry = f.failed.find(r); entry != f.failed.end()) {
-      failed_entries.push_back(std::move(entry->second));
-      ++f.failed_taken, ++failed;
+      failed_entries.push_back(std::move(f.failed.extract(entry).mapped()));
+      ++failed;
       continue;
     }
     if (!f.next_row(line))
@@ -259,7 +248,7 @@ std::string run_merge(const Options& options) {
     }
   }
   for (const auto& f : files)
-    if (f->next_row(line) || f->failed_taken < f->failed.size())
+    if (f->next_row(line) || !f->failed.empty())
       refuse("'" + f->path + "' has more rows than its shard's blocks");
   if (first.json) text += json_end(failed_entries, {});
   file.append(text);

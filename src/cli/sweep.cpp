@@ -78,31 +78,29 @@ struct Finished {
   std::size_t first = 0, count = 0;
   std::string text;
   std::vector<double> row_us;
-  std::optional<RowFailure> failure;  ///< row first + count failed
-  std::size_t failed_rows = 0;        ///< rows among these written as failed rows
-  std::optional<RowFailure> first_failed;  ///< the first of them
+  /// The first row that failed: row first + count, which ended these rows (SweepRows::failed_row
+  /// unset), or the first of the rows written as failed rows (set).
+  std::optional<RowFailure> failure;
+  std::size_t failed_rows = 0;  ///< rows among these written as failed rows
 };
 
 // ---------------------------------------------------------------- wire format
 
-/// A rows message: the rows' text as it is (moved, not copied), the times, the two failures'
-/// messages, then a Tail that says how long each part is (messages stay within one job: one
+/// A rows message: the rows' text as it is (moved, not copied), the times, the failure's
+/// message, then a Tail that says how long each part is (messages stay within one job: one
 /// binary, one byte order).
 struct Tail {
   std::uint64_t first, count, failed_rows, times;
-  std::uint64_t kind[2], row[2], length[2];  ///< failure, first_failed: 0 none, 2 bad input
+  std::uint64_t failure_kind, failure_row, failure_length;  ///< kind: 0 none, 2 bad input
 };
 
 std::string pack_finished(Finished&& f) {
-  Tail tail{f.first, f.count, f.failed_rows, f.row_us.size(), {}, {}, {}};
+  const RowFailure failure = f.failure.value_or(RowFailure{});
+  const Tail tail{f.first, f.count, f.failed_rows, f.row_us.size(),
+                  f.failure ? 1u + failure.bad_input : 0u, failure.row, failure.message.size()};
   std::string bytes = std::move(f.text);
   bytes.append(reinterpret_cast<const char*>(f.row_us.data()), f.row_us.size() * sizeof(double));
-  for (int k = 0; k < 2; ++k)
-    if (const std::optional<RowFailure>& failure = k == 0 ? f.failure : f.first_failed) {
-      tail.kind[k] = 1 + failure->bad_input, tail.row[k] = failure->row;
-      tail.length[k] = failure->message.size();
-      bytes += failure->message;
-    }
+  bytes += failure.message;
   return bytes.append(reinterpret_cast<const char*>(&tail), sizeof tail);
 }
 
@@ -115,11 +113,9 @@ Finished unpack_finished(std::string&& bytes) {
     return std::string_view(bytes).substr(end, static_cast<std::size_t>(size));
   };
   std::memcpy(&tail, take(sizeof tail).data(), sizeof tail);
-  Finished f{tail.first, tail.count, {}, std::vector<double>(tail.times), {}, tail.failed_rows, {}};
-  for (int k = 1; k >= 0; --k)
-    if (const std::string_view message = take(tail.length[k]); tail.kind[k] != 0)
-      (k == 0 ? f.failure : f.first_failed) =
-          RowFailure{tail.row[k], tail.kind[k] == 2, std::string(message)};
+  Finished f{tail.first, tail.count, {}, std::vector<double>(tail.times), {}, tail.failed_rows};
+  if (const std::string_view message = take(tail.failure_length); tail.failure_kind != 0)
+    f.failure = RowFailure{tail.failure_row, tail.failure_kind == 2, std::string(message)};
   const std::string_view times = take(tail.times * sizeof(double));
   if (!times.empty()) std::memcpy(f.row_us.data(), times.data(), times.size());
   bytes.resize(end);
@@ -267,7 +263,7 @@ class ComputeTeam {
         done.text.resize(text_before);
         done.text += rows_.failed_row(i, failure->message);
         if (rows_.timing) done.row_us.push_back(-std::numeric_limits<double>::infinity());
-        if (!done.first_failed) done.first_failed = std::move(failure);
+        if (!done.failure) done.failure = std::move(failure);
         ++done.failed_rows;
       }
       ++done.count;
@@ -508,7 +504,7 @@ class RankSweep {
  private:
   /// Rows finished on rank `source` (0: this rank's team; rank 0 only for the others).
   void finished(Finished&& f, int source) {
-    if (f.failure && !stopping_) {
+    if (f.failure && !rows_.failed_row && !stopping_) {
       link_.fetch(SweepLink::stop, SweepLink::Op::bit_or, stop_row_failed);
       begin_stop();
     }
@@ -519,10 +515,10 @@ class RankSweep {
     }
     rows_per_rank_[static_cast<std::size_t>(source)] += f.count;
     outcome_.computed += f.count;
-    if (f.failure && (!failure_ || f.failure->row < failure_->row)) failure_ = f.failure;
     outcome_.failed_rows += f.failed_rows;
-    if (f.first_failed && (!first_failed_ || f.first_failed->row < first_failed_->row))
-      first_failed_ = std::move(f.first_failed);
+    // The first failure by index: one that stops the sweep, or the first failed row written.
+    std::optional<RowFailure>& first = rows_.failed_row ? first_failed_ : failure_;
+    if (f.failure && (!first || f.failure->row < first->row)) first = std::move(f.failure);
     writer_->add(std::move(f));
   }
 

@@ -246,6 +246,25 @@ else
     "exit $rc, $(grep -c '^pendavg: ' "$work/err") pendavg lines"
 fi
 }
+# A launcher whose ranks MPI does not connect (srun --mpi=none: Slurm's variables, each process an
+# MPI singleton): every rank refuses, the first says so once, no file.
+case:refusals.singletons() {
+local refusal="^pendavg: error: started as 2 ranks (mpirun/srun), but MPI sees one rank "
+for rank in 0 1; do
+  SLURM_STEP_NUM_TASKS=2 SLURM_PROCID=$rank timeout 60 "$pendavg" table --beta 1,2 \
+    --output "$work/single.csv" >"$work/out$rank" 2>"$work/err$rank" &
+done
+wait %1; rc0=$?
+wait %2; rc1=$?
+if [ "$rc0" -eq 2 ] && [ "$rc1" -eq 2 ] && [ ! -s "$work/out0" ] && [ ! -s "$work/out1" ] &&
+   [ "$(cat "$work/err0" "$work/err1" | grep -c '^pendavg: ')" -eq 1 ] && grep -q "$refusal" "$work/err0" &&
+   [ -z "$(find "$work" -name 'single.csv*' | head -1)" ]; then
+  pass
+else
+  fail "2 Slurm tasks that MPI does not connect" "exit 2 on both, one line '$refusal...', no file" \
+    "exits $rc0 and $rc1, $(cat "$work/err0" "$work/err1" | grep -c '^pendavg: ') pendavg lines"
+fi
+}
 # Bad input: every rank refuses it, rank 0 alone says so (mpirun may add its own lines).
 case:refusals.bad_input() {
 "${launcher[@]}" -n 2 "$pendavg" table --beta log:1e-3:1e300:60 --digits 16,600 >"$work/out" 2>"$work/err"
