@@ -250,12 +250,14 @@ fi
 # MPI singleton): every rank refuses, the first says so once, no file.
 case:refusals.singletons() {
 local refusal="^pendavg: error: started as 2 ranks (mpirun/srun), but MPI sees one rank "
+local pids=()
 for rank in 0 1; do
   SLURM_STEP_NUM_TASKS=2 SLURM_PROCID=$rank timeout 60 "$pendavg" table --beta 1,2 \
     --output "$work/single.csv" >"$work/out$rank" 2>"$work/err$rank" &
+  pids+=($!)
 done
-wait %1; rc0=$?
-wait %2; rc1=$?
+wait "${pids[0]}"; rc0=$?
+wait "${pids[1]}"; rc1=$?
 if [ "$rc0" -eq 2 ] && [ "$rc1" -eq 2 ] && [ ! -s "$work/out0" ] && [ ! -s "$work/out1" ] &&
    [ "$(cat "$work/err0" "$work/err1" | grep -c '^pendavg: ')" -eq 1 ] && grep -q "$refusal" "$work/err0" &&
    [ -z "$(find "$work" -name 'single.csv*' | head -1)" ]; then
