@@ -553,37 +553,30 @@ void open_cases_outputs(const CasesFile& file, const std::vector<CaseRow>& rows,
                         const std::string& header, const CasesOutput& where,
                         std::optional<ResumedRows>& resumed,
                         std::optional<AtomicFile>& timing_file, std::optional<SweepFile>& output) {
-  std::string verdict;
-  if (is_root()) {
-    try {
-      if (!where.path.empty()) probe_output(where.path, "average");
-      if (!where.timing_rows.empty()) {
-        // Opened, and its column line written, now: a target that cannot take it (a full disk,
-        // /dev/full) fails the run before any row went to stdout.
-        timing_file.emplace(where.timing_rows, "average");
-        timing_file->append("row,line,us\n");
-      }
-      if (!where.resume.empty()) {  // the file, or a killed run's temporary, or nothing yet
-        std::vector<std::string_view> fields(columns.size());
-        resumed.emplace(where.resume, "average", header, row_format, rows.size(), columns.size(),
-                        [&](std::size_t k) {
-                          case_fields(file, rows[k], fields);
-                          std::string key;
-                          for (const std::string_view field : fields)
-                            (key += key.empty() ? "" : ",") += field;
-                          return key;
-                        });
-      }
-      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
-      output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr,
-                     row_format.format());
-      if (where.shard) output->row_number = [&](std::size_t k) { return where.shard->row(k); };
-    } catch (const invalid_input& bad) {
-      verdict = bad.what();
+  on_root([&] {
+    if (!where.path.empty()) probe_output(where.path, "average");
+    if (!where.timing_rows.empty()) {
+      // Opened, and its column line written, now: a target that cannot take it (a full disk,
+      // /dev/full) fails the run before any row went to stdout.
+      timing_file.emplace(where.timing_rows, "average");
+      timing_file->append("row,line,us\n");
     }
-  }
-  verdict = broadcast_from_root(verdict);
-  if (!verdict.empty()) throw usage_error(verdict);
+    if (!where.resume.empty()) {  // the file, or a killed run's temporary, or nothing yet
+      std::vector<std::string_view> fields(columns.size());
+      resumed.emplace(where.resume, "average", header, row_format, rows.size(), columns.size(),
+                      [&](std::size_t k) {
+                        case_fields(file, rows[k], fields);
+                        std::string key;
+                        for (const std::string_view field : fields)
+                          (key += key.empty() ? "" : ",") += field;
+                        return key;
+                      });
+    }
+    // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+    output.emplace(where.path, "average", header, resumed ? &*resumed : nullptr,
+                   row_format.format());
+    if (where.shard) output->row_number = [&](std::size_t k) { return where.shard->row(k); };
+  });
   input_checked("average");
 }
 

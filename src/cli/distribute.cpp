@@ -3,6 +3,7 @@
 // launcher's rank count and a single process' sweep link.
 #include "distribute.hpp"
 
+#include "args.hpp"
 #include "one_line.hpp"
 #include "sweep.hpp"
 
@@ -84,6 +85,17 @@ void refuse_copies(const char* why) {
                  "the whole command; run one process, or use --shard K/N for a job array\n",
                  launched, why);
   std::exit(2);
+}
+
+void on_root(const std::function<void()>& step) {
+  std::string verdict;
+  if (is_root()) try {
+      step();
+    } catch (const invalid_input& bad) {
+      verdict = bad.what();
+    }
+  verdict = broadcast_from_root(std::move(verdict));
+  if (!verdict.empty()) throw usage_error(verdict);
 }
 
 std::unique_ptr<SweepLink> local_sweep_link() { return std::make_unique<LocalSweepLink>(); }

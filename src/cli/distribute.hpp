@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -47,6 +48,9 @@ inline bool is_root() { return rank() == 0; }
 std::uint64_t min_over_ranks(std::uint64_t value);
 /// Collective: rank 0's `text` on every rank.
 std::string broadcast_from_root(std::string text);
+/// Collective: runs `step` on rank 0 alone (what must be done once: opening the output, reading
+/// a resumed file); bad input it meets (invalid_input) is thrown on every rank (as usage_error).
+void on_root(const std::function<void()>& step);
 
 /// The shifts of one qmc average shared by all ranks (pendavg::ShiftPartition); null in a plain
 /// run.

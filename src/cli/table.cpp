@@ -800,26 +800,17 @@ void run_table(const TableRequest& request, const PointSpace& space,
   const auto point = [&](std::size_t k) { return space.point(shard ? shard->row(k) : k, row_options); };
   std::optional<ResumedRows> resumed;
   std::optional<SweepFile> file;
-  std::string verdict;
-  if (is_root()) {
-    try {
-      if (!target.path.empty()) probe_output(target.path, "table");
-      if (!target.resume.empty())  // the file, or a killed run's temporary, or nothing yet
-        resumed.emplace(target.resume, "table", header, rows_format, row_count,
-                        4 + 2 * plan.columns_particles,
-                        [&](std::size_t k) {
-                          return row_key(point(k), plan.columns_particles);
-                        });
-      // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
-      file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr,
-                   rows_format.format());
-      if (shard) file->row_number = [&](std::size_t k) { return shard->row(k); };
-    } catch (const invalid_input& bad) {
-      verdict = bad.what();
-    }
-  }
-  verdict = broadcast_from_root(verdict);
-  if (!verdict.empty()) throw usage_error(verdict);
+  on_root([&] {
+    if (!target.path.empty()) probe_output(target.path, "table");
+    if (!target.resume.empty())  // the file, or a killed run's temporary, or nothing yet
+      resumed.emplace(target.resume, "table", header, rows_format, row_count,
+                      4 + 2 * plan.columns_particles,
+                      [&](std::size_t k) { return row_key(point(k), plan.columns_particles); });
+    // Opened here, so that every rank learns it failed (a FIFO nobody reads, say).
+    file.emplace(target.path, "table", header, resumed ? &*resumed : nullptr,
+                 rows_format.format());
+    if (shard) file->row_number = [&](std::size_t k) { return shard->row(k); };
+  });
   input_checked("table");
 
   SweepRows rows;
