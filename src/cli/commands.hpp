@@ -16,8 +16,9 @@ namespace pendavg::cli {
 std::string run(std::span<const std::string_view> args);
 
 /// Every command calls this once all of its input is checked, just before its first unit of work
-/// (a library computation, or creating an output file): bad input must be refused before this
-/// point (README "Reliability"). It runs the hook set by set_input_checked_hook, if any, and
+/// (a library computation, or writing to an output; a sweep's output is opened as part of the
+/// check, and an uncommitted output leaves nothing): bad input must be refused before this point
+/// (README "Reliability"). It runs the hook set by set_input_checked_hook, if any, and
 /// otherwise does nothing. The fuzz targets (tests/fuzz) set a hook that throws, so that they run
 /// every check of a command and none of its work.
 void input_checked(std::string_view command);

@@ -27,11 +27,16 @@ constexpr int exit_interrupted = 130;  // 128 + SIGINT, as a shell reports it
 int report(std::string_view kind, std::string_view text, int exit_code) {
   const FailureReach reach = failure_reach();
   if (reach == FailureReach::every_rank && !is_root()) return exit_code;  // rank 0 says it
-  // A failure of this rank's own names the rank; when the others went on, it stops them.
+  // A failure of this rank's own names the rank; when the others went on, it stops them. Rank
+  // 0's bad input and failed rows (an output it cannot write, a shard merge refuses) are the
+  // job's, worded as one process words them.
+  const bool named = reach == FailureReach::others_went_on ||
+                     (reach == FailureReach::not_every_rank &&
+                      (!is_root() || exit_code == exit_internal_error));
   const std::string who =
-      reach == FailureReach::every_rank ? ""
-      : " (rank " + std::to_string(rank()) +
-            (reach == FailureReach::others_went_on ? " alone; stopping the job)" : ")");
+      !named ? ""
+             : " (rank " + std::to_string(rank()) +
+                   (reach == FailureReach::others_went_on ? " alone; stopping the job)" : ")");
   // One line, whatever the message, with what it echoes made safe for a terminal and capped.
   std::fprintf(stderr, "pendavg: %.*s: %s%s\n", static_cast<int>(kind.size()), kind.data(),
                one_line(text).c_str(), who.c_str());
@@ -92,10 +97,10 @@ void on_root(const std::function<void()>& step) {
   if (is_root()) try {
       step();
     } catch (const invalid_input& bad) {
-      verdict = bad.what();
+      verdict = "!" + std::string(bad.what());  // not empty, whatever it says
     }
   verdict = broadcast_from_root(std::move(verdict));
-  if (!verdict.empty()) throw usage_error(verdict);
+  if (!verdict.empty()) throw usage_error(verdict.substr(1));
 }
 
 std::unique_ptr<SweepLink> local_sweep_link() { return std::make_unique<LocalSweepLink>(); }

@@ -43,6 +43,7 @@ struct ShardFile {
   std::vector<std::string> header;  ///< up to the column line (JSON: the "rows": [ line)
   unsigned long long number = 0, shards = 0, rows = 0, block = 0;
   std::map<std::size_t, std::string> failed;  ///< JSON: the failed rows' entries not merged yet
+  std::optional<RowReader> reader;  ///< checks each row whole, as --resume does
 
   explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
     if (!in)
@@ -70,6 +71,7 @@ struct ShardFile {
              "--shard K/N writes");
     if (!in) refuse("'" + path + "' ends before its rows begin");
     if (json) read_json_end();
+    reader.emplace(row_writer_of(format(), header[header.size() - 1 - json]));
   }
 
   /// JSON: the failed rows' entries and the interruption follow the rows: read first, and
@@ -102,8 +104,9 @@ struct ShardFile {
       refuse("'" + path + "' cannot be read twice (a pipe?): a JSON shard must be a file");
   }
 
-  std::string_view format() const {
-    return json ? "json" : header.back().find(',') == std::string::npos ? "text" : "csv";
+  io::Format format() const {
+    return json ? io::Format::json
+           : header.back().find(',') == std::string::npos ? io::Format::text : io::Format::csv;
   }
 
   [[noreturn]] void incomplete(const std::string& why) const {
@@ -119,7 +122,10 @@ struct ShardFile {
              : line.starts_with('#') && !line.starts_with("# failed: "))
       refuse("'" + path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
     if (in.eof()) refuse("'" + path + "' ends in the middle of a row");
-    if (line.starts_with(',')) line.erase(0, 1);  // JSON: the separating comma is the merge's
+    if (!line.starts_with('#') && !reader->read(line, true))
+      refuse("'" + path + "' has a damaged row: '" + line.substr(0, 80) + "' (--resume it with its "
+             "--shard to compute the row again)");
+    if (json && !line.starts_with(',')) line.insert(0, 1, ',');  // SweepFile drops the first's
     return true;
   }
 };
@@ -202,8 +208,9 @@ std::string run_merge(const Options& options) {
              first.path + "' of " + std::to_string(first.shards) + " shards of " +
              std::to_string(first.rows) + " rows: not shards of one sweep");
     if (f->format() != first.format())
-      refuse("'" + f->path + "' is a " + std::string(f->format()) + " shard, '" + first.path +
-             "' a " + std::string(first.format()) + " shard: one sweep's shards have one format");
+      refuse("'" + f->path + "' is a " + std::string(format_name(f->format())) + " shard, '" +
+             first.path + "' a " + std::string(format_name(first.format())) +
+             " shard: one sweep's shards have one format");
     const auto [theirs, ours] =
         std::ranges::mismatch(f->header, first.header, [](const auto& a, const auto& b) {
           return same_header_line(b, a);
@@ -222,17 +229,16 @@ std::string run_merge(const Options& options) {
     refuse("shard " + std::to_string(missing) + "/" + std::to_string(first.shards) +
            " is missing (its rows would be missing)");
   }
-  std::string text, line;  // the header: shard 1's (its date, its cases file's path)
-  for (const std::string& header_line : numbered.at(1)->header) (text += header_line) += '\n';
-  AtomicFile file(output, "merge");
-  std::size_t failed = 0, written = 0;
-  std::vector<std::string> failed_entries;  // JSON: after the rows
+  std::string header, line;  // the header: shard 1's (its date, its cases file's path)
+  for (const std::string& header_line : numbered.at(1)->header) (header += header_line) += '\n';
+  SweepFile out(output, "merge", header, nullptr, first.format());
+  std::size_t failed = 0;
   for (std::size_t r = 0; r < first.rows; ++r) {
     if (stop_flag().load(std::memory_order_relaxed))
       throw interrupted("merge: stopped by a signal; nothing written to '" + output + "'");
     ShardFile& f = *numbered.at(r / first.block % first.shards + 1);
     if (const auto entry = f.failed.find(r); entry != f.failed.end()) {
-      failed_entries.push_back(std::move(f.failed.extract(entry).mapped()));
+      out.add_failed(std::move(f.failed.extract(entry).mapped()));
       ++failed;
       continue;
     }
@@ -240,19 +246,13 @@ std::string run_merge(const Options& options) {
       refuse("'" + f.path + "' ends before its rows do (row " + std::to_string(r) +
              " of the sweep is missing)");
     failed += line.starts_with('#');
-    if (first.json && written++ > 0) text += ',';
-    (text += line) += '\n';
-    if (text.size() >= (1u << 20)) {
-      file.append(text);
-      text.clear();
-    }
+    out.write_rows(r, 1, line += '\n', {});
   }
   for (const auto& f : files)
     if (f->next_row(line) || !f->failed.empty())
       refuse("'" + f->path + "' has more rows than its shard's blocks");
-  if (first.json) text += json_end(failed_entries, {});
-  file.append(text);
-  file.commit();
+  out.end_rows({});
+  out.commit();
   if (failed > 0)
     throw rows_failed("merge: " + std::to_string(failed) + " of " + std::to_string(first.rows) +
                       " rows failed while they were computed; '" + output + "' has " +

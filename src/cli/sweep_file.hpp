@@ -96,6 +96,8 @@ class SweepFile : public SweepOutput {
   std::function<std::size_t(std::size_t index)> row_number;
 
   void append(std::string_view text);
+  /// JSON: a failed row's entry as a shard holds it (merge), for the "failed" list at the end.
+  void add_failed(std::string entry) { failed_.push_back(std::move(entry)); }
   /// After the last row: the format's end (CSV and text: an '# interrupted: ' line when
   /// `interrupted` is not empty; JSON: the failed rows, the interruption and the closing brace).
   void end_rows(std::string_view interrupted);

@@ -143,6 +143,33 @@ std::string sweep_header(const io::RowWriter& rows, std::string_view command, st
   return out + "],\n\"rows\": [\n";
 }
 
+io::RowWriter row_writer_of(io::Format format, std::string_view line) {
+  std::vector<std::string> names;
+  std::vector<std::size_t> widths;
+  if (format == io::Format::text) {  // each name ends its column; the columns 2 apart
+    for (std::size_t start = 0, end = 0; (end = line.find_first_not_of(' ', end)) != line.npos;
+         start = end + 2) {
+      const std::size_t name = end;
+      end = std::min(line.find(' ', name), line.size());
+      names.emplace_back(line.substr(name, end - name));
+      widths.push_back(end - start);
+    }
+    return io::RowWriter(format, std::move(names), std::move(widths));
+  }
+  const bool json = format == io::Format::json;
+  if (json && line.starts_with("\"columns\": [") && line.ends_with("],"))
+    line = line.substr(12, line.size() - 14);
+  const std::string_view separator = json ? ", " : ",";
+  for (std::size_t begin = 0; begin <= line.size();) {
+    const std::size_t end = std::min(line.find(separator, begin), line.size());
+    std::string_view name = line.substr(begin, end - begin);
+    if (json && name.size() >= 2) name = name.substr(1, name.size() - 2);  // its quotes
+    names.emplace_back(name);
+    begin = end + separator.size();
+  }
+  return io::RowWriter(format, std::move(names));
+}
+
 std::string json_failed_entry(std::size_t row, std::string_view message) {
   std::string out = "{\"row\": " + std::to_string(row) + ", \"message\": ";
   io::append_json_string(out, message);

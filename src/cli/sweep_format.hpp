@@ -54,6 +54,11 @@ std::string_view format_name(io::Format format);
 /// line; JSON's the document up to and including the "rows": [ line.
 std::string sweep_header(const io::RowWriter& rows, std::string_view command, std::string_view csv);
 
+/// The rows' writer of a sweep file whose column line is `line` (CSV, text; JSON: its
+/// "columns" line), as sweep_header wrote it: what its rows are read back with (RowReader) when
+/// the file is all there is (pendavg merge).
+io::RowWriter row_writer_of(io::Format format, std::string_view line);
+
 /// JSON: a failed row's entry (without separator or newline): {"row": ROW, "message": "..."}.
 std::string json_failed_entry(std::size_t row, std::string_view message);
 /// JSON: the end of the document after the rows: the failed entries and the interruption

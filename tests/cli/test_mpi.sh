@@ -279,6 +279,27 @@ else
 fi
 }
 
+# What rank 0 alone meets for the job (a command that does not distribute, an output it cannot
+# write) is worded as a single process words it: the same line, no rank named.
+case:refusals.root_alone() {
+local name
+for name in merge table; do
+  local args=(merge --output "$work/merged.csv" "$work/no_such_shard.csv")
+  [ "$name" = table ] && args=(table --beta log:0.1:10:20 --output /dev/full)
+  "$pendavg" "${args[@]}" >/dev/null 2>"$work/err_serial"
+  local rc_serial=$?
+  timeout 60 "${launcher[@]}" -n 2 "$pendavg" "${args[@]}" >"$work/out" 2>"$work/err"
+  rc=$?
+  if [ "$rc" -eq "$rc_serial" ] && [ "$rc" -ne 0 ] && [ ! -s "$work/out" ] &&
+     [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
+     [ "$(grep '^pendavg: ' "$work/err")" = "$(cat "$work/err_serial")" ]; then
+    pass
+  else
+    fail "$name's failure on rank 0 under mpirun" "the serial run's exit ($rc_serial) and line"       "exit $rc: $(grep '^pendavg: ' "$work/err" | head -2)"
+  fi
+done
+}
+
 # An output no rank can write (a FIFO nobody reads): refused on every rank before any row, rank 0
 # says so once (not a rank alone that stops the job after 10 s).
 case:refusals.fifo() {
@@ -370,6 +391,7 @@ case:failures.rows() {
     if [ "$rc" -eq 3 ] && [ ! -s "$work/out" ] &&
        [ "$(grep -c '^pendavg: ' "$work/err")" -eq 1 ] &&
        grep -q '^pendavg: error: average: 3 of 2000 rows failed .* line 9: ' "$work/err" &&
+       ! grep -q '(rank [0-9]' "$work/err" &&
        cmp -s "$work/failed_ranks.csv" "$work/failed_serial.csv"; then
       pass
     else

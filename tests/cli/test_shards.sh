@@ -128,10 +128,23 @@ check "merge refusals left no temporary" no_temporaries
 # Shards damaged after they were written, or that no --shard writes: refused in one line, and
 # nothing written (JSON's end after the rows is checked byte for byte as CSV's rows are).
 case:merge.damaged() {
-local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) f k
-for f in csv json; do
+local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) f k cut
+for f in csv json text; do
   for k in 1 2 3; do "$pendavg" "${quick[@]}" --format "$f" --shard "$k/3" --output "$work/q$k.$f"; done
 done
+# A row damaged inside a shard (a copy gone wrong): cut short, a blank line in its place, a cell
+# that is not a number, a word or empty. Refused, as --resume would compute such a row again.
+for f in csv json text; do
+  cut='/.$/'  # CSV: its last field (a cut within it may leave a word or nothing, both cells)
+  [ "$f" = csv ] && cut='/,[^,]*$/'
+  awk "NR == 20 {sub($cut, \"\")} {print}" "$work/q2.$f" >"$work/cut.$f"
+  bad "merge: a $f shard with a row cut short" merge --output "$work/m.$f" "$work/q1.$f" "$work/cut.$f" "$work/q3.$f"
+  expect "... names the shard and its damaged row" "grep -q \"'$work/cut.$f' has a damaged row\" \"\$work/err\""
+done
+awk 'NR == 20 {print ""} {print}' "$work/q2.csv" >"$work/blank.csv"
+bad "merge: a blank line in place of a row" merge --output "$work/m.csv" "$work/q1.csv" "$work/blank.csv" "$work/q3.csv"
+awk 'NR == 20 {sub(/,[^,]*,/, ",1.2.3,")} {print}' "$work/q2.csv" >"$work/cell.csv"
+bad "merge: a cell that is not a number" merge --output "$work/m.csv" "$work/q1.csv" "$work/cell.csv" "$work/q3.csv"
 # JSON: something after the document, its "failed" line gone, a line of its end twice
 { cat "$work/q3.json"; echo garbage; } >"$work/after.json"
 bad "merge: a JSON shard with text after its end" merge --output "$work/m.json" "$work/q1.json" "$work/q2.json" "$work/after.json"
@@ -151,7 +164,7 @@ bad "merge: shard 1 of 999999999 alone" merge --output "$work/m.csv" "$work/one.
 expect "... names shard 2 as missing" 'grep -q "shard 2/999999999 is missing" "$work/err"'
 mkdir -p "$work/adir"
 bad "merge: a directory" merge --output "$work/m.csv" "$work/adir"
-check "merge of damaged shards wrote nothing" test ! -e "$work/m.csv" -a ! -e "$work/m.json"
+check "merge of damaged shards wrote nothing" test ! -e "$work/m.csv" -a ! -e "$work/m.json" -a ! -e "$work/m.text"
 check "... and left no temporary" no_temporaries
 }
 # The merged header is shard 1's (its date, its cases file's name), in whatever order the
