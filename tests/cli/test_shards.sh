@@ -141,6 +141,12 @@ for f in csv json text; do
   bad "merge: a $f shard with a row cut short" merge --output "$work/m.$f" "$work/q1.$f" "$work/cut.$f" "$work/q3.$f"
   expect "... names the shard and its damaged row" "grep -q \"'$work/cut.$f' has a damaged row\" \"\$work/err\""
 done
+# ... as the refusal says, --resume with the shard's --shard computes the row again
+"$pendavg" "${quick[@]}" --shard 2/3 --resume "$work/cut.csv" 2>/dev/null
+"$pendavg" "${quick[@]}" --output "$work/q_serial.csv"
+run merge --output "$work/q_resumed.csv" "$work/q1.csv" "$work/cut.csv" "$work/q3.csv"
+check "... resumed, the shard merges into the serial file" \
+  cmp -s <(grep -v ', generated ' "$work/q_resumed.csv") <(grep -v ', generated ' "$work/q_serial.csv")
 awk 'NR == 20 {print ""} {print}' "$work/q2.csv" >"$work/blank.csv"
 bad "merge: a blank line in place of a row" merge --output "$work/m.csv" "$work/q1.csv" "$work/blank.csv" "$work/q3.csv"
 awk 'NR == 20 {sub(/,[^,]*,/, ",1.2.3,")} {print}' "$work/q2.csv" >"$work/cell.csv"
