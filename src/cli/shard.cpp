@@ -16,8 +16,6 @@
 #include <cstring>
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <map>
 #include <memory>
 #include <utility>
@@ -33,32 +31,40 @@ constexpr std::size_t blocks_per_shard = 16;
 /// Beyond any sweep: a shard line claiming more is not one --shard wrote.
 constexpr unsigned long long max_shards = 999'999'999, max_rows = 1ull << 53;
 
-[[noreturn]] void refuse(const std::string& what) { throw usage_error("merge: " + what); }
+[[noreturn]] void refuse(const std::string& what) {
+  // A signal that cut a read short (a shard from a pipe that waits, a FIFO being opened) is the
+  // signal's, not the shard's.
+  if (stop_flag().load()) throw interrupted("merge: stopped by a signal; nothing written");
+  throw usage_error("merge: " + what);
+}
 
 /// One shard's file being merged: its header without the shard line, then its rows on demand.
 struct ShardFile {
   std::string path;
-  std::ifstream in;
+  /// stdio, not a stream: a read that a signal interrupts returns (std::ifstream reads again).
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file;
   bool json = false;
   std::vector<std::string> header;  ///< up to the column line (JSON: the "rows": [ line)
   unsigned long long number = 0, shards = 0, rows = 0, block = 0;
   std::map<std::size_t, std::string> failed;  ///< JSON: the failed rows' entries not merged yet
   std::optional<RowReader> reader;  ///< checks each row whole, as --resume does
 
-  explicit ShardFile(const std::string& file_path) : path(file_path), in(path, std::ios::binary) {
-    if (!in)
+  explicit ShardFile(const std::string& file_path)
+      : path(file_path), file(std::fopen(file_path.c_str(), "rb"), &std::fclose) {
+    if (!file)
       refuse("cannot read '" + path + "': " + std::strerror(errno) +
              (errno == EMFILE ? " (more shards than this process may open: see ulimit -n)" : ""));
     if (std::filesystem::is_directory(path)) refuse("'" + path + "' is a directory, not a shard");
     std::string line, shard;  // the shard line: after '# schema: 1', JSON's first header item
-    while (std::getline(in, line)) {
+    bool rows_begin = false;
+    while (!rows_begin && read_line(file.get(), line)) {
       json = json || (header.empty() && shard.empty() && line.starts_with("{\"schema\": "));
       if (shard.empty() && line.starts_with(json ? "\"shard " : "# shard ")) {
         shard = line.substr(json ? 1 : 2);
         continue;
       }
       header.push_back(line);
-      if (json ? line == "\"rows\": [" : !line.starts_with('#')) break;
+      rows_begin = json ? line == "\"rows\": [" : !line.starts_with('#');
     }
     if (shard.empty())
       refuse("'" + path + "' is not a shard (it has no line '# shard K/N ...', or JSON header "
@@ -69,7 +75,7 @@ struct ShardFile {
         shards > max_shards || rows > max_rows || block != Shard(1, shards, rows).block())
       refuse("'" + path + "': its shard line '" + shard.substr(0, 120) + "' is not one that "
              "--shard K/N writes");
-    if (!in) refuse("'" + path + "' ends before its rows begin");
+    if (!rows_begin) refuse("'" + path + "' ends before its rows begin");
     if (json) read_json_end();
     reader.emplace(row_writer_of(format(), header[header.size() - 1 - json]));
   }
@@ -77,11 +83,14 @@ struct ShardFile {
   /// JSON: the failed rows' entries and the interruption follow the rows: read first, and
   /// checked to be the end the writer gives a complete shard (json_end) byte for byte.
   void read_json_end() {
-    const std::streampos rows_at = in.tellg();
+    const off_t rows_at = ftello(file.get());
     std::string line, end;
-    while (std::getline(in, line) && !line.starts_with(']')) {
+    while (read_line(file.get(), line) && !line.starts_with(']')) {
     }
-    end = line + "\n" + std::string(std::istreambuf_iterator<char>(in), {});
+    end = line + "\n";
+    char buffer[1 << 16];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0;)
+      end.append(buffer, n);
     std::vector<std::string> entries;
     for (std::size_t at = end.find("\n{\"row\": "); at != std::string::npos;
          at = end.find("\n{\"row\": ", at + 1)) {
@@ -99,8 +108,7 @@ struct ShardFile {
                    end.substr(at + 16, std::min<std::size_t>(80, end.find("\"}", at) - at - 15)));
       refuse("'" + path + "': what follows its rows is not the end of a shard pendavg writes");
     }
-    in.clear();
-    if (!in.seekg(rows_at))
+    if (rows_at < 0 || fseeko(file.get(), rows_at, SEEK_SET) != 0)
       refuse("'" + path + "' cannot be read twice (a pipe?): a JSON shard must be a file");
   }
 
@@ -116,12 +124,17 @@ struct ShardFile {
 
   /// The next row (a data line, or a '# failed:' line in place of a row); false at the end.
   bool next_row(std::string& line) {
-    if (!std::getline(in, line) || (json && line.starts_with(']'))) return false;
+    bool ended = false;
+    if (!read_line(file.get(), line, &ended)) {
+      if (std::ferror(file.get())) refuse("cannot read '" + path + "': " + std::strerror(errno));
+      return false;
+    }
+    if (json && line.starts_with(']')) return false;
     if (line.starts_with("# interrupted")) incomplete(line.substr(2));
     if (json ? !line.starts_with('{') && !line.starts_with(",{")
              : line.starts_with('#') && !line.starts_with("# failed: "))
       refuse("'" + path + "' has a line that is not a row: '" + line.substr(0, 80) + "'");
-    if (in.eof()) refuse("'" + path + "' ends in the middle of a row");
+    if (!ended) refuse("'" + path + "' ends in the middle of a row");
     if (!line.starts_with('#') && !reader->read(line, true))
       refuse("'" + path + "' has a damaged row: '" + line.substr(0, 80) + "' (--resume it with its "
              "--shard to compute the row again)");
@@ -159,8 +172,8 @@ std::optional<Shard> shard_option(const Options& options, std::string_view comma
   if (text.find_first_not_of("0123456789/") != std::string::npos ||
       std::sscanf(text.c_str(), "%9lu/%9lu%n", &k, &n, &length) != 2 ||
       length != static_cast<int>(text.size()) || k < 1 || k > n)
-    throw usage_error(std::string(command) + ": --shard takes K/N with 1 <= K <= N (e.g. 3/8), "
-                      "not '" + text + "'");
+    throw usage_error(std::string(command) + ": --shard takes K/N with 1 <= K <= N <= " +
+                      std::to_string(max_shards) + " (e.g. 3/8), not '" + text + "'");
   for (const std::string_view timing : {"timing", "timing-rows"})
     if (options.has(timing))
       throw usage_error(std::string(command) + ": --shard and --" + std::string(timing) +

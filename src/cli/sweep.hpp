@@ -47,7 +47,10 @@ struct SweepRows {
   std::size_t row_bytes = 1;  ///< an upper bound of one row's text (sizes the reorder window)
   int threads = 1;            ///< compute threads per rank
   bool timing = false;        ///< measure every row's thread CPU time (SweepOutput::rows)
-  double grace_seconds = 1;   ///< after a signal, how long running rows may still finish
+  /// After a signal, how long running rows may still finish: half a second, as Open MPI's
+  /// mpirun kills the ranks 1 s after it forwarded a SIGTERM (odls_base_sigkill_timeout), and
+  /// every rank must have finished and rank 0 written its output before then.
+  double grace_seconds = 0.5;
   /// Appends row `index` to `out`; `thread` (0..threads-1) selects the caller's scratch. Throws
   /// (invalid_input for bad input) when the row cannot be computed.
   std::function<void(std::size_t index, int thread, std::string& out)> compute;

@@ -163,6 +163,29 @@ killed_and_resumed "table under mpirun -n 2" "$work/reference.csv" "$work/killed
   "${launcher[@]}" -n 2 "$faulty" "${sweep[@]}"
 }
 
+# SIGTERM to mpirun while rows of ~1.5 s run (N = 3 at 30 digits): mpirun kills the ranks 1 s
+# after it forwards the signal, so the rows' grace must end, and rank 0 write its file, before
+# then. With a grace of 1 s only the temporary was left, in 5 of 6 tries.
+case:stops.slow_rows() {
+local out=$work/slow.csv k temporary rows=0
+"${launcher[@]}" -n 2 "$pendavg" table --chain 3 --beta log:0.1:10:30 --digits 30 \
+  --output "$out" >/dev/null 2>"$work/slow.err" &
+local pid=$!
+for ((k = 0; k < 600 && rows < 2; ++k)); do  # until the temporary holds 2 rows
+  sleep 0.05
+  temporary=$(find "$work" -name 'slow.csv.tmp.*' | head -1)
+  [ -n "$temporary" ] && rows=$(grep -c '^3,' "$temporary")
+done
+kill -TERM "$pid"
+wait "$pid"
+if grep -q '^# interrupted: ' "$out" 2>/dev/null && [ -z "$(find "$work" -name 'slow.csv.tmp.*')" ]; then
+  pass
+else
+  fail "SIGTERM to mpirun during rows of 1.5 s" "the file with an '# interrupted' line, no temporary" \
+    "$(ls "$work" | grep slow.csv | tr '\n' ' ')"
+fi
+}
+
 # A signal to rank 0 alone (a stop set on rank 0's own window) stops every rank: with Open MPI's
 # osc/sm (the launcher here has no single-copy mechanism) rank 1 never saw it and computed every
 # row left. Rank 0 is signalled once its temporary holds 10 rows; the others stop within the

@@ -198,28 +198,42 @@ check "... and the file resumes" test $? -eq 0
 }
 # A signal stops a merge: exit 130, one line, no output and no temporary (a shard read from a
 # FIFO that stalls keeps the merge running when the signal comes).
+# A signal stops a merge at once, also while it waits on a shard from a pipe whose writer stalls
+# (60 s here) and while it opens a FIFO nobody writes to: exit 130 within 5 s, one line, nothing
+# written. (It used to wait for the pipe's next data, and to call the FIFO unreadable.)
 case:merge.signal() {
-local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) k
+local quick=(table --beta log:0.1:10:40 --mu1 0.1,0.5) k what
 for k in 1 2; do "$pendavg" "${quick[@]}" --shard "$k/2" --output "$work/g$k.csv"; done
-mkfifo "$work/stall"
-(head -c 3000 "$work/g2.csv"; sleep 3; tail -c +3001 "$work/g2.csv") >"$work/stall" &
-"$pendavg" merge --output "$work/g.csv" "$work/g1.csv" "$work/stall" >"$work/out" 2>"$work/err" &
-local pid=$!
-sleep 1
-kill -TERM "$pid"
-wait "$pid"
-rc=$?
-wait
-if [ "$rc" -eq 130 ] && [ ! -e "$work/g.csv" ] && no_temporaries && [ ! -s "$work/out" ] &&
-   [ "$(wc -l <"$work/err")" -eq 1 ] && grep -q '^pendavg: interrupted: merge: ' "$work/err"; then
-  pass
-else
-  fail "merge stopped by SIGTERM" "exit 130, one 'pendavg: interrupted: merge:' line, no output, no temporary" \
-    "exit $rc, $(wc -l <"$work/err") stderr lines, output $([ -e "$work/g.csv" ] && echo written || echo absent)"
-fi
+for what in stalled fifo; do
+  mkfifo "$work/stall"
+  local writer=""
+  if [ "$what" = stalled ]; then
+    (head -c 3000 "$work/g2.csv"; sleep 60; tail -c +3001 "$work/g2.csv") >"$work/stall" &
+    writer=$!
+  fi
+  "$pendavg" merge --output "$work/g.csv" "$work/g1.csv" "$work/stall" >"$work/out" 2>"$work/err" &
+  local pid=$!
+  sleep 1
+  kill -TERM "$pid"
+  for ((k = 0; k < 50; ++k)); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+  kill -0 "$pid" 2>/dev/null && kill -KILL "$pid"
+  wait "$pid"
+  rc=$?
+  [ -n "$writer" ] && { pkill -P "$writer"; kill "$writer"; wait "$writer"; } 2>/dev/null
+  rm -f "$work/stall"
+  if [ "$rc" -eq 130 ] && [ ! -e "$work/g.csv" ] && no_temporaries && [ ! -s "$work/out" ] &&
+     [ "$(wc -l <"$work/err")" -eq 1 ] && grep -q '^pendavg: interrupted: merge: ' "$work/err"; then
+    pass
+  else
+    fail "merge stopped by SIGTERM ($what shard)" \
+      "exit 130 within 5 s, one 'pendavg: interrupted: merge:' line, no output, no temporary" \
+      "exit $rc, $(head -c 200 "$work/err"), output $([ -e "$work/g.csv" ] && echo written || echo absent)"
+  fi
+done
 }
 case:shard.refusals() {
-for spec in 0/3 4/3 3 a/3 2/0 -1/3 1/-3 "1/3x"; do bad "--shard $spec" "${table[@]}" --shard "$spec"; done
+for spec in 0/3 4/3 3 a/3 2/0 -1/3 1/-3 "1/3x" 1/1000000000; do bad "--shard $spec" "${table[@]}" --shard "$spec"; done
+expect "... the refusal names the largest N" 'grep -q "K <= N <= 999999999" "$work/err"'
 bad "--shard with --timing" "${cases[@]}" --shard 1/2 --timing
 }
 
