@@ -10,6 +10,7 @@
 #include <mpi.h>
 
 #include <chrono>
+#include <csignal>
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
@@ -206,6 +207,11 @@ ProcessGroup::ProcessGroup(int& argc, char**& argv) {
 
 void leave_job() {
   if (!std::exchange(joined, false)) return;
+  // A rank done with its share waits here for the others. The SIGINT/SIGTERM that mpirun and
+  // srun send every rank must not kill it: mpirun would then kill the job while rank 0 still
+  // writes what the signal stopped (the replicas rank 0 alone ran, say).
+  std::signal(SIGINT, SIG_IGN);
+  std::signal(SIGTERM, SIG_IGN);
   meet_at_farewell(false, -1);
   MPI_Finalize();  // frees the communicators
 }

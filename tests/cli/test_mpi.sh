@@ -186,6 +186,28 @@ else
 fi
 }
 
+# SIGTERM to mpirun while rank 0 runs both replicas of a simulate (its 2 threads take them; rank
+# 1, with none, waits at the job's end): rank 1 must not die of the signal, which made mpirun
+# kill rank 0 before it wrote the averages so far.
+case:stops.idle_rank() {
+local out=$work/replicas.json unit200 k
+unit200=$("$python" -c 'print(",".join(["1"] * 200))')
+OMP_NUM_THREADS=2 "${launcher[@]}" -n 2 "$pendavg" simulate --masses "$unit200" --lengths "$unit200" \
+  --theta 0 --time 1000 --dt 1e-5 --thermostat langevin --beta 1 --exact no --replicas 2 \
+  --format json --output "$out" >/dev/null 2>"$work/replicas.err" &
+local pid=$!
+sleep 3
+kill -TERM "$pid"
+wait "$pid"
+if "$python" -c "import json, sys; assert json.load(open(sys.argv[1]))['interrupted']" "$out" 2>/dev/null &&
+   [ -z "$(find "$work" -name 'replicas.json.tmp.*')" ]; then
+  pass
+else
+  fail "SIGTERM to mpirun with a rank idle" "the replicas' averages so far, interrupted, no temporary" \
+    "$(ls "$work" | grep replicas.json | tr '\n' ' ')"
+fi
+}
+
 # A signal to rank 0 alone (a stop set on rank 0's own window) stops every rank: with Open MPI's
 # osc/sm (the launcher here has no single-copy mechanism) rank 1 never saw it and computed every
 # row left. Rank 0 is signalled once its temporary holds 10 rows; the others stop within the
