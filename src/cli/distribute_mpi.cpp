@@ -209,9 +209,14 @@ void leave_job() {
   if (!std::exchange(joined, false)) return;
   // A rank done with its share waits here for the others. The SIGINT/SIGTERM that mpirun and
   // srun send every rank must not kill it: mpirun would then kill the job while rank 0 still
-  // writes what the signal stopped (the replicas rank 0 alone ran, say).
-  std::signal(SIGINT, SIG_IGN);
-  std::signal(SIGTERM, SIG_IGN);
+  // writes what the signal stopped (the replicas rank 0 alone ran, say). The first of each is
+  // absorbed; a second one ends the rank (a peer that will never come: Ctrl-C twice).
+  struct sigaction absorb {};
+  absorb.sa_handler = [](int) {};
+  absorb.sa_flags = SA_RESETHAND;
+  sigemptyset(&absorb.sa_mask);
+  sigaction(SIGINT, &absorb, nullptr);
+  sigaction(SIGTERM, &absorb, nullptr);
   meet_at_farewell(false, -1);
   MPI_Finalize();  // frees the communicators
 }

@@ -84,13 +84,17 @@ struct ShardFile {
   /// checked to be the end the writer gives a complete shard (json_end) byte for byte.
   void read_json_end() {
     const off_t rows_at = ftello(file.get());
+    if (rows_at < 0)  // before anything is read: a pipe that waits would hold up a signal
+      refuse("'" + path + "' cannot be read twice (a pipe?): a JSON shard must be a file");
     std::string line, end;
     while (read_line(file.get(), line) && !line.starts_with(']')) {
     }
     end = line + "\n";
     char buffer[1 << 16];
-    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0;)
+    for (std::size_t n; !std::ferror(file.get()) &&
+                        (n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0;)
       end.append(buffer, n);
+    if (std::ferror(file.get())) refuse("cannot read '" + path + "': " + std::strerror(errno));
     std::vector<std::string> entries;
     for (std::size_t at = end.find("\n{\"row\": "); at != std::string::npos;
          at = end.find("\n{\"row\": ", at + 1)) {
@@ -108,8 +112,8 @@ struct ShardFile {
                    end.substr(at + 16, std::min<std::size_t>(80, end.find("\"}", at) - at - 15)));
       refuse("'" + path + "': what follows its rows is not the end of a shard pendavg writes");
     }
-    if (rows_at < 0 || fseeko(file.get(), rows_at, SEEK_SET) != 0)
-      refuse("'" + path + "' cannot be read twice (a pipe?): a JSON shard must be a file");
+    if (fseeko(file.get(), rows_at, SEEK_SET) != 0)
+      refuse("cannot read '" + path + "' again: " + std::strerror(errno));
   }
 
   io::Format format() const {
@@ -207,6 +211,9 @@ std::string run_merge(const Options& options) {
   }
   std::vector<std::unique_ptr<ShardFile>> files;
   for (const std::string& path : options.operands()) {
+    // A signal while the shards before were read ends the merge (refuse: interrupted) before an
+    // open that may wait (a FIFO).
+    if (stop_flag().load()) refuse("");
     refuse_same_file(output, "output", path, "a shard", "merge");
     files.push_back(std::make_unique<ShardFile>(path));
   }
