@@ -295,8 +295,9 @@ PENDAVG_EXPORT void check_simulation_options(const SimulationOptions& options);
 /// Callbacks of a run (the library does no I/O). All optional. Progress and stop are the
 /// RunControl every engine takes (pendavg/result.hpp): `progress` is called every 1024 steps (or
 /// every 1% of a shorter run; for a Poincare section, every 1/200th of its points) with the
-/// fraction done, and `stop` is checked every 1024 steps: true ends the run early with the
-/// averages so far (interrupted = true). A dynamics run adds the trajectory callback.
+/// fraction done, and `stop` is checked every 1024 steps (a dynamics run of N > 64 particles:
+/// every 2^k <= 65536 / N steps): true ends the run early with the averages so far
+/// (interrupted = true). A dynamics run adds the trajectory callback.
 template <class Real>
 struct DynamicsObserver : RunControl {
   /// Called every `trajectory_every` steps (and at step 0) with the current state.

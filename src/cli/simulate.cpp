@@ -298,7 +298,7 @@ ReplicaSpread simulate_replicas(const Chain<double>& chain, const std::vector<do
   rows.count = replicas;
   rows.threads = hardware_threads();
   rows.row_bytes = packed_replica_doubles(n) * sizeof(double);
-  // A replica stops within 1024 steps and reports its averages so far; under MPI the file must
+  // A replica stops within milliseconds and reports its averages so far; under MPI the file must
   // be written before mpirun kills the ranks, 1 s after it forwarded the signal (sweep.hpp).
   rows.grace_seconds = ranks() > 1 ? 0.5 : 5;
   rows.progress = "simulate";

@@ -20,6 +20,7 @@
 #include <boost/math/constants/constants.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -957,6 +958,11 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
   // a fraction of a second, and a front end throttles what it prints.
   const std::size_t progress_every =
       std::clamp<std::size_t>(total_steps / 100, 1, 1024);
+  // The stop flag is read after about 65536 link updates, at most every 1024 steps: 1024 steps
+  // of a long chain take seconds, and a signal must end a run well within the 1 s that mpirun
+  // leaves before it kills the ranks. (A power of two: a mask per step, not a division.)
+  const std::size_t stop_mask =
+      std::bit_floor(std::clamp<std::size_t>(65536 / chain.size(), 1, 1024)) - 1;
   auto export_state = [&](std::size_t step) {
     store_links(ws, state);
     state.time = start_time + Real(static_cast<double>(step)) * h;
@@ -996,12 +1002,11 @@ SimulationResult<Real> simulate_kernel(const Chain<Real>& chain, ChainState<Real
     }
     if (observer.progress && step % progress_every == 0)
       observer.report(static_cast<double>(step) / static_cast<double>(total_steps));
-    if ((step & 1023) == 0) {
+    if ((step & 1023) == 0)
       out.constraint_residual = std::max(out.constraint_residual, link_constraint_residual(ws));
-      if (observer.stop_requested()) {
-        out.interrupted = step < total_steps;
-        break;
-      }
+    if ((step & stop_mask) == 0 && observer.stop_requested()) {
+      out.interrupted = step < total_steps;
+      break;
     }
   }
   finish_run(chain, options, langevin, ws, blocks, sample, done, energy_error_max,
