@@ -186,48 +186,41 @@ else
 fi
 }
 
+# stopped_simulate NAME DELAY N ARGS...: simulate of N unit particles (Langevin, dt 1e-5) under
+# mpirun -n 2, SIGTERM to mpirun after DELAY s; the JSON file must hold the averages so far
+# (interrupted) and no temporary be left.
+stopped_simulate() {
+local name=$1 delay=$2 unit out=$work/stopped.json
+unit=$("$python" -c "print(','.join(['1'] * $3))")
+shift 3
+"${launcher[@]}" -n 2 "$pendavg" simulate --masses "$unit" --lengths "$unit" --theta 0 \
+  --dt 1e-5 --thermostat langevin --beta 1 --exact no --format json --output "$out" "$@" \
+  >/dev/null 2>"$work/stopped.err" &
+local pid=$!
+sleep "$delay"
+kill -TERM "$pid"
+wait "$pid"
+if "$python" -c "import json, sys; assert json.load(open(sys.argv[1]))['interrupted']" "$out" 2>/dev/null &&
+   [ -z "$(find "$work" -name 'stopped.json.tmp.*')" ]; then
+  pass
+else
+  fail "$name" "the averages so far, interrupted, no temporary" \
+    "$(ls "$work" | grep stopped.json | tr '\n' ' ')"
+fi
+}
+
 # SIGTERM to mpirun while rank 0 runs both replicas of a simulate (its 2 threads take them; rank
 # 1, with none, waits at the job's end): rank 1 must not die of the signal, which made mpirun
 # kill rank 0 before it wrote the averages so far.
 case:stops.idle_rank() {
-local out=$work/replicas.json unit200 k
-unit200=$("$python" -c 'print(",".join(["1"] * 200))')
-OMP_NUM_THREADS=2 "${launcher[@]}" -n 2 "$pendavg" simulate --masses "$unit200" --lengths "$unit200" \
-  --theta 0 --time 1000 --dt 1e-5 --thermostat langevin --beta 1 --exact no --replicas 2 \
-  --format json --output "$out" >/dev/null 2>"$work/replicas.err" &
-local pid=$!
-sleep 3
-kill -TERM "$pid"
-wait "$pid"
-if "$python" -c "import json, sys; assert json.load(open(sys.argv[1]))['interrupted']" "$out" 2>/dev/null &&
-   [ -z "$(find "$work" -name 'replicas.json.tmp.*')" ]; then
-  pass
-else
-  fail "SIGTERM to mpirun with a rank idle" "the replicas' averages so far, interrupted, no temporary" \
-    "$(ls "$work" | grep replicas.json | tr '\n' ' ')"
-fi
+OMP_NUM_THREADS=2 stopped_simulate "SIGTERM to mpirun with a rank idle" 3 200 --time 1000 --replicas 2
 }
 
 # SIGTERM to mpirun during one trajectory of N = 16384 (rank 0 alone; 1024 steps take seconds):
 # the run must see the stop well within mpirun's 1 s. Checked every 1024 steps, it was killed
 # before it wrote in 2 of 3 tries.
 case:stops.long_chain() {
-local out=$work/chain.json unit
-unit=$("$python" -c 'print(",".join(["1"] * 16384))')
-"${launcher[@]}" -n 2 "$pendavg" simulate --masses "$unit" --lengths "$unit" --theta 0 --time 100 \
-  --dt 1e-5 --thermostat langevin --beta 1 --exact no --format json --output "$out" \
-  >/dev/null 2>"$work/chain.err" &
-local pid=$!
-sleep 4
-kill -TERM "$pid"
-wait "$pid"
-if "$python" -c "import json, sys; assert json.load(open(sys.argv[1]))['interrupted']" "$out" 2>/dev/null &&
-   [ -z "$(find "$work" -name 'chain.json.tmp.*')" ]; then
-  pass
-else
-  fail "SIGTERM to mpirun during a trajectory of N = 16384" "the averages so far, interrupted, no temporary" \
-    "$(ls "$work" | grep chain.json | tr '\n' ' ')"
-fi
+stopped_simulate "SIGTERM to mpirun during a trajectory of N = 16384" 4 16384 --time 100
 }
 
 # A signal to rank 0 alone (a stop set on rank 0's own window) stops every rank: with Open MPI's
