@@ -451,11 +451,13 @@ Averages<Real> average(const Chain<Real>& chain, const Real& beta, const Average
 template <class Real>
 void check_finite(const Averages<Real>& a, const char* command, const Chain<Real>& chain,
                   const Real* beta, const AverageOptions& options) {
+  const bool cos_positive = chain.gravity() > 0;
   try {
-    domain::check_result(a, command);
+    domain::check_result(a, command, "", cos_positive);
   } catch (const invalid_input&) {
     if constexpr (std::is_same_v<Real, double>)
-      domain::check_result(a, command, domain::more_digits_advice(chain, beta, options));
+      domain::check_result(a, command, domain::more_digits_advice(chain, beta, options),
+                           cos_positive);
     throw;
   }
 }

@@ -88,13 +88,14 @@ void check_stable_time_step(const Chain<Real>& chain, double time_step, long dou
 std::string more_digits_advice(const Chain<double>& chain, const double* beta,
                                const AverageOptions& options);
 
-/// The result check: every value and error finite; in double every non-zero value of a normal
-/// magnitude (a value below 2.2e-308 has lost digits) and no error that underflowed to zero
-/// beside a non-zero value's rounding. Throws invalid_input naming the command, the method and
-/// the observable, followed by `advice` (e.g. more_digits_advice's).
+/// The result check: every value and error finite; in double every non-zero value at least
+/// 2^53 times the smallest normal double (nearer, terms of it pass through the subnormals and
+/// lose digits), and no <cos phi_i> of 0 when `cos_positive` (g > 0: an underflow). Throws
+/// invalid_input naming the command, the method and the observable, followed by `advice`
+/// (e.g. more_digits_advice's).
 template <class Real>
 void check_result(const Averages<Real>& averages, const char* command,
-                  const std::string& advice = "");
+                  const std::string& advice = "", bool cos_positive = false);
 
 /// One finite check for the observables of other results (microcanonical, dynamics).
 template <class Real>

@@ -206,10 +206,49 @@ TEST_CASE("fail closed: the result check refuses NaN, infinity and subnormal val
     CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "limit", "; advice"); }),
                Catch::Contains("below double's normal range") && Catch::Contains("; advice"));
   }
+  SECTION("a value within 2^53 of the subnormals, and a <cos phi_i> of 0 with gravity") {
+    a.cos_angle[0].value = 1e-300;
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "average"); }),
+               Catch::Contains("<cos phi_i> below double's normal range (2.2e-308), or within "
+                               "2^53 of it"));
+    a.cos_angle[0].value = 1e-290;
+    CHECK(rejection([&] { pendavg::domain::check_result(a, "average"); }).empty());
+    a.cos_angle[0] = {0, 0, pendavg::ErrorKind::estimate};
+    CHECK(rejection([&] { pendavg::domain::check_result(a, "average"); }).empty());  // g = 0
+    CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "average", "", true); }),
+               Catch::Contains("<cos phi_i> below double's normal range"));
+  }
   SECTION("NaN ratio") {
     a.ratio = Estimate<double>{std::nan(""), 0, pendavg::ErrorKind::estimate};
     CHECK_THAT(rejection([&] { pendavg::domain::check_result(a, "average"); }),
                Catch::Contains("<K1>/<K2>"));
+  }
+}
+
+TEST_CASE("fail closed: N = 2 in double where <cos phi_2> passes through the subnormals",
+          "[fail_closed]") {
+  // a2 = 1e-306: <cos phi_2> = 5e-307 came out 3.6e-11 off with an error of 1e-14 of it; a2 =
+  // 7.6e-293 (g = 5.14e-62): 0 +- 0 for 3.8e-293. Refused with advice that works.
+  struct Input {
+    std::vector<double> m, l;
+    double g, beta;
+  };
+  for (const Input& in : {Input{{1, 1e-300}, {1e8, 1e8}, 1, 1e-14},
+                          Input{{1, 1e-298}, {1, 1e8}, 1, 1e-12},
+                          Input{{9.55e-36, 6.94e-268}, {1.27e4, 3.53e73}, 5.14e-62, 6.04e-38}}) {
+    INFO("m2 = " << in.m[1] << ", l2 = " << in.l[1] << ", beta = " << in.beta);
+    const std::string refusal = rejection([&] {
+      (void)pendavg::average(Chain<double>(in.m, in.l, in.g), in.beta, digits(16));
+    });
+    CHECK_THAT(refusal, Catch::Contains("<cos phi_i> below double's normal range") &&
+                            Catch::Contains(mpfr_advice));
+    const pendavg::working_precision wp(20 + pendavg::guard_digits);
+    const auto a = pendavg::average(
+        Chain<mpfr_real>({mpfr_real(in.m[0]), mpfr_real(in.m[1])},
+                         {mpfr_real(in.l[0]), mpfr_real(in.l[1])}, mpfr_real(in.g)),
+        mpfr_real(in.beta), digits(20));
+    CHECK(a.cos_angle[1].value > 0);
+    CHECK(a.cos_angle[1].error < 1e-18 * a.cos_angle[1].value);
   }
 }
 

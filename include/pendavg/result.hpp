@@ -172,9 +172,11 @@ struct Averages {
   ErrorKind error_kind = ErrorKind::estimate;
   std::size_t evaluations = 0;  ///< work done, in `work_unit`
   WorkUnit work_unit = WorkUnit::nodes;
-  bool converged = true;  ///< false: the requested accuracy was not reached (errors still hold)
+  /// false: the requested accuracy was not reached (a bound still holds; an estimate is the last
+  /// refinement's and can fall short of the true error)
+  bool converged = true;
   /// true: stopped early through RunControl::stop; the values are those of the work finished
-  /// (converged = false, errors still hold).
+  /// (converged = false, and its errors are what converged = false says).
   bool interrupted = false;
   std::optional<TorusDiagnostics<Real>> torus;  ///< torus methods only
   std::optional<QmcDiagnostics<Real>> qmc;      ///< qmc only

@@ -5,11 +5,14 @@
 // (2 bad input, 1 internal error, 130 stopped by a signal before anything was finished), each
 // with exactly one line on stderr (distribute.hpp, report_failure); a sweep that wrote its output
 // but has failed rows exits with 3 (sweep.hpp, rows_failed). Under MPI only rank 0 prints.
+#include "args.hpp"
 #include "commands.hpp"
 #include "distribute.hpp"
 
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <stdexcept>
 #include <string>
@@ -27,8 +30,9 @@ int main(int argc, char** argv) {
     if (!pendavg::cli::is_root()) return 0;
     if (std::fwrite(output.data(), 1, output.size(), stdout) != output.size() ||
         std::fflush(stdout) != 0)
-      return pendavg::cli::report_failure(
-          std::make_exception_ptr(std::runtime_error("cannot write to stdout")));
+      // As an --output that cannot be written (a full disk, ulimit -f): exit 2.
+      return pendavg::cli::report_failure(std::make_exception_ptr(pendavg::cli::usage_error(
+          std::string("cannot write to stdout: ") + std::strerror(errno))));
     return 0;
   } catch (...) {
     return pendavg::cli::report_failure(std::current_exception());

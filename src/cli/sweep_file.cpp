@@ -312,7 +312,7 @@ void SweepFile::write_out(std::string_view text) {
     const ssize_t n = ::write(STDOUT_FILENO, text.data() + written, text.size() - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      throw std::runtime_error(std::string("cannot write to stdout: ") + std::strerror(errno));
+      throw usage_error(std::string("cannot write to stdout: ") + std::strerror(errno));
     }
     written += static_cast<std::size_t>(n);
   }

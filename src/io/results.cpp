@@ -72,7 +72,7 @@ constexpr Field averages_table[] = {
     {"equipartition_residual", K::error, one, "|sum_i beta<K_i> - N/2| after the computation"},
     {"evaluations", K::count, one, "work done, in work_unit"},
     {"work_unit", K::text, one, "what evaluations counts: terms, nodes, samples or steps"},
-    {"converged", K::flag, one, "false: the requested accuracy was not reached (the errors still hold)"},
+    {"converged", K::flag, one, "false: the requested accuracy was not reached (a bound still holds; an estimate is the last refinement's and can fall short of the true error)"},
     {"interrupted", K::flag, one, "true: stopped early by a signal; the finished part is reported"},
 };
 
@@ -102,7 +102,7 @@ constexpr Field averages_table[] = {
   {"effective_sample_fraction", K::real, one, "qmc: (sum w)^2 / (n sum w^2) (empty otherwise)"}, \
   {"evaluations", K::count, one, "work done, in work_unit"}, \
   {"work_unit", K::text, one, "what evaluations counts"}, \
-  {"converged", K::flag, one, "false: the tolerance was not reached (the errors still hold)"}, \
+  {"converged", K::flag, one, "false: the tolerance was not reached (a bound still holds; an estimate is the last refinement's and can fall short of the true error)"}, \
 
 constexpr Field energy_field{"energy", K::real, one, "the energy E"};
 constexpr Field excitation_field{

@@ -130,6 +130,31 @@ refused "average: Var K underflows, N = 5" "leaves double's range" \
 finite "average: N = 2 at beta 1e200 in MPFR" average --masses 1,1 --lengths 1,1 --beta 1e200 --digits 20 --format csv
 }
 
+case:average.near_subnormal() {
+# <cos phi_2> = 5e-307 off by 3.6e-11 with an error of 1e-14 of it; 0 +- 0 for 3.8e-293
+refused "average: <cos phi_2> near the subnormals" "request 17 or more digits" \
+  average --masses 1,1e-300 --lengths 1e8,1e8 --beta 1e-14
+refused "average: <cos phi_2> underflowed to 0" "request 17 or more digits" \
+  average --masses 9.55e-36,6.94e-268 --lengths 1.27e4,3.53e73 --beta 6.04e-38 --g 5.14e-62
+finite "average: ... and the advice works" average --masses 1,1e-300 --lengths 1e8,1e8 --beta 1e-14 --digits 17 --format csv
+}
+
+case:output.full_stdout() {
+# a full stdout is refused as a full --output is: exit 2 and one line, not an internal error
+for args in "average --masses 1,1 --lengths 1,1 --beta 1" "table --beta 1,2"; do
+  # shellcheck disable=SC2086
+  timeout 60 "$pendavg" $args >/dev/full 2>"$work/err"
+  rc=$?
+  if [[ $rc -eq 2 && $(wc -l <"$work/err") -eq 1 ]] &&
+     grep -q '^pendavg: error: cannot write to stdout: No space left on device$' "$work/err"; then
+    pass
+  else
+    fail "$args >/dev/full" "exit 2, one line 'pendavg: error: cannot write to stdout: ...'" \
+      "exit $rc: $(head -c 200 "$work/err")"
+  fi
+done
+}
+
 case:advice.digits() {
 # advice that is true: at 30 digits the refusal names MPFR's exponent range
 refused "average: MPFR exponent range" "MPFR's exponent range" \

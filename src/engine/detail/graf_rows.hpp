@@ -24,16 +24,22 @@ namespace pendavg {
 /// "The N = 2 cost model").
 inline double graf_orders_needed(double a1, double a2, double L) {
   if (!(a1 > 0 && a2 > 0) || !(L > 0)) return 1.0;
+  // asinh(m/a), also where m/a overflows (a subnormal scale: a tiny mass or length at large
+  // digits): ln(2m/a) there. (The overflow once made the orders NaN.)
+  const auto asinh_ratio = [](double m, double a) {
+    const double x = m / a;
+    return std::isfinite(x) ? std::asinh(x) : std::log(2.0) + std::log(m) - std::log(a);
+  };
   // a phi(m/a) = m asinh(m/a) - m^2 / (sqrt(a^2 + m^2) + a): no cancellation, no a^2 overflow.
   const auto f = [&](double m) {
     double v = 0;
-    for (const double a : {a1, a2}) v += m * std::asinh(m / a) - m * m / (std::hypot(a, m) + a);
+    for (const double a : {a1, a2}) v += m * asinh_ratio(m, a) - m * m / (std::hypot(a, m) + a);
     return v;
   };
   const double harmonic = a1 / (a1 + a2) * a2;
   double m = std::sqrt(2.0 * L * harmonic);  // f(m) <= m^2 / (2 harmonic): at or below the root
   for (int iteration = 0; iteration < 40; ++iteration) {
-    const double slope = std::asinh(m / a1) + std::asinh(m / a2);
+    const double slope = asinh_ratio(m, a1) + asinh_ratio(m, a2);
     if (!(slope > 0)) {
       m = 1.0;  // m = 0 start (tiny harmonic): one unit step, then Newton
       continue;
@@ -42,7 +48,7 @@ inline double graf_orders_needed(double a1, double a2, double L) {
     m += step;
     if (std::abs(step) < 0.25 || !(m < 1e9)) break;
   }
-  return std::min(std::max(m, 1.0), 1e9);
+  return std::isnan(m) ? 1e9 : std::min(std::max(m, 1.0), 1e9);  // NaN: never a row count
 }
 
 /// Rows K of the exact sums beyond which the Fourier moments alone make the tail negligible:

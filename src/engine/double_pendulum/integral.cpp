@@ -702,12 +702,13 @@ GrafWeights<Real> graf_weights(const Real& a1, const Real& a2, double L,
       c2 *= eps;
       c2 *= i1[m];
     }
-    // Trim: drop the top terms whose summed magnitude is below exp(-L) times each scale
-    // (the scale of F1, F2 is their leading coefficient, floored at e^{-L} c0[0]).
-    const Real floor_scale = g.c0[0] * cut;
+    // Trim: drop the top terms whose summed magnitude is below exp(-L) times each sum's own
+    // leading coefficient, as graf_moment_integrals' bound of the cut tail assumes. (Floored at
+    // e^{-L} c0[0], the trim once cut every row but the first of a <cos phi_j> below e^{-L}:
+    // a link whose a_j is ~1e-40 of the other's lost its relative O(1) corrections.)
     const Real limit0 = cut * g.c0[0];
-    const Real limit1 = cut * (g.c1[0] + floor_scale);
-    const Real limit2 = cut * (g.c2[0] + floor_scale);
+    const Real limit1 = cut * g.c1[0];
+    const Real limit2 = cut * g.c2[0];
     Real t0 = 0, t1 = 0, t2 = 0;
     std::size_t keep = kmax + 1;
     while (keep > 1) {

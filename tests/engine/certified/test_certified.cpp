@@ -314,6 +314,51 @@ TEST_CASE("certified: hard cases hold and are tight", "[certified]") {
   }
 }
 
+TEST_CASE("certified: a subnormal scale at 36-40 digits is computed, not a crash", "[certified]") {
+  // a2 = beta g m2 l2 below double's range made the Graf row plan NaN (m / a2 overflowed):
+  // a segmentation fault certified, "cannot create std::vector larger than max_size()" not.
+  for (const auto& [c, digits] :
+       {std::pair{Case{1, 1e-320, 1, 1, 1, 1}, 40}, std::pair{Case{1, 1e-300, 1, 1, 1, 1e-12}, 37},
+        std::pair{Case{1, 1e-200, 1, 1e-110, 1, 0.1}, 40}}) {
+    const double tight = check_against_more_digits(c, digits);
+    INFO(c.text() << " digits " << digits << ": tightness " << tight);
+    CHECK(tight <= 10);
+  }
+}
+
+TEST_CASE("certified: the uncertified integral's errors cover it where a link's scale is tiny",
+          "[certified]") {
+  // <cos phi_j>'s Graf rows were trimmed against <K>'s scale, not their own: where a_j is
+  // ~1e-40 of the other link's (1e-20 at beta = 1e-6) every row but the first was cut, and
+  // <cos phi_2> came out as a2/2, 7% off with an error of 1e-14 of it. The same at 30 and 60
+  // digits for 1e-100 and 1e-200; and a subnormal a2 at 37-40 digits failed (above).
+  const std::pair<Case, int> cases[] = {
+      {Case{1, 1, 1, 1e-40, 1, 5}, 16},    {Case{1, 1, 1e-40, 1, 1, 5}, 16},
+      {Case{1, 1, 1, 1e-20, 1, 1e-6}, 16}, {Case{1, 1, 1, 1e-100, 1, 5}, 30},
+      {Case{1, 1, 1, 1e-200, 1, 5}, 60},   {Case{1, 1e-320, 1, 1, 1, 1}, 40},
+      {Case{1, 1e-300, 1, 1, 1, 1e-12}, 37}};
+  for (const auto& [c, digits] : cases) {
+    std::vector<Observable> plain;
+    if (digits == 16) {
+      AverageOptions o;
+      o.method = pendavg::AverageMethod::integral;
+      const auto a = pendavg::average(Chain<double>({c.m1, c.m2}, {c.l1, c.l2}, c.g), c.beta, o);
+      const pendavg::working_precision wp(200);
+      plain = observables(a);
+    } else {
+      plain = uncertified_run(c, digits);
+    }
+    const auto certified = certified_run(c, digits);
+    const pendavg::working_precision wp(200);
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+      INFO(c.text() << " digits " << digits << ": " << observable_names[i] << " "
+                    << plain[i].value << " +- " << plain[i].error << ", certified "
+                    << certified[i].value << " +- " << certified[i].error);
+      CHECK(abs(plain[i].value - certified[i].value) <= plain[i].error + certified[i].error);
+    }
+  }
+}
+
 TEST_CASE("certified: the beta -> 0 limit holds against the elliptic formula", "[certified]") {
   for (const double mu1 : {0.5, 1e-9, 1 - 1e-9}) {
     const Case c{mu1, 1 - mu1, 1, 1, 1, 1};
