@@ -139,6 +139,17 @@ refused "average: <cos phi_2> underflowed to 0" "request 17 or more digits" \
 finite "average: ... and the advice works" average --masses 1,1e-300 --lengths 1e8,1e8 --beta 1e-14 --digits 17 --format csv
 }
 
+case:microcanonical.separatrix() {
+# at the single pendulum's separatrix (E = m g l) Omega(E) diverges: was "not finite ...
+# (please report it)"; beside it the averages are finite
+for args in "--energy 1" "--energy 1 --digits 30" "--excitation 2"; do
+  # shellcheck disable=SC2086
+  refused "microcanonical at the separatrix: $args" "diverges at this energy, a critical energy" \
+    average --masses 1 --lengths 1 $args
+done
+finite "microcanonical beside the separatrix" average --masses 1 --lengths 1 --energy 0.9999999 --format csv
+}
+
 case:output.full_stdout() {
 # a full stdout is refused as a full --output is: exit 2 and one line, not an internal error
 for args in "average --masses 1,1 --lengths 1,1 --beta 1" "table --beta 1,2"; do

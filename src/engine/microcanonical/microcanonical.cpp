@@ -829,6 +829,16 @@ MicrocanonicalAverages<Real> checked(MicrocanonicalAverages<Real> a) {
         std::max(a.density_of_states.error,
                  64 * std::numeric_limits<double>::epsilon() * std::fabs(a.density_of_states.value));
   }
+  // At a critical energy of the potential (a separatrix: the single pendulum's upright state,
+  // E = m g l) the motion takes infinitely long near the saddle: Omega(E) diverges
+  // logarithmically and the averages are its ratios. A clear refusal, not a non-finite result.
+  {
+    using std::isinf;
+    if (isinf(a.density_of_states.value))
+      throw invalid_input("microcanonical: the density of states diverges at this energy, a "
+                          "critical energy of the potential (a separatrix); take an energy "
+                          "beside it");
+  }
   const auto check = [](const Estimate<Real>& e, const char* what) {
     domain::check_finite_estimate(e, "microcanonical", what);
     if constexpr (std::is_same_v<Real, double>)
