@@ -96,6 +96,38 @@ bool all_finite(const pendavg::Averages<double>& a) {
          (!a.ratio || (std::isfinite(a.ratio->value) && std::isfinite(a.ratio->error)));
 }
 
+TEST_CASE("qmc: a particle 1e-12 of its neighbours: every Var K bar covers or is not converged",
+          "[torus][qmc]") {
+  // Its Var K is heavy-tailed: the shift means are skewed and the bars missed the exact value
+  // by 2-25x (masses 1e-12, 1, 1; beta = 1) with converged = true. A bar as wide as its value
+  // now marks the result unresolved.
+  for (const std::vector<double>& masses :
+       {std::vector<double>{1e-12, 1, 1}, std::vector<double>{1, 1e-12, 1}}) {
+    const Chain<double> chain(masses, {1, 1, 1}, 1);
+    TorusOptions exact_options;
+    exact_options.tolerance = 1e-12;
+    const auto exact = torus_average(chain, 1.0, exact_options);
+    REQUIRE(exact.converged);
+    int unconverged = 0;
+    for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+      pendavg::QmcOptions options;
+      options.points = 16384;
+      options.seed = seed;
+      const auto q = pendavg::qmc_average(chain, 1.0, options);
+      unconverged += !q.converged;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const auto& v = q.beta2_kinetic_variance[i];
+        INFO("masses " << masses[0] << "," << masses[1] << " seed " << seed << " particle " << i + 1
+                       << ": " << v.value << " +- " << v.error << ", exact "
+                       << exact.beta2_kinetic_variance[i].value);
+        CHECK((!q.converged ||
+               std::abs(v.value - exact.beta2_kinetic_variance[i].value) <= v.error));
+      }
+    }
+    CHECK(unconverged > 0);  // the light particle's Var K is not resolved by 16 x 16384 points
+  }
+}
+
 TEST_CASE("qmc weights cannot underflow: the issue-15 case (N = 3, beta = 100, seed 16)",
           "[torus][qmc]") {
   // The first lattice point of a shift had a weight below the double range: its log (-inf)
